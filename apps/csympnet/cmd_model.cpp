@@ -1,0 +1,138 @@
+// `evaluate` (diagnostics of a saved model) and `rollout` (iterate a saved model).
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+#include "commands.hpp"
+#include "csympnet/core/error.hpp"
+#include "csympnet/data/csv.hpp"
+#include "csympnet/experiments/outputs.hpp"
+#include "csympnet/experiments/run.hpp"
+#include "csympnet/io/files.hpp"
+#include "csympnet/io/model_file.hpp"
+#include "system_options.hpp"
+
+namespace csympnet::cli {
+
+namespace {
+struct EvaluateArgs {
+  std::string model, preset, data, out;
+  std::optional<double> h_test;
+  bool force = false;
+  SystemOverrides system;
+};
+
+Vector parse_state(const std::string& s, Index dim) {
+  std::vector<double> v;
+  std::stringstream in(s);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    std::size_t pos = 0;
+    double x = 0.0;
+    try {
+      x = std::stod(item, &pos);
+    } catch (const std::exception&) {
+      pos = 0;
+    }
+    if (pos == 0 || pos != item.size() || !std::isfinite(x))
+      throw Error("--z0: '" + item + "' is not a finite number");
+    v.push_back(x);
+  }
+  if (static_cast<Index>(v.size()) != dim)
+    throw Error("--z0 has " + std::to_string(v.size()) + " values; the model expects " +
+                std::to_string(dim) + " (q1..qd,p1..pd)");
+  return Eigen::Map<Vector>(v.data(), dim);
+}
+}  // namespace
+
+void add_evaluate(CLI::App& app) {
+  auto a = std::make_shared<EvaluateArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "evaluate", "Roll a saved model out on test trajectories; print the diagnostics as JSON");
+  cmd->add_option("--model", a->model, "Model file")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--preset", a->preset,
+                  "System and test set of this preset (default: the model's own system)")
+      ->check(CLI::IsMember(preset_names()));
+  cmd->add_option("--data", a->data, "Test trajectories CSV (default: the preset's test set)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--h-test", a->h_test, "Step of the Jacobian diagnostics (default 0.2)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--out", a->out, "Also write DIR/report.json");
+  cmd->add_flag("--force", a->force, "Allow writing into a non-empty output directory");
+  a->system.add_to(*cmd);
+  cmd->callback([a] {
+    if (!a->out.empty()) prepare_output_dir(a->out, a->force);
+    const SavedModel saved = load_model(a->model);
+    RunConfig c = default_run_config(a->preset.empty() ? "s1" : a->preset, "csympnet");
+    if (a->preset.empty()) {
+      require(saved.meta.contains("system"),
+              "--preset is required: " + a->model + " does not record its system");
+      c.preset.system = saved.meta["system"].get<SystemSpec>();
+    }
+    a->system.apply(c.preset);
+    if (a->h_test) c.preset.h_test = *a->h_test;
+    const System sys(c.preset.system);
+    require(sys.dim() == saved.map->dim(),
+            "the model's dimension " + std::to_string(saved.map->dim()) +
+                " does not match the system's " + std::to_string(sys.dim()));
+    std::vector<Trajectory> tests;
+    if (!a->data.empty()) {
+      tests = read_trajectories_csv(a->data);
+    } else {
+      require(!a->preset.empty(), "--data or --preset is required to know the test set");
+      Rng rng(c.test_seed, "test-trajectories");
+      tests = generate_test_set(sys, c.preset.n_test, c.preset.h_test, c.preset.horizon, rng,
+                                c.reference)
+                  .trajectories;
+    }
+    const Diagnostics d =
+        evaluate(learned_map(*saved.map, saved.theta), sys, tests, c.preset.h_test);
+    nlohmann::json rep = d;
+    rep["model_file"] = a->model;
+    rep["model"] = saved.map->type();
+    rep["params"] = saved.map->n_params();
+    rep["gamma_true"] = sys.gamma();
+    rep["system"] = c.preset.system;
+    rep["h_test"] = c.preset.h_test;
+    rep["test_trajectories"] = tests.size();
+    if (!a->out.empty())
+      write_json_file((std::filesystem::path(a->out) / "report.json").string(), rep);
+    std::cout << rep.dump(2) << "\n";
+  });
+}
+
+void add_rollout(CLI::App& app) {
+  auto model = std::make_shared<std::string>();
+  auto z0 = std::make_shared<std::string>();
+  auto h = std::make_shared<double>(0.0);
+  auto steps = std::make_shared<long>(0);
+  CLI::App* cmd =
+      app.add_subcommand("rollout", "Iterate a saved model from z0; print t,q..,p.. as CSV");
+  cmd->add_option("--model", *model, "Model file")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--z0", *z0, "Initial state q1,..,qd,p1,..,pd")->required();
+  cmd->add_option("--h", *h, "Step")->required()->check(CLI::PositiveNumber);
+  cmd->add_option("--steps", *steps, "Number of steps")
+      ->required()
+      ->check(CLI::Range(1L, 100000000L));
+  cmd->callback([=] {
+    const SavedModel saved = load_model(*model);
+    const Vector z = parse_state(*z0, saved.map->dim());
+    const Vector hs = Vector::Constant(*steps, *h);
+    const Matrix states = rollout(learned_map(*saved.map, saved.theta), z, hs);
+    const Index d = saved.map->dim() / 2;
+    std::string line = "t";
+    for (Index i = 1; i <= d; ++i) line += ",q" + std::to_string(i);
+    for (Index i = 1; i <= d; ++i) line += ",p" + std::to_string(i);
+    std::printf("%s\n", line.c_str());
+    for (Index n = 0; n < states.cols(); ++n) {
+      std::printf("%.17g", static_cast<double>(n) * *h);
+      for (Index i = 0; i < states.rows(); ++i) std::printf(",%.17g", states(i, n));
+      std::printf("\n");
+    }
+  });
+}
+
+}  // namespace csympnet::cli

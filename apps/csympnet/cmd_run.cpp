@@ -1,0 +1,138 @@
+// `run` (generate + train + evaluate a preset) and `describe` (architecture and size).
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "commands.hpp"
+#include "csympnet/core/error.hpp"
+#include "csympnet/experiments/outputs.hpp"
+#include "csympnet/experiments/paper_values.hpp"
+#include "csympnet/experiments/run.hpp"
+#include "csympnet/io/files.hpp"
+#include "progress.hpp"
+#include "system_options.hpp"
+
+namespace csympnet::cli {
+
+namespace {
+struct RunArgs {
+  std::string preset, model = "csympnet", out, reference = "splitting";
+  std::uint64_t seed = 42;
+  std::optional<long> epochs;
+  long val_every = 10;
+  double sigma = 0.0, beta_init = 0.1;
+  bool no_beta_decay = false, quiet = false, force = false;
+  SystemOverrides system;
+};
+
+// Our numbers, with the paper's beside them where it reports the same quantity.
+void print_run_summary(const RunArgs& args, const RunResult& r) {
+  const Diagnostics& d = r.diagnostics;
+  const auto paper = paper_values(args.preset, args.model);
+  std::printf("%s on %s (seed %llu, sigma %g): %lld params, %ld epochs in %.2f s\n",
+              args.model.c_str(), args.preset.c_str(), static_cast<unsigned long long>(args.seed),
+              args.sigma, static_cast<long long>(r.map->n_params()), r.training.epochs_run,
+              r.training.seconds);
+  std::printf("  %-26s %-14s %s\n", "quantity", "csympnet", "paper (seed 42, sigma 0)");
+  auto row = [](const char* name, double ours, std::optional<double> theirs) {
+    if (theirs)
+      std::printf("  %-26s %-14.4e %.4e\n", name, ours, *theirs);
+    else
+      std::printf("  %-26s %-14.4e -\n", name, ours);
+  };
+  if (d.gamma_hat) {
+    std::printf("  %-26s %-14.10f ", "gamma_hat", *d.gamma_hat);
+    if (paper && paper->gamma_hat)
+      std::printf("%.4e\n", *paper->gamma_hat);
+    else
+      std::printf("-\n");
+    row("|gamma_hat - gamma|", *d.gamma_abs_err, paper ? paper->gamma_abs_err : std::nullopt);
+  }
+  row("L2 rollout error", d.l2_error, paper ? std::optional(paper->l2_error) : std::nullopt);
+  row("E[R]", d.residual_mean, paper ? paper->residual_mean : std::nullopt);
+  row("max R", d.residual_max, paper ? paper->residual_max : std::nullopt);
+  row("E|lambda_hat - lambda*|", d.lambda_abs_err_mean,
+      paper ? paper->lambda_abs_err_mean : std::nullopt);
+  row("structure residual (max)", d.structure_residual_max, std::nullopt);
+  std::printf("  wrote %s/{report.json,model.json,rollout.csv,reference.csv,energy.csv}\n",
+              args.out.c_str());
+}
+
+CLI::Option* add_preset_option(CLI::App& cmd, std::string& preset) {
+  return cmd.add_option("--preset", preset, "Benchmark preset")
+      ->required()
+      ->check(CLI::IsMember(preset_names()));
+}
+}  // namespace
+
+void add_run(CLI::App& app) {
+  auto args = std::make_shared<RunArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "run", "Generate a preset's data, train a model, evaluate it, write DIR/report.json");
+  add_preset_option(*cmd, args->preset);
+  cmd->add_option("--model", args->model, "Model to train")
+      ->check(CLI::IsMember(map_model_names()));
+  cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42");
+  cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
+      ->check(CLI::Range(0L, 100000000L));
+  cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
+      ->check(CLI::Range(1L, 100000000L));
+  cmd->add_option("--sigma", args->sigma, "Relative observation noise (default 0)")
+      ->check(CLI::Range(0.0, 10.0));
+  cmd->add_option("--reference", args->reference, "Reference solver for the data")
+      ->check(CLI::IsMember({"splitting", "expm", "rk"}));
+  cmd->add_option("--beta-init", args->beta_init, "Initial beta of CSympNet-ID (nonzero)");
+  cmd->add_flag("--no-beta-decay", args->no_beta_decay,
+                "Exclude beta from weight decay (beyond the paper's recipe)");
+  cmd->add_option("--out", args->out, "Output directory")->required();
+  cmd->add_flag("--force", args->force, "Allow writing into a non-empty output directory");
+  cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
+  args->system.add_to(*cmd);
+  cmd->callback([args] {
+    prepare_output_dir(args->out, args->force);
+    RunConfig c = default_run_config(args->preset, args->model);
+    args->system.apply(c.preset);
+    c.seed = args->seed;
+    c.sigma = args->sigma;
+    if (args->epochs) c.train.epochs = *args->epochs;
+    c.train.val_every = args->val_every;
+    c.train.adamw.decay_damping = !args->no_beta_decay;
+    c.reference.method = parse_reference(args->reference);
+    c.beta_init = args->beta_init;
+    RunResult r;
+    {
+      ProgressLine progress(args->quiet);
+      r = run_experiment(c, progress.callback());
+    }
+    write_run_outputs(args->out, r);
+    const auto& rep = r.report;
+    if (!args->quiet) print_run_summary(*args, r);
+    if (rep["stop_reason"] == "diverged")
+      throw Error("training diverged (non-finite loss); the best checkpoint was kept in " +
+                  args->out);
+  });
+}
+
+void add_describe(CLI::App& app) {
+  auto preset = std::make_shared<std::string>();
+  auto model = std::make_shared<std::string>("csympnet");
+  auto system = std::make_shared<SystemOverrides>();
+  CLI::App* cmd =
+      app.add_subcommand("describe", "Print a preset model's architecture and size as JSON");
+  add_preset_option(*cmd, *preset);
+  cmd->add_option("--model", *model, "Model")->check(CLI::IsMember(map_model_names()));
+  system->add_to(*cmd);
+  cmd->callback([preset, model, system] {
+    Preset p = preset_by_name(*preset);
+    system->apply(p);
+    nlohmann::json spec = model_spec_for(p, *model);
+    auto map = make_one_step_map(spec);
+    nlohmann::json out = {{"model", *model},           {"preset", *preset},
+                          {"params", map->n_params()}, {"architecture", map->hyperparams()},
+                          {"system", p.system},        {"epochs", p.epochs}};
+    std::cout << out.dump(2) << "\n";
+  });
+}
+
+}  // namespace csympnet::cli

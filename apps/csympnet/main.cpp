@@ -1,0 +1,35 @@
+// csympnet: learn conformally symplectic one-step maps of damped Hamiltonian systems and
+// identify the damping rate. See `csympnet --help` and README.md.
+#include <cstdio>
+#include <exception>
+
+#include <CLI/CLI.hpp>
+
+#include "commands.hpp"
+#include "csympnet/core/error.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "csympnet: conformal-symplectic map learning (CSympNet-ID) and damping identification"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "csympnet 0.1.0");
+  csympnet::cli::add_run(app);
+  csympnet::cli::add_describe(app);
+  csympnet::cli::add_generate(app);
+  csympnet::cli::add_train(app);
+  csympnet::cli::add_fit(app);
+  csympnet::cli::add_evaluate(app);
+  csympnet::cli::add_rollout(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const csympnet::Error& e) {
+    std::fprintf(stderr, "csympnet: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "csympnet: internal error: %s\n", e.what());
+    return 3;
+  }
+  return 0;
+}

@@ -1,0 +1,22 @@
+// A one-line training progress display on a terminal: epoch, loss, validation loss, γ̂, ETA.
+// Prints nothing when stderr is not a terminal or when quiet.
+#pragma once
+
+#include "csympnet/train/trainer.hpp"
+
+namespace csympnet::cli {
+
+class ProgressLine {
+ public:
+  explicit ProgressLine(bool quiet);
+  ~ProgressLine();  // ends the line if one was drawn
+  ProgressCallback callback();
+  bool active() const { return active_; }
+
+ private:
+  bool active_;
+  bool drawn_ = false;
+  double last_draw_ = -1.0;
+};
+
+}  // namespace csympnet::cli

@@ -1,0 +1,24 @@
+#include "system_options.hpp"
+
+namespace csympnet::cli {
+
+void SystemOverrides::add_to(CLI::App& cmd) {
+  cmd.add_option("--d", d, "Degrees of freedom (overrides the preset)")
+      ->check(CLI::Range(1, 100000));
+  cmd.add_option("--gamma", gamma, "Damping rate gamma >= 0 (default 0.05)")
+      ->check(CLI::NonNegativeNumber);
+  cmd.add_option("--omega", omega, "Frequency omega > 0 (oscillator, cubic)")
+      ->check(CLI::PositiveNumber);
+  cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain)")->check(CLI::NonNegativeNumber);
+  cmd.add_option("--alpha", alpha, "Cubic coefficient alpha (cubic)");
+}
+
+void SystemOverrides::apply(Preset& p) const {
+  if (d) p.system.d = *d;
+  if (gamma) p.system.gamma = *gamma;
+  if (omega) p.system.omega = *omega;
+  if (k) p.system.k = *k;
+  if (alpha) p.system.alpha = *alpha;
+}
+
+}  // namespace csympnet::cli

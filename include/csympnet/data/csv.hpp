@@ -1,0 +1,31 @@
+// CSV input and output of snapshot data.
+//
+//   pairs:        h,q1..qd,p1..pd,next_q1..next_qd,next_p1..next_pd
+//   trajectories: [traj,]t,q1..qd,p1..pd   (traj optional: absent means one trajectory)
+//
+// Readers reject bad input with csympnet::Error naming the file, the line (and column where
+// it applies), and what was expected. They never crash and never return partial data.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "csympnet/data/dataset.hpp"
+
+namespace csympnet {
+
+enum class CsvKind { kPairs, kTrajectories };
+
+// Inspects the header line only.
+CsvKind detect_csv_kind(const std::string& path);
+
+PairSet read_pairs_csv(const std::string& path);
+std::vector<Trajectory> read_trajectories_csv(const std::string& path);
+// Either format; trajectories become pairs of consecutive rows.
+PairSet read_any_as_pairs(const std::string& path);
+
+// Values are written with 17 significant digits, so they read back bit-identical.
+void write_pairs_csv(const std::string& path, const PairSet& pairs);
+void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs);
+
+}  // namespace csympnet

@@ -1,0 +1,37 @@
+// The paper's benchmark presets (PROTOCOL.md): system, data sizes, steps and architectures.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/data/generate.hpp"
+#include "csympnet/systems/system.hpp"
+
+namespace csympnet {
+
+struct Preset {
+  std::string name;  // "s1", "s2", "s3", "s2-100", "s3-100"
+  SystemSpec system;
+  Index n_train = 400;    // training pairs
+  Index n_val = 100;      // validation pairs (N_train / 4)
+  StepSpec train_steps;   // step of training and validation pairs
+  double h_test = 0.2;    // step of the test rollouts
+  double horizon = 10.0;  // test trajectories cover [0, horizon]
+  Index n_test = 10;      // test trajectories M
+  nlohmann::json core;    // symplectic core of CSympNet-ID and SympNet
+  long epochs = 20000;    // documented AdamW budget for the map models (docs/training.md)
+};
+void to_json(nlohmann::json& j, const Preset& p);
+
+std::vector<std::string> preset_names();
+// Throws Error listing the valid names.
+Preset preset_by_name(const std::string& name);
+
+// The map models a preset can train: "csympnet", "sympnet".
+std::vector<std::string> map_model_names();
+// Hyperparams JSON for make_one_step_map: the preset's core, at the preset's d.
+nlohmann::json model_spec_for(const Preset& p, const std::string& model);
+
+}  // namespace csympnet

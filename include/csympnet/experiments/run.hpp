@@ -1,0 +1,55 @@
+// One experiment run: generate the preset's data, train a map model, evaluate it.
+// Everything random derives from (seed, purpose) streams, so a run is bit-reproducible.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/experiments/preset.hpp"
+#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/trainer.hpp"
+
+namespace csympnet {
+
+struct RunConfig {
+  Preset preset;                   // system, data sizes, architecture, default budget
+  std::string model = "csympnet";  // "csympnet" or "sympnet"
+  std::uint64_t seed = 42;         // training seed: training/validation data and init
+  std::uint64_t test_seed = 0;     // data seed of the test trajectories (PROTOCOL: 0)
+  double sigma = 0.0;              // relative observation noise on training/validation pairs
+  TrainOptions train;              // epochs default to the preset's budget
+  ReferenceOptions reference;      // reference solver for all data
+  double beta_init = 0.1;          // CSympNet-ID: initial β (γ̂ = |β|), must be ≠ 0
+  void validate() const;
+};
+// Config from a preset with the preset's epoch budget.
+RunConfig default_run_config(const std::string& preset, const std::string& model);
+void to_json(nlohmann::json& j, const RunConfig& c);
+
+// The data of a run, generated from the config alone.
+struct RunData {
+  PairSet train;
+  PairSet val;
+  TestSet test;
+};
+RunData generate_run_data(const RunConfig& config);
+
+struct RunResult {
+  std::unique_ptr<OneStepMap> map;
+  Vector theta;  // best-validation parameters
+  TrainSummary training;
+  Diagnostics diagnostics;
+  RunData data;
+  nlohmann::json report;  // the report.json document
+};
+
+RunResult run_experiment(const RunConfig& config, const ProgressCallback& progress = {});
+
+// The diagnostics' view of a trained one-step map.
+LearnedMap learned_map(const OneStepMap& map, const Vector& theta);
+
+}  // namespace csympnet

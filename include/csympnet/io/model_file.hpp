@@ -1,0 +1,35 @@
+// Saved models: one JSON document with the architecture, the flat parameter vector and the
+// context it was trained in. Parameters are written with 17 significant digits, so a model
+// read back predicts bit-identically.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/models/one_step_map.hpp"
+
+namespace csympnet {
+
+inline constexpr const char* kModelFormat = "csympnet-model";
+inline constexpr int kModelFormatVersion = 1;
+
+struct SavedModel {
+  std::unique_ptr<OneStepMap> map;
+  Vector theta;
+  nlohmann::json meta;  // free-form context: system, training recipe, seed, ...
+};
+
+nlohmann::json model_to_json(const OneStepMap& map, const Vector& theta,
+                             const nlohmann::json& meta = nlohmann::json::object());
+SavedModel model_from_json(const nlohmann::json& doc, const std::string& where = "model");
+
+// Atomic write (temporary file, then rename).
+void save_model(const std::string& path, const OneStepMap& map, const Vector& theta,
+                const nlohmann::json& meta = nlohmann::json::object());
+// Throws Error naming the file and what is wrong (not JSON, wrong format/version, parameter
+// count mismatch, non-finite values).
+SavedModel load_model(const std::string& path);
+
+}  // namespace csympnet

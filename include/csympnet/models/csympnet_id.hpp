@@ -1,0 +1,60 @@
+// CSympNet-ID (paper eq. csympnet_def):
+//
+//   Φ̂_h = S_a ∘ Ψ_h ∘ S_a,   S_a(q, p) = (q, a p),   a(h) = exp(−γ̂ h / 2),   γ̂ = |β|,
+//
+// with Ψ_h an exactly symplectic SympNet core. Then DΦ̂ᵀ J DΦ̂ = λ(h) J with
+// λ(h) = a² = exp(−γ̂ h) (eq. exact_csp), by construction and for every θ, z and h.
+//
+// Layout of θ: the core's parameters (its own documented layout), then β as the LAST entry;
+// n_params = core.n_params() + 1, damping_param_index() = n_params − 1.
+//
+// β and γ̂ = |β|: |·| keeps γ̂ ≥ 0 without a constrained optimiser. Its derivative sign(β)
+// vanishes at β = 0, so training started at β = 0 would never move β; beta_init must
+// therefore be nonzero (default kDefaultBetaInit = 0.1, i.e. a mild initial damping). Should
+// β reach exactly 0 later, backward() uses the subgradient 0 there.
+//
+// init_params: the core's init_params (same RNG draws as the bare core), then β = beta_init
+// (no draw).
+#pragma once
+
+#include <memory>
+
+#include "csympnet/models/symplectic_core.hpp"
+
+namespace csympnet {
+
+class CSympNetId final : public OneStepMap {
+ public:
+  static constexpr double kDefaultBetaInit = 0.1;
+
+  // Throws Error if core is null or beta_init is 0 or not finite.
+  explicit CSympNetId(std::unique_ptr<SymplecticCore> core, double beta_init = kDefaultBetaInit);
+
+  const SymplecticCore& core() const { return *core_; }
+  double beta_init() const { return beta_init_; }
+
+  std::string type() const override { return "csympnet"; }
+  Index dim() const override { return core_->dim(); }
+  Index n_params() const override { return core_->n_params() + 1; }
+  void init_params(Rng& rng, ParamsRef theta) const override;
+
+  // Cache layout: vecs[0] = h, vecs[1] = a(h); mats[0] = input p, mats[1] = core output p
+  // (before the outer scaling); the core's own slots follow from mats[2].
+  Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
+                 ForwardCache* cache) const override;
+  void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,
+                Matrix* dZin) const override;
+  Matrix jacobian(ConstParams theta, const Vector& z, double h) const override;
+
+  std::optional<double> damping_rate(ConstParams theta) const override;
+  std::optional<Index> damping_param_index() const override { return n_params() - 1; }
+  nlohmann::json hyperparams() const override;
+
+ private:
+  static constexpr std::size_t kCoreSlot0 = 2;
+
+  std::unique_ptr<SymplecticCore> core_;
+  double beta_init_;
+};
+
+}  // namespace csympnet

@@ -1,0 +1,51 @@
+// G-SympNet(L, w) (Jin et al. 2020), step-dependent: L gradient modules, alternating kick
+// (even k) and drift (odd k):
+//
+//   kick   p += h Kᵀ (a ⊙ σ(K q + b)),   drift   q += h Kᵀ (a ⊙ σ(K p + b)),
+//
+// with K ∈ R^{w×d}, a, b ∈ R^w. Each increment is the gradient of
+// V(x) = Σ_i a_i ∫σ(K_i x + b_i), so every module is an exactly symplectic shear.
+//
+// Layout of θ, module by module (k = 0 .. L-1): K_k (w x d, column-major), a_k (w), b_k (w).
+// n_params = L w (d + 2).
+//
+// init_params walks θ in that order and draws one rng.normal() per K or a entry (scaled by
+// kInitStddev = 0.01); b is set to 0 without consuming draws.
+#pragma once
+
+#include "csympnet/models/symplectic_core.hpp"
+
+namespace csympnet {
+
+class GSympNet final : public SymplecticCore {
+ public:
+  static constexpr double kInitStddev = 0.01;
+
+  // Throws Error unless d, layers, width >= 1.
+  GSympNet(Index d, Index layers, Index width);
+
+  std::string type() const override { return "g"; }
+  Index n_params() const override { return layers_ * width_ * (d() + 2); }
+  void init_params(Rng& rng, ParamsRef theta) const override;
+  nlohmann::json core_spec() const override;
+  // Per module: the input it reads and σ(K x + b).
+  std::size_t cache_slots() const override { return static_cast<std::size_t>(2 * layers_); }
+
+  void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
+            std::size_t slot0) const override;
+  void flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                     const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const override;
+  void flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq, Matrix& tp,
+                    double h) const override;
+
+  Index layers() const { return layers_; }
+  Index width() const { return width_; }
+
+ private:
+  Index module_offset(Index k) const { return k * width_ * (d() + 2); }
+
+  Index layers_;
+  Index width_;
+};
+
+}  // namespace csympnet

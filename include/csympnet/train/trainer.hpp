@@ -1,0 +1,55 @@
+// Full-batch training of a one-step map on the one-step loss, keeping the parameters with
+// the lowest validation loss (the paper's checkpoint rule).
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/data/dataset.hpp"
+#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/adamw.hpp"
+
+namespace csympnet {
+
+struct TrainOptions {
+  long epochs = 20000;  // epoch budget (one full-batch AdamW step per epoch)
+  long val_every = 10;  // evaluate the validation loss every this many epochs (and at the end)
+  AdamWOptions adamw;   // optimiser settings (PROTOCOL.md defaults)
+  void validate() const;
+};
+void to_json(nlohmann::json& j, const TrainOptions& o);
+void from_json(const nlohmann::json& j, TrainOptions& o);
+
+// What a progress callback sees after each validation.
+struct TrainProgress {
+  long epoch = 0;           // epochs done
+  long epochs = 0;          // budget
+  double train_loss = 0.0;  // loss at the parameters before this epoch's step
+  double val_loss = 0.0;    // validation loss after the step
+  double best_val_loss = 0.0;
+  double gamma_hat = 0.0;  // NaN for models without a damping rate
+  double seconds = 0.0;    // wall time so far
+};
+
+struct TrainSummary {
+  long epochs_run = 0;
+  long best_epoch = 0;  // epoch whose parameters were kept (0 = initial parameters)
+  double best_val_loss = 0.0;
+  double final_train_loss = 0.0;
+  double seconds = 0.0;
+  std::string stop_reason;  // "budget", "callback" or "diverged" (non-finite loss)
+  std::string brief_report() const;
+};
+void to_json(nlohmann::json& j, const TrainSummary& s);
+
+// Returns false to stop training early.
+using ProgressCallback = std::function<bool(const TrainProgress&)>;
+
+// Trains theta in place; on return theta holds the best-validation parameters.
+TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
+                                const PairSet& val, const TrainOptions& options,
+                                const ProgressCallback& progress = {});
+
+}  // namespace csympnet

@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs what csympnet needs to build and test, from Debian 12 packages, and skips what is
+# already present. Safe to run any number of times.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  libeigen3-dev        # linear algebra, expm (unsupported/MatrixFunctions)
+  libboost-dev         # Boost.Odeint (header-only)
+  nlohmann-json3-dev   # configs, reports, model files
+  libcli11-dev         # command line
+  libgtest-dev         # tests
+  libbenchmark-dev     # micro-benchmarks
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "install-deps: need root or sudo to install ${missing[*]}" >&2; exit 1; }
+  sudo="sudo"
+fi
+$sudo apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,331 @@
+#include "csympnet/data/csv.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <unordered_map>
+
+#include "csv_text.hpp"
+#include "csympnet/core/error.hpp"
+#include "csympnet/io/files.hpp"
+
+namespace csympnet {
+
+using csv_detail::at;
+using csv_detail::CsvText;
+using csv_detail::Line;
+using csv_detail::quote;
+
+namespace {
+
+constexpr const char* kPairsForm = "h,q1..qd,p1..pd,next_q1..next_qd,next_p1..next_pd";
+constexpr const char* kTrajForm = "[traj,]t,q1..qd,p1..pd";
+
+// Shortest text that reads back to v.
+std::string shortest(double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
+
+struct Header {
+  CsvKind kind = CsvKind::kPairs;
+  bool has_traj = false;
+  Index d = 0;
+  std::vector<std::string> names;
+};
+
+std::vector<std::string> numbered(const std::string& prefix, Index d) {
+  std::vector<std::string> v;
+  for (Index i = 1; i <= d; ++i) v.push_back(prefix + std::to_string(i));
+  return v;
+}
+
+std::vector<std::string> header_names(CsvKind kind, Index d, bool has_traj) {
+  std::vector<std::string> names;
+  auto add = [&](const std::vector<std::string>& v) {
+    names.insert(names.end(), v.begin(), v.end());
+  };
+  if (kind == CsvKind::kPairs) {
+    names.push_back("h");
+    for (const char* g : {"q", "p", "next_q", "next_p"}) add(numbered(g, d));
+  } else {
+    if (has_traj) names.push_back("traj");
+    names.push_back("t");
+    for (const char* g : {"q", "p"}) add(numbered(g, d));
+  }
+  return names;
+}
+
+// The group ("q", "p", "next_q", "next_p") of a column name like "next_q3", or "" if none.
+std::string_view group_of(std::string_view name) {
+  const std::size_t digits = name.find_first_of("0123456789");
+  if (digits == std::string_view::npos || digits == 0 ||
+      name.find_first_not_of("0123456789", digits) != std::string_view::npos)
+    return {};
+  const std::string_view g = name.substr(0, digits);
+  return g == "q" || g == "p" || g == "next_q" || g == "next_p" ? g : std::string_view();
+}
+
+// How many columns of each group the header has, wherever they are; used to explain a
+// header whose shape is wrong rather than just its first bad name.
+std::unordered_map<std::string_view, Index> group_counts(
+    const std::vector<std::string_view>& fields) {
+  std::unordered_map<std::string_view, Index> n{{"q", 0}, {"p", 0}, {"next_q", 0}, {"next_p", 0}};
+  for (std::string_view s : fields)
+    if (const std::string_view g = group_of(s); !g.empty()) ++n[g];
+  return n;
+}
+
+Header parse_header(const CsvText& f) {
+  const std::vector<std::string_view> fields = csv_detail::split_fields(f.lines[0].text);
+  const std::string where = at(f.path, f.lines[0].number);
+  Header h;
+  if (fields[0] == "h") {
+    h.kind = CsvKind::kPairs;
+  } else if (fields[0] == "t" || fields[0] == "traj") {
+    h.kind = CsvKind::kTrajectories;
+    h.has_traj = fields[0] == "traj";
+  } else {
+    throw Error(where + "unrecognised header " + quote(f.lines[0].text) +
+                "; expected a pairs header '" + kPairsForm + "' (d=1: 'h,q1,p1,next_q1,next_p1')" +
+                " or a trajectories header '" + kTrajForm + "' (d=1: 'traj,t,q1,p1' or 't,q1,p1')");
+  }
+  auto n = group_counts(fields);
+  const Index fixed = h.kind == CsvKind::kPairs ? 1 : (h.has_traj ? 2 : 1);
+  const Index groups = h.kind == CsvKind::kPairs ? 4 : 2;
+  const Index cols = static_cast<Index>(fields.size());
+  h.d = n["q"];
+  bool shape_ok = h.d >= 1 && n["p"] == h.d && cols == fixed + groups * h.d;
+  if (h.kind == CsvKind::kPairs) shape_ok = shape_ok && n["next_q"] == h.d && n["next_p"] == h.d;
+  if (!shape_ok) {
+    std::string counts = std::to_string(n["q"]) + " q and " + std::to_string(n["p"]) + " p";
+    if (h.kind == CsvKind::kPairs)
+      counts += " and " + std::to_string(n["next_q"]) + " next_q and " +
+                std::to_string(n["next_p"]) + " next_p";
+    throw Error(where + (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " header " +
+                quote(f.lines[0].text) + " has " + std::to_string(cols) + " columns with " +
+                counts + " columns; expected the same number d >= 1 of each, as '" +
+                (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "'");
+  }
+  h.names = header_names(h.kind, h.d, h.has_traj);
+  for (std::size_t c = 0; c < fields.size(); ++c)
+    if (fields[c] != h.names[c])
+      throw Error(where + "header column " + std::to_string(c + 1) + " is " + quote(fields[c]) +
+                  "; expected '" + h.names[c] + "' (columns must be exactly, in order, '" +
+                  (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "', case-sensitive)");
+  return h;
+}
+
+// Checks every data row for blank lines and field count, then hands the fields on.
+template <typename RowFn>
+void for_each_row(const CsvText& f, const Header& h, RowFn&& row) {
+  if (f.lines.size() < 2)
+    throw Error(at(f.path, f.lines[0].number) +
+                "header only, no data rows; expected at least one data row after the header");
+  for (std::size_t k = 1; k < f.lines.size(); ++k) {
+    const Line& line = f.lines[k];
+    if (csv_detail::is_blank(line.text))
+      throw Error(at(f.path, line.number) +
+                  "blank line; expected a data row (blank lines are allowed only at the end)");
+    const std::vector<std::string_view> fields = csv_detail::split_fields(line.text);
+    if (fields.size() != h.names.size())
+      throw Error(at(f.path, line.number) + "found " + std::to_string(fields.size()) +
+                  " fields; expected " + std::to_string(h.names.size()) + " as in the header");
+    row(line, fields);
+  }
+}
+
+double field_value(const CsvText& f, const Line& line, const Header& h, std::size_t c,
+                   std::string_view field) {
+  double v = 0;
+  std::string why;
+  if (!csv_detail::parse_finite_double(field, v, why))
+    throw Error(at(f.path, line.number) + "column '" + h.names[c] +
+                "': expected a finite number, got " + why);
+  return v;
+}
+
+Header require_kind(const CsvText& f, CsvKind kind) {
+  Header h = parse_header(f);
+  if (h.kind != kind)
+    throw Error(at(f.path, 1) + "this is a " +
+                (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " file; expected a " +
+                (kind == CsvKind::kPairs ? std::string("pairs header '") + kPairsForm
+                                         : std::string("trajectories header '") + kTrajForm) +
+                "'");
+  return h;
+}
+
+PairSet read_pairs(const CsvText& f) {
+  const Header h = require_kind(f, CsvKind::kPairs);
+  const Index dim = 2 * h.d;
+  std::vector<double> hs, z0, z1;
+  for_each_row(f, h, [&](const Line& line, const std::vector<std::string_view>& fields) {
+    const double step = field_value(f, line, h, 0, fields[0]);
+    if (!(step > 0))
+      throw Error(at(f.path, line.number) + "column 'h': expected a step h > 0, got " +
+                  quote(fields[0]));
+    hs.push_back(step);
+    for (Index i = 0; i < dim; ++i) {
+      const auto c0 = static_cast<std::size_t>(1 + i), c1 = static_cast<std::size_t>(1 + dim + i);
+      z0.push_back(field_value(f, line, h, c0, fields[c0]));
+      z1.push_back(field_value(f, line, h, c1, fields[c1]));
+    }
+  });
+  const auto n = static_cast<Index>(hs.size());
+  PairSet p;
+  // Rows were stored sample by sample, i.e. column-major for a 2d x N matrix.
+  p.z0 = Eigen::Map<const Matrix>(z0.data(), dim, n);
+  p.z1 = Eigen::Map<const Matrix>(z1.data(), dim, n);
+  p.h = Eigen::Map<const Vector>(hs.data(), n);
+  return p;
+}
+
+std::vector<Trajectory> read_trajectories(const CsvText& f) {
+  const Header h = require_kind(f, CsvKind::kTrajectories);
+  const Index dim = 2 * h.d;
+  const std::size_t tcol = h.has_traj ? 1 : 0;
+
+  struct Pending {
+    long long id = 0;
+    std::size_t first_line = 0, last_line = 0;
+    std::vector<double> t, z;
+  };
+  std::vector<Pending> done;
+  Pending cur;
+  bool started = false;
+  std::unordered_map<long long, std::size_t> seen;  // id -> index in `done` (closed runs)
+
+  for_each_row(f, h, [&](const Line& line, const std::vector<std::string_view>& fields) {
+    long long id = 0;
+    if (h.has_traj && !csv_detail::parse_integer(fields[0], id))
+      throw Error(at(f.path, line.number) +
+                  "column 'traj': expected an integer trajectory id, got " + quote(fields[0]));
+    if (!started || id != cur.id) {
+      if (started) {
+        seen[cur.id] = done.size();
+        done.push_back(std::move(cur));
+      }
+      if (auto it = seen.find(id); it != seen.end()) {
+        const Pending& old = done[it->second];
+        throw Error(at(f.path, line.number) + "mismatched trajectory ids: id " +
+                    std::to_string(id) + " reappears after its rows on lines " +
+                    std::to_string(old.first_line) + "-" + std::to_string(old.last_line) +
+                    "; expected the rows of each trajectory to be contiguous");
+      }
+      cur = Pending{id, line.number, line.number, {}, {}};
+      started = true;
+    }
+    const double t = field_value(f, line, h, tcol, fields[tcol]);
+    if (!cur.t.empty() && !(t > cur.t.back()))
+      throw Error(at(f.path, line.number) + "column 't': got " + quote(fields[tcol]) +
+                  " after t = " + shortest(cur.t.back()) + " on line " +
+                  std::to_string(cur.last_line) +
+                  "; expected times to strictly increase within a trajectory");
+    cur.t.push_back(t);
+    cur.last_line = line.number;
+    for (Index i = 0; i < dim; ++i) {
+      const auto c = tcol + 1 + static_cast<std::size_t>(i);
+      cur.z.push_back(field_value(f, line, h, c, fields[c]));
+    }
+  });
+  done.push_back(std::move(cur));
+
+  std::vector<Trajectory> out;
+  out.reserve(done.size());
+  for (const Pending& p : done) {
+    const auto n = static_cast<Index>(p.t.size());
+    Trajectory tr;
+    tr.t = Eigen::Map<const Vector>(p.t.data(), n);
+    tr.z = Eigen::Map<const Matrix>(p.z.data(), dim, n);
+    out.push_back(std::move(tr));
+  }
+  return out;
+}
+
+void append_double(std::string& out, double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 17);
+  out.append(buf, r.ptr);
+}
+
+void append_header(std::string& out, const std::vector<std::string>& names) {
+  for (std::size_t c = 0; c < names.size(); ++c) {
+    if (c > 0) out += ',';
+    out += names[c];
+  }
+  out += '\n';
+}
+
+}  // namespace
+
+CsvKind detect_csv_kind(const std::string& path) {
+  return parse_header(csv_detail::load_csv_text(path)).kind;
+}
+
+PairSet read_pairs_csv(const std::string& path) {
+  return read_pairs(csv_detail::load_csv_text(path));
+}
+
+std::vector<Trajectory> read_trajectories_csv(const std::string& path) {
+  return read_trajectories(csv_detail::load_csv_text(path));
+}
+
+PairSet read_any_as_pairs(const std::string& path) {
+  const CsvText f = csv_detail::load_csv_text(path);
+  if (parse_header(f).kind == CsvKind::kPairs) return read_pairs(f);
+  const std::vector<Trajectory> trajs = read_trajectories(f);
+  Index pairs = 0;
+  for (const Trajectory& tr : trajs) pairs += tr.steps();
+  if (pairs == 0)
+    throw Error(f.path + ": all " + std::to_string(trajs.size()) +
+                " trajectories have a single row, so the file gives no pairs; expected at "
+                "least one trajectory with two or more rows");
+  return pairs_from_trajectories(trajs);
+}
+
+void write_pairs_csv(const std::string& path, const PairSet& pairs) {
+  pairs.validate("write_pairs_csv('" + path + "')");
+  std::string out;
+  append_header(out, header_names(CsvKind::kPairs, pairs.d(), false));
+  for (Index j = 0; j < pairs.size(); ++j) {
+    append_double(out, pairs.h(j));
+    for (const Matrix* m : {&pairs.z0, &pairs.z1})
+      for (Index i = 0; i < pairs.dim(); ++i) {
+        out += ',';
+        append_double(out, (*m)(i, j));
+      }
+    out += '\n';
+  }
+  write_text_atomic(path, out);
+}
+
+void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs) {
+  const std::string where = "write_trajectories_csv('" + path + "')";
+  require(!trajs.empty(), where + ": no trajectories; expected at least one");
+  const Index dim = trajs.front().z.rows();
+  for (std::size_t k = 0; k < trajs.size(); ++k) {
+    trajs[k].validate(where + ": trajectory " + std::to_string(k));
+    require(trajs[k].z.rows() == dim, where + ": trajectory " + std::to_string(k) +
+                                          " has dimension " + std::to_string(trajs[k].z.rows()) +
+                                          "; expected " + std::to_string(dim));
+  }
+  std::string out;
+  append_header(out, header_names(CsvKind::kTrajectories, dim / 2, true));
+  for (std::size_t k = 0; k < trajs.size(); ++k) {
+    const Trajectory& tr = trajs[k];
+    for (Index n = 0; n < tr.t.size(); ++n) {
+      out += std::to_string(k);
+      out += ',';
+      append_double(out, tr.t(n));
+      for (Index i = 0; i < dim; ++i) {
+        out += ',';
+        append_double(out, tr.z(i, n));
+      }
+      out += '\n';
+    }
+  }
+  write_text_atomic(path, out);
+}
+
+}  // namespace csympnet

@@ -1,0 +1,127 @@
+#include "csympnet/experiments/run.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/core/rng.hpp"
+
+namespace csympnet {
+
+void RunConfig::validate() const {
+  System(preset.system);  // validates the system spec
+  preset.train_steps.validate();
+  require(preset.n_train >= 1, "n_train must be >= 1");
+  require(preset.n_val >= 1, "n_val must be >= 1");
+  require(std::isfinite(preset.h_test) && preset.h_test > 0.0, "h_test must be > 0");
+  require(std::isfinite(sigma) && sigma >= 0.0,
+          "--sigma must be a finite number >= 0, got " + std::to_string(sigma));
+  require(std::isfinite(beta_init) && beta_init != 0.0,
+          "beta_init must be finite and nonzero (the gradient of |beta| vanishes at 0)");
+  train.validate();
+  reference.validate();
+  model_spec_for(preset, model);  // validates the model name
+}
+
+RunConfig default_run_config(const std::string& preset, const std::string& model) {
+  RunConfig c;
+  c.preset = preset_by_name(preset);
+  c.model = model;
+  c.train.epochs = c.preset.epochs;
+  return c;
+}
+
+void to_json(nlohmann::json& j, const RunConfig& c) {
+  j = {{"preset", c.preset},
+       {"model", c.model},
+       {"seed", c.seed},
+       {"test_seed", c.test_seed},
+       {"sigma", c.sigma},
+       {"train", c.train},
+       {"reference",
+        {{"method", to_string(c.reference.method)},
+         {"h_ref", c.reference.h_ref},
+         {"rk_rtol", c.reference.rk_rtol},
+         {"rk_atol", c.reference.rk_atol}}},
+       {"beta_init", c.beta_init},
+       {"loss", "one-step MSE, mean over pairs of squared norm"}};
+}
+
+RunData generate_run_data(const RunConfig& c) {
+  const System sys(c.preset.system);
+  RunData d;
+  Rng train_rng(c.seed, "train-pairs");
+  Rng val_rng(c.seed, "val-pairs");
+  d.train = generate_pairs(sys, c.preset.n_train, c.preset.train_steps, train_rng, c.reference);
+  d.val = generate_pairs(sys, c.preset.n_val, c.preset.train_steps, val_rng, c.reference);
+  if (c.sigma > 0.0) {
+    // Noise scales depend on the system and seed only, not on N_train (PROTOCOL.md).
+    Rng scale_rng(c.seed, "noise-scales");
+    const NoiseScales scales = noise_scales(sys, c.preset.train_steps, scale_rng, c.reference);
+    Rng noise_rng(c.seed, "noise");
+    add_noise(d.train, c.sigma, scales, noise_rng);
+    add_noise(d.val, c.sigma, scales, noise_rng);
+  }
+  Rng test_rng(c.test_seed, "test-trajectories");
+  d.test = generate_test_set(sys, c.preset.n_test, c.preset.h_test, c.preset.horizon, test_rng,
+                             c.reference);
+  return d;
+}
+
+LearnedMap learned_map(const OneStepMap& map, const Vector& theta) {
+  LearnedMap lm;
+  lm.step = [&map, &theta](const Vector& z, double h) -> Vector {
+    return map.apply(theta, z, Vector::Constant(1, h));
+  };
+  lm.jacobian = [&map, &theta](const Vector& z, double h) { return map.jacobian(theta, z, h); };
+  lm.gamma_hat = map.damping_rate(theta);
+  return lm;
+}
+
+RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
+  c.validate();
+  RunResult r;
+  r.data = generate_run_data(c);
+
+  nlohmann::json spec = model_spec_for(c.preset, c.model);
+  if (c.model == "csympnet") spec["beta_init"] = c.beta_init;
+  r.map = make_one_step_map(spec);
+  r.theta.resize(r.map->n_params());
+  Rng init_rng(c.seed, "init");
+  r.map->init_params(init_rng, r.theta);
+
+  r.training = train_one_step_map(*r.map, r.theta, r.data.train, r.data.val, c.train, progress);
+
+  const System sys(c.preset.system);
+  const auto t0 = std::chrono::steady_clock::now();
+  r.diagnostics =
+      evaluate(learned_map(*r.map, r.theta), sys, r.data.test.trajectories, c.preset.h_test);
+  const double eval_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  nlohmann::json& rep = r.report;
+  rep["model"] = c.model;
+  rep["preset"] = c.preset.name;
+  rep["params"] = r.map->n_params();
+  rep["seed"] = c.seed;
+  rep["sigma"] = c.sigma;
+  rep["epochs"] = r.training.epochs_run;
+  rep["best_epoch"] = r.training.best_epoch;
+  rep["stop_reason"] = r.training.stop_reason;
+  rep["train_seconds"] = r.training.seconds;
+  rep["eval_seconds"] = eval_seconds;
+  rep["best_val_loss"] = r.training.best_val_loss;
+  rep["final_train_loss"] = r.training.final_train_loss;
+  rep["gamma_true"] = sys.gamma();
+  const nlohmann::json diag = r.diagnostics;
+  for (const auto& [key, value] : diag.items()) rep[key] = value;
+  rep["test_trajectories"] = r.data.test.trajectories.size();
+  rep["test_redraws"] = r.data.test.redraws;
+  rep["recipe"] = "paper: AdamW, full batch, best-validation checkpoint";
+  rep["architecture"] = r.map->hyperparams();
+  rep["config"] = c;
+  rep["csympnet_version"] = "0.1.0";
+  return r;
+}
+
+}  // namespace csympnet

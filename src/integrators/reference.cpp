@@ -1,0 +1,232 @@
+#include "csympnet/integrators/reference.hpp"
+
+#include <cmath>
+#include <map>
+#include <sstream>
+#include <vector>
+
+#include <boost/numeric/odeint.hpp>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include "csympnet/core/error.hpp"
+
+namespace csympnet {
+
+namespace {
+
+// Relative slack subtracted from h / h_ref before the ceiling (see substep_count).
+constexpr double kCeilSlack = 1e-10;
+// More substeps than this in one call is certainly a units mistake, not a request.
+constexpr double kMaxSubsteps = 1e12;
+
+std::string num(double x) {
+  std::ostringstream os;
+  os << x;
+  return os.str();
+}
+
+// n substeps of S_a ∘ SV_δ ∘ S_a on the columns (Q, P). The closing kick of one substep and the
+// opening kick of the next use ∇V at the same q, so the gradient is computed once per substep
+// (first-same-as-last); the values, and hence the bits, are the same as without the reuse.
+void splitting_steps(const System& sys, Matrix& Q, Matrix& P, double delta, Index n) {
+  const double a = std::exp(-0.5 * sys.gamma() * delta);  // conformal factor over δ/2
+  const double half = 0.5 * delta;
+  Matrix G = sys.grad_potential_batch(Q);
+  for (Index s = 0; s < n; ++s) {
+    P *= a;          // scale
+    P -= half * G;   // kick
+    Q += delta * P;  // drift
+    G = sys.grad_potential_batch(Q);
+    P -= half * G;  // kick
+    P *= a;         // scale
+  }
+}
+
+// Advances all columns of Z (2d x N) by the same h with the splitting.
+void splitting_block(const System& sys, Matrix& Z, double h, double h_ref) {
+  const Index d = sys.d();
+  const Index n = substep_count(h, h_ref);
+  Matrix Q = Z.topRows(d);
+  Matrix P = Z.bottomRows(d);
+  splitting_steps(sys, Q, P, h / static_cast<double>(n), n);
+  Z.topRows(d) = Q;
+  Z.bottomRows(d) = P;
+}
+
+void check_state(const System& sys, const Vector& z, const char* where) {
+  require(z.size() == sys.dim(), std::string(where) + ": z has length " + std::to_string(z.size()) +
+                                     ", expected 2d = " + std::to_string(sys.dim()));
+}
+
+void check_step(double h, const char* where) {
+  require(std::isfinite(h) && h > 0.0,
+          std::string(where) + ": step h must be a finite number > 0, got " + num(h));
+}
+
+}  // namespace
+
+Reference parse_reference(const std::string& name) {
+  if (name == "splitting") return Reference::kSplitting;
+  if (name == "expm") return Reference::kExpm;
+  if (name == "rk") return Reference::kRk;
+  throw Error("reference method must be one of splitting, expm, rk; got \"" + name + "\"");
+}
+
+std::string to_string(Reference r) {
+  switch (r) {
+    case Reference::kSplitting:
+      return "splitting";
+    case Reference::kExpm:
+      return "expm";
+    case Reference::kRk:
+      return "rk";
+  }
+  throw Error("to_string(Reference): invalid enum value " + std::to_string(static_cast<int>(r)));
+}
+
+void ReferenceOptions::validate() const {
+  require(method == Reference::kSplitting || method == Reference::kExpm || method == Reference::kRk,
+          "reference.method: invalid enum value " + std::to_string(static_cast<int>(method)));
+  require(std::isfinite(h_ref) && h_ref > 0.0,
+          "reference.h_ref must be a finite number > 0, got " + num(h_ref));
+  require(std::isfinite(rk_rtol) && rk_rtol > 0.0,
+          "reference.rk_rtol must be a finite number > 0, got " + num(rk_rtol));
+  require(std::isfinite(rk_atol) && rk_atol > 0.0,
+          "reference.rk_atol must be a finite number > 0, got " + num(rk_atol));
+}
+
+Index substep_count(double h, double h_ref) {
+  check_step(h, "substep_count");
+  require(std::isfinite(h_ref) && h_ref > 0.0,
+          "substep_count: h_ref must be a finite number > 0, got " + num(h_ref));
+  const double r = h / h_ref;
+  require(r <= kMaxSubsteps, "substep_count: h / h_ref = " + num(r) + " substeps is too many");
+  const double n = std::ceil(r * (1.0 - kCeilSlack));
+  return n < 1.0 ? Index{1} : static_cast<Index>(n);
+}
+
+void conformal_sv_substep(const System& sys, Matrix& Z, double delta) {
+  require(Z.rows() == sys.dim(), "conformal_sv_substep: Z has " + std::to_string(Z.rows()) +
+                                     " rows, expected 2d = " + std::to_string(sys.dim()));
+  check_step(delta, "conformal_sv_substep");
+  Matrix Q = Z.topRows(sys.d());
+  Matrix P = Z.bottomRows(sys.d());
+  splitting_steps(sys, Q, P, delta, 1);
+  Z.topRows(sys.d()) = Q;
+  Z.bottomRows(sys.d()) = P;
+}
+
+Vector conformal_sv_flow(const System& sys, const Vector& z, double h, double h_ref) {
+  check_state(sys, z, "conformal_sv_flow");
+  Matrix Z = z;
+  splitting_block(sys, Z, h, h_ref);
+  return Z.col(0);
+}
+
+Matrix conformal_sv_jacobian(const System& sys, const Vector& z, double h, double h_ref) {
+  check_state(sys, z, "conformal_sv_jacobian");
+  const Index d = sys.d();
+  const Index n = substep_count(h, h_ref);
+  const double delta = h / static_cast<double>(n);
+  const double a = std::exp(-0.5 * sys.gamma() * delta);
+  const double half = 0.5 * delta;
+  // Tangent rows: M = [Mq; Mp] = DΦ, starting from the identity. Each sub-map is linearised
+  // at the state it acts on: scale Mp *= a; kick Mp −= δ/2 ∇²V(q) Mq; drift Mq += δ Mp.
+  Vector q = z.head(d);
+  Vector p = z.tail(d);
+  Matrix Mq = Matrix::Zero(d, 2 * d);
+  Matrix Mp = Matrix::Zero(d, 2 * d);
+  Mq.leftCols(d).setIdentity();
+  Mp.rightCols(d).setIdentity();
+  for (Index s = 0; s < n; ++s) {
+    p *= a;
+    Mp *= a;
+    p -= half * sys.grad_potential(q);
+    Mp -= half * sys.hess_potential_times(q, Mq);
+    q += delta * p;
+    Mq += delta * Mp;
+    p -= half * sys.grad_potential(q);
+    Mp -= half * sys.hess_potential_times(q, Mq);
+    p *= a;
+    Mp *= a;
+  }
+  Matrix M(2 * d, 2 * d);
+  M.topRows(d) = Mq;
+  M.bottomRows(d) = Mp;
+  return M;
+}
+
+Matrix expm_propagator(const System& sys, double h) {
+  require(sys.is_linear(), "expm reference: system kind \"" + sys.spec().kind +
+                               "\" is nonlinear; use splitting or rk");
+  require(std::isfinite(h), "expm_propagator: h must be finite, got " + num(h));
+  const Matrix hA = h * sys.linear_generator();
+  return hA.exp();
+}
+
+Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double atol) {
+  namespace odeint = boost::numeric::odeint;
+  check_state(sys, z, "rk_flow");
+  check_step(h, "rk_flow");
+  require(
+      std::isfinite(rtol) && rtol > 0.0 && std::isfinite(atol) && atol > 0.0,
+      "rk_flow: tolerances must be finite and > 0, got rtol " + num(rtol) + ", atol " + num(atol));
+  using State = std::vector<double>;
+  const Index dim = sys.dim();
+  State x(z.data(), z.data() + dim);
+  auto rhs = [&sys, dim](const State& xs, State& dxdt, double /*t*/) {
+    const Vector f = sys.vector_field(Eigen::Map<const Vector>(xs.data(), dim));
+    Eigen::Map<Vector>(dxdt.data(), dim) = f;
+  };
+  // Fehlberg 7(8): high order keeps the step count small at rtol ~ 1e-12.
+  auto stepper = odeint::make_controlled(atol, rtol, odeint::runge_kutta_fehlberg78<State>());
+  odeint::integrate_adaptive(stepper, rhs, x, 0.0, h, 0.1 * h);
+  return Eigen::Map<const Vector>(x.data(), dim);
+}
+
+Matrix reference_flow(const System& sys, const Matrix& Z, const Vector& h,
+                      const ReferenceOptions& opt) {
+  opt.validate();
+  require(Z.rows() == sys.dim(), "reference_flow: Z has " + std::to_string(Z.rows()) +
+                                     " rows, expected 2d = " + std::to_string(sys.dim()));
+  require(h.size() == Z.cols(), "reference_flow: h has length " + std::to_string(h.size()) +
+                                    " but Z has " + std::to_string(Z.cols()) + " columns");
+  for (Index j = 0; j < h.size(); ++j) check_step(h(j), "reference_flow");
+  if (Z.cols() == 0) return Z;
+
+  Matrix out(Z.rows(), Z.cols());
+  if (opt.method == Reference::kRk) {
+    for (Index j = 0; j < Z.cols(); ++j)
+      out.col(j) = rk_flow(sys, Z.col(j), h(j), opt.rk_rtol, opt.rk_atol);
+    return out;
+  }
+
+  // Columns grouped by their (bitwise) step, in order of first appearance within a group.
+  std::map<double, std::vector<Index>> groups;
+  for (Index j = 0; j < h.size(); ++j) groups[h(j)].push_back(j);
+
+  if (opt.method == Reference::kExpm) {
+    for (const auto& [step, cols] : groups) {
+      const Matrix E = expm_propagator(sys, step);
+      // Column by column (matrix-vector), so a column's bits do not depend on the batch.
+      for (Index j : cols) out.col(j).noalias() = E * Z.col(j);
+    }
+    return out;
+  }
+
+  if (groups.size() == 1) {  // the common case: one step for the whole batch, no gathering
+    out = Z;
+    splitting_block(sys, out, h(0), opt.h_ref);
+    return out;
+  }
+  for (const auto& [step, cols] : groups) {
+    Matrix block(Z.rows(), static_cast<Index>(cols.size()));
+    for (std::size_t i = 0; i < cols.size(); ++i) block.col(static_cast<Index>(i)) = Z.col(cols[i]);
+    splitting_block(sys, block, step, opt.h_ref);
+    for (std::size_t i = 0; i < cols.size(); ++i)
+      out.col(cols[i]) = block.col(static_cast<Index>(i));
+  }
+  return out;
+}
+
+}  // namespace csympnet

@@ -1,0 +1,68 @@
+#include "csympnet/models/symplectic_core.hpp"
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/shape_checks.hpp"
+
+namespace csympnet {
+
+SymplecticCore::SymplecticCore(Index d) : d_(d) {
+  require(d >= 1, "symplectic core: d = " + std::to_string(d) + ", expected d >= 1");
+}
+
+void SymplecticCore::reserve_slots(ForwardCache& cache, std::size_t n) {
+  if (cache.mats.size() < n) cache.mats.resize(n);
+}
+
+Matrix SymplecticCore::forward(ConstParams theta, const Matrix& Z, const Vector& h,
+                               ForwardCache* cache) const {
+  check_forward_args(*this, theta, Z, h);
+  Matrix q = Z.topRows(d_);
+  Matrix p = Z.bottomRows(d_);
+  if (cache != nullptr) {
+    if (cache->vecs.empty()) cache->vecs.resize(1);
+    cache->vecs[0] = h;
+  }
+  flow(theta, q, p, h, cache, 0);
+  Matrix out(2 * d_, Z.cols());
+  out.topRows(d_) = q;
+  out.bottomRows(d_) = p;
+  return out;
+}
+
+void SymplecticCore::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
+                              ParamsRef grad, Matrix* dZin) const {
+  const bool recorded = !cache.vecs.empty() && cache.mats.size() >= cache_slots();
+  check_backward_args(*this, theta, recorded ? cache.vecs[0].size() : -1, dZout, grad);
+  Matrix gq = dZout.topRows(d_);
+  Matrix gp = dZout.bottomRows(d_);
+  flow_backward(theta, cache, 0, cache.vecs[0], gq, gp, grad);
+  if (dZin != nullptr) {
+    dZin->resize(2 * d_, dZout.cols());
+    dZin->topRows(d_) = gq;
+    dZin->bottomRows(d_) = gp;
+  }
+}
+
+Matrix SymplecticCore::jacobian(ConstParams theta, const Vector& z, double h) const {
+  check_jacobian_args(*this, theta, z);
+  Vector q = z.head(d_);
+  Vector p = z.tail(d_);
+  // Tangent columns start as the identity: tq = [I 0], tp = [0 I].
+  Matrix tq = Matrix::Zero(d_, 2 * d_);
+  Matrix tp = Matrix::Zero(d_, 2 * d_);
+  tq.leftCols(d_).setIdentity();
+  tp.rightCols(d_).setIdentity();
+  flow_tangent(theta, q, p, tq, tp, h);
+  Matrix jac(2 * d_, 2 * d_);
+  jac.topRows(d_) = tq;
+  jac.bottomRows(d_) = tp;
+  return jac;
+}
+
+nlohmann::json SymplecticCore::hyperparams() const {
+  nlohmann::json spec = core_spec();
+  spec["d"] = d_;
+  return spec;
+}
+
+}  // namespace csympnet

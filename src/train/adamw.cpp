@@ -1,0 +1,67 @@
+#include "csympnet/train/adamw.hpp"
+
+#include <cmath>
+
+#include "csympnet/core/error.hpp"
+
+namespace csympnet {
+
+void AdamWOptions::validate() const {
+  auto finite_pos = [](double x) { return std::isfinite(x) && x > 0.0; };
+  require(finite_pos(lr), "adamw.lr must be a finite number > 0, got " + std::to_string(lr));
+  require(std::isfinite(beta1) && beta1 >= 0.0 && beta1 < 1.0,
+          "adamw.beta1 must be in [0, 1), got " + std::to_string(beta1));
+  require(std::isfinite(beta2) && beta2 >= 0.0 && beta2 < 1.0,
+          "adamw.beta2 must be in [0, 1), got " + std::to_string(beta2));
+  require(finite_pos(eps), "adamw.eps must be a finite number > 0, got " + std::to_string(eps));
+  require(std::isfinite(weight_decay) && weight_decay >= 0.0,
+          "adamw.weight_decay must be a finite number >= 0, got " + std::to_string(weight_decay));
+}
+
+void to_json(nlohmann::json& j, const AdamWOptions& o) {
+  j = {{"lr", o.lr},
+       {"beta1", o.beta1},
+       {"beta2", o.beta2},
+       {"eps", o.eps},
+       {"weight_decay", o.weight_decay},
+       {"decay_damping", o.decay_damping}};
+}
+
+void from_json(const nlohmann::json& j, AdamWOptions& o) {
+  o.lr = j.value("lr", o.lr);
+  o.beta1 = j.value("beta1", o.beta1);
+  o.beta2 = j.value("beta2", o.beta2);
+  o.eps = j.value("eps", o.eps);
+  o.weight_decay = j.value("weight_decay", o.weight_decay);
+  o.decay_damping = j.value("decay_damping", o.decay_damping);
+}
+
+AdamW::AdamW(Index n_params, AdamWOptions options, std::optional<Index> damping_index)
+    : opt_(options), damping_index_(damping_index) {
+  opt_.validate();
+  m_.setZero(n_params);
+  v_.setZero(n_params);
+}
+
+void AdamW::step(ParamsRef theta, const Vector& g) {
+  require(theta.size() == m_.size() && g.size() == m_.size(),
+          "AdamW::step: parameter and gradient sizes must match the optimiser's");
+  ++t_;
+  const double decay = 1.0 - opt_.lr * opt_.weight_decay;
+  double kept = 0.0;
+  const bool exclude = !opt_.decay_damping && damping_index_.has_value();
+  if (exclude) kept = theta(*damping_index_);
+  theta *= decay;
+  if (exclude) theta(*damping_index_) = kept;
+
+  const double b1 = opt_.beta1, b2 = opt_.beta2;
+  m_ = b1 * m_ + (1.0 - b1) * g;
+  v_ = b2 * v_ + (1.0 - b2) * g.cwiseAbs2();
+  const double t = static_cast<double>(t_);
+  const double bias1 = 1.0 - std::pow(b1, t);
+  const double bias2_sqrt = std::sqrt(1.0 - std::pow(b2, t));
+  const double step_size = opt_.lr / bias1;
+  theta.array() -= step_size * m_.array() / (v_.array().sqrt() / bias2_sqrt + opt_.eps);
+}
+
+}  // namespace csympnet

@@ -1,0 +1,111 @@
+#include "csympnet/train/trainer.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/train/loss.hpp"
+
+namespace csympnet {
+
+void TrainOptions::validate() const {
+  require(epochs >= 0, "train.epochs must be >= 0, got " + std::to_string(epochs));
+  require(val_every >= 1, "train.val_every must be >= 1, got " + std::to_string(val_every));
+  adamw.validate();
+}
+
+void to_json(nlohmann::json& j, const TrainOptions& o) {
+  j = {{"optimizer", "adamw"}, {"epochs", o.epochs}, {"val_every", o.val_every},
+       {"adamw", o.adamw},     {"batch", "full"},    {"checkpoint", "best-validation"}};
+}
+
+void from_json(const nlohmann::json& j, TrainOptions& o) {
+  o.epochs = j.value("epochs", o.epochs);
+  o.val_every = j.value("val_every", o.val_every);
+  if (j.contains("adamw")) o.adamw = j.at("adamw").get<AdamWOptions>();
+}
+
+std::string TrainSummary::brief_report() const {
+  std::ostringstream s;
+  s << "trained " << epochs_run << " epochs in " << seconds << " s; best validation loss "
+    << best_val_loss << " at epoch " << best_epoch << " (" << stop_reason << ")";
+  return s.str();
+}
+
+void to_json(nlohmann::json& j, const TrainSummary& s) {
+  j = {{"epochs_run", s.epochs_run},
+       {"best_epoch", s.best_epoch},
+       {"best_val_loss", s.best_val_loss},
+       {"final_train_loss", s.final_train_loss},
+       {"seconds", s.seconds},
+       {"stop_reason", s.stop_reason}};
+}
+
+TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
+                                const PairSet& val, const TrainOptions& options,
+                                const ProgressCallback& progress) {
+  options.validate();
+  train.validate("training pairs");
+  val.validate("validation pairs");
+  require(theta.size() == map.n_params(), "train: parameter vector has the wrong size");
+  require(train.dim() == map.dim() && val.dim() == map.dim(),
+          "train: data dimension " + std::to_string(train.dim()) +
+              " does not match the model's phase-space dimension " + std::to_string(map.dim()));
+
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+
+  AdamW opt(map.n_params(), options.adamw, map.damping_param_index());
+  ForwardCache cache;
+  Vector grad(map.n_params());
+
+  TrainSummary summary;
+  summary.stop_reason = "budget";
+  Vector best = theta;
+  summary.best_val_loss = one_step_loss(map, theta, val);
+  summary.best_epoch = 0;
+
+  double train_loss = std::numeric_limits<double>::quiet_NaN();
+  for (long epoch = 1; epoch <= options.epochs; ++epoch) {
+    train_loss = one_step_loss(map, theta, train, &grad, &cache);
+    if (!std::isfinite(train_loss) || !grad.allFinite()) {
+      // Keep the best checkpoint; the caller decides how loudly to report it.
+      summary.stop_reason = "diverged";
+      break;
+    }
+    opt.step(theta, grad);
+    summary.epochs_run = epoch;
+    if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
+
+    const double val_loss = one_step_loss(map, theta, val);
+    // Strict '<' keeps the earliest of equal losses, so runs are reproducible.
+    if (val_loss < summary.best_val_loss) {
+      summary.best_val_loss = val_loss;
+      summary.best_epoch = epoch;
+      best = theta;
+    }
+    if (progress) {
+      TrainProgress p;
+      p.epoch = epoch;
+      p.epochs = options.epochs;
+      p.train_loss = train_loss;
+      p.val_loss = val_loss;
+      p.best_val_loss = summary.best_val_loss;
+      p.gamma_hat = map.damping_rate(theta).value_or(std::numeric_limits<double>::quiet_NaN());
+      p.seconds = seconds();
+      if (!progress(p)) {
+        summary.stop_reason = "callback";
+        break;
+      }
+    }
+  }
+  summary.final_train_loss = train_loss;
+  theta = best;
+  summary.seconds = seconds();
+  return summary;
+}
+
+}  // namespace csympnet

@@ -1,0 +1,210 @@
+// End-to-end tests of the csympnet binary: exit codes, messages, files, determinism.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("csympnet_cli_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  Result run(const std::string& args) {
+    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
+    const std::string cmd = std::string(CSYMPNET_CLI_PATH) + " " + args + " >" + out.string() +
+                            " 2>" + err.string() + " </dev/null";
+    const int status = std::system(cmd.c_str());
+    Result r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+
+  fs::path write(const std::string& name, const std::string& text) {
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(Cli, DescribeReportsTheProtocolParameterCounts) {
+  const std::array<std::tuple<const char*, long, long>, 5> expected{{{"s1", 115, 114},
+                                                                     {"s2", 4111, 4110},
+                                                                     {"s3", 4201, 4200},
+                                                                     {"s2-100", 161101, 161100},
+                                                                     {"s3-100", 161101, 161100}}};
+  for (const auto& [preset, csp, symp] : expected) {
+    for (const std::string model : {"csympnet", "sympnet"}) {
+      const Result r = run(std::string("describe --preset ") + preset + " --model " + model);
+      ASSERT_EQ(r.code, 0) << r.err;
+      const auto j = nlohmann::json::parse(r.out);
+      EXPECT_EQ(j["params"].get<long>(), model == "csympnet" ? csp : symp) << preset << model;
+    }
+  }
+}
+
+TEST_F(Cli, RunWritesItsFilesAndIsBitReproducible) {
+  const std::string common = "run --preset s1 --model csympnet --seed 7 --epochs 300 --quiet";
+  const Result a = run(common + " --out " + (dir_ / "a").string());
+  ASSERT_EQ(a.code, 0) << a.err;
+  const Result b = run(common + " --out " + (dir_ / "b").string());
+  ASSERT_EQ(b.code, 0) << b.err;
+  for (const char* f : {"report.json", "model.json", "rollout.csv", "reference.csv", "energy.csv"})
+    EXPECT_TRUE(fs::exists(dir_ / "a" / f)) << f;
+  auto ja = nlohmann::json::parse(slurp(dir_ / "a" / "report.json"));
+  auto jb = nlohmann::json::parse(slurp(dir_ / "b" / "report.json"));
+  for (const char* timing : {"train_seconds", "eval_seconds"}) {
+    EXPECT_TRUE(ja.contains(timing));
+    ja.erase(timing);
+    jb.erase(timing);
+  }
+  EXPECT_EQ(ja.dump(), jb.dump());
+  EXPECT_EQ(slurp(dir_ / "a" / "model.json"), slurp(dir_ / "b" / "model.json"));
+  EXPECT_EQ(slurp(dir_ / "a" / "rollout.csv"), slurp(dir_ / "b" / "rollout.csv"));
+  for (const char* key : {"model", "preset", "params", "seed", "epochs", "train_seconds",
+                          "best_val_loss", "gamma_hat", "gamma_true", "gamma_abs_err", "l2_error",
+                          "residual_mean", "residual_max", "lambda_abs_err_mean", "config"})
+    EXPECT_TRUE(nlohmann::json::parse(slurp(dir_ / "a" / "report.json")).contains(key)) << key;
+  EXPECT_EQ(ja["params"], 115);
+  EXPECT_EQ(ja["seed"], 7);
+
+  // A different seed gives different results.
+  const Result c = run("run --preset s1 --model csympnet --seed 8 --epochs 300 --quiet --out " +
+                       (dir_ / "c").string());
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(slurp(dir_ / "a" / "model.json"), slurp(dir_ / "c" / "model.json"));
+}
+
+TEST_F(Cli, RefusesToOverwriteANonEmptyOutputDirectory) {
+  fs::create_directories(dir_ / "keep");
+  const fs::path note = write("keep/notes.txt", "mine");
+  const std::string args = "run --preset s1 --epochs 5 --quiet --out " + (dir_ / "keep").string();
+  Result r = run(args);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "keep" / "report.json"));
+  r = run(args + " --force");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(slurp(note), "mine");  // --force writes our files, it never deletes the user's
+}
+
+TEST_F(Cli, SavedModelRollsOutAndEvaluates) {
+  const fs::path out = dir_ / "m";
+  ASSERT_EQ(run("run --preset s1 --epochs 50 --quiet --out " + out.string()).code, 0);
+  const std::string model = (out / "model.json").string();
+  Result r = run("rollout --model " + model + " --z0 0.5,-0.25 --h 0.2 --steps 3");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 5);  // header + 4 states
+  EXPECT_EQ(r.out.rfind("t,q1,p1\n0,0.5,-0.25\n", 0), 0u) << r.out;
+  r = run("rollout --model " + model + " --z0 0.5 --h 0.2 --steps 3");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--z0"), std::string::npos) << r.err;
+  r = run("evaluate --model " + model + " --preset s1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  // Same model, same test set: evaluate agrees with the run's own report bit for bit.
+  const auto ev = nlohmann::json::parse(r.out);
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(ev["l2_error"], rep["l2_error"]);
+  EXPECT_EQ(ev["residual_max"], rep["residual_max"]);
+}
+
+TEST_F(Cli, FitReadsIrregularTrajectoriesAndPrintsGamma) {
+  // A damped rotation sampled at irregular times (exact solution of q' = p, p' = −q − γp).
+  std::string csv = "traj,t,q1,p1\n";
+  const double g = 0.05, w = std::sqrt(1 - g * g / 4);
+  double t = 0;
+  for (int k = 0; k < 60; ++k) {
+    const double e = std::exp(-g * t / 2);
+    const double q = e * std::cos(w * t);
+    const double p = e * (-g / 2 * std::cos(w * t) - w * std::sin(w * t));
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "0,%.17g,%.17g,%.17g\n", t, q, p);
+    csv += buf;
+    t += 0.05 + 0.1 * ((k * 37) % 11) / 10.0;
+  }
+  const fs::path data = write("traj.csv", csv);
+  const Result r =
+      run("fit " + data.string() + " --epochs 200 --quiet --out " + (dir_ / "fit").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind("gamma_hat = ", 0), 0u) << r.out;
+  const auto rep = nlohmann::json::parse(slurp(dir_ / "fit" / "report.json"));
+  EXPECT_EQ(rep["pairs_train"].get<int>() + rep["pairs_val"].get<int>(), 59);
+  EXPECT_TRUE(fs::exists(dir_ / "fit" / "model.json"));
+}
+
+struct BadCase {
+  const char* name;
+  const char* text;
+  const char* expect;  // a fragment the message must contain (":LINE:" after the file name)
+};
+
+TEST_F(Cli, BadInputGetsAClearErrorNamingFileAndLine) {
+  const BadCase cases[] = {
+      {"wrong_columns.csv", "h,q1,p1,next_q1,next_p1\n0.1,1,2,3\n", ":2:"},
+      {"non_numeric.csv", "h,q1,p1,next_q1,next_p1\n0.1,1,abc,3,4\n", ":2:"},
+      {"nan.csv", "h,q1,p1,next_q1,next_p1\n0.1,1,2,3,4\n0.1,nan,2,3,4\n", ":3:"},
+      {"h_nonpositive.csv", "h,q1,p1,next_q1,next_p1\n0.1,1,2,3,4\n-0.1,1,2,3,4\n", ":3:"},
+      {"odd_dimension.csv", "t,q1,q2,p1\n0,1,2,3\n0.1,1,2,3\n", ":1:"},
+      {"empty.csv", "", "empty"},
+  };
+  for (const BadCase& c : cases) {
+    const fs::path p = write(c.name, c.text);
+    const Result r = run("fit " + p.string() + " --quiet --epochs 10 --out " +
+                         (dir_ / (std::string("o_") + c.name)).string());
+    EXPECT_EQ(r.code, 1) << c.name << ": " << r.err;
+    EXPECT_NE(r.err.find(c.name), std::string::npos) << c.name << ": " << r.err;
+    const std::string where =
+        c.expect[0] == ':' ? std::string(c.name) + c.expect : std::string(c.expect);
+    EXPECT_NE(r.err.find(where), std::string::npos) << c.name << ": " << r.err;
+    EXPECT_EQ(r.err.find("internal error"), std::string::npos) << r.err;
+  }
+}
+
+TEST_F(Cli, BadOptionsAreRejectedByName) {
+  Result r = run("run --preset s9 --out " + (dir_ / "x").string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--preset"), std::string::npos) << r.err;
+  r = run("run --preset s1 --sigma -1 --out " + (dir_ / "x").string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--sigma"), std::string::npos) << r.err;
+  r = run("run --preset s1 --model nosuch --out " + (dir_ / "x").string());
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("--model"), std::string::npos) << r.err;
+}
+
+}  // namespace

@@ -1,0 +1,113 @@
+#include "csympnet/train/trainer.hpp"
+
+#include <gtest/gtest.h>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/train/loss.hpp"
+
+namespace csympnet {
+namespace {
+
+// A tiny damped-rotation data set: z1 = e^{-γh/2} R(h) e^{-γh/2}-ish, enough to train on.
+PairSet toy_pairs(Index n, std::uint64_t seed) {
+  Rng rng(seed, "toy");
+  PairSet p;
+  p.z0 = rng.uniform_matrix(2, n, -1, 1);
+  p.h = rng.uniform_vector(n, 0.05, 0.15);
+  p.z1.resize(2, n);
+  for (Index j = 0; j < n; ++j) {
+    const double h = p.h(j), a = std::exp(-0.05 * h / 2);
+    const double q = p.z0(0, j), v = a * p.z0(1, j);
+    p.z1(0, j) = std::cos(h) * q + std::sin(h) * v;
+    p.z1(1, j) = a * (-std::sin(h) * q + std::cos(h) * v);
+  }
+  return p;
+}
+
+std::unique_ptr<OneStepMap> tiny_model() {
+  return make_one_step_map({{"type", "csympnet"},
+                            {"d", 1},
+                            {"core", {{"type", "la"}, {"layers", 2}, {"sublayers", 2}}},
+                            {"beta_init", 0.1}});
+}
+
+TEST(Trainer, KeepsTheBestValidationCheckpoint) {
+  auto map = tiny_model();
+  Vector theta(map->n_params());
+  Rng rng(1, "init");
+  map->init_params(rng, theta);
+  TrainOptions o;
+  o.epochs = 300;
+  o.val_every = 7;
+  o.adamw.lr = 1e-2;
+  const PairSet train = toy_pairs(40, 1), val = toy_pairs(10, 2);
+  const double initial_val = one_step_loss(*map, theta, val);
+  std::vector<double> seen;
+  const TrainSummary s =
+      train_one_step_map(*map, theta, train, val, o, [&](const TrainProgress& p) {
+        seen.push_back(p.val_loss);
+        return true;
+      });
+  EXPECT_EQ(s.epochs_run, 300);
+  EXPECT_EQ(s.stop_reason, "budget");
+  // Validations at 7, 14, ..., 294 and at the final epoch 300.
+  EXPECT_EQ(seen.size(), 300u / 7 + 1);
+  const double best_seen = *std::min_element(seen.begin(), seen.end());
+  EXPECT_EQ(s.best_val_loss, std::min(best_seen, initial_val));
+  // The returned parameters are the checkpoint: their validation loss is the best one.
+  EXPECT_EQ(one_step_loss(*map, theta, val), s.best_val_loss);
+  EXPECT_LT(s.best_val_loss, initial_val);
+}
+
+TEST(Trainer, SameInputsGiveBitIdenticalParameters) {
+  auto map = tiny_model();
+  TrainOptions o;
+  o.epochs = 100;
+  const PairSet train = toy_pairs(30, 3), val = toy_pairs(8, 4);
+  Vector a(map->n_params()), b(map->n_params());
+  Rng r1(5, "init"), r2(5, "init");
+  map->init_params(r1, a);
+  map->init_params(r2, b);
+  train_one_step_map(*map, a, train, val, o);
+  train_one_step_map(*map, b, train, val, o);
+  EXPECT_EQ(a, b);
+}
+
+TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
+  auto map = tiny_model();
+  Vector theta(map->n_params());
+  Rng rng(1, "init");
+  map->init_params(rng, theta);
+  TrainOptions o;
+  o.epochs = 1000;
+  o.val_every = 10;
+  const PairSet train = toy_pairs(20, 1), val = toy_pairs(5, 2);
+  const TrainSummary s = train_one_step_map(*map, theta, train, val, o,
+                                            [](const TrainProgress& p) { return p.epoch < 50; });
+  EXPECT_EQ(s.stop_reason, "callback");
+  EXPECT_EQ(s.epochs_run, 50);
+
+  PairSet bad = train;
+  bad.z1(0, 0) = 1e300;  // the squared residual overflows to inf
+  Vector t2(map->n_params());
+  Rng rng2(1, "init");
+  map->init_params(rng2, t2);
+  const Vector before = t2;
+  const TrainSummary s2 = train_one_step_map(*map, t2, bad, val, o);
+  EXPECT_EQ(s2.stop_reason, "diverged");
+  EXPECT_EQ(t2, before);  // the best checkpoint (the initial one) is kept
+}
+
+TEST(Trainer, RejectsMismatchedData) {
+  auto map = tiny_model();
+  Vector theta = Vector::Zero(map->n_params());
+  theta(theta.size() - 1) = 0.1;
+  PairSet p;
+  p.z0 = Matrix::Zero(4, 3);
+  p.z1 = Matrix::Zero(4, 3);
+  p.h = Vector::Constant(3, 0.1);
+  EXPECT_THROW(train_one_step_map(*map, theta, p, p, {}), Error);
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -17,7 +17,9 @@ namespace csympnet::cli {
 
 namespace {
 struct RunArgs {
-  std::string preset, model = "csympnet", out, reference = "splitting";
+  std::string preset, model = "csympnet", out, reference = "splitting", recipe = "default";
+  std::optional<std::string> lr_schedule;
+  std::optional<double> lr;
   std::uint64_t seed = 42;
   std::optional<long> epochs;
   long val_every = 10;
@@ -34,7 +36,8 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
               args.model.c_str(), args.preset.c_str(), static_cast<unsigned long long>(args.seed),
               args.sigma, static_cast<long long>(r.map->n_params()), r.training.epochs_run,
               r.training.seconds);
-  std::printf("  %-26s %-14s %s\n", "quantity", "csympnet", "paper (seed 42, sigma 0)");
+  std::printf("  recipe %s\n", r.report["recipe"].get<std::string>().c_str());
+  std::printf("  %-26s %-14s %s\n", "quantity", "ours", "paper (seed 42, sigma 0)");
   auto row = [](const char* name, double ours, std::optional<double> theirs) {
     if (theirs)
       std::printf("  %-26s %-14.4e %.4e\n", name, ours, *theirs);
@@ -76,6 +79,13 @@ void add_run(CLI::App& app) {
   cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42");
   cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
       ->check(CLI::Range(0L, 100000000L));
+  cmd->add_option("--recipe", args->recipe,
+                  "Training recipe: default (cosine-annealed rate) or paper (constant rate)")
+      ->check(CLI::IsMember({"default", "paper"}));
+  cmd->add_option("--lr", args->lr, "AdamW learning rate (default: the recipe's)")
+      ->check(CLI::Range(1e-12, 10.0));
+  cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
+      ->check(CLI::IsMember({"constant", "cosine"}));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
       ->check(CLI::Range(1L, 100000000L));
   cmd->add_option("--sigma", args->sigma, "Relative observation noise (default 0)")
@@ -95,7 +105,10 @@ void add_run(CLI::App& app) {
     args->system.apply(c.preset);
     c.seed = args->seed;
     c.sigma = args->sigma;
+    if (args->recipe == "paper") c.train = paper_recipe(c.train.epochs);
     if (args->epochs) c.train.epochs = *args->epochs;
+    if (args->lr) c.train.adamw.lr = *args->lr;
+    if (args->lr_schedule) c.train.lr_schedule = *args->lr_schedule;
     c.train.val_every = args->val_every;
     c.train.adamw.decay_damping = !args->no_beta_decay;
     c.reference.method = parse_reference(args->reference);
@@ -130,7 +143,7 @@ void add_describe(CLI::App& app) {
     auto map = make_one_step_map(spec);
     nlohmann::json out = {{"model", *model},           {"preset", *preset},
                           {"params", map->n_params()}, {"architecture", map->hyperparams()},
-                          {"system", p.system},        {"epochs", p.epochs}};
+                          {"system", p.system},        {"train", p.train}};
     std::cout << out.dump(2) << "\n";
   });
 }

@@ -19,7 +19,8 @@ namespace csympnet::cli {
 
 namespace {
 struct FitArgs {
-  std::string data, val, out, model = "csympnet", core;
+  std::string data, val, out, model = "csympnet", core, lr_schedule = "cosine";
+  double lr = 1e-3;
   std::uint64_t seed = 42;
   long epochs = 0;
   long val_every = 10;
@@ -56,6 +57,9 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--core", a.core, "Symplectic core: la:L:m or g:L:w (default: by dimension)");
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
       ->check(CLI::Range(1L, 100000000L));
+  cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")->check(CLI::Range(1e-12, 10.0));
+  cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
+      ->check(CLI::IsMember({"constant", "cosine"}));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
       ->check(CLI::Range(1L, 100000000L));
   cmd.add_option("--seed", a.seed, "Seed of the validation split and the init (default 42)");
@@ -82,6 +86,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   c.beta_init = a.beta_init;
   c.train.epochs = a.epochs;
   c.train.val_every = a.val_every;
+  c.train.adamw.lr = a.lr;
+  c.train.lr_schedule = a.lr_schedule;
   c.train.adamw.decay_damping = !a.no_beta_decay;
   FitResult r;
   {

@@ -1,5 +1,7 @@
 #include "csympnet/experiments/preset.hpp"
 
+#include <cstdio>
+
 #include "csympnet/core/error.hpp"
 
 namespace csympnet {
@@ -11,6 +13,20 @@ std::string join(const std::vector<std::string>& v) {
   return s;
 }
 
+// Epoch budgets and rates of the default recipe, measured in docs/training.md.
+constexpr long kS1Epochs = 50000;
+constexpr long kS2Epochs = 50000;
+constexpr long kS3Epochs = 200000;
+constexpr long kLargeEpochs = 3000;
+constexpr double kS3LearningRate = 1e-2;
+
+// The paper's optimiser with a cosine-annealed rate (switch back with paper_recipe()).
+TrainOptions improved_recipe(long epochs) {
+  TrainOptions t = paper_recipe(epochs);
+  t.lr_schedule = "cosine";
+  return t;
+}
+
 nlohmann::json la_core(int layers, int sublayers) {
   return {{"type", "la"}, {"layers", layers}, {"sublayers", sublayers}};
 }
@@ -20,7 +36,7 @@ void to_json(nlohmann::json& j, const Preset& p) {
   j = {{"name", p.name},       {"system", p.system},           {"n_train", p.n_train},
        {"n_val", p.n_val},     {"train_steps", p.train_steps}, {"h_test", p.h_test},
        {"horizon", p.horizon}, {"n_test", p.n_test},           {"core", p.core},
-       {"epochs", p.epochs}};
+       {"train", p.train}};
 }
 
 std::vector<std::string> preset_names() {
@@ -36,23 +52,50 @@ Preset preset_by_name(const std::string& name) {
     p.n_val = 20;
     p.train_steps = {0.05, 0.15};
     p.core = la_core(5, 20);
-    p.epochs = 20000;
+    p.train = improved_recipe(kS1Epochs);
   } else if (name == "s2" || name == "s2-100") {
     const bool big = name == "s2-100";
     p.system = {"chain", big ? 100 : 10, 0.05, 1.0, 1.0, 0.0};
     p.train_steps = {0.1, 0.1};
     p.core = big ? la_core(4, 4) : la_core(4, 10);
-    p.epochs = big ? 3000 : 20000;
+    p.train = improved_recipe(big ? kLargeEpochs : kS2Epochs);
   } else if (name == "s3" || name == "s3-100") {
     const bool big = name == "s3-100";
     p.system = {"cubic", big ? 100 : 10, 0.05, 1.0, 1.0, big ? 1e-4 : 0.005};
     p.train_steps = {0.1, 0.1};
     p.core = big ? la_core(4, 4) : nlohmann::json{{"type", "g"}, {"layers", 7}, {"width", 50}};
-    p.epochs = big ? 3000 : 20000;
+    p.train = improved_recipe(big ? kLargeEpochs : kS3Epochs);
+    if (!big) p.train.adamw.lr = kS3LearningRate;
   } else {
     throw Error("unknown preset '" + name + "'; expected one of: " + join(preset_names()));
   }
   return p;
+}
+
+TrainOptions paper_recipe(long epochs) {
+  TrainOptions t;
+  t.epochs = epochs;
+  t.adamw = AdamWOptions{};
+  t.lr_schedule = "constant";
+  return t;
+}
+
+std::string describe_recipe(const TrainOptions& t) {
+  const AdamWOptions paper{};
+  std::string changes;
+  auto add = [&](const std::string& c) { changes += (changes.empty() ? "" : ",") + c; };
+  if (t.lr_schedule != "constant") add(t.lr_schedule + "-lr");
+  auto num = [](double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return std::string(buf);
+  };
+  if (t.adamw.lr != paper.lr) add("lr=" + num(t.adamw.lr));
+  if (t.adamw.weight_decay != paper.weight_decay) add("wd=" + num(t.adamw.weight_decay));
+  if (!t.adamw.decay_damping) add("no-beta-decay");
+  if (t.adamw.beta1 != paper.beta1 || t.adamw.beta2 != paper.beta2 || t.adamw.eps != paper.eps)
+    add("adam-constants");
+  return changes.empty() ? "paper" : "paper+" + changes;
 }
 
 std::vector<std::string> map_model_names() {

@@ -27,7 +27,7 @@ RunConfig default_run_config(const std::string& preset, const std::string& model
   RunConfig c;
   c.preset = preset_by_name(preset);
   c.model = model;
-  c.train.epochs = c.preset.epochs;
+  c.train = c.preset.train;
   return c;
 }
 
@@ -117,7 +117,7 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   for (const auto& [key, value] : diag.items()) rep[key] = value;
   rep["test_trajectories"] = r.data.test.trajectories.size();
   rep["test_redraws"] = r.data.test.redraws;
-  rep["recipe"] = "paper: AdamW, full batch, best-validation checkpoint";
+  rep["recipe"] = describe_recipe(c.train);
   rep["architecture"] = r.map->hyperparams();
   rep["config"] = c;
   rep["csympnet_version"] = "0.1.0";

@@ -14,6 +14,18 @@ void TrainOptions::validate() const {
   require(epochs >= 0, "train.epochs must be >= 0, got " + std::to_string(epochs));
   require(val_every >= 1, "train.val_every must be >= 1, got " + std::to_string(val_every));
   adamw.validate();
+  require(lr_schedule == "constant" || lr_schedule == "cosine",
+          "train.lr_schedule must be 'constant' or 'cosine', got '" + lr_schedule + "'");
+  require(std::isfinite(lr_final_fraction) && lr_final_fraction > 0.0 && lr_final_fraction <= 1.0,
+          "train.lr_final_fraction must be in (0, 1]");
+}
+
+double TrainOptions::lr_at(long epoch) const {
+  if (lr_schedule == "constant" || epochs <= 1) return adamw.lr;
+  // Cosine from lr (epoch 1) to lr·f (last epoch).
+  const double x = static_cast<double>(epoch - 1) / static_cast<double>(epochs - 1);
+  const double f = lr_final_fraction;
+  return adamw.lr * (f + (1.0 - f) * 0.5 * (1.0 + std::cos(3.14159265358979323846 * x)));
 }
 
 void to_json(nlohmann::json& j, const TrainOptions& o) {
@@ -25,6 +37,8 @@ void from_json(const nlohmann::json& j, TrainOptions& o) {
   o.epochs = j.value("epochs", o.epochs);
   o.val_every = j.value("val_every", o.val_every);
   if (j.contains("adamw")) o.adamw = j.at("adamw").get<AdamWOptions>();
+  o.lr_schedule = j.value("lr_schedule", o.lr_schedule);
+  o.lr_final_fraction = j.value("lr_final_fraction", o.lr_final_fraction);
 }
 
 std::string TrainSummary::brief_report() const {
@@ -76,6 +90,7 @@ TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const Pair
       summary.stop_reason = "diverged";
       break;
     }
+    if (options.lr_schedule != "constant") opt.set_lr(options.lr_at(epoch));
     opt.step(theta, grad);
     summary.epochs_run = epoch;
     if (epoch % options.val_every != 0 && epoch != options.epochs) continue;

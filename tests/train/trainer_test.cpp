@@ -111,3 +111,25 @@ TEST(Trainer, RejectsMismatchedData) {
 
 }  // namespace
 }  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+TEST(TrainOptions, CosineScheduleRunsFromLrToTheFinalFraction) {
+  TrainOptions o;
+  o.epochs = 101;
+  o.adamw.lr = 2e-3;
+  EXPECT_EQ(o.lr_at(1), 2e-3);  // constant: the paper's recipe
+  EXPECT_EQ(o.lr_at(101), 2e-3);
+  o.lr_schedule = "cosine";
+  o.lr_final_fraction = 1e-3;
+  EXPECT_DOUBLE_EQ(o.lr_at(1), 2e-3);
+  EXPECT_DOUBLE_EQ(o.lr_at(101), 2e-6);
+  EXPECT_DOUBLE_EQ(o.lr_at(51), 2e-3 * (1e-3 + (1 - 1e-3) * 0.5));  // halfway: cos = 0
+  for (long e = 2; e <= 101; ++e) EXPECT_LT(o.lr_at(e), o.lr_at(e - 1));
+  o.lr_schedule = "linear";
+  EXPECT_THROW(o.validate(), Error);
+}
+
+}  // namespace
+}  // namespace csympnet

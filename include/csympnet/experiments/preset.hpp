@@ -8,6 +8,7 @@
 
 #include "csympnet/data/generate.hpp"
 #include "csympnet/systems/system.hpp"
+#include "csympnet/train/trainer.hpp"
 
 namespace csympnet {
 
@@ -21,7 +22,7 @@ struct Preset {
   double horizon = 10.0;  // test trajectories cover [0, horizon]
   Index n_test = 10;      // test trajectories M
   nlohmann::json core;    // symplectic core of CSympNet-ID and SympNet
-  long epochs = 20000;    // documented AdamW budget for the map models (docs/training.md)
+  TrainOptions train;        // default recipe of the map models (docs/training.md)
 };
 void to_json(nlohmann::json& j, const Preset& p);
 
@@ -31,6 +32,12 @@ Preset preset_by_name(const std::string& name);
 
 // The map models a preset can train: "csympnet", "sympnet".
 std::vector<std::string> map_model_names();
+// The paper's recipe (PROTOCOL.md "Training"): AdamW lr 1e-3, weight decay 5e-4 on every
+// parameter, constant rate, with the given epoch budget.
+TrainOptions paper_recipe(long epochs);
+// Names the recipe a TrainOptions amounts to: "paper" or "paper+<changes>".
+std::string describe_recipe(const TrainOptions& t);
+
 // Hyperparams JSON for make_one_step_map: the preset's core, at the preset's d.
 nlohmann::json model_spec_for(const Preset& p, const std::string& model);
 

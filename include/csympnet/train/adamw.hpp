@@ -34,6 +34,9 @@ class AdamW {
   // One update of theta in place with gradient g.
   void step(ParamsRef theta, const Vector& g);
   long steps_taken() const { return t_; }
+  // Changes the learning rate for the following steps (for schedules).
+  void set_lr(double lr) { opt_.lr = lr; }
+  double lr() const { return opt_.lr; }
 
  private:
   AdamWOptions opt_;

@@ -17,7 +17,14 @@ struct TrainOptions {
   long epochs = 20000;  // epoch budget (one full-batch AdamW step per epoch)
   long val_every = 10;  // evaluate the validation loss every this many epochs (and at the end)
   AdamWOptions adamw;   // optimiser settings (PROTOCOL.md defaults)
+  // Learning-rate schedule: "constant" (the paper's recipe) or "cosine", which anneals the
+  // rate from adamw.lr to lr_final_fraction·adamw.lr over the budget (a switchable
+  // improvement: it removes the late oscillation of a constant rate; docs/training.md).
+  std::string lr_schedule = "constant";
+  double lr_final_fraction = 1e-3;
   void validate() const;
+  // adamw.lr scaled by the schedule at epoch (1-based) of the budget.
+  double lr_at(long epoch) const;
 };
 void to_json(nlohmann::json& j, const TrainOptions& o);
 void from_json(const nlohmann::json& j, TrainOptions& o);

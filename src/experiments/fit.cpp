@@ -32,7 +32,7 @@ nlohmann::json default_core_for(Index d) {
 }
 
 long default_epochs_for(Index d) {
-  return d <= 20 ? 20000 : 3000;
+  return d <= 20 ? 50000 : 3000;
 }
 
 std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction, Rng& rng) {

@@ -28,6 +28,7 @@ void to_json(nlohmann::json& j, const FitConfig& c);
 // The presets' cores, chosen by dimension: LA(5,20) for d = 1, LA(4,10) up to d = 20,
 // LA(4,4) beyond.
 nlohmann::json default_core_for(Index d);
+// 50,000 epochs up to d = 20 (the s1/s2 budget, docs/training.md), 3,000 beyond.
 long default_epochs_for(Index d);
 
 // Deterministic split of `all` into (train, val) with round(val_fraction·N) ≥ 1 validation

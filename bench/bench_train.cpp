@@ -22,7 +22,7 @@ Setup make_setup(const std::string& preset, const std::string& model) {
   Rng rng(42, "train-pairs");
   const System sys(c.preset.system);
   s.train = generate_pairs(sys, c.preset.n_train, c.preset.train_steps, rng, c.reference);
-  s.map = make_one_step_map(model_spec_for(c.preset, model));
+  s.map = make_one_step_map(model_spec_for(c.preset, model));  // map models only
   s.theta.resize(s.map->n_params());
   Rng init(42, "init");
   s.map->init_params(init, s.theta);

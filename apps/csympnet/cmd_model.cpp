@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
+#include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
@@ -75,8 +76,8 @@ void add_evaluate(CLI::App& app) {
     a->system.apply(c.preset);
     if (a->h_test) c.preset.h_test = *a->h_test;
     const System sys(c.preset.system);
-    require(sys.dim() == saved.map->dim(),
-            "the model's dimension " + std::to_string(saved.map->dim()) +
+    require(sys.dim() == saved.model.dim(),
+            "the model's dimension " + std::to_string(saved.model.dim()) +
                 " does not match the system's " + std::to_string(sys.dim()));
     std::vector<Trajectory> tests;
     if (!a->data.empty()) {
@@ -89,11 +90,11 @@ void add_evaluate(CLI::App& app) {
                   .trajectories;
     }
     const Diagnostics d =
-        evaluate(learned_map(*saved.map, saved.theta), sys, tests, c.preset.h_test);
+        evaluate(learned_map(saved.model, saved.theta), sys, tests, c.preset.h_test);
     nlohmann::json rep = d;
     rep["model_file"] = a->model;
-    rep["model"] = saved.map->type();
-    rep["params"] = saved.map->n_params();
+    rep["model"] = saved.model.type();
+    rep["params"] = saved.model.n_params();
     rep["gamma_true"] = sys.gamma();
     rep["system"] = c.preset.system;
     rep["h_test"] = c.preset.h_test;
@@ -119,10 +120,10 @@ void add_rollout(CLI::App& app) {
       ->check(CLI::Range(1L, 100000000L));
   cmd->callback([=] {
     const SavedModel saved = load_model(*model);
-    const Vector z = parse_state(*z0, saved.map->dim());
+    const Vector z = parse_state(*z0, saved.model.dim());
     const Vector hs = Vector::Constant(*steps, *h);
-    const Matrix states = rollout(learned_map(*saved.map, saved.theta), z, hs);
-    const Index d = saved.map->dim() / 2;
+    const Matrix states = rollout(learned_map(saved.model, saved.theta), z, hs);
+    const Index d = saved.model.dim() / 2;
     std::string line = "t";
     for (Index i = 1; i <= d; ++i) line += ",q" + std::to_string(i);
     for (Index i = 1; i <= d; ++i) line += ",p" + std::to_string(i);

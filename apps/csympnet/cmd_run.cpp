@@ -10,6 +10,7 @@
 #include "csympnet/experiments/paper_values.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/models/model.hpp"
 #include "progress.hpp"
 #include "system_options.hpp"
 
@@ -34,7 +35,7 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
   const auto paper = paper_values(args.preset, args.model);
   std::printf("%s on %s (seed %llu, sigma %g): %lld params, %ld epochs in %.2f s\n",
               args.model.c_str(), args.preset.c_str(), static_cast<unsigned long long>(args.seed),
-              args.sigma, static_cast<long long>(r.map->n_params()), r.training.epochs_run,
+              args.sigma, static_cast<long long>(r.model.n_params()), r.training.epochs_run,
               r.training.seconds);
   std::printf("  recipe %s\n", r.report["recipe"].get<std::string>().c_str());
   std::printf("  %-26s %-14s %s\n", "quantity", "ours", "paper (seed 42, sigma 0)");
@@ -74,8 +75,7 @@ void add_run(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "run", "Generate a preset's data, train a model, evaluate it, write DIR/report.json");
   add_preset_option(*cmd, args->preset);
-  cmd->add_option("--model", args->model, "Model to train")
-      ->check(CLI::IsMember(map_model_names()));
+  cmd->add_option("--model", args->model, "Model to train")->check(CLI::IsMember(model_types()));
   cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42");
   cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
       ->check(CLI::Range(0L, 100000000L));
@@ -134,16 +134,15 @@ void add_describe(CLI::App& app) {
   CLI::App* cmd =
       app.add_subcommand("describe", "Print a preset model's architecture and size as JSON");
   add_preset_option(*cmd, *preset);
-  cmd->add_option("--model", *model, "Model")->check(CLI::IsMember(map_model_names()));
+  cmd->add_option("--model", *model, "Model")->check(CLI::IsMember(model_types()));
   system->add_to(*cmd);
   cmd->callback([preset, model, system] {
     Preset p = preset_by_name(*preset);
     system->apply(p);
-    nlohmann::json spec = model_spec_for(p, *model);
-    auto map = make_one_step_map(spec);
-    nlohmann::json out = {{"model", *model},           {"preset", *preset},
-                          {"params", map->n_params()}, {"architecture", map->hyperparams()},
-                          {"system", p.system},        {"train", p.train}};
+    const Model m = make_model(model_spec_for(p, *model));
+    nlohmann::json out = {{"model", *model},        {"preset", *preset},
+                          {"params", m.n_params()}, {"architecture", m.hyperparams()},
+                          {"system", p.system},     {"train", train_options_for(p, *model)}};
     std::cout << out.dump(2) << "\n";
   });
 }

@@ -57,7 +57,8 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--core", a.core, "Symplectic core: la:L:m or g:L:w (default: by dimension)");
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
       ->check(CLI::Range(1L, 100000000L));
-  cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")->check(CLI::Range(1e-12, 10.0));
+  cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")
+      ->check(CLI::Range(1e-12, 10.0));
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
       ->check(CLI::IsMember({"constant", "cosine"}));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
@@ -94,8 +95,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     ProgressLine progress(a.quiet);
     r = fit_pairs(data, val, c, progress.callback());
   }
-  const auto gamma = r.map->damping_rate(r.theta);
-  const double train_loss = one_step_loss(*r.map, r.theta, r.train);
+  const auto gamma = r.model.damping_rate(r.theta);
+  const double train_loss = one_step_loss(*r.model.map, r.theta, r.train);
   nlohmann::json report = {
       {"model", r.config.model},
       {"data", a.data},
@@ -105,7 +106,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
       {"pairs_val", r.val.size()},
       {"h_min", data.h.minCoeff()},
       {"h_max", data.h.maxCoeff()},
-      {"params", r.map->n_params()},
+      {"params", r.model.n_params()},
       {"seed", a.seed},
       {"epochs", r.training.epochs_run},
       {"train_seconds", r.training.seconds},
@@ -114,16 +115,16 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
       {"gamma_hat", gamma ? nlohmann::json(*gamma) : nlohmann::json(nullptr)},
       {"training", r.training},
       {"config", r.config},
-      {"architecture", r.map->hyperparams()}};
+      {"architecture", r.model.hyperparams()}};
   write_json_file((std::filesystem::path(a.out) / "report.json").string(), report);
-  save_model((std::filesystem::path(a.out) / "model.json").string(), *r.map, r.theta,
+  save_model((std::filesystem::path(a.out) / "model.json").string(), r.model, r.theta,
              {{"data", a.data}, {"seed", a.seed}, {"train", r.config.train}});
   if (gamma) std::printf("gamma_hat = %.10g\n", *gamma);
   if (verbose_summary || !a.quiet) {
     std::printf("%s, d = %lld, %lld training / %lld validation pairs, %lld params\n",
                 r.config.model.c_str(), static_cast<long long>(data.d()),
                 static_cast<long long>(r.train.size()), static_cast<long long>(r.val.size()),
-                static_cast<long long>(r.map->n_params()));
+                static_cast<long long>(r.model.n_params()));
     std::printf("%s\n", r.training.brief_report().c_str());
     std::printf("train loss %.3e, validation loss %.3e; wrote %s/{report.json,model.json}\n",
                 train_loss, r.training.best_val_loss, a.out.c_str());

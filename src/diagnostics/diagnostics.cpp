@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "csympnet/core/error.hpp"
 
@@ -10,7 +11,16 @@ namespace csympnet {
 Matrix rollout(const LearnedMap& map, const Vector& z0, const Vector& steps) {
   Matrix out(z0.size(), steps.size() + 1);
   out.col(0) = z0;
-  for (Index n = 0; n < steps.size(); ++n) out.col(n + 1) = map.step(out.col(n), steps(n));
+  for (Index n = 0; n < steps.size(); ++n) {
+    try {
+      out.col(n + 1) = map.step(out.col(n), steps(n));
+    } catch (const Error&) {
+      // The learned dynamics left the finite numbers (e.g. a blown-up vector field): the
+      // rest of the rollout is infinitely wrong, which the L2 error then says.
+      out.rightCols(steps.size() - n).setConstant(std::numeric_limits<double>::infinity());
+      break;
+    }
+  }
   return out;
 }
 
@@ -66,8 +76,13 @@ Diagnostics evaluate(const LearnedMap& map, const System& sys, const std::vector
       e_ref(n) = sys.energy(traj.z.col(n));
     }
     for (Index n = 0; n < traj.z.cols(); ++n) {
-      const StructureAt s =
-          structure_at(map.jacobian(traj.z.col(n), h_test), d.lambda_star, lambda_own);
+      StructureAt s;
+      try {
+        s = structure_at(map.jacobian(traj.z.col(n), h_test), d.lambda_star, lambda_own);
+      } catch (const Error&) {
+        const double inf = std::numeric_limits<double>::infinity();
+        s = {inf, inf, inf};  // the induced map does not exist at this point
+      }
       r_sum += s.residual;
       self_sum += s.self_residual;
       d.structure_residual_max = std::max(d.structure_residual_max, s.self_residual);

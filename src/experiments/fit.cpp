@@ -5,6 +5,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/train/objective.hpp"
 
 namespace csympnet {
 
@@ -70,11 +71,11 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   }
   nlohmann::json spec = {{"type", config.model}, {"d", train.d()}, {"core", r.config.core}};
   if (config.model == "csympnet") spec["beta_init"] = config.beta_init;
-  r.map = make_one_step_map(spec);
-  r.theta.resize(r.map->n_params());
+  r.model = make_model(spec);
+  r.theta.resize(r.model.n_params());
   Rng init_rng(config.seed, "init");
-  r.map->init_params(init_rng, r.theta);
-  r.training = train_one_step_map(*r.map, r.theta, r.train, r.val, r.config.train, progress);
+  r.model.init_params(init_rng, r.theta);
+  r.training = train_model(r.model, r.theta, r.train, r.val, r.config.train, progress);
   return r;
 }
 

@@ -20,7 +20,7 @@ void write_run_outputs(const std::string& dir, const RunResult& r) {
                          {"preset", r.report["preset"]},
                          {"seed", r.report["seed"]},
                          {"train", r.report["config"]["train"]}};
-  save_model((base / "model.json").string(), *r.map, r.theta, meta);
+  save_model((base / "model.json").string(), r.model, r.theta, meta);
 
   const auto& tests = r.data.test.trajectories;
   std::vector<Trajectory> predicted;

@@ -5,6 +5,8 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/train/objective.hpp"
 
 namespace csympnet {
 
@@ -20,6 +22,7 @@ void RunConfig::validate() const {
           "beta_init must be finite and nonzero (the gradient of |beta| vanishes at 0)");
   train.validate();
   reference.validate();
+  ode.validate();
   model_spec_for(preset, model);  // validates the model name
 }
 
@@ -27,7 +30,7 @@ RunConfig default_run_config(const std::string& preset, const std::string& model
   RunConfig c;
   c.preset = preset_by_name(preset);
   c.model = model;
-  c.train = c.preset.train;
+  c.train = train_options_for(c.preset, model);
   return c;
 }
 
@@ -44,7 +47,10 @@ void to_json(nlohmann::json& j, const RunConfig& c) {
          {"rk_rtol", c.reference.rk_rtol},
          {"rk_atol", c.reference.rk_atol}}},
        {"beta_init", c.beta_init},
-       {"loss", "one-step MSE, mean over pairs of squared norm"}};
+       {"ode", {{"rtol", c.ode.rtol}, {"atol", c.ode.atol}, {"max_steps", c.ode.max_steps}}},
+       {"loss", is_vector_field_type(c.model)
+                    ? "midpoint: mean over pairs of |(z1 - z0)/h - f((z0 + z1)/2)|^2"
+                    : "one-step: mean over pairs of |z1 - Phi_h(z0)|^2"}};
 }
 
 RunData generate_run_data(const RunConfig& c) {
@@ -68,41 +74,33 @@ RunData generate_run_data(const RunConfig& c) {
   return d;
 }
 
-LearnedMap learned_map(const OneStepMap& map, const Vector& theta) {
-  LearnedMap lm;
-  lm.step = [&map, &theta](const Vector& z, double h) -> Vector {
-    return map.apply(theta, z, Vector::Constant(1, h));
-  };
-  lm.jacobian = [&map, &theta](const Vector& z, double h) { return map.jacobian(theta, z, h); };
-  lm.gamma_hat = map.damping_rate(theta);
-  return lm;
-}
-
 RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   c.validate();
   RunResult r;
   r.data = generate_run_data(c);
 
   nlohmann::json spec = model_spec_for(c.preset, c.model);
-  if (c.model == "csympnet") spec["beta_init"] = c.beta_init;
-  r.map = make_one_step_map(spec);
-  r.theta.resize(r.map->n_params());
+  if (c.model == "csympnet" || c.model == "dhnn2" || c.model == "phnn2")
+    spec["beta_init"] = c.beta_init;
+  r.model = make_model(spec);
+  r.theta.resize(r.model.n_params());
   Rng init_rng(c.seed, "init");
-  r.map->init_params(init_rng, r.theta);
+  r.model.init_params(init_rng, r.theta);
 
-  r.training = train_one_step_map(*r.map, r.theta, r.data.train, r.data.val, c.train, progress);
+  r.training = train_model(r.model, r.theta, r.data.train, r.data.val, c.train, progress);
 
   const System sys(c.preset.system);
   const auto t0 = std::chrono::steady_clock::now();
-  r.diagnostics =
-      evaluate(learned_map(*r.map, r.theta), sys, r.data.test.trajectories, c.preset.h_test);
+  r.diagnostics = evaluate(learned_map(r.model, r.theta, c.ode), sys, r.data.test.trajectories,
+                           c.preset.h_test);
   const double eval_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   nlohmann::json& rep = r.report;
   rep["model"] = c.model;
   rep["preset"] = c.preset.name;
-  rep["params"] = r.map->n_params();
+  rep["params"] = r.model.n_params();
+  rep["family"] = r.model.is_map() ? "map" : "vector-field";
   rep["seed"] = c.seed;
   rep["sigma"] = c.sigma;
   rep["epochs"] = r.training.epochs_run;
@@ -118,7 +116,7 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   rep["test_trajectories"] = r.data.test.trajectories.size();
   rep["test_redraws"] = r.data.test.redraws;
   rep["recipe"] = describe_recipe(c.train);
-  rep["architecture"] = r.map->hyperparams();
+  rep["architecture"] = r.model.hyperparams();
   rep["config"] = c;
   rep["csympnet_version"] = "0.1.0";
   return r;

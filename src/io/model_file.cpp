@@ -5,15 +5,14 @@
 
 namespace csympnet {
 
-nlohmann::json model_to_json(const OneStepMap& map, const Vector& theta,
-                             const nlohmann::json& meta) {
-  require(theta.size() == map.n_params(), "model_to_json: parameter vector has the wrong size");
+nlohmann::json model_to_json(const Model& model, const Vector& theta, const nlohmann::json& meta) {
+  require(theta.size() == model.n_params(), "model_to_json: parameter vector has the wrong size");
   nlohmann::json params = nlohmann::json::array();
   for (Index i = 0; i < theta.size(); ++i) params.push_back(theta(i));
   return {{"format", kModelFormat},
           {"version", kModelFormatVersion},
-          {"model", map.hyperparams()},
-          {"n_params", map.n_params()},
+          {"model", model.hyperparams()},
+          {"n_params", model.n_params()},
           {"meta", meta},
           {"params", params}};
 }
@@ -31,16 +30,16 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
   require(doc.contains("model"), where + ": missing \"model\" (the architecture)");
   SavedModel out;
   try {
-    out.map = make_one_step_map(doc["model"]);
+    out.model = make_model(doc["model"]);
   } catch (const Error& e) {
     throw Error(where + ": " + e.what());
   }
   require(doc.contains("params") && doc["params"].is_array(), where + ": missing array \"params\"");
   const auto& params = doc["params"];
-  require(static_cast<Index>(params.size()) == out.map->n_params(),
+  require(static_cast<Index>(params.size()) == out.model.n_params(),
           where + ": \"params\" has " + std::to_string(params.size()) +
-              " entries but the architecture needs " + std::to_string(out.map->n_params()));
-  out.theta.resize(out.map->n_params());
+              " entries but the architecture needs " + std::to_string(out.model.n_params()));
+  out.theta.resize(out.model.n_params());
   for (Index i = 0; i < out.theta.size(); ++i) {
     const auto& v = params[static_cast<std::size_t>(i)];
     require(v.is_number(), where + ": params[" + std::to_string(i) + "] is not a number");
@@ -51,9 +50,9 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
   return out;
 }
 
-void save_model(const std::string& path, const OneStepMap& map, const Vector& theta,
+void save_model(const std::string& path, const Model& model, const Vector& theta,
                 const nlohmann::json& meta) {
-  write_text_atomic(path, model_to_json(map, theta, meta).dump(1) + "\n");
+  write_text_atomic(path, model_to_json(model, theta, meta).dump(1) + "\n");
 }
 
 SavedModel load_model(const std::string& path) {

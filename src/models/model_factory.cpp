@@ -6,6 +6,7 @@
 //   {"type": "sympnet", "d": D, "core": CORE}                      SympNet = the core alone
 //   {"type": "csympnet", "d": D, "core": CORE, "beta_init": B}     CSympNet-ID (B optional,
 //                                                                  default 0.1, nonzero)
+//   {"type": "map", "d": D, "width": W}                            MapBaseline
 //
 // where CORE is {"type": "la", "layers": L, "sublayers": M} or {"type": "g", "layers": L,
 // "width": W} (a "d" inside CORE is allowed if it equals the outer d). Unknown keys are
@@ -20,6 +21,7 @@
 #include "csympnet/models/csympnet_id.hpp"
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
+#include "csympnet/models/map_baseline.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/models/sympnet.hpp"
 
@@ -29,7 +31,8 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kValidTypes = "csympnet, sympnet, la, g";
+constexpr const char* kValidTypes =
+    "csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2, or a bare core la, g";
 constexpr const char* kValidCoreTypes = "la, g";
 
 void require_object(const json& spec, const std::string& where) {
@@ -121,6 +124,11 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     auto core = make_core(spec.at("core"), d, where + ".core");
     if (!conformal) return std::make_unique<SympNet>(std::move(core));
     return std::make_unique<CSympNetId>(std::move(core), get_beta_init(spec, where));
+  }
+  if (type == "map") {
+    reject_unknown_keys(spec, where, {"type", "d", "width"});
+    return std::make_unique<MapBaseline>(get_count(spec, "d", where),
+                                         get_count(spec, "width", where));
   }
   throw Error(where + ": unknown model type '" + type + "' (valid types: " + kValidTypes + ")");
 }

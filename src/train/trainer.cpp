@@ -57,34 +57,28 @@ void to_json(nlohmann::json& j, const TrainSummary& s) {
        {"stop_reason", s.stop_reason}};
 }
 
-TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
-                                const PairSet& val, const TrainOptions& options,
-                                const ProgressCallback& progress) {
+TrainSummary train_parameters(const Objective& objective, Vector& theta,
+                              const TrainOptions& options, const ProgressCallback& progress) {
   options.validate();
-  train.validate("training pairs");
-  val.validate("validation pairs");
-  require(theta.size() == map.n_params(), "train: parameter vector has the wrong size");
-  require(train.dim() == map.dim() && val.dim() == map.dim(),
-          "train: data dimension " + std::to_string(train.dim()) +
-              " does not match the model's phase-space dimension " + std::to_string(map.dim()));
+  require(objective.train_loss && objective.val_loss, "train: objective needs both losses");
+  require(theta.size() == objective.n_params, "train: parameter vector has the wrong size");
 
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
 
-  AdamW opt(map.n_params(), options.adamw, map.damping_param_index());
-  ForwardCache cache;
-  Vector grad(map.n_params());
+  AdamW opt(objective.n_params, options.adamw, objective.damping_index);
+  Vector grad(objective.n_params);
 
   TrainSummary summary;
   summary.stop_reason = "budget";
   Vector best = theta;
-  summary.best_val_loss = one_step_loss(map, theta, val);
+  summary.best_val_loss = objective.val_loss(theta);
   summary.best_epoch = 0;
 
   double train_loss = std::numeric_limits<double>::quiet_NaN();
   for (long epoch = 1; epoch <= options.epochs; ++epoch) {
-    train_loss = one_step_loss(map, theta, train, &grad, &cache);
+    train_loss = objective.train_loss(theta, grad);
     if (!std::isfinite(train_loss) || !grad.allFinite()) {
       // Keep the best checkpoint; the caller decides how loudly to report it.
       summary.stop_reason = "diverged";
@@ -95,7 +89,7 @@ TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const Pair
     summary.epochs_run = epoch;
     if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
 
-    const double val_loss = one_step_loss(map, theta, val);
+    const double val_loss = objective.val_loss(theta);
     // Strict '<' keeps the earliest of equal losses, so runs are reproducible.
     if (val_loss < summary.best_val_loss) {
       summary.best_val_loss = val_loss;
@@ -109,7 +103,8 @@ TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const Pair
       p.train_loss = train_loss;
       p.val_loss = val_loss;
       p.best_val_loss = summary.best_val_loss;
-      p.gamma_hat = map.damping_rate(theta).value_or(std::numeric_limits<double>::quiet_NaN());
+      const auto gamma = objective.damping_rate ? objective.damping_rate(theta) : std::nullopt;
+      p.gamma_hat = gamma.value_or(std::numeric_limits<double>::quiet_NaN());
       p.seconds = seconds();
       if (!progress(p)) {
         summary.stop_reason = "callback";
@@ -121,6 +116,26 @@ TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const Pair
   theta = best;
   summary.seconds = seconds();
   return summary;
+}
+
+TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
+                                const PairSet& val, const TrainOptions& options,
+                                const ProgressCallback& progress) {
+  train.validate("training pairs");
+  val.validate("validation pairs");
+  require(train.dim() == map.dim() && val.dim() == map.dim(),
+          "train: data dimension " + std::to_string(train.dim()) +
+              " does not match the model's phase-space dimension " + std::to_string(map.dim()));
+  ForwardCache cache;
+  Objective objective;
+  objective.n_params = map.n_params();
+  objective.damping_index = map.damping_param_index();
+  objective.train_loss = [&](const Vector& th, Vector& grad) {
+    return one_step_loss(map, th, train, &grad, &cache);
+  };
+  objective.val_loss = [&](const Vector& th) { return one_step_loss(map, th, val); };
+  objective.damping_rate = [&](const Vector& th) { return map.damping_rate(th); };
+  return train_parameters(objective, theta, options, progress);
 }
 
 }  // namespace csympnet

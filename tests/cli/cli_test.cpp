@@ -62,18 +62,29 @@ class Cli : public ::testing::Test {
   fs::path dir_;
 };
 
+// PROTOCOL.md, "Models and their parameter counts": the whole table, 8 models x 5 presets.
 TEST_F(Cli, DescribeReportsTheProtocolParameterCounts) {
-  const std::array<std::tuple<const char*, long, long>, 5> expected{{{"s1", 115, 114},
-                                                                     {"s2", 4111, 4110},
-                                                                     {"s3", 4201, 4200},
-                                                                     {"s2-100", 161101, 161100},
-                                                                     {"s3-100", 161101, 161100}}};
-  for (const auto& [preset, csp, symp] : expected) {
-    for (const std::string model : {"csympnet", "sympnet"}) {
-      const Result r = run(std::string("describe --preset ") + preset + " --model " + model);
+  const std::array<const char*, 8> models{"csympnet", "sympnet", "map",  "ode",
+                                          "dhnn",     "dhnn2",   "phnn", "phnn2"};
+  // Columns: s1, s2, s3, s2-100, s3-100.
+  const std::array<std::array<long, 5>, 8> expected{{
+      {115, 4111, 4201, 161101, 161101},
+      {114, 4110, 4200, 161100, 161100},
+      {1250, 6868, 6868, 168904, 168904},
+      {1218, 6804, 6804, 168648, 168648},
+      {2374, 11538, 11538, 275010, 275010},
+      {1190, 5970, 5970, 157506, 157506},
+      {1193, 6369, 6369, 197505, 197505},
+      {1190, 5970, 5970, 157506, 157506},
+  }};
+  const std::array<const char*, 5> presets{"s1", "s2", "s3", "s2-100", "s3-100"};
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    for (std::size_t p = 0; p < presets.size(); ++p) {
+      const Result r =
+          run(std::string("describe --preset ") + presets[p] + " --model " + models[m]);
       ASSERT_EQ(r.code, 0) << r.err;
       const auto j = nlohmann::json::parse(r.out);
-      EXPECT_EQ(j["params"].get<long>(), model == "csympnet" ? csp : symp) << preset << model;
+      EXPECT_EQ(j["params"].get<long>(), expected[m][p]) << presets[p] << " " << models[m];
     }
   }
 }

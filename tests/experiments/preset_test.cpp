@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/models/model.hpp"
 
 namespace csympnet {
 namespace {
@@ -40,8 +40,8 @@ TEST(Preset, ParameterCountsMatchTheProtocol) {
       {"s1", 115}, {"s2", 4111}, {"s3", 4201}, {"s2-100", 161101}, {"s3-100", 161101}};
   for (const auto& [name, n] : expected) {
     const Preset p = preset_by_name(name);
-    EXPECT_EQ(make_one_step_map(model_spec_for(p, "csympnet"))->n_params(), n) << name;
-    EXPECT_EQ(make_one_step_map(model_spec_for(p, "sympnet"))->n_params(), n - 1) << name;
+    EXPECT_EQ(make_model(model_spec_for(p, "csympnet")).n_params(), n) << name;
+    EXPECT_EQ(make_model(model_spec_for(p, "sympnet")).n_params(), n - 1) << name;
   }
 }
 

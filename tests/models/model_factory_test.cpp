@@ -133,7 +133,7 @@ TEST(ModelInit, DeterministicAndDocumented) {
 
 TEST(ModelFactory, RejectsBadSpecs) {
   expect_spec_error(json::parse(R"({"type":"mlp","d":1})"),
-                    "valid types: csympnet, sympnet, la, g");
+                    "valid types: csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2");
   expect_spec_error(json::parse(R"({"d":1})"), "'type'");
   expect_spec_error(json::parse(R"([1,2])"), "JSON object");
   expect_spec_error(wrap("sympnet", 0, la_core(1, 1)), "'d' = 0");

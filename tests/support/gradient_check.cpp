@@ -114,4 +114,25 @@ ModelCheck check_one_step_map(const OneStepMap& model, const Vector& theta, cons
   return check;
 }
 
+std::string FieldCheck::report() const {
+  return d_theta.report("dL/dtheta") + "\n" + jacobian.report("field jacobian");
+}
+
+FieldCheck check_vector_field_model(const VectorFieldModel& model, const Vector& theta,
+                                    const Matrix& z, Rng& rng, const FdOptions& options) {
+  const Matrix upstream = rng.normal_matrix(z.rows(), z.cols(), 1.0);
+  Vector grad = Vector::Ones(theta.size());
+  model.field_backward(theta, z, upstream, grad);
+  grad.array() -= 1.0;
+  FieldCheck check;
+  const auto loss = [&](const Vector& th) {
+    return (upstream.array() * model.field(th, z).array()).sum();
+  };
+  check.d_theta = compare(grad, fd_gradient(loss, theta, options), options.tolerance);
+  check.jacobian = check_jacobian(
+      [&](const Vector& zz) -> Vector { return model.field(theta, zz); },
+      [&](const Vector& zz) { return model.field_jacobian(theta, zz); }, z.col(0), options);
+  return check;
+}
+
 }  // namespace csympnet::testing

@@ -12,6 +12,7 @@
 #include "csympnet/core/rng.hpp"
 #include "csympnet/core/types.hpp"
 #include "csympnet/models/one_step_map.hpp"
+#include "csympnet/models/vector_field_model.hpp"
 
 namespace csympnet::testing {
 
@@ -69,5 +70,18 @@ struct ModelCheck {
 // backward that overwrites instead of accumulating fails too.
 ModelCheck check_one_step_map(const OneStepMap& model, const Vector& theta, const Matrix& z,
                               const Vector& h, Rng& rng, const FdOptions& options = {});
+
+struct FieldCheck {
+  CheckResult d_theta;   // field_backward()'s dL/dθ for L = ⟨G, f_θ(Z)⟩
+  CheckResult jacobian;  // field_jacobian() at the first column of Z
+
+  bool ok() const { return d_theta.ok() && jacobian.ok(); }
+  std::string report() const;
+};
+
+// The vector-field counterpart of check_one_step_map (same conventions: random G ~ N(0, 1)
+// from rng, grad pre-filled with ones so an overwriting field_backward fails).
+FieldCheck check_vector_field_model(const VectorFieldModel& model, const Vector& theta,
+                                    const Matrix& z, Rng& rng, const FdOptions& options = {});
 
 }  // namespace csympnet::testing

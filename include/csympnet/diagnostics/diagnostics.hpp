@@ -31,7 +31,8 @@ struct LearnedMap {
   std::optional<double> gamma_hat;
 };
 
-// Iterates the map from traj.z.col(0) over the steps of traj.t. Returns 2d x (n+1).
+// Iterates the map from z0 over `steps`. Returns 2d x (n+1). If a step throws Error (the
+// learned dynamics blew up), that state and all later ones are +inf.
 Matrix rollout(const LearnedMap& map, const Vector& z0, const Vector& steps);
 
 // Conformal-law residual of one Jacobian M against factor lambda_star, and its projection λ̂.

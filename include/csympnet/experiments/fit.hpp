@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "csympnet/data/dataset.hpp"
-#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/models/model.hpp"
 #include "csympnet/train/trainer.hpp"
 
 namespace csympnet {
@@ -36,7 +36,7 @@ long default_epochs_for(Index d);
 std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction, Rng& rng);
 
 struct FitResult {
-  std::unique_ptr<OneStepMap> map;
+  Model model;  // a map model (csympnet or sympnet)
   Vector theta;
   TrainSummary training;
   PairSet train;

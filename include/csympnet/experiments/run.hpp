@@ -10,20 +10,22 @@
 
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/preset.hpp"
-#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/integrators/dopri5.hpp"
+#include "csympnet/models/model.hpp"
 #include "csympnet/train/trainer.hpp"
 
 namespace csympnet {
 
 struct RunConfig {
   Preset preset;                   // system, data sizes, architecture, default budget
-  std::string model = "csympnet";  // "csympnet" or "sympnet"
+  std::string model = "csympnet";  // one of model_types()
   std::uint64_t seed = 42;         // training seed: training/validation data and init
   std::uint64_t test_seed = 0;     // data seed of the test trajectories (PROTOCOL: 0)
   double sigma = 0.0;              // relative observation noise on training/validation pairs
   TrainOptions train;              // epochs default to the preset's budget
   ReferenceOptions reference;      // reference solver for all data
-  double beta_init = 0.1;          // CSympNet-ID: initial β (γ̂ = |β|), must be ≠ 0
+  double beta_init = 0.1;          // CSympNet-ID, DHNN2, pHNN2: initial β (γ̂ = |β|), ≠ 0
+  OdeOptions ode;                  // rollout of the vector-field models (PROTOCOL.md)
   void validate() const;
 };
 // Config from a preset with the preset's epoch budget.
@@ -39,7 +41,7 @@ struct RunData {
 RunData generate_run_data(const RunConfig& config);
 
 struct RunResult {
-  std::unique_ptr<OneStepMap> map;
+  Model model;
   Vector theta;  // best-validation parameters
   TrainSummary training;
   Diagnostics diagnostics;
@@ -48,8 +50,5 @@ struct RunResult {
 };
 
 RunResult run_experiment(const RunConfig& config, const ProgressCallback& progress = {});
-
-// The diagnostics' view of a trained one-step map.
-LearnedMap learned_map(const OneStepMap& map, const Vector& theta);
 
 }  // namespace csympnet

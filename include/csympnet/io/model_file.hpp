@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/models/model.hpp"
 
 namespace csympnet {
 
@@ -16,17 +16,17 @@ inline constexpr const char* kModelFormat = "csympnet-model";
 inline constexpr int kModelFormatVersion = 1;
 
 struct SavedModel {
-  std::unique_ptr<OneStepMap> map;
+  Model model;
   Vector theta;
   nlohmann::json meta;  // free-form context: system, training recipe, seed, ...
 };
 
-nlohmann::json model_to_json(const OneStepMap& map, const Vector& theta,
+nlohmann::json model_to_json(const Model& model, const Vector& theta,
                              const nlohmann::json& meta = nlohmann::json::object());
 SavedModel model_from_json(const nlohmann::json& doc, const std::string& where = "model");
 
 // Atomic write (temporary file, then rename).
-void save_model(const std::string& path, const OneStepMap& map, const Vector& theta,
+void save_model(const std::string& path, const Model& model, const Vector& theta,
                 const nlohmann::json& meta = nlohmann::json::object());
 // Throws Error naming the file and what is wrong (not JSON, wrong format/version, parameter
 // count mismatch, non-finite values).

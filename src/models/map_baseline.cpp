@@ -1,0 +1,77 @@
+#include "csympnet/models/map_baseline.hpp"
+
+#include <string>
+#include <utility>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/shape_checks.hpp"
+
+namespace csympnet {
+
+namespace {
+
+std::vector<Index> map_net_sizes(Index d, Index width) {
+  require(d >= 1 && width >= 1, "map: d = " + std::to_string(d) +
+                                    ", width = " + std::to_string(width) + ", expected both >= 1");
+  return {2 * d + 1, width, width, 2 * d};
+}
+
+}  // namespace
+
+MapBaseline::MapBaseline(Index d, Index width)
+    : d_(d), width_(width), net_(map_net_sizes(d, width)) {}
+
+void MapBaseline::init_params(Rng& rng, ParamsRef theta) const {
+  check_theta(*this, theta, "init_params");
+  net_.init_params(rng, theta);
+}
+
+Matrix MapBaseline::forward(ConstParams theta, const Matrix& Z, const Vector& h,
+                            ForwardCache* cache) const {
+  check_forward_args(*this, theta, Z, h);
+  Matrix input(Z.rows() + 1, Z.cols());
+  input.topRows(Z.rows()) = Z;
+  input.row(Z.rows()) = h.transpose();
+  if (cache == nullptr) return Z + net_.forward(theta, input, nullptr);
+  // The MLP's activations live in cache->mats; swapping them in and out reuses the storage.
+  MlpCache net_cache;
+  net_cache.acts.swap(cache->mats);
+  Matrix out = Z + net_.forward(theta, input, &net_cache);
+  net_cache.acts.swap(cache->mats);
+  cache->vecs.resize(1);
+  cache->vecs[0] = h;
+  return out;
+}
+
+void MapBaseline::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
+                           ParamsRef grad, Matrix* dZin) const {
+  const bool recorded = cache.vecs.size() == 1 && !cache.mats.empty();
+  check_backward_args(*this, theta, recorded ? cache.vecs[0].size() : -1, dZout, grad);
+  // ForwardCache is const here, so the activations are copied (O(wN), small next to the
+  // O(w²N) products of the backward pass).
+  MlpCache net_cache{cache.mats};
+  if (dZin == nullptr) {
+    net_.backward(theta, net_cache, dZout, grad, nullptr);
+    return;
+  }
+  // z' = z + MLP([z; h]): the identity path adds dZout; the h row of dX is dropped.
+  Matrix dx;
+  net_.backward(theta, net_cache, dZout, grad, &dx);
+  *dZin = dZout + dx.topRows(dim());
+}
+
+Matrix MapBaseline::jacobian(ConstParams theta, const Vector& z, double h) const {
+  check_jacobian_args(*this, theta, z);
+  Vector x(dim() + 1);
+  x.head(dim()) = z;
+  x(dim()) = h;
+  Matrix jac = net_.input_jacobian(theta, x).leftCols(dim());
+  jac.diagonal().array() += 1.0;
+  return jac;
+}
+
+nlohmann::json MapBaseline::hyperparams() const {
+  return {{"type", "map"}, {"d", d_}, {"width", width_}};
+}
+
+}  // namespace csympnet

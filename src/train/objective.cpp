@@ -1,0 +1,46 @@
+#include "csympnet/train/objective.hpp"
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/train/loss.hpp"
+#include "csympnet/train/midpoint_loss.hpp"
+
+namespace csympnet {
+
+Objective make_objective(const Model& model, const PairSet& train, const PairSet& val) {
+  train.validate("training pairs");
+  val.validate("validation pairs");
+  require(train.dim() == model.dim() && val.dim() == model.dim(),
+          "train: data dimension " + std::to_string(train.dim()) +
+              " does not match the model's phase-space dimension " + std::to_string(model.dim()));
+  Objective o;
+  o.n_params = model.n_params();
+  o.damping_index = model.damping_param_index();
+  o.damping_rate = [&model](const Vector& th) { return model.damping_rate(th); };
+  if (model.is_map()) {
+    const OneStepMap* map = model.map.get();
+    auto tr = std::make_shared<PairSet>(train);
+    auto va = std::make_shared<PairSet>(val);
+    auto cache = std::make_shared<ForwardCache>();
+    o.train_loss = [map, tr, cache](const Vector& th, Vector& grad) {
+      return one_step_loss(*map, th, *tr, &grad, cache.get());
+    };
+    o.val_loss = [map, va](const Vector& th) { return one_step_loss(*map, th, *va); };
+  } else {
+    const VectorFieldModel* field = model.field.get();
+    auto tr = std::make_shared<MidpointData>(midpoint_data(train));
+    auto va = std::make_shared<MidpointData>(midpoint_data(val));
+    o.train_loss = [field, tr](const Vector& th, Vector& grad) {
+      return midpoint_loss(*field, th, *tr, &grad);
+    };
+    o.val_loss = [field, va](const Vector& th) { return midpoint_loss(*field, th, *va); };
+  }
+  return o;
+}
+
+TrainSummary train_model(const Model& model, Vector& theta, const PairSet& train,
+                         const PairSet& val, const TrainOptions& options,
+                         const ProgressCallback& progress) {
+  return train_parameters(make_objective(model, train, val), theta, options, progress);
+}
+
+}  // namespace csympnet

@@ -11,6 +11,9 @@ packages=(
   libcli11-dev         # command line
   libgtest-dev         # tests
   libbenchmark-dev     # micro-benchmarks
+  python3-numpy        # reproduce figures (experiments/figures.py)
+  python3-matplotlib   # reproduce figures
+  openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
 )
 
 missing=()

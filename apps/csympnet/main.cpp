@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   csympnet::cli::add_fit(app);
   csympnet::cli::add_evaluate(app);
   csympnet::cli::add_rollout(app);
+  csympnet::cli::add_reproduce(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -75,7 +75,7 @@ Diagnostics evaluate(const LearnedMap& map, const System& sys, const std::vector
       e_pred(n) = sys.energy(pred.col(n));
       e_ref(n) = sys.energy(traj.z.col(n));
     }
-    for (Index n = 0; n < traj.z.cols(); ++n) {
+    for (Index n = 0; map.jacobian && n < traj.z.cols(); ++n) {
       StructureAt s;
       try {
         s = structure_at(map.jacobian(traj.z.col(n), h_test), d.lambda_star, lambda_own);
@@ -96,8 +96,14 @@ Diagnostics evaluate(const LearnedMap& map, const System& sys, const std::vector
     d.energy_pred.push_back(std::move(e_pred));
     d.energy_ref.push_back(std::move(e_ref));
   }
-  const double np = static_cast<double>(d.n_points);
   d.l2_error = std::sqrt(sq);
+  if (d.n_points == 0) {  // no Jacobian: structure diagnostics not taken
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    d.residual_mean = d.residual_max = d.structure_residual_mean = d.structure_residual_max = nan;
+    d.lambda_hat_mean = d.lambda_abs_err_mean = nan;
+    return d;
+  }
+  const double np = static_cast<double>(d.n_points);
   d.residual_mean = r_sum / np;
   d.structure_residual_mean = self_sum / np;
   d.lambda_hat_mean = lam_sum / np;

@@ -218,4 +218,65 @@ TEST_F(Cli, BadOptionsAreRejectedByName) {
   EXPECT_NE(r.err.find("--model"), std::string::npos) << r.err;
 }
 
+// `reproduce` on a tiny suite: outputs, resumption, refusal of foreign directories, bad suite
+// names, and (when OpenMPI is installed) a 2-rank run identical to a 1-process run.
+TEST_F(Cli, ReproduceRunsResumesAndMatchesAcrossRanks) {
+  const fs::path suites = dir_ / "suites";
+  fs::create_directories(suites);
+  std::ofstream(suites / "tiny.json")
+      << R"({"name": "tiny", "kind": "table", "columns": ["params", "l2_error"],
+             "presets": ["s1"], "models": ["csympnet", "ode"], "seeds": [42],
+             "epochs": {"*": {"*": 50}}})";
+  std::ofstream(suites / "tgrid.json")
+      << R"({"name": "tgrid", "kind": "grid", "vary": "sigma", "presets": ["s1"],
+             "models": ["csympnet", "sympnet"], "seeds": [1, 2, 3], "sigmas": [0, 0.001],
+             "epochs": {"*": {"*": 50}}})";
+  const std::string common = "reproduce --suites-dir " + suites.string() + " --no-figures -q ";
+  const fs::path one = dir_ / "one";
+  Result r = run(common + "--suite tiny,tgrid --jobs 2 --out " + one.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* f : {"summary.json", "timings.json", "tables/tiny.md", "tables/tiny.csv",
+                        "tables/tiny.tex", "tables/tgrid.md", "tables/tgrid.csv"})
+    EXPECT_TRUE(fs::exists(one / f)) << f;
+  const auto summary = nlohmann::json::parse(slurp(one / "summary.json"));
+  EXPECT_EQ(summary["tiny"]["s1"]["csympnet"]["params"], 115);
+  EXPECT_EQ(summary["tgrid"]["s1"]["sympnet"].size(), 2u);
+
+  // Resuming an interrupted reproduction: delete two records, rerun, same summary.
+  std::vector<fs::path> records;
+  for (const auto& e : fs::directory_iterator(one / "runs")) records.push_back(e.path());
+  ASSERT_EQ(records.size(), 2u + 12u);
+  fs::remove(records[0]);
+  fs::remove(records[5]);
+  r = run("reproduce --suites-dir " + suites.string() +
+          " --no-figures --suite tiny,tgrid --jobs 1 --out " + one.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("executed 2 runs"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("12 cached"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(one / "summary.json"), summary.dump(2) + "\n");
+
+  // A non-empty directory that is not a reproduction is refused; a bad suite name is named.
+  fs::create_directories(dir_ / "foreign");
+  write("foreign/notes.txt", "mine");
+  r = run(common + "--suite tiny --out " + (dir_ / "foreign").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(dir_ / "foreign/notes.txt"), "mine");
+  r = run(common + "--suite tiny,nosuch --out " + (dir_ / "x").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("'nosuch'"), std::string::npos) << r.err;
+
+  if (std::system("command -v mpirun >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "mpirun not installed (scripts/install-deps.sh installs openmpi-bin)";
+  const fs::path two = dir_ / "two";
+  const std::string mpi = "mpirun --allow-run-as-root --oversubscribe -np 2 " +
+                          std::string(CSYMPNET_CLI_PATH) + " " + common +
+                          "--suite tiny,tgrid --jobs 1 --out " + two.string() + " >" +
+                          (dir_ / "mpi.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(mpi.c_str()), 0) << slurp(dir_ / "mpi.txt");
+  EXPECT_EQ(slurp(two / "summary.json"), slurp(one / "summary.json"));
+  for (const char* f : {"tiny.md", "tiny.csv", "tiny.tex", "tgrid.md", "tgrid.csv", "tgrid.tex"})
+    EXPECT_EQ(slurp(two / "tables" / f), slurp(one / "tables" / f)) << f;
+}
+
 }  // namespace

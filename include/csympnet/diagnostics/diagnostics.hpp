@@ -66,6 +66,7 @@ void to_json(nlohmann::json& j, const Diagnostics& d);
 
 // Rolls the map out on every test trajectory (at that trajectory's own steps), then takes the
 // structure diagnostics at every reference state with step h_test and λ* = exp(−γ h_test).
+// A map without a `jacobian` gets the rollout metrics only; its structure metrics are NaN.
 Diagnostics evaluate(const LearnedMap& map, const System& sys, const std::vector<Trajectory>& tests,
                      double h_test);
 

@@ -1,0 +1,240 @@
+// `reproduce`: run experiment suites (experiments/*.json), cache every run, write the
+// summary, the tables and the figures.
+#include <unistd.h>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <set>
+#include <string>
+#include <thread>
+
+#include "commands.hpp"
+#include "csympnet/core/error.hpp"
+#include "csympnet/experiments/outputs.hpp"
+#include "csympnet/experiments/reproduce.hpp"
+#include "csympnet/experiments/summary.hpp"
+#include "csympnet/io/files.hpp"
+
+#ifndef CSYMPNET_SUITES_DIR
+#define CSYMPNET_SUITES_DIR "experiments"
+#endif
+#ifndef CSYMPNET_FIGURES_SCRIPT
+#define CSYMPNET_FIGURES_SCRIPT "experiments/figures.py"
+#endif
+
+namespace csympnet::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::vector<std::string> kQuick = {"table2", "table3", "table4"};
+const std::vector<std::string> kFull = {"table2", "table3",  "table4", "table5",
+                                        "noise",  "samples", "hsweep", "reference"};
+constexpr const char* kMarker = "reproduce.json";
+
+struct Args {
+  std::string suite = "quick", out, suites_dir;
+  int jobs = 0;
+  bool quiet = false, force = false, no_figures = false;
+};
+
+std::vector<std::string> suite_names(const std::string& arg) {
+  if (arg == "quick") return kQuick;
+  if (arg == "full") return kFull;
+  std::vector<std::string> names;
+  std::string item;
+  for (std::size_t i = 0; i <= arg.size(); ++i) {
+    if (i == arg.size() || arg[i] == ',') {
+      require(!item.empty(), "--suite '" + arg +
+                                 "': empty name; expected quick, full or NAME[,NAME] (e.g. "
+                                 "table2,noise)");
+      names.push_back(item);
+      item.clear();
+    } else {
+      item += arg[i];
+    }
+  }
+  return names;
+}
+
+std::string default_suites_dir() {
+  if (const char* env = std::getenv("CSYMPNET_SUITES_DIR"); env && *env) return env;
+  return CSYMPNET_SUITES_DIR;
+}
+
+// A reproduction directory may be resumed; any other non-empty directory needs --force.
+void prepare_reproduce_dir(const std::string& out, bool force) {
+  std::error_code ec;
+  if (fs::exists(fs::path(out) / kMarker, ec)) return;
+  prepare_output_dir(out, force);
+}
+
+std::string clock(double seconds) {
+  char buf[32];
+  const long s = std::lround(seconds);
+  if (s >= 3600)
+    std::snprintf(buf, sizeof buf, "%ldh%02ldm", s / 3600, (s / 60) % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%ldm%02lds", s / 60, s % 60);
+  return buf;
+}
+
+std::string python_interpreter() {
+  if (const char* env = std::getenv("CSYMPNET_PYTHON"); env && *env) return env;
+  return "/usr/bin/python3";
+}
+
+// The figures come from experiments/figures.py (matplotlib); without it the tables stand.
+void draw_figures(const Args& a) {
+  const char* env = std::getenv("CSYMPNET_FIGURES_SCRIPT");
+  const std::string script = env && *env ? env : CSYMPNET_FIGURES_SCRIPT;
+  const std::string py = python_interpreter();
+  std::error_code ec;
+  if (!fs::exists(script, ec) || !fs::exists(py, ec)) {
+    std::fprintf(stderr, "reproduce: figures skipped (%s or %s not found)\n", script.c_str(),
+                 py.c_str());
+    return;
+  }
+  const std::string cmd =
+      "'" + py + "' '" + script + "' '" + a.out + "'" + (a.quiet ? " >/dev/null" : "");
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0)
+    std::fprintf(stderr, "reproduce: figure script failed (exit %d): %s\n", rc, cmd.c_str());
+}
+
+void print_table_overview(const json& summary, const std::vector<SuiteSpec>& suites) {
+  for (const auto& s : suites) {
+    if (s.kind != "table") continue;
+    std::printf("%s:", s.name.c_str());
+    for (const auto& preset : s.presets) {
+      const json& c = summary.at("checks").at(s.name).at(preset);
+      std::printf("  %s best L2 = %s", preset.c_str(),
+                  c.at("best_l2_model").is_null()
+                      ? "none"
+                      : c.at("best_l2_model").get<std::string>().c_str());
+    }
+    std::printf("\n");
+  }
+}
+
+void reproduce(const Args& a) {
+  const RankInfo rank = rank_from_environment();
+  std::vector<SuiteSpec> suites;
+  std::vector<SuiteRun> runs;
+  std::set<std::string> seen;
+  for (const auto& name : suite_names(a.suite)) {
+    const std::string path = (fs::path(a.suites_dir) / (name + ".json")).string();
+    std::error_code ec;
+    require(fs::exists(path, ec), "--suite: no suite '" + name + "' (looked for " + path +
+                                      "); expected quick, full, or names of files in " +
+                                      a.suites_dir);
+    suites.push_back(load_suite(path));
+    require(suites.back().name == name,
+            path + ": key 'name' = '" + suites.back().name + "', expected '" + name + "'");
+    for (auto& r : expand_suite(suites.back()))
+      if (seen.insert(r.key).second) runs.push_back(std::move(r));
+  }
+  if (rank.rank == 0) {
+    prepare_reproduce_dir(a.out, a.force);
+    json marker = {{"format", "csympnet-reproduce"}, {"suites", json::array()}};
+    for (const auto& s : suites) marker["suites"].push_back(s.name);
+    write_json_file((fs::path(a.out) / kMarker).string(), marker);
+  } else {
+    // Rank 0 checks and marks the directory; the others create nothing until it has.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+    std::error_code ec;
+    while (!fs::exists(fs::path(a.out) / kMarker, ec)) {
+      require(std::chrono::steady_clock::now() < deadline,
+              "rank " + std::to_string(rank.rank) + ": rank 0 did not prepare " + a.out +
+                  " within 120 s (is it refused? see rank 0's message)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  }
+  const std::string runs_dir = (fs::path(a.out) / "runs").string();
+  const int jobs = a.jobs > 0 ? a.jobs : std::max(1u, std::thread::hardware_concurrency());
+  const bool tty = !a.quiet && isatty(fileno(stderr));
+  if (!a.quiet)
+    std::fprintf(
+        stderr, "reproduce: %zu runs in %zu suites, %d threads%s\n", runs.size(), suites.size(),
+        jobs,
+        rank.size > 1
+            ? (", rank " + std::to_string(rank.rank) + " of " + std::to_string(rank.size)).c_str()
+            : "");
+  const ExecuteStats st = execute_runs(runs, runs_dir, jobs, rank, [&](const ExecuteProgress& p) {
+    if (tty) {
+      std::fprintf(stderr, "\r\033[Kreproduce: %zu/%zu runs (%zu cached) · %s · ETA %s · %s",
+                   p.done + p.cached, p.total, p.cached, clock(p.seconds).c_str(),
+                   clock(p.eta_seconds).c_str(), p.last.c_str());
+      std::fflush(stderr);
+    }
+  });
+  if (tty) std::fprintf(stderr, "\r\033[K");
+  if (!a.quiet)
+    std::fprintf(stderr, "reproduce: executed %zu runs (%zu failed), %zu cached, in %s\n",
+                 st.executed, st.failed, st.cached, clock(st.seconds).c_str());
+
+  // Whoever finds every record present writes the outputs; they are a pure function of the
+  // records, so two ranks finishing together write identical files.
+  std::map<std::string, json> records;
+  for (const auto& r : runs)
+    if (auto rec = load_record(runs_dir, r)) records.emplace(r.key, std::move(*rec));
+  if (records.size() < runs.size()) {
+    if (!a.quiet)
+      std::fprintf(stderr,
+                   "reproduce: %zu of %zu runs belong to other ranks and are not done "
+                   "yet; the last rank to finish writes the summary\n",
+                   runs.size() - records.size(), runs.size());
+    return;
+  }
+  const RecordLookup lookup = [&](const SuiteRun& r) -> std::optional<json> {
+    const auto it = records.find(r.key);
+    if (it == records.end()) return std::nullopt;
+    return it->second;
+  };
+  const json summary = summarize(suites, lookup);
+  write_json_file((fs::path(a.out) / "summary.json").string(), summary);
+  write_json_file((fs::path(a.out) / "timings.json").string(), timings(suites, lookup));
+  const fs::path tables = fs::path(a.out) / "tables";
+  fs::create_directories(tables);
+  for (const auto& s : suites) {
+    const TableFiles f = render_tables(s, summary);
+    write_text_atomic((tables / (s.name + ".md")).string(), f.markdown);
+    write_text_atomic((tables / (s.name + ".csv")).string(), f.csv);
+    write_text_atomic((tables / (s.name + ".tex")).string(), f.latex);
+  }
+  if (!a.no_figures) draw_figures(a);
+  if (!a.quiet) {
+    print_table_overview(summary, suites);
+    std::printf("wrote %s/{summary.json,timings.json,tables/,figures/}\n", a.out.c_str());
+  }
+  if (st.failed > 0)
+    throw Error(std::to_string(st.failed) + " run(s) failed; see \"error\" in " + runs_dir +
+                "/*.json");
+}
+
+}  // namespace
+
+void add_reproduce(CLI::App& app) {
+  auto a = std::make_shared<Args>();
+  a->suites_dir = default_suites_dir();
+  CLI::App* cmd = app.add_subcommand(
+      "reproduce", "Run the paper's experiment suites; write summary.json, tables and figures");
+  cmd->add_option("--suite", a->suite,
+                  "quick (Tables 2-4), full (everything) or NAME[,NAME] from --suites-dir");
+  cmd->add_option("--out", a->out, "Output directory (an earlier reproduction is resumed)")
+      ->required();
+  cmd->add_option("--jobs", a->jobs, "Threads (default: all cores)")->check(CLI::Range(1, 1024));
+  cmd->add_option("--suites-dir", a->suites_dir, "Directory of suite files")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_flag("--no-figures", a->no_figures, "Skip the matplotlib figures");
+  cmd->add_flag("--force", a->force, "Allow a non-empty directory that is not a reproduction");
+  cmd->add_flag("-q,--quiet", a->quiet, "No progress or summary");
+  cmd->callback([a] { reproduce(*a); });
+}
+
+}  // namespace csympnet::cli

@@ -1,0 +1,270 @@
+#include "csympnet/experiments/suite.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/io/files.hpp"
+#include "csympnet/models/model.hpp"
+
+namespace csympnet {
+
+namespace {
+
+using nlohmann::json;
+
+std::string join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+
+void reject_unknown_keys(const json& doc, const std::string& where,
+                         const std::vector<std::string>& allowed) {
+  for (const auto& item : doc.items()) {
+    bool known = false;
+    for (const auto& a : allowed) known = known || a == item.key();
+    require(known, where + ": unknown key '" + item.key() + "' (allowed: " + join(allowed) + ")");
+  }
+}
+
+std::vector<std::string> string_list(const json& doc, const char* key, const std::string& where,
+                                     const std::vector<std::string>& valid) {
+  require(doc.contains(key),
+          where + ": missing key '" + key + "' (expected a list of: " + join(valid) + ")");
+  const json& v = doc.at(key);
+  require(v.is_array() && !v.empty(),
+          where + ": key '" + key + "' = " + v.dump() + ", expected a non-empty list");
+  std::vector<std::string> out;
+  for (const auto& item : v) {
+    require(item.is_string(), where + ": key '" + key + "' holds " + item.dump() +
+                                  ", expected strings (one of: " + join(valid) + ")");
+    const auto s = item.get<std::string>();
+    bool ok = false;
+    for (const auto& name : valid) ok = ok || name == s;
+    require(ok, where + ": key '" + key + "' holds '" + s + "', expected one of: " + join(valid));
+    out.push_back(s);
+  }
+  return out;
+}
+
+std::vector<double> number_list(const json& v, const std::string& where, const std::string& key,
+                                double lo, bool lo_open) {
+  require(v.is_array() && !v.empty(),
+          where + ": key '" + key + "' = " + v.dump() + ", expected a non-empty list of numbers");
+  std::vector<double> out;
+  for (const auto& item : v) {
+    require(item.is_number(),
+            where + ": key '" + key + "' holds " + item.dump() + ", expected numbers");
+    const double x = item.get<double>();
+    require(std::isfinite(x) && (lo_open ? x > lo : x >= lo),
+            where + ": key '" + key + "' holds " + item.dump() + ", expected finite numbers " +
+                (lo_open ? "> " : ">= ") + std::to_string(lo));
+    out.push_back(x);
+  }
+  return out;
+}
+
+std::string reference_for(const SuiteSpec& s, const std::string& preset) {
+  if (s.reference.is_null()) return "splitting";
+  if (s.reference.is_string()) return s.reference.get<std::string>();
+  return s.reference.contains(preset) ? s.reference.at(preset).get<std::string>() : "splitting";
+}
+
+std::vector<Index> n_train_for(const SuiteSpec& s, const Preset& p) {
+  if (s.n_train.is_null() || !s.n_train.contains(p.name)) return {p.n_train};
+  std::vector<Index> out;
+  for (const auto& v : s.n_train.at(p.name)) out.push_back(v.get<Index>());
+  return out;
+}
+
+// A short readable number for keys: 0.001 → "0.001", 1e-4 → "0.0001".
+std::string compact(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
+
+}  // namespace
+
+std::string fnv1a_hex(const std::string& text) {
+  std::uint64_t h = 14695981039346656037ULL;
+  for (const unsigned char c : text) {
+    h ^= c;
+    h *= 1099511628211ULL;
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+SuiteSpec parse_suite(const json& doc, const std::string& where) {
+  require(doc.is_object(), where + ": expected a JSON object describing a suite");
+  reject_unknown_keys(
+      doc, where,
+      {"name", "title", "kind", "vary", "columns", "presets", "models", "seeds", "sigmas",
+       "n_train", "h_tests", "reference", "epochs", "extra_jacobians", "comment"});
+  SuiteSpec s;
+  require(doc.contains("name") && doc.at("name").is_string() &&
+              !doc.at("name").get<std::string>().empty(),
+          where + ": missing key 'name' (expected a non-empty string)");
+  s.name = doc.at("name").get<std::string>();
+  for (const char c : s.name)
+    require(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_',
+            where + ": name '" + s.name + "' may hold only letters, digits, '-' and '_'");
+  s.title = doc.value("title", s.name);
+  s.kind = doc.value("kind", std::string("table"));
+  require(s.kind == "table" || s.kind == "grid",
+          where + ": key 'kind' = '" + s.kind + "', expected \"table\" or \"grid\"");
+  s.presets = string_list(doc, "presets", where, preset_names());
+  s.models = string_list(doc, "models", where, model_types());
+  require(doc.contains("seeds"), where + ": missing key 'seeds' (expected a list of integers)");
+  for (const auto& v : doc.at("seeds")) {
+    require(v.is_number_integer() && v.get<std::int64_t>() >= 0,
+            where + ": key 'seeds' holds " + v.dump() + ", expected integers >= 0");
+    s.seeds.push_back(v.get<std::uint64_t>());
+  }
+  require(!s.seeds.empty(), where + ": key 'seeds' is empty, expected at least one seed");
+  if (doc.contains("sigmas")) s.sigmas = number_list(doc.at("sigmas"), where, "sigmas", 0, false);
+  if (doc.contains("h_tests"))
+    s.h_tests = number_list(doc.at("h_tests"), where, "h_tests", 0, true);
+  if (doc.contains("extra_jacobians")) {
+    require(doc.at("extra_jacobians").is_boolean(),
+            where + ": key 'extra_jacobians' = " + doc.at("extra_jacobians").dump() +
+                ", expected true or false");
+    s.extra_jacobians = doc.at("extra_jacobians").get<bool>();
+  }
+  if (doc.contains("n_train")) {
+    s.n_train = doc.at("n_train");
+    require(s.n_train.is_object(), where + ": key 'n_train' = " + s.n_train.dump() +
+                                       ", expected {\"preset\": [sizes], ...}");
+    for (const auto& [preset, sizes] : s.n_train.items()) {
+      preset_by_name(preset);
+      require(sizes.is_array() && !sizes.empty(),
+              where + ": n_train." + preset + " = " + sizes.dump() + ", expected a list");
+      for (const auto& n : sizes)
+        require(n.is_number_integer() && n.get<std::int64_t>() >= 4,
+                where + ": n_train." + preset + " holds " + n.dump() +
+                    ", expected integers >= 4 (validation pairs are N/4)");
+    }
+  }
+  if (doc.contains("reference")) {
+    s.reference = doc.at("reference");
+    auto check = [&](const json& v, const std::string& at) {
+      require(
+          v.is_string() && (v == "splitting" || v == "expm" || v == "rk"),
+          where + ": " + at + " = " + v.dump() + ", expected \"splitting\", \"expm\" or \"rk\"");
+    };
+    if (s.reference.is_object()) {
+      for (const auto& [preset, v] : s.reference.items()) {
+        preset_by_name(preset);
+        check(v, "reference." + preset);
+      }
+    } else {
+      check(s.reference, "reference");
+    }
+  }
+  if (doc.contains("epochs")) {
+    s.epochs = doc.at("epochs");
+    require(s.epochs.is_object(), where + ": key 'epochs' = " + s.epochs.dump() +
+                                      ", expected {\"preset or *\": {\"model or *\": E}}");
+    for (const auto& [preset, by_model] : s.epochs.items()) {
+      if (preset != "*") preset_by_name(preset);
+      require(by_model.is_object(), where + ": epochs." + preset + " = " + by_model.dump() +
+                                        ", expected {\"model or *\": E}");
+      for (const auto& [model, e] : by_model.items()) {
+        if (model != "*") model_spec_for(preset_by_name("s1"), model);
+        require(e.is_number_integer() && e.get<std::int64_t>() >= 0 &&
+                    e.get<std::int64_t>() <= 100000000LL,
+                where + ": epochs." + preset + "." + model + " = " + e.dump() +
+                    ", expected an integer in [0, 1e8]");
+      }
+    }
+  }
+  if (s.kind == "grid") {
+    require(doc.contains("vary") && doc.at("vary").is_string(),
+            where + ": a grid suite needs key 'vary' (\"sigma\", \"n_train\" or \"h_test\")");
+    s.vary = doc.at("vary").get<std::string>();
+    require(s.vary == "sigma" || s.vary == "n_train" || s.vary == "h_test",
+            where + ": key 'vary' = '" + s.vary + "', expected sigma, n_train or h_test");
+  } else {
+    require(!doc.contains("vary"), where + ": key 'vary' belongs to grid suites only");
+    const std::vector<std::string> metrics = {
+        "l2_error",  "residual_mean", "residual_max",           "lambda_abs_err_mean",
+        "gamma_hat", "gamma_abs_err", "structure_residual_max", "params"};
+    require(s.seeds.size() == 1 && s.sigmas.size() == 1 && s.h_tests.size() <= 1 &&
+                (s.n_train.is_null() ||
+                 std::all_of(s.n_train.begin(), s.n_train.end(),
+                             [](const json& sizes) { return sizes.size() == 1; })),
+            where +
+                ": a table suite has one run per (preset, model): one seed, one sigma, "
+                "one n_train and one h_test (use \"kind\": \"grid\" to vary them)");
+    s.columns = doc.contains("columns") ? string_list(doc, "columns", where, metrics)
+                                        : std::vector<std::string>{"l2_error"};
+  }
+  return s;
+}
+
+SuiteSpec load_suite(const std::string& path) {
+  const std::string text = read_text_file(path);
+  json doc;
+  try {
+    doc = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw Error(path + ": not valid JSON (" + e.what() + ")");
+  }
+  return parse_suite(doc, path);
+}
+
+long suite_epochs(const SuiteSpec& s, const std::string& preset, const std::string& model) {
+  for (const std::string& p : {preset, std::string("*")}) {
+    if (!s.epochs.contains(p)) continue;
+    for (const std::string& m : {model, std::string("*")})
+      if (s.epochs.at(p).contains(m)) return s.epochs.at(p).at(m).get<long>();
+  }
+  return train_options_for(preset_by_name(preset), model).epochs;
+}
+
+std::vector<SuiteRun> expand_suite(const SuiteSpec& s) {
+  std::vector<SuiteRun> runs;
+  for (const auto& preset_name : s.presets) {
+    const Preset base = preset_by_name(preset_name);
+    for (const Index n : n_train_for(s, base)) {
+      for (const double sigma : s.sigmas) {
+        for (const auto& model : s.models) {
+          for (const std::uint64_t seed : s.seeds) {
+            SuiteRun r;
+            RunConfig& c = r.config;
+            c = default_run_config(preset_name, model);
+            c.preset.n_train = n;
+            c.preset.n_val = std::max<Index>(1, n / 4);
+            c.seed = seed;
+            c.sigma = sigma;
+            c.train.epochs = suite_epochs(s, preset_name, model);
+            c.reference.method = parse_reference(reference_for(s, preset_name));
+            r.h_tests = s.h_tests.empty() ? std::vector<double>{base.h_test} : s.h_tests;
+            c.preset.h_test = r.h_tests.front();
+            r.extra_jacobians = s.extra_jacobians || r.h_tests.size() == 1;
+            c.validate();
+            const std::string canonical =
+                json(c).dump() + json(r.h_tests).dump() + (r.extra_jacobians ? "J" : "");
+            r.key = preset_name + "-" + model + "-seed" + std::to_string(seed) + "-sigma" +
+                    compact(sigma) + "-n" + std::to_string(n) + "-" + fnv1a_hex(canonical);
+            // Cost model for scheduling only: epochs x parameters, fields a few times dearer.
+            const double per_epoch =
+                static_cast<double>(make_model(model_spec_for(c.preset, model)).n_params()) *
+                static_cast<double>(n) * (is_vector_field_type(model) ? 4 : 1);
+            r.cost = static_cast<double>(c.train.epochs) * per_epoch;
+            runs.push_back(std::move(r));
+          }
+        }
+      }
+    }
+  }
+  return runs;
+}
+
+}  // namespace csympnet

@@ -17,9 +17,10 @@ build: deps
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
-# The S1 damping identification, printed beside the paper's numbers.
+# The quick reproduction: Tables 2-4 at seed 42 beside the paper's numbers (docs/reproduce.md).
+# A rerun resumes: finished runs are cached in results/quick/runs.
 demo: build
-	@$(CLI) run --preset s1 --model csympnet --seed 42 --out results/demo-s1 --force
+	@$(CLI) reproduce --suite quick --out results/quick
 
 bench: build
 	@$(BUILD)/bin/csympnet_bench --benchmark_min_time=0.2

@@ -11,8 +11,11 @@ packages=(
   libcli11-dev         # command line
   libgtest-dev         # tests
   libbenchmark-dev     # micro-benchmarks
-  python3-numpy        # reproduce figures (experiments/figures.py)
-  python3-matplotlib   # reproduce figures
+  python3-dev          # Python module (python/): headers for Debian's /usr/bin/python3
+  python3-numpy        # Python module: arrays
+  pybind11-dev         # Python module: bindings
+  python3-pytest       # Python module: tests
+  python3-matplotlib   # csympnet.plot: the paper's figure types
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
 )
 

@@ -172,7 +172,8 @@ def accumulated_errors(t, predictions, reference):
     out = {}
     for label, z in _predictions(predictions).items():
         if z.shape != ref.shape:
-            raise ValueError(f"predictions[{label!r}]: shape {z.shape} differs from the reference's {ref.shape}")
+            raise ValueError(
+                f"predictions[{label!r}]: shape {z.shape} differs from the reference's {ref.shape}")
         with np.errstate(over="ignore", invalid="ignore"):
             out[label] = np.sqrt(np.cumsum(np.sum((z - ref) ** 2, axis=1) * dt))
     return out

@@ -293,11 +293,13 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
         tex += " \\\\\n";
       }
       const json& check = summary.at("checks").at(s.name).at(preset);
-      md += "\nSmallest L2 error: " +
-            (check.at("best_l2_model").is_null()
-                 ? std::string("none")
-                 : std::string(model_label(check.at("best_l2_model").get<std::string>()))) +
-            ".\n\n";
+      if (std::find(s.columns.begin(), s.columns.end(), "l2_error") != s.columns.end())
+        md += "\nSmallest L2 error: " +
+              (check.at("best_l2_model").is_null()
+                   ? std::string("none")
+                   : std::string(model_label(check.at("best_l2_model").get<std::string>()))) +
+              ".\n";
+      md += "\n";
       tex += "\\hline\n";
     }
     tex += "\\end{tabular}\n";

@@ -1,0 +1,34 @@
+"""csympnet: learn conformally symplectic one-step maps of damped Hamiltonian systems.
+
+CSympNet-ID learns Φ̂_h = S_a ∘ Ψ_h ∘ S_a, a = exp(−γ̂h/2), from snapshot pairs: a symplectic
+SympNet core Ψ_h between two momentum scalings, so that DΦ̂ᵀ J DΦ̂ = exp(−γ̂h) J exactly and
+the damping rate γ̂ is identified explicitly. This package is the Python face of the C++
+library and CLI: same models, same files, same bits.
+
+    >>> import numpy as np, csympnet
+    >>> data = csympnet.generate("s1", "train")             # the paper's S1 pairs
+    >>> model = csympnet.fit(*data, epochs=2000)            # CSympNet-ID
+    >>> model.gamma                                         # γ̂ (true γ = 0.05)
+    >>> model.rollout([0.5, -0.2], 0.2, steps=50)           # (51, 2)
+    >>> model.save("model.json")                            # `csympnet evaluate --model ...`
+
+Main entry points: fit, fit_trajectories, run, load, Model, generate, systems, System,
+read_csv, write_csv; figures in csympnet.plot (NumPy + matplotlib only). See docs/python.md.
+"""
+
+from . import _core
+from ._core import Error
+from ._data import Pairs, System, Trajectory, generate, model_types, read_csv, systems, write_csv
+from ._fit import RunResult, fit, fit_trajectories, run
+from ._model import Model, from_json, load
+
+__version__ = _core.__version__
+
+Error.__doc__ = """Raised by the C++ library for bad input, bad options or bad files (a
+ValueError). The message names the argument, file or line and what was expected."""
+Error.__module__ = "csympnet"
+
+__all__ = [
+    "Error", "Model", "Pairs", "RunResult", "System", "Trajectory", "fit", "fit_trajectories",
+    "from_json", "generate", "load", "model_types", "read_csv", "run", "systems", "write_csv",
+]

@@ -1,0 +1,133 @@
+"""Argument checks of the public API.
+
+Every check names the argument, says what was found and what was expected, and raises
+TypeError (wrong kind of object or dtype) or ValueError (wrong shape or value). What passes is
+a float64 C-contiguous array the compiled module can take as it is.
+"""
+
+import numbers
+
+import numpy as np
+
+
+def _as_real_array(name, x):
+    if x is None:
+        raise TypeError(f"{name}: expected an array of real numbers, got None")
+    try:
+        a = np.asarray(x)
+    except (ValueError, TypeError) as e:  # ragged nested lists, and the like
+        raise ValueError(f"{name}: cannot be read as an array ({e})") from None
+    if a.dtype.kind not in "fiu":
+        raise TypeError(
+            f"{name}: expected real numbers (a float or integer array), got dtype {a.dtype}"
+        )
+    return np.asarray(a, dtype=np.float64, order="C")
+
+
+def _require_finite(name, a):
+    if not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        where = "" if a.ndim == 0 else f" (first at index {tuple(int(i) for i in bad)})"
+        raise ValueError(f"{name}: contains NaN or Inf{where}; expected finite values")
+
+
+def states(name, z, dim=None, allow_single=True):
+    """A state (2d,) or a batch (N, 2d) → ((N, 2d) array, whether a single state was given)."""
+    a = _as_real_array(name, z)
+    single = a.ndim == 1
+    if single and allow_single:
+        a = a.reshape(1, -1)
+    expected = "a state (2d,) or a batch (N, 2d)" if allow_single else "a batch (N, 2d)"
+    if a.ndim != 2:
+        raise ValueError(f"{name}: expected {expected}, got an array of shape {np.shape(z)}")
+    width = a.shape[1]
+    if dim is not None and width != dim:
+        raise ValueError(
+            f"{name}: states have {width} components, expected 2d = {dim} (q1..qd, p1..pd)"
+        )
+    if width == 0 or width % 2 != 0:
+        raise ValueError(
+            f"{name}: states have {width} components; expected an even number 2d >= 2 "
+            "(q1..qd, p1..pd)"
+        )
+    _require_finite(name, a)
+    return a, single
+
+
+def vector(name, x, length=None, min_length=0):
+    """A 1-D array of finite reals."""
+    a = _as_real_array(name, x)
+    if a.ndim != 1:
+        raise ValueError(f"{name}: expected a 1-D array, got shape {a.shape}")
+    if length is not None and a.shape[0] != length:
+        raise ValueError(f"{name}: has {a.shape[0]} entries, expected {length}")
+    if a.shape[0] < min_length:
+        raise ValueError(f"{name}: has {a.shape[0]} entries, expected at least {min_length}")
+    _require_finite(name, a)
+    return a
+
+
+def steps(name, h, n):
+    """Steps h > 0: a scalar (the same for all n) or an array of n → (n,) array."""
+    a = _as_real_array(name, h)
+    if a.ndim == 0:
+        a = np.full(n, float(a))
+    elif a.ndim != 1 or a.shape[0] != n:
+        raise ValueError(f"{name}: expected a scalar or an array of {n} steps, got shape {a.shape}")
+    _require_finite(name, a)
+    if n and not np.all(a > 0):
+        raise ValueError(f"{name}: expected steps > 0, got {a[a <= 0][0]!r}")
+    return a
+
+
+def real(name, x, positive=False, nonnegative=False):
+    """A finite real scalar."""
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Real):
+        raise TypeError(f"{name}: expected a real number, got {type(x).__name__}")
+    x = float(x)
+    if not np.isfinite(x):
+        raise ValueError(f"{name}: expected a finite number, got {x}")
+    if positive and x <= 0:
+        raise ValueError(f"{name}: expected a number > 0, got {x}")
+    if nonnegative and x < 0:
+        raise ValueError(f"{name}: expected a number >= 0, got {x}")
+    return x
+
+
+def integer(name, x, minimum=None, maximum=2**63 - 1):
+    """An integer (not a bool) in [minimum, maximum]; the default maximum fits a C++ long."""
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, numbers.Integral):
+        raise TypeError(f"{name}: expected an integer, got {type(x).__name__}")
+    x = int(x)
+    if minimum is not None and x < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {x}")
+    if x > maximum:
+        raise ValueError(f"{name}: expected an integer <= {maximum}, got {x}")
+    return x
+
+
+def seed(name, x):
+    """A seed: an integer in [0, 2^64)."""
+    return integer(name, x, minimum=0, maximum=2**64 - 1)
+
+
+def choice(name, x, options):
+    """One of `options` (strings)."""
+    if not isinstance(x, str):
+        raise TypeError(f"{name}: expected a string, one of {', '.join(options)}")
+    if x not in options:
+        raise ValueError(f"{name}: expected one of {', '.join(options)}, got {x!r}")
+    return x
+
+
+def trajectory(name, t, z, dim=None):
+    """One trajectory: times (n+1,) strictly increasing, states (n+1, 2d)."""
+    za, _ = states(f"{name} z", z, dim=dim, allow_single=False)
+    ta = vector(f"{name} t", t, length=za.shape[0], min_length=1)
+    if ta.shape[0] > 1 and not np.all(np.diff(ta) > 0):
+        k = int(np.argmax(np.diff(ta) <= 0))
+        raise ValueError(
+            f"{name} t: expected strictly increasing times, but t[{k + 1}] = {ta[k + 1]!r} "
+            f"follows t[{k}] = {ta[k]!r}"
+        )
+    return ta, za

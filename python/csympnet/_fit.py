@@ -1,0 +1,226 @@
+"""Training from Python: csympnet.fit, csympnet.fit_trajectories and csympnet.run."""
+
+import json
+import re
+import warnings
+from collections import namedtuple
+
+import numpy as np
+
+from . import _checks, _core
+from ._data import REFERENCES, Trajectory, _system_overrides, systems, trajectory_list
+from ._model import Model
+
+# The models fit_pairs() trains (experiments/fit.hpp); csympnet.run trains every model type.
+FIT_MODELS = ("csympnet", "sympnet")
+
+RunResult = namedtuple("RunResult", "model report rollouts tests")
+RunResult.__doc__ = """What `csympnet.run` returns: the trained Model, the report dict (as
+report.json of `csympnet run`), the learned rollouts (list of (n+1, 2d)) and the reference test
+trajectories (list of Trajectory) they follow."""
+
+
+def _core_spec(core):
+    """None, a dict, or the CLI's "la:LAYERS:SUBLAYERS" / "g:LAYERS:WIDTH" → JSON text."""
+    if core is None:
+        return "null"
+    if isinstance(core, dict):
+        return json.dumps(core)
+    if isinstance(core, str):
+        m = re.fullmatch(r"(la|g):(\d+):(\d+)", core)
+        if not m or int(m.group(2)) < 1 or int(m.group(3)) < 1:
+            raise ValueError(
+                f"core: expected 'la:LAYERS:SUBLAYERS' or 'g:LAYERS:WIDTH' with sizes >= 1 "
+                f"(e.g. 'la:5:20'), or a dict, got {core!r}"
+            )
+        kind, a, b = m.group(1), int(m.group(2)), int(m.group(3))
+        key = "sublayers" if kind == "la" else "width"
+        return json.dumps({"type": kind, "layers": a, key: b})
+    raise TypeError(
+        f"core: expected None, a string like 'la:5:20' or a dict, got {type(core).__name__}")
+
+
+def _pairs(prefix, z0, z1, h):
+    a0, _ = _checks.states(f"{prefix}z0", z0, allow_single=False)
+    a1, _ = _checks.states(f"{prefix}z1", z1, dim=a0.shape[1], allow_single=False)
+    if a1.shape[0] != a0.shape[0]:
+        raise ValueError(f"{prefix}z1: has {a1.shape[0]} states, expected {a0.shape[0]} (as z0)")
+    return a0, a1, _checks.steps(f"{prefix}h", h, a0.shape[0])
+
+
+def _progress(progress):
+    if progress is not None and not callable(progress):
+        raise TypeError("progress: expected a callable taking a dict, or None")
+    return progress
+
+
+def _warn_if_diverged(model):
+    if model.training and model.training.get("stop_reason") == "diverged":
+        warnings.warn(
+            "training diverged (non-finite loss); the model holds the best checkpoint before it",
+            RuntimeWarning, stacklevel=3,
+        )
+
+
+def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None, seed=42,
+        val_fraction=0.2, beta_init=0.1, beta_decay=True, lr=1e-3, lr_schedule="cosine",
+        lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, progress=None, meta=None):
+    """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs: what `csympnet fit` does, with the
+    same defaults, so the same pairs and options give the same parameters to the bit.
+
+    z0, z1: states (N, 2d), N ≥ 2, rows (q1..qd, p1..pd); h: steps (N,) or one step for all.
+    model: "csympnet" (CSympNet-ID, identifies γ̂) or "sympnet" (symplectic, no damping).
+    validation: (z0, z1, h) held out for checkpointing; default: a seeded split of the pairs
+        with round(val_fraction·N) ≥ 1 validation pairs.
+    epochs: budget of full-batch AdamW steps (default: 50,000 for d ≤ 20, 3,000 beyond).
+    core: symplectic core, "la:LAYERS:SUBLAYERS", "g:LAYERS:WIDTH" or a dict; default by d
+        (LA(5, 20) for d = 1, LA(4, 10) up to d = 20, LA(4, 4) beyond).
+    seed: seed of the validation split and the initialisation.
+    beta_init: initial β (γ̂ = |β|), nonzero. beta_decay: apply weight decay to β too.
+    lr, lr_schedule ("cosine" or "constant"), lr_final_fraction, weight_decay, val_every:
+        the optimiser (docs/training.md).
+    progress: optional callable, called after each validation with a dict (epoch, epochs,
+        train_loss, val_loss, best_val_loss, gamma, seconds); returning False stops training.
+    meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
+
+    Returns a Model holding the best-validation parameters; its `gamma` is γ̂. Training runs
+    without the GIL; Ctrl-C stops it with KeyboardInterrupt.
+    """
+    _checks.choice("model", model, FIT_MODELS)
+    a0, a1, hs = _pairs("", z0, z1, h)
+    if a0.shape[0] < 2 and validation is None:
+        raise ValueError(
+            f"z0: {a0.shape[0]} pair(s); expected at least 2 (one is held out for validation), "
+            "or pass validation="
+        )
+    val = None
+    if validation is not None:
+        if not isinstance(validation, (tuple, list)) or len(validation) != 3:
+            raise TypeError("validation: expected a (z0, z1, h) triple")
+        val = _pairs("validation ", *validation)
+        if val[0].shape[1] != a0.shape[1]:
+            raise ValueError(
+                f"validation z0: states have {val[0].shape[1]} components, expected "
+                f"{a0.shape[1]} (as the training pairs)"
+            )
+    epochs = 0 if epochs is None else _checks.integer("epochs", epochs, minimum=1)
+    seed = _checks.seed("seed", seed)
+    val_fraction = _checks.real("val_fraction", val_fraction)
+    if not 0 < val_fraction < 1:
+        raise ValueError(f"val_fraction: expected a number in (0, 1), got {val_fraction}")
+    beta_init = _checks.real("beta_init", beta_init)
+    if beta_init == 0:
+        raise ValueError("beta_init: expected a nonzero number (d|β|/dβ vanishes at 0)")
+    if not isinstance(beta_decay, (bool, np.bool_)):
+        raise TypeError(f"beta_decay: expected True or False, got {type(beta_decay).__name__}")
+    lr = _checks.real("lr", lr, positive=True)
+    _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
+    lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction, positive=True)
+    weight_decay = _checks.real("weight_decay", weight_decay, nonnegative=True)
+    val_every = _checks.integer("val_every", val_every, minimum=1)
+    if meta is not None and not isinstance(meta, dict):
+        raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")
+
+    m = Model(_core.fit_pairs(a0, a1, hs, val, model, _core_spec(core), seed, val_fraction,
+                              beta_init, epochs, val_every, lr, lr_schedule, lr_final_fraction,
+                              weight_decay, bool(beta_decay), _progress(progress)))
+    if meta:
+        m.meta.update(meta)
+    _warn_if_diverged(m)
+    return m
+
+
+def _split_by_label(t, z, traj):
+    """Rows of (t, z) grouped by a label column whose runs must be contiguous (as the CSV)."""
+    labels = np.asarray(traj)
+    if labels.ndim != 1 or labels.shape[0] != z.shape[0]:
+        raise ValueError(f"traj: expected one label per row ({z.shape[0]}), got shape {labels.shape}")
+    starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
+    ends = np.r_[starts[1:], labels.shape[0]]
+    seen = set()
+    out = []
+    for s, e in zip(starts, ends):
+        key = labels[s].item()
+        if key in seen:
+            raise ValueError(
+                f"traj: the rows of trajectory {key!r} are not contiguous (it reappears at row "
+                f"{s}); expected each trajectory's rows together"
+            )
+        seen.add(key)
+        out.append((t[s:e], z[s:e]))
+    return out
+
+
+def fit_trajectories(t, z, traj=None, model="csympnet", **options):
+    """Fits from whole trajectories: consecutive states of each trajectory become pairs at
+    whatever steps they have (h = t[n] − t[n−1]); no pair spans two trajectories. The same
+    pairs as `csympnet fit` makes from a trajectories CSV, in the same order.
+
+    Accepted forms:
+      - t (M,), z (M, 2d): one trajectory;
+      - t (M,), z (M, 2d), traj (M,): rows labelled by trajectory (rows of one label contiguous);
+      - t (M,) or (K, M), z (K, M, 2d): K trajectories (shared or own times);
+      - t and z lists of arrays: one trajectory each.
+
+    options: those of `csympnet.fit` (epochs, core, seed, validation, ...).
+    """
+    if isinstance(t, (list, tuple)) and isinstance(z, (list, tuple)):
+        if traj is not None:
+            raise ValueError("traj: not used when t and z are lists of trajectories")
+        if len(t) != len(z):
+            raise ValueError(f"t, z: {len(t)} time arrays but {len(z)} state arrays")
+        trajs = list(zip(t, z))
+    elif np.ndim(z) == 3:
+        if traj is not None:
+            raise ValueError("traj: not used when z holds K trajectories as (K, M, 2d)")
+        za = np.asarray(z)
+        ta = np.broadcast_to(np.asarray(t), za.shape[:2]) if np.ndim(t) == 1 else np.asarray(t)
+        if ta.shape != za.shape[:2]:
+            raise ValueError(f"t: expected shape (M,) or {za.shape[:2]} for z of shape {za.shape}")
+        trajs = list(zip(ta, za))
+    else:
+        zs, _ = _checks.states("z", z, allow_single=False)
+        ts = _checks.vector("t", t, length=zs.shape[0])
+        trajs = [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
+    checked = trajectory_list(trajs, "trajectories")
+    if sum(len(tr.t) - 1 for tr in checked) < 1:
+        raise ValueError("t, z: the trajectories give no pairs; expected at least one with 2 rows")
+    z0, z1, h = _core.pairs_from_trajectories(checked)
+    return fit(z0, z1, h, model, **options)
+
+
+def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="default", lr=None,
+        lr_schedule=None, val_every=10, beta_init=0.1, beta_decay=True, reference="splitting",
+        system=None, progress=None):
+    """One experiment as `csympnet run --preset PRESET --model MODEL` runs it: generate the
+    preset's data, train, evaluate on the test trajectories (data seed 0). Trains any model
+    type (`csympnet.model_types()`), including the baselines.
+
+    epochs: budget (default: the preset's); recipe: "default" (cosine-annealed rate) or
+    "paper" (constant rate); sigma: relative observation noise; system: dict of fields that
+    replace the preset's system; progress: as in `csympnet.fit`.
+
+    Returns RunResult(model, report, rollouts, tests).
+    """
+    _checks.choice("preset", preset, tuple(systems))
+    _checks.choice("model", model, tuple(_core.model_types()))
+    _checks.choice("recipe", recipe, ("default", "paper"))
+    _checks.choice("reference", reference, REFERENCES)
+    seed = _checks.seed("seed", seed)
+    if epochs is not None:
+        epochs = _checks.integer("epochs", epochs, minimum=0)
+    sigma = _checks.real("sigma", sigma, nonnegative=True)
+    if lr is not None:
+        lr = _checks.real("lr", lr, positive=True)
+    if lr_schedule is not None:
+        _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
+    val_every = _checks.integer("val_every", val_every, minimum=1)
+    beta_init = _checks.real("beta_init", beta_init)
+    if beta_init == 0:
+        raise ValueError("beta_init: expected a nonzero number (d|β|/dβ vanishes at 0)")
+    core_model, report, rollouts, tests = _core.run(
+        preset, model, seed, epochs, recipe, lr, lr_schedule, val_every, sigma, beta_init,
+        bool(beta_decay), reference, _system_overrides(system), _progress(progress))
+    m = Model(core_model)
+    _warn_if_diverged(m)
+    return RunResult(m, json.loads(report), list(rollouts), [Trajectory(t, z) for t, z in tests])

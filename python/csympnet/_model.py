@@ -1,0 +1,230 @@
+"""csympnet.Model: a trained model, and csympnet.load."""
+
+import json
+import os
+
+import numpy as np
+
+from . import _checks, _core
+from ._data import System, Trajectory, systems, trajectory_list
+
+# Test sets generated when diagnostics() gets no trajectories: the presets' common values
+# (PROTOCOL.md: 10 trajectories on [0, 10] with h_test = 0.2, data seed 0).
+_DEFAULT_N_TEST = 10
+_DEFAULT_H_TEST = 0.2
+_DEFAULT_HORIZON = 10.0
+
+
+class Model:
+    """A trained model of any type: a one-step map (csympnet, sympnet, map) or a vector field
+    whose one-step map is induced by dopri5 integration (ode, dhnn, dhnn2, phnn, phnn2).
+
+    Made by `csympnet.fit`, `csympnet.fit_trajectories`, `csympnet.run` or `csympnet.load`.
+    States are rows: a state is an array (2d,) = (q1..qd, p1..pd), a batch is (N, 2d).
+
+    Attributes:
+        meta: dict saved with the model (its context: seed, training recipe, system, ...).
+            Add "system" (a dict as in `csympnet.System.spec`) so that `csympnet evaluate`
+            and `Model.diagnostics()` know the system without being told.
+    """
+
+    def __init__(self, core_model):
+        if not isinstance(core_model, _core.Model):
+            raise TypeError("csympnet.Model is made by csympnet.fit, fit_trajectories, run or load")
+        self._m = core_model
+        self.meta = json.loads(core_model.meta_json)
+
+    # --- what the model is -------------------------------------------------------------
+    @property
+    def type(self):
+        """Model type: "csympnet", "sympnet", "map", "ode", "dhnn", "dhnn2", "phnn" or "phnn2"."""
+        return self._m.type
+
+    @property
+    def d(self):
+        """Degrees of freedom d (states have 2d components)."""
+        return self._m.dim // 2
+
+    @property
+    def n_params(self):
+        return self._m.n_params
+
+    @property
+    def params(self):
+        """A copy of the flat parameter vector θ (layout: docs/derivations.md)."""
+        return self._m.params
+
+    @property
+    def hyperparams(self):
+        """The architecture as a dict (the "model" entry of a model file)."""
+        return json.loads(self._m.hyperparams_json)
+
+    @property
+    def gamma(self):
+        """The identified damping rate γ̂ = |β| (csympnet, dhnn2, phnn2), else None."""
+        return self._m.gamma
+
+    @property
+    def gamma_interval(self):
+        """(low, high) interval for γ̂ when the fit computed one, else None."""
+        return self._m.gamma_interval
+
+    @property
+    def training(self):
+        """Summary of the training run in this process (epochs_run, best_epoch, best_val_loss,
+        final_train_loss, seconds, stop_reason), or None for a loaded model."""
+        return json.loads(self._m.training_json)
+
+    def __repr__(self):
+        g = "" if self.gamma is None else f", gamma={self.gamma:.6g}"
+        return f"<csympnet.Model {self.type}, d={self.d}, {self.n_params} params{g}>"
+
+    # --- the map ---------------------------------------------------------------------------
+    def predict(self, z, h, batched=False):
+        """One step z ↦ Φ̂_h(z).
+
+        z: a state (2d,) or a batch (N, 2d); h: a step > 0, or one per state (N,).
+        Returns an array of z's shape. Each state is stepped on its own, exactly as
+        `csympnet rollout` steps it (same bits). batched=True evaluates a map model's batch in
+        one pass (faster for large N; equal to rounding, ~1e-16). Vector-field models integrate
+        each state with dopri5 (rtol 1e-7, atol 1e-9).
+        """
+        a, single = _checks.states("z", z, dim=2 * self.d)
+        hs = _checks.steps("h", h, a.shape[0])
+        out = self._m.predict(a, hs, bool(batched))
+        return out[0] if single else out
+
+    def rollout(self, z0, hs, steps=None):
+        """Iterates the map from z0: ẑ_0 = z0, ẑ_{n+1} = Φ̂_{h_n}(ẑ_n).
+
+        z0: a state (2d,), or a batch (M, 2d).
+        hs: the steps h_0..h_{n-1} as an array (n,), or one step h with `steps=n`.
+        Returns (n+1, 2d) including z0 (for a batch: (M, n+1, 2d)). If the learned dynamics
+        leave the finite numbers, that state and all later ones are +inf. This is the rollout
+        of `csympnet rollout` and `csympnet evaluate`, to the bit.
+        """
+        a, single = _checks.states("z0", z0, dim=2 * self.d)
+        if a.shape[0] == 0:
+            raise ValueError("z0: expected a state (2d,) or a non-empty batch (M, 2d)")
+        if steps is None:
+            if np.ndim(hs) == 0:
+                raise ValueError("hs: a single step needs steps=n (or pass an array of n steps)")
+            h = _checks.vector("hs", hs)
+            h = _checks.steps("hs", h, h.shape[0])
+        else:
+            n = _checks.integer("steps", steps, minimum=0)
+            h = _checks.steps("hs", _checks.real("hs", hs, positive=True), n)
+        out = np.stack([self._m.rollout(row, h) for row in a])
+        return out[0] if single else out
+
+    def jacobian(self, z, h):
+        """The exact input Jacobian DΦ̂_h(z): (2d, 2d) for a state, (N, 2d, 2d) for a batch, with
+        J[r, c] = ∂Φ̂_r/∂z_c. Map models: forward-mode, exact; vector-field models: the
+        variational equation integrated with the flow."""
+        a, single = _checks.states("z", z, dim=2 * self.d)
+        hs = _checks.steps("h", h, a.shape[0])
+        out = self._m.jacobian(a, hs)
+        return out[0] if single else out
+
+    def structure(self, z, h, gamma_true=None):
+        """Conformal-structure diagnostics at each state (diagnostics/diagnostics.hpp), with
+        M = DΦ̂_h(z) and J = [[0, I], [−I, 0]]:
+
+        - "lambda_hat": λ̂ = ⟨MᵀJM, J⟩_F / ‖J‖_F², the map's conformal factor there;
+        - "structure_residual": S = ‖MᵀJM − λ_own J‖_F, λ_own = exp(−γ̂h) (or λ̂ without γ̂),
+          zero up to rounding for an exactly conformally symplectic map;
+        - "R": ‖MᵀJM − λ* J‖_F with λ* = exp(−γ h) for the true `gamma_true` (NaN without it).
+
+        Returns a dict of arrays (N,) (scalars for a single state).
+        """
+        a, single = _checks.states("z", z, dim=2 * self.d)
+        hs = _checks.steps("h", h, a.shape[0])
+        if gamma_true is not None:
+            gamma_true = _checks.real("gamma_true", gamma_true, nonnegative=True)
+        r, lam, s = self._m.structure(a, hs, gamma_true)
+        out = {"R": r, "lambda_hat": lam, "structure_residual": s}
+        return {k: v[0] for k, v in out.items()} if single else out
+
+    def diagnostics(self, system=None, tests=None, *, preset=None, h_test=None, test_seed=0,
+                    n_test=None, horizon=None, per_point=True):
+        """The paper's diagnostics against reference test trajectories, as `csympnet evaluate`
+        computes them (PROTOCOL.md, "Metrics").
+
+        system: the true system, a csympnet.System or a dict of its fields; with `preset`, a
+            dict of fields that replace the preset's. Default: the preset's, else the one the
+            model file records (meta["system"]).
+        tests: reference trajectories, a list of (t, z) (or one); default: generated from the
+            system with data seed `test_seed` (the CLI's test set: `n_test` trajectories on
+            [0, horizon] with step h_test; defaults 10, 10, 0.2 or the preset's).
+        h_test: step of the Jacobian diagnostics (default 0.2 or the preset's).
+
+        Returns a dict: the scalars of `csympnet evaluate` (l2_error, residual_mean,
+        residual_max, lambda_hat_mean, lambda_abs_err_mean, lambda_star,
+        structure_residual_mean, structure_residual_max, jacobian_points, rollout_finite,
+        gamma_hat, gamma_abs_err), gamma_true, h_test, system, and the arrays "tests" (list of
+        Trajectory), "rollouts" (list of (n+1, 2d)), "energy_pred" and "energy_ref" (lists of
+        (n+1,)); with per_point, "per_point": `structure()` at every test state (dict of arrays).
+        """
+        sys_obj, h_default, n_default, horizon_default = self._resolve_system(system, preset)
+        h_test = h_default if h_test is None else _checks.real("h_test", h_test, positive=True)
+        if tests is None:
+            n = n_default if n_test is None else _checks.integer("n_test", n_test, minimum=1)
+            span = (horizon_default if horizon is None
+                    else _checks.real("horizon", horizon, positive=True))
+            seed = _checks.seed("test_seed", test_seed)
+            trajs, _ = _core.test_set(sys_obj._json, n, h_test, span, seed, "splitting")
+            tests = [Trajectory(t, z) for t, z in trajs]
+        else:
+            tests = trajectory_list(tests, "tests", dim=2 * self.d)
+        if sys_obj.d != self.d:
+            raise ValueError(f"system: has d = {sys_obj.d}, but the model has d = {self.d}")
+        scalars, rollouts, e_pred, e_ref = self._m.evaluate(sys_obj._json, tests, h_test)
+        out = json.loads(scalars)
+        out.update(gamma_true=sys_obj.gamma, h_test=h_test, system=dict(sys_obj.spec),
+                   tests=tests, rollouts=list(rollouts), energy_pred=list(e_pred),
+                   energy_ref=list(e_ref))
+        if per_point:
+            z = np.concatenate([tr.z for tr in tests])
+            out["per_point"] = self.structure(z, h_test, gamma_true=sys_obj.gamma)
+        return out
+
+    def _resolve_system(self, system, preset):
+        if preset is not None:
+            _checks.choice("preset", preset, tuple(systems))
+            info = systems[preset]
+            spec = dict(info["system"])
+            if system is not None:
+                spec.update(system.spec if isinstance(system, System) else dict(system))
+            return System.from_spec(spec), info["h_test"], info["n_test"], info["horizon"]
+        if system is None:
+            if "system" not in self.meta:
+                raise ValueError(
+                    "system: this model does not record its system; pass system= (a "
+                    "csympnet.System or dict) or preset="
+                )
+            system = self.meta["system"]
+        return System.from_spec(system), _DEFAULT_H_TEST, _DEFAULT_N_TEST, _DEFAULT_HORIZON
+
+    # --- files -----------------------------------------------------------------------------
+    def save(self, path):
+        """Writes the model file (JSON, io/model_file.hpp; atomically) with `meta`. The CLI reads
+        it (`csympnet evaluate --model`, `csympnet rollout --model`) and predicts the same bits."""
+        path = os.fspath(path)
+        self._m.save(path, json.dumps(self.meta))
+
+    def to_json(self):
+        """The model file's text."""
+        return self._m.to_json(json.dumps(self.meta))
+
+
+def load(path):
+    """Reads a model file written by the CLI (`run`, `train`, `fit`) or by `Model.save`."""
+    path = os.fspath(path)
+    return Model(_core.load(path))
+
+
+def from_json(text):
+    """A model from the text of a model file (see `Model.to_json`)."""
+    if not isinstance(text, str):
+        raise TypeError(f"text: expected a str, got {type(text).__name__}")
+    return Model(_core.from_json(text))

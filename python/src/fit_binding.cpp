@@ -1,0 +1,266 @@
+// Training from Python: fit_pairs (experiments/fit.hpp, what `csympnet fit` runs) and run
+// (experiments/run.hpp, what `csympnet run` runs). Training releases the GIL; the progress
+// callback takes it back only after each validation, to call the user's callback and to let
+// Ctrl-C stop the run.
+#include <limits>
+#include <optional>
+#include <string>
+#include <type_traits>
+
+#include <pybind11/stl.h>
+
+#include "convert.hpp"
+#include "csympnet/experiments/fit.hpp"
+#include "csympnet/experiments/run.hpp"
+#include "model_binding.hpp"
+
+namespace csympnet::py_binding {
+
+namespace {
+
+// Wraps an optional Python callable as a ProgressCallback. The callable gets a dict and stops
+// training by returning False. A Python exception raised by it, or a pending signal
+// (KeyboardInterrupt), stops training and is re-raised by rethrow_if_stopped() once the GIL is
+// held again.
+class PythonProgress {
+ public:
+  explicit PythonProgress(py::object callback) : callback_(std::move(callback)) {}
+
+  ProgressCallback callback() {
+    return [this](const TrainProgress& p) {
+      py::gil_scoped_acquire gil;
+      try {
+        if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+        if (callback_.is_none()) return true;
+        py::dict info;
+        info["epoch"] = p.epoch;
+        info["epochs"] = p.epochs;
+        info["train_loss"] = p.train_loss;
+        info["val_loss"] = p.val_loss;
+        info["best_val_loss"] = p.best_val_loss;
+        info["gamma"] = std::isnan(p.gamma_hat) ? py::none() : py::cast(p.gamma_hat);
+        info["seconds"] = p.seconds;
+        const py::object result = callback_(info);
+        return result.is_none() || result.cast<bool>();
+      } catch (py::error_already_set& e) {
+        error_.emplace(std::move(e));
+        return false;
+      }
+    };
+  }
+
+  // Call with the GIL held.
+  void rethrow_if_stopped() {
+    if (error_) {
+      py::error_already_set e = std::move(*error_);
+      error_.reset();
+      throw e;
+    }
+  }
+
+ private:
+  py::object callback_;
+  std::optional<py::error_already_set> error_;
+};
+
+// The confidence interval for γ̂ that a fit may carry: FitResult::gamma_ci_low/high once the
+// library provides them (as optional<double> or as double with NaN for none). Detected at
+// compile time, so the binding needs no change when they arrive.
+[[maybe_unused]] std::optional<double> finite_or_none(double x) {
+  return std::isfinite(x) ? std::optional<double>(x) : std::nullopt;
+}
+[[maybe_unused]] std::optional<double> finite_or_none(const std::optional<double>& x) {
+  return x && std::isfinite(*x) ? x : std::nullopt;
+}
+template <class Result>
+std::optional<std::pair<double, double>> gamma_interval_of(const Result& r) {
+  if constexpr (requires {
+                  r.gamma_ci_low;
+                  r.gamma_ci_high;
+                }) {
+    const auto lo = finite_or_none(r.gamma_ci_low), hi = finite_or_none(r.gamma_ci_high);
+    if (lo && hi) return std::pair{*lo, *hi};
+  }
+  return std::nullopt;
+}
+
+// Stand-ins for a FitResult with an interval, so a test can check the detection above before the
+// library provides one (python/tests/test_fit.py).
+struct WithDoubleInterval {
+  double gamma_ci_low = 0.5, gamma_ci_high = 0.75;
+};
+struct WithNanInterval {
+  double gamma_ci_low = std::numeric_limits<double>::quiet_NaN(), gamma_ci_high = 1.0;
+};
+struct WithOptionalInterval {
+  std::optional<double> gamma_ci_low = 0.25, gamma_ci_high = 2.0;
+};
+struct WithoutInterval {};
+
+PairSet pairs_from(const DArray& z0, const DArray& z1, const DArray& h, const std::string& name) {
+  PairSet p;
+  p.z0 = states_from(z0, name + " z0");
+  p.z1 = states_from(z1, name + " z1", p.z0.rows());
+  p.h = vector_from(h, name + " h", p.z0.cols());
+  p.validate(name);
+  return p;
+}
+
+struct FitArgs {
+  std::string model, core_json, lr_schedule;
+  std::uint64_t seed;
+  double val_fraction, beta_init, lr, lr_final_fraction, weight_decay;
+  long epochs, val_every;
+  bool decay_damping;
+};
+
+std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h,
+                             const std::optional<py::tuple>& val, const FitArgs& a,
+                             const py::object& progress) {
+  const PairSet train = pairs_from(z0, z1, h, "training pairs");
+  std::optional<PairSet> val_pairs;
+  if (val) {
+    require(val->size() == 3, "validation: expected a (z0, z1, h) triple");
+    val_pairs = pairs_from((*val)[0].cast<DArray>(), (*val)[1].cast<DArray>(),
+                           (*val)[2].cast<DArray>(), "validation pairs");
+  }
+  FitConfig c;
+  c.model = a.model;
+  c.core = parse_json(a.core_json, "core");
+  c.seed = a.seed;
+  c.val_fraction = a.val_fraction;
+  c.beta_init = a.beta_init;
+  c.train.epochs = a.epochs;
+  c.train.val_every = a.val_every;
+  c.train.adamw.lr = a.lr;
+  c.train.adamw.weight_decay = a.weight_decay;
+  c.train.adamw.decay_damping = a.decay_damping;
+  c.train.lr_schedule = a.lr_schedule;
+  c.train.lr_final_fraction = a.lr_final_fraction;
+
+  PythonProgress watch(progress);
+  FitResult r;
+  {
+    py::gil_scoped_release nogil;
+    r = fit_pairs(train, val_pairs, c, watch.callback());
+  }
+  watch.rethrow_if_stopped();
+
+  auto out = std::make_unique<PyModel>();
+  out->training = r.training;
+  out->gamma_interval = gamma_interval_of(r);
+  nlohmann::json train_json = r.config.train;
+  train_json["lr_schedule"] = r.config.train.lr_schedule;
+  out->meta = {{"source", "python fit"},        {"seed", r.config.seed},
+               {"train", train_json},           {"config", r.config},
+               {"pairs_train", r.train.size()}, {"pairs_val", r.val.size()}};
+  if (out->gamma_interval)
+    out->meta["gamma_interval"] = {out->gamma_interval->first, out->gamma_interval->second};
+  out->model = std::move(r.model);
+  out->theta = std::move(r.theta);
+  return out;
+}
+
+struct RunArgs {
+  std::string preset, model, recipe, reference, system_json;
+  std::uint64_t seed;
+  std::optional<long> epochs;
+  std::optional<double> lr;
+  std::optional<std::string> lr_schedule;
+  long val_every;
+  double sigma, beta_init;
+  bool decay_damping;
+};
+
+// One preset run as `csympnet run` does it (apps/csympnet/cmd_run.cpp): returns the model,
+// the report as JSON text, the learned rollouts and the reference test trajectories.
+py::tuple run(const RunArgs& a, const py::object& progress) {
+  RunConfig c = default_run_config(a.preset, a.model);
+  const nlohmann::json overrides = parse_json(a.system_json, "system");
+  if (!overrides.is_null()) {
+    nlohmann::json sys = c.preset.system;
+    sys.update(overrides);
+    c.preset.system = sys.get<SystemSpec>();
+  }
+  c.seed = a.seed;
+  c.sigma = a.sigma;
+  if (a.recipe == "paper") {
+    c.train = paper_recipe(c.train.epochs);
+  } else {
+    require(a.recipe == "default", "recipe: expected 'default' or 'paper', got '" + a.recipe + "'");
+  }
+  if (a.epochs) c.train.epochs = *a.epochs;
+  if (a.lr) c.train.adamw.lr = *a.lr;
+  if (a.lr_schedule) c.train.lr_schedule = *a.lr_schedule;
+  c.train.val_every = a.val_every;
+  c.train.adamw.decay_damping = a.decay_damping;
+  c.reference.method = parse_reference(a.reference);
+  c.beta_init = a.beta_init;
+
+  PythonProgress watch(progress);
+  RunResult r;
+  {
+    py::gil_scoped_release nogil;
+    r = run_experiment(c, watch.callback());
+  }
+  watch.rethrow_if_stopped();
+
+  auto model = std::make_unique<PyModel>();
+  model->training = r.training;
+  model->meta = {{"source", "python run"},
+                 {"preset", c.preset.name},
+                 {"system", c.preset.system},
+                 {"seed", c.seed},
+                 {"train", r.report["config"]["train"]}};
+  model->model = std::move(r.model);
+  model->theta = std::move(r.theta);
+  py::list rollouts;
+  for (const Matrix& z : r.diagnostics.rollouts) rollouts.append(states_to(z));
+  return py::make_tuple(std::move(model), r.report.dump(), rollouts,
+                        trajectories_to(r.data.test.trajectories));
+}
+
+}  // namespace
+
+void bind_fit(py::module_& m) {
+  m.def("_gamma_interval_detection", [] {
+    return std::vector{gamma_interval_of(WithDoubleInterval{}),
+                       gamma_interval_of(WithNanInterval{}),
+                       gamma_interval_of(WithOptionalInterval{}),
+                       gamma_interval_of(WithoutInterval{}), gamma_interval_of(FitResult{})};
+  });
+  m.def(
+      "fit_pairs",
+      [](const DArray& z0, const DArray& z1, const DArray& h, const std::optional<py::tuple>& val,
+         const std::string& model, const std::string& core_json, std::uint64_t seed,
+         double val_fraction, double beta_init, long epochs, long val_every, double lr,
+         const std::string& lr_schedule, double lr_final_fraction, double weight_decay,
+         bool decay_damping, const py::object& progress) {
+        const FitArgs a{model,        core_json, lr_schedule, seed,
+                        val_fraction, beta_init, lr,          lr_final_fraction,
+                        weight_decay, epochs,    val_every,   decay_damping};
+        return fit(z0, z1, h, val, a, progress);
+      },
+      py::arg("z0"), py::arg("z1"), py::arg("h"), py::arg("val"), py::arg("model"),
+      py::arg("core_json"), py::arg("seed"), py::arg("val_fraction"), py::arg("beta_init"),
+      py::arg("epochs"), py::arg("val_every"), py::arg("lr"), py::arg("lr_schedule"),
+      py::arg("lr_final_fraction"), py::arg("weight_decay"), py::arg("decay_damping"),
+      py::arg("progress"), "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
+  m.def(
+      "run",
+      [](const std::string& preset, const std::string& model, std::uint64_t seed,
+         std::optional<long> epochs, const std::string& recipe, std::optional<double> lr,
+         std::optional<std::string> lr_schedule, long val_every, double sigma, double beta_init,
+         bool decay_damping, const std::string& reference, const std::string& system_json,
+         const py::object& progress) {
+        const RunArgs a{preset,      model,     recipe, reference, system_json,  seed, epochs, lr,
+                        lr_schedule, val_every, sigma,  beta_init, decay_damping};
+        return run(a, progress);
+      },
+      py::arg("preset"), py::arg("model"), py::arg("seed"), py::arg("epochs"), py::arg("recipe"),
+      py::arg("lr"), py::arg("lr_schedule"), py::arg("val_every"), py::arg("sigma"),
+      py::arg("beta_init"), py::arg("decay_damping"), py::arg("reference"), py::arg("system_json"),
+      py::arg("progress"), "run_experiment() of experiments/run.hpp (wrapped by csympnet.run).");
+}
+
+}  // namespace csympnet::py_binding

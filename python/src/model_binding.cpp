@@ -1,0 +1,194 @@
+// _core.Model: prediction, rollout, Jacobians and diagnostics of a trained model, and its file.
+// Every numerical call releases the GIL; none keeps a pointer into a NumPy buffer after it.
+#include "model_binding.hpp"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <pybind11/stl.h>
+
+#include "convert.hpp"
+#include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/io/model_file.hpp"
+#include "csympnet/systems/system.hpp"
+
+namespace csympnet::py_binding {
+
+namespace {
+
+// One step of every column of Z with its own h. By default each column is stepped on its own,
+// exactly as `csympnet rollout` steps a state, so a state's result does not depend on the rest of
+// the batch. `batched` runs map models in one forward pass over all columns (the pass training
+// uses): faster for large N, equal to rounding (Eigen picks other product kernels for many
+// columns). Vector-field models always integrate each column (dopri5).
+Matrix step_all(const PyModel& m, const Matrix& z, const Vector& h, bool batched) {
+  if (batched && m.model.is_map()) return m.model.map->apply(m.theta, z, h);
+  const LearnedMap lm = learned_map(m.model, m.theta);
+  Matrix out(z.rows(), z.cols());
+  for (Index j = 0; j < z.cols(); ++j) out.col(j) = lm.step(z.col(j), h(j));
+  return out;
+}
+
+DArray predict(const PyModel& m, const DArray& z, const DArray& h, bool batched) {
+  const Matrix zs = states_from(z, "z", m.model.dim());
+  const Vector hs = vector_from(h, "h", zs.cols());
+  Matrix out;
+  {
+    py::gil_scoped_release nogil;
+    out = step_all(m, zs, hs, batched);
+  }
+  return states_to(out);
+}
+
+// The same rollout as `csympnet rollout` and `evaluate` (one learned_map step at a time).
+DArray rollout_states(const PyModel& m, const DArray& z0, const DArray& hs) {
+  const Vector z = vector_from(z0, "z0", m.model.dim());
+  const Vector steps = vector_from(hs, "hs");
+  Matrix out;
+  {
+    py::gil_scoped_release nogil;
+    out = rollout(learned_map(m.model, m.theta), z, steps);
+  }
+  return states_to(out);
+}
+
+// DΦ̂_h at each state: (N, 2d, 2d), row-major, jac[i, r, c] = ∂Φ_r/∂z_c.
+DArray jacobians(const PyModel& m, const DArray& z, const DArray& h) {
+  const Matrix zs = states_from(z, "z", m.model.dim());
+  const Vector hs = vector_from(h, "h", zs.cols());
+  const Index dim = zs.rows();
+  DArray out({zs.cols(), dim, dim});
+  double* data = out.mutable_data();
+  {
+    py::gil_scoped_release nogil;
+    const LearnedMap lm = learned_map(m.model, m.theta);
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    for (Index j = 0; j < zs.cols(); ++j)
+      Eigen::Map<RowMajor>(data + j * dim * dim, dim, dim) = lm.jacobian(zs.col(j), hs(j));
+  }
+  return out;
+}
+
+// Per-state structure diagnostics (diagnostics/diagnostics.hpp): R against exp(−γ h) when the
+// true γ is given (else NaN), λ̂, and the self residual S. A state where the Jacobian does not
+// exist gives +inf, as in evaluate().
+py::tuple structure(const PyModel& m, const DArray& z, const DArray& h,
+                    std::optional<double> gamma_true) {
+  const Matrix zs = states_from(z, "z", m.model.dim());
+  const Vector hs = vector_from(h, "h", zs.cols());
+  const Index n = zs.cols();
+  Vector r(n), lam(n), self(n);
+  {
+    py::gil_scoped_release nogil;
+    const LearnedMap lm = learned_map(m.model, m.theta);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (Index j = 0; j < n; ++j) {
+      const double lambda_star = gamma_true ? std::exp(-*gamma_true * hs(j)) : nan;
+      std::optional<double> lambda_own;
+      if (lm.gamma_hat) lambda_own = std::exp(-*lm.gamma_hat * hs(j));
+      StructureAt s;
+      try {
+        s = structure_at(lm.jacobian(zs.col(j), hs(j)), lambda_star, lambda_own);
+      } catch (const Error&) {
+        const double inf = std::numeric_limits<double>::infinity();
+        s = {inf, inf, inf};
+      }
+      r(j) = gamma_true ? s.residual : nan;
+      lam(j) = s.lambda_hat;
+      self(j) = s.self_residual;
+    }
+  }
+  return py::make_tuple(vector_to(r), vector_to(lam), vector_to(self));
+}
+
+// evaluate() as `csympnet evaluate` runs it: returns (scalars as JSON text, rollouts,
+// energy_pred, energy_ref).
+py::tuple evaluate_model(const PyModel& m, const std::string& system_json,
+                         const py::sequence& tests, double h_test) {
+  const System sys(parse_json(system_json, "system").get<SystemSpec>());
+  require(sys.dim() == m.model.dim(), "system: phase-space dimension " + std::to_string(sys.dim()) +
+                                          " does not match the model's " +
+                                          std::to_string(m.model.dim()));
+  const std::vector<Trajectory> trajs = trajectories_from(tests, "tests");
+  Diagnostics d;
+  {
+    py::gil_scoped_release nogil;
+    d = evaluate(learned_map(m.model, m.theta), sys, trajs, h_test);
+  }
+  const nlohmann::json scalars = d;
+  py::list rollouts, e_pred, e_ref;
+  for (std::size_t k = 0; k < d.rollouts.size(); ++k) {
+    rollouts.append(states_to(d.rollouts[k]));
+    e_pred.append(vector_to(d.energy_pred[k]));
+    e_ref.append(vector_to(d.energy_ref[k]));
+  }
+  return py::make_tuple(scalars.dump(), rollouts, e_pred, e_ref);
+}
+
+std::unique_ptr<PyModel> from_saved(SavedModel saved) {
+  auto out = std::make_unique<PyModel>();
+  out->model = std::move(saved.model);
+  out->theta = std::move(saved.theta);
+  out->meta = saved.meta.is_object() ? saved.meta : nlohmann::json::object();
+  // An interval saved by a fit travels in the metadata.
+  const auto& ci = out->meta.value("gamma_interval", nlohmann::json());
+  if (ci.is_array() && ci.size() == 2 && ci[0].is_number() && ci[1].is_number())
+    out->gamma_interval = std::pair{ci[0].get<double>(), ci[1].get<double>()};
+  return out;
+}
+
+}  // namespace
+
+void bind_model(py::module_& m) {
+  py::class_<PyModel>(m, "Model", "A trained model (wrapped by csympnet.Model).")
+      .def_property_readonly("type", [](const PyModel& s) { return s.model.type(); })
+      .def_property_readonly("dim", [](const PyModel& s) { return s.model.dim(); })
+      .def_property_readonly("n_params", [](const PyModel& s) { return s.model.n_params(); })
+      .def_property_readonly("is_map", [](const PyModel& s) { return s.model.is_map(); })
+      .def_property_readonly("gamma",
+                             [](const PyModel& s) { return s.model.damping_rate(s.theta); })
+      .def_property_readonly("gamma_interval", [](const PyModel& s) { return s.gamma_interval; })
+      .def_property_readonly("params", [](const PyModel& s) { return vector_to(s.theta); })
+      .def_property_readonly("hyperparams_json",
+                             [](const PyModel& s) { return s.model.hyperparams().dump(); })
+      .def_property_readonly("meta_json", [](const PyModel& s) { return s.meta.dump(); })
+      .def_property_readonly("training_json", [](const PyModel& s) { return s.training.dump(); })
+      .def("predict", &predict, py::arg("z"), py::arg("h"), py::arg("batched"))
+      .def("rollout", &rollout_states, py::arg("z0"), py::arg("hs"))
+      .def("jacobian", &jacobians, py::arg("z"), py::arg("h"))
+      .def("structure", &structure, py::arg("z"), py::arg("h"), py::arg("gamma_true"))
+      .def("evaluate", &evaluate_model, py::arg("system_json"), py::arg("tests"), py::arg("h_test"))
+      .def(
+          "save",
+          [](const PyModel& s, const std::string& path, const std::string& meta_json) {
+            const nlohmann::json meta = parse_json(meta_json, "meta");
+            require(meta.is_object(), "meta: expected a JSON object");
+            py::gil_scoped_release nogil;
+            save_model(path, s.model, s.theta, meta);
+          },
+          py::arg("path"), py::arg("meta_json"))
+      .def(
+          "to_json",
+          [](const PyModel& s, const std::string& meta_json) {
+            return model_to_json(s.model, s.theta, parse_json(meta_json, "meta")).dump(1);
+          },
+          py::arg("meta_json"));
+
+  m.def(
+      "load",
+      [](const std::string& path) {
+        py::gil_scoped_release nogil;
+        return from_saved(load_model(path));
+      },
+      py::arg("path"), "Reads a model file (io/model_file.hpp).");
+  m.def(
+      "from_json",
+      [](const std::string& text) {
+        return from_saved(model_from_json(parse_json(text, "model"), "model"));
+      },
+      py::arg("text"), "Builds a model from the text of a model file.");
+}
+
+}  // namespace csympnet::py_binding

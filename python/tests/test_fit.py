@@ -1,0 +1,195 @@
+"""csympnet.fit, fit_trajectories and run: results, options, and agreement with the CLI."""
+
+import json
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import csympnet
+from conftest import EPOCHS
+
+
+def test_fit_identifies_gamma_on_s1(s1_pairs):
+    model = csympnet.fit(*s1_pairs, epochs=2000)
+    assert model.type == "csympnet" and model.d == 1 and model.n_params == 115
+    assert abs(model.gamma - 0.05) < 5e-3  # γ = 0.05; the paper's budget gets ~1e-6
+    t = model.training
+    assert t["epochs_run"] == 2000 and t["stop_reason"] == "budget"
+    assert 0 <= t["best_epoch"] <= 2000 and t["best_val_loss"] < 1e-6
+
+
+def test_sympnet_has_no_gamma(s1_pairs):
+    model = csympnet.fit(*s1_pairs, model="sympnet", epochs=50)
+    assert model.type == "sympnet" and model.gamma is None and model.n_params == 114
+
+
+def test_gamma_interval_is_none_or_brackets_gamma(s1_model):
+    ci = s1_model.gamma_interval
+    assert ci is None or (ci[0] <= s1_model.gamma <= ci[1])
+
+
+def test_fit_equals_cli_fit_bit_for_bit(tmp_path, run_cli, s1_pairs):
+    path = tmp_path / "pairs.csv"
+    csympnet.write_csv(path, s1_pairs)
+    run_cli("fit", path, "--epochs", EPOCHS, "--seed", 7, "--out", tmp_path / "out", "-q")
+    cli_model = csympnet.load(tmp_path / "out" / "model.json")
+    py_model = csympnet.fit(*s1_pairs, epochs=EPOCHS, seed=7)
+    assert np.array_equal(py_model.params, cli_model.params)
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["gamma_hat"] == py_model.gamma
+
+
+def test_options_change_the_fit(s1_pairs):
+    base = csympnet.fit(*s1_pairs, epochs=100)
+    for kwargs in ({"seed": 1}, {"lr": 2e-3}, {"lr_schedule": "constant"}, {"beta_init": -0.2},
+                   {"beta_decay": False}, {"core": "la:2:3"}, {"weight_decay": 0.0}):
+        other = csympnet.fit(*s1_pairs, epochs=100, **kwargs)
+        assert other.n_params != base.n_params or not np.array_equal(other.params, base.params), kwargs
+    assert csympnet.fit(*s1_pairs, epochs=10, core="g:2:4").hyperparams["core"] == {
+        "type": "g", "layers": 2, "width": 4}
+    assert csympnet.fit(*s1_pairs, epochs=10, core={"type": "la", "layers": 2, "sublayers": 3}
+                        ).n_params == csympnet.fit(*s1_pairs, epochs=10, core="la:2:3").n_params
+
+
+def test_explicit_validation_set(s1_pairs):
+    val = csympnet.generate("s1", "val")
+    model = csympnet.fit(*s1_pairs, epochs=50, validation=val)
+    assert model.meta["pairs_train"] == 80 and model.meta["pairs_val"] == 20
+    split = csympnet.fit(*s1_pairs, epochs=50)
+    assert split.meta["pairs_train"] == 64 and split.meta["pairs_val"] == 16
+
+
+def test_scalar_h_means_one_step_for_all(s1_pairs):
+    z0 = s1_pairs.z0
+    z1 = csympnet.System.preset("s1").flow(z0, 0.1)
+    a = csympnet.fit(z0, z1, 0.1, epochs=20)
+    b = csympnet.fit(z0, z1, np.full(len(z0), 0.1), epochs=20)
+    assert np.array_equal(a.params, b.params)
+
+
+def test_progress_callback_sees_training_and_can_stop(s1_pairs):
+    seen = []
+    csympnet.fit(*s1_pairs, epochs=100, val_every=20, progress=seen.append)
+    assert [p["epoch"] for p in seen] == [20, 40, 60, 80, 100]
+    assert all(p["epochs"] == 100 and p["gamma"] > 0 for p in seen)
+    stopped = csympnet.fit(*s1_pairs, epochs=1000, progress=lambda p: p["epoch"] < 30)
+    assert stopped.training["stop_reason"] == "callback" and stopped.training["epochs_run"] == 30
+
+
+def test_progress_callback_exception_propagates(s1_pairs):
+    def boom(p):
+        raise KeyError("from the callback")
+
+    with pytest.raises(KeyError, match="from the callback"):
+        csympnet.fit(*s1_pairs, epochs=100, progress=boom)
+
+
+def test_training_releases_the_gil(s1_pairs):
+    # A Python thread keeps counting while fit() trains; with the GIL held it would get only
+    # the odd 5 ms switch slice. Its rate alone (main thread asleep) is the yardstick.
+    done = threading.Event()
+    count = [0]
+
+    def spin():
+        while not done.is_set():
+            count[0] += 1
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    before = count[0]
+    time.sleep(0.2)
+    rate = (count[0] - before) / 0.2
+    before = count[0]
+    t0 = time.perf_counter()
+    csympnet.fit(*s1_pairs, epochs=20000, val_every=20000)
+    elapsed = time.perf_counter() - t0
+    during = count[0] - before
+    done.set()
+    thread.join()
+    assert elapsed > 0.15  # long enough to tell
+    assert during > 0.25 * rate * elapsed, f"{during} increments in {elapsed:.2f} s; alone {rate:.0f}/s"
+
+
+def test_ctrl_c_stops_training(s1_pairs):
+    timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT))
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        csympnet.fit(*s1_pairs, epochs=1_000_000)  # ~25 s if not interrupted
+    timer.join()
+    assert time.perf_counter() - t0 < 5.0
+
+
+def _trajectories(n=3, steps=12):
+    system = csympnet.System(kind="cubic", d=2, gamma=0.1, alpha=0.05)
+    rng = np.random.default_rng(3)
+    trajs = []
+    for _ in range(n):
+        t = np.cumsum(np.r_[0.0, rng.uniform(0.05, 0.15, steps)])
+        z = [rng.uniform(-1, 1, 4)]
+        for h in np.diff(t):
+            z.append(system.flow(z[-1], h))
+        trajs.append(csympnet.Trajectory(t, np.array(z)))
+    return trajs
+
+
+def test_fit_trajectories_equals_cli_fit_of_the_csv(tmp_path, run_cli):
+    trajs = _trajectories()
+    path = tmp_path / "traj.csv"
+    csympnet.write_csv(path, trajs)
+    run_cli("fit", path, "--epochs", 100, "--out", tmp_path / "out", "-q")
+    cli_model = csympnet.load(tmp_path / "out" / "model.json")
+    t = [tr.t for tr in trajs]
+    z = [tr.z for tr in trajs]
+    py_model = csympnet.fit_trajectories(t, z, epochs=100)
+    assert np.array_equal(py_model.params, cli_model.params)
+
+
+def test_fit_trajectories_forms_agree():
+    trajs = _trajectories(steps=10)
+    lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20)
+    labels = np.repeat([5, 2, 9], 11)
+    flat = csympnet.fit_trajectories(np.concatenate([tr.t for tr in trajs]),
+                                     np.concatenate([tr.z for tr in trajs]), traj=labels, epochs=20)
+    stacked = csympnet.fit_trajectories(np.stack([tr.t for tr in trajs]),
+                                        np.stack([tr.z for tr in trajs]), epochs=20)
+    assert np.array_equal(lists.params, flat.params)
+    assert np.array_equal(lists.params, stacked.params)
+    # Pairs never span two trajectories: 3 trajectories of 10 steps give 30 pairs.
+    assert lists.meta["pairs_train"] + lists.meta["pairs_val"] == 30
+
+
+def test_fit_trajectories_single_and_pairs_equivalence():
+    tr = _trajectories(n=1)[0]
+    a = csympnet.fit_trajectories(tr.t, tr.z, epochs=20)
+    b = csympnet.fit(tr.z[:-1], tr.z[1:], np.diff(tr.t), epochs=20)
+    assert np.array_equal(a.params, b.params)
+
+
+def test_run_equals_cli_run(tmp_path, run_cli):
+    result = csympnet.run("s1", epochs=200, seed=5)
+    run_cli("run", "--preset", "s1", "--epochs", 200, "--seed", 5, "--out", tmp_path, "-q")
+    report = json.loads((tmp_path / "report.json").read_text())
+    for key in ("gamma_hat", "l2_error", "residual_mean", "structure_residual_max", "best_val_loss"):
+        assert result.report[key] == report[key], key
+    assert np.array_equal(result.model.params, csympnet.load(tmp_path / "model.json").params)
+    assert len(result.rollouts) == len(result.tests) == 10
+    assert result.rollouts[0].shape == result.tests[0].z.shape == (51, 2)
+
+
+def test_run_trains_a_baseline():
+    result = csympnet.run("s1", "dhnn2", epochs=20)
+    assert result.model.type == "dhnn2" and result.model.gamma is not None
+    assert result.report["model"] == "dhnn2" and np.isfinite(result.report["l2_error"])
+
+
+def test_gamma_interval_detection():
+    # FitResult fields gamma_ci_low/high, once the library has them, reach Model.gamma_interval
+    # without a binding change: double (NaN = none) and optional<double> are both understood.
+    double, nan, optional, absent, fit_result = csympnet._core._gamma_interval_detection()
+    assert double == (0.5, 0.75) and nan is None and optional == (0.25, 2.0) and absent is None
+    assert fit_result is None or fit_result[0] <= fit_result[1]

@@ -17,6 +17,7 @@
 #include "csympnet/experiments/reproduce.hpp"
 #include "csympnet/experiments/summary.hpp"
 #include "csympnet/io/files.hpp"
+#include "interrupt.hpp"
 
 #ifndef CSYMPNET_SUITES_DIR
 #define CSYMPNET_SUITES_DIR "experiments"
@@ -165,15 +166,22 @@ void reproduce(const Args& a) {
         rank.size > 1
             ? (", rank " + std::to_string(rank.rank) + " of " + std::to_string(rank.size)).c_str()
             : "");
-  const ExecuteStats st = execute_runs(runs, runs_dir, jobs, rank, [&](const ExecuteProgress& p) {
-    if (tty) {
-      std::fprintf(stderr, "\r\033[Kreproduce: %zu/%zu runs (%zu cached) · %s · ETA %s · %s",
-                   p.done + p.cached, p.total, p.cached, clock(p.seconds).c_str(),
-                   clock(p.eta_seconds).c_str(), p.last.c_str());
-      std::fflush(stderr);
-    }
-  });
+  const ExecuteStats st = execute_runs(
+      runs, runs_dir, jobs, rank,
+      [&](const ExecuteProgress& p) {
+        if (tty) {
+          std::fprintf(stderr, "\r\033[Kreproduce: %zu/%zu runs (%zu cached) · %s · ETA %s · %s",
+                       p.done + p.cached, p.total, p.cached, clock(p.seconds).c_str(),
+                       clock(p.eta_seconds).c_str(), p.last.c_str());
+          std::fflush(stderr);
+        }
+      },
+      [] { return interrupted(); });
   if (tty) std::fprintf(stderr, "\r\033[K");
+  if (interrupted())
+    throw Interrupted(std::to_string(st.executed) + " runs finished and cached in " + runs_dir +
+                      " (" + std::to_string(st.cached) +
+                      " were cached before); rerun the same command to resume");
   if (!a.quiet)
     std::fprintf(stderr, "reproduce: executed %zu runs (%zu failed), %zu cached, in %s\n",
                  st.executed, st.failed, st.cached, clock(st.seconds).c_str());

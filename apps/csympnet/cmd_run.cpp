@@ -11,6 +11,7 @@
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model.hpp"
+#include "interrupt.hpp"
 #include "progress.hpp"
 #include "system_options.hpp"
 
@@ -124,6 +125,10 @@ void add_run(CLI::App& app) {
     if (rep["stop_reason"] == "diverged")
       throw Error("training diverged (non-finite loss); the best checkpoint was kept in " +
                   args->out);
+    if (interrupted())
+      throw Interrupted("stopped at epoch " + std::to_string(r.training.epochs_run) +
+                        "; the best checkpoint (epoch " + std::to_string(r.training.best_epoch) +
+                        "), evaluated, and its report are in " + args->out);
   });
 }
 

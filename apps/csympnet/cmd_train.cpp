@@ -13,6 +13,7 @@
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/model_file.hpp"
 #include "csympnet/train/loss.hpp"
+#include "interrupt.hpp"
 #include "progress.hpp"
 
 namespace csympnet::cli {
@@ -131,6 +132,10 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   }
   if (r.training.stop_reason == "diverged")
     throw Error("training diverged (non-finite loss); the best checkpoint was kept in " + a.out);
+  if (interrupted())
+    throw Interrupted("stopped at epoch " + std::to_string(r.training.epochs_run) +
+                      "; the best checkpoint (epoch " + std::to_string(r.training.best_epoch) +
+                      ") and its report are in " + a.out);
 }
 }  // namespace
 

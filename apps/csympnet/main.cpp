@@ -7,6 +7,7 @@
 
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
+#include "interrupt.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -21,10 +22,15 @@ int main(int argc, char** argv) {
   csympnet::cli::add_evaluate(app);
   csympnet::cli::add_rollout(app);
   csympnet::cli::add_reproduce(app);
+  csympnet::cli::install_interrupt_handlers();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const csympnet::cli::Interrupted& e) {
+    std::fprintf(stderr, "csympnet: interrupted by %s: %s\n", csympnet::cli::interrupt_name(),
+                 e.what());
+    return csympnet::cli::interrupt_exit_code();
   } catch (const csympnet::Error& e) {
     std::fprintf(stderr, "csympnet: error: %s\n", e.what());
     return 1;

@@ -1,5 +1,7 @@
 #include "progress.hpp"
 
+#include "interrupt.hpp"
+
 #include <unistd.h>
 
 #include <cmath>
@@ -14,8 +16,9 @@ ProgressLine::~ProgressLine() {
 }
 
 ProgressCallback ProgressLine::callback() {
-  if (!active_) return {};
+  if (!active_) return [](const TrainProgress&) { return !interrupted(); };
   return [this](const TrainProgress& p) {
+    if (interrupted()) return false;
     // Redraw at most 10 times a second, and always at the end.
     if (p.seconds - last_draw_ < 0.1 && p.epoch != p.epochs) return true;
     last_draw_ = p.seconds;

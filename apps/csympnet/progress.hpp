@@ -1,5 +1,6 @@
 // A one-line training progress display on a terminal: epoch, loss, validation loss, γ̂, ETA.
-// Prints nothing when stderr is not a terminal or when quiet.
+// Prints nothing when stderr is not a terminal or when quiet. The callback stops training
+// (returns false) once SIGINT or SIGTERM has arrived (interrupt.hpp).
 #pragma once
 
 #include "csympnet/train/trainer.hpp"

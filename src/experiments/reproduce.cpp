@@ -75,13 +75,19 @@ RankInfo rank_from_environment() {
   return r;
 }
 
-json execute_run(const SuiteRun& run) {
+json execute_run(const SuiteRun& run, const std::function<bool()>& stop) {
   json rec = {{"key", run.key},
               {"config", run.config},
               {"h_tests", run.h_tests},
               {"extra_jacobians", run.extra_jacobians}};
   try {
-    RunResult r = run_experiment(run.config);
+    ProgressCallback keep_going;
+    if (stop) keep_going = [&stop](const TrainProgress&) { return !stop(); };
+    RunResult r = run_experiment(run.config, keep_going);
+    if (r.training.stop_reason == "callback") {
+      rec["status"] = "interrupted";  // never cached: the run starts afresh next time
+      return rec;
+    }
     json report = r.report;
     report.erase("config");
     rec["status"] = "ok";
@@ -126,7 +132,8 @@ std::optional<json> load_record(const std::string& runs_dir, const SuiteRun& run
 
 ExecuteStats execute_runs(const std::vector<SuiteRun>& runs, const std::string& runs_dir, int jobs,
                           RankInfo rank,
-                          const std::function<void(const ExecuteProgress&)>& progress) {
+                          const std::function<void(const ExecuteProgress&)>& progress,
+                          const std::function<bool()>& stop) {
   require(jobs >= 1, "--jobs must be >= 1, got " + std::to_string(jobs));
   std::filesystem::create_directories(runs_dir);
   const auto t0 = std::chrono::steady_clock::now();
@@ -165,8 +172,10 @@ ExecuteStats execute_runs(const std::vector<SuiteRun>& runs, const std::string& 
       const std::size_t slot = next.fetch_add(1);
       if (slot >= mine.size()) return;
       const SuiteRun& run = runs[mine[slot]];
+      if (stop && stop()) return;
       try {
-        const json rec = execute_run(run);
+        const json rec = execute_run(run, stop);
+        if (rec["status"] == "interrupted") return;
         write_json_file(record_path(runs_dir, run.key), rec);
         std::lock_guard lock(mu);
         ++done;

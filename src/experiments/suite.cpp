@@ -7,6 +7,7 @@
 #include <set>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/hash.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model.hpp"
 
@@ -89,17 +90,6 @@ std::string compact(double x) {
 }
 
 }  // namespace
-
-std::string fnv1a_hex(const std::string& text) {
-  std::uint64_t h = 14695981039346656037ULL;
-  for (const unsigned char c : text) {
-    h ^= c;
-    h *= 1099511628211ULL;
-  }
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
-  return buf;
-}
 
 SuiteSpec parse_suite(const json& doc, const std::string& where) {
   require(doc.is_object(), where + ": expected a JSON object describing a suite");
@@ -252,7 +242,7 @@ std::vector<SuiteRun> expand_suite(const SuiteSpec& s) {
             const std::string canonical =
                 json(c).dump() + json(r.h_tests).dump() + (r.extra_jacobians ? "J" : "");
             r.key = preset_name + "-" + model + "-seed" + std::to_string(seed) + "-sigma" +
-                    compact(sigma) + "-n" + std::to_string(n) + "-" + fnv1a_hex(canonical);
+                    compact(sigma) + "-n" + std::to_string(n) + "-" + hex64(fnv1a64(canonical));
             // Cost model for scheduling only: epochs x parameters, fields a few times dearer.
             const double per_epoch =
                 static_cast<double>(make_model(model_spec_for(c.preset, model)).n_params()) *

@@ -53,6 +53,20 @@ class Cli : public ::testing::Test {
     return r;
   }
 
+  // Starts the CLI, sends `signal` after `delay` seconds, and waits for it.
+  Result run_and_signal(const std::string& args, const char* signal, double delay) {
+    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
+    const std::string cmd = "timeout --preserve-status -s " + std::string(signal) + " " +
+                            std::to_string(delay) + " " + CSYMPNET_CLI_PATH + " " + args + " >" +
+                            out.string() + " 2>" + err.string() + " </dev/null";
+    const int status = std::system(cmd.c_str());
+    Result r;
+    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+
   fs::path write(const std::string& name, const std::string& text) {
     const fs::path p = dir_ / name;
     std::ofstream(p) << text;
@@ -277,6 +291,39 @@ TEST_F(Cli, ReproduceRunsResumesAndMatchesAcrossRanks) {
   EXPECT_EQ(slurp(two / "summary.json"), slurp(one / "summary.json"));
   for (const char* f : {"tiny.md", "tiny.csv", "tiny.tex", "tgrid.md", "tgrid.csv", "tgrid.tex"})
     EXPECT_EQ(slurp(two / "tables" / f), slurp(one / "tables" / f)) << f;
+}
+
+// SIGINT/SIGTERM: training stops at the next validation, the best checkpoint is evaluated and
+// saved, and the exit code is 128 + the signal; an interrupted reproduction resumes.
+TEST_F(Cli, InterruptSavesTheBestCheckpointAndExitsWithTheSignalCode) {
+  if (std::system("command -v timeout >/dev/null 2>&1") != 0) GTEST_SKIP() << "no timeout(1)";
+  const fs::path out = dir_ / "run";
+  Result r = run_and_signal(
+      "run --preset s2 --model csympnet --epochs 1000000 -q --out " + out.string(), "TERM", 1.5);
+  EXPECT_EQ(r.code, 143) << r.err;
+  EXPECT_NE(r.err.find("interrupted by SIGTERM"), std::string::npos) << r.err;
+  const auto report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["stop_reason"], "callback");
+  EXPECT_LT(report["epochs"].get<long>(), 1000000);
+  EXPECT_TRUE(fs::exists(out / "model.json"));
+
+  const fs::path suites = dir_ / "suites";
+  fs::create_directories(suites);
+  std::ofstream(suites / "slow.json")
+      << R"({"name": "slow", "kind": "grid", "vary": "sigma", "presets": ["s1"],
+             "models": ["csympnet"], "seeds": [1, 2, 3, 4], "epochs": {"*": {"*": 20000}}})";
+  const std::string cmd = "reproduce --suites-dir " + suites.string() +
+                          " --no-figures --suite slow --jobs 1 --out " + (dir_ / "rep").string();
+  r = run_and_signal(cmd, "INT", 1.5);
+  EXPECT_EQ(r.code, 130) << r.err;
+  EXPECT_NE(r.err.find("rerun the same command to resume"), std::string::npos) << r.err;
+  std::size_t kept = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir_ / "rep" / "runs")) ++kept;
+  EXPECT_LT(kept, 4u);
+  r = run(cmd + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto summary = nlohmann::json::parse(slurp(dir_ / "rep" / "summary.json"));
+  EXPECT_EQ(summary["slow"]["s1"]["csympnet"][0]["seeds"].size(), 4u);
 }
 
 }  // namespace

@@ -27,7 +27,9 @@ RankInfo rank_from_environment();
 // The cached record of one run: its key and config, the report's scalars, the diagnostics
 // at every h_test, and the first test trajectory (reference and predicted states, (n+1) x 2d,
 // and the energies) for the trajectory figures.
-nlohmann::json execute_run(const SuiteRun& run);
+// When `stop` turns true during training, the run ends early and comes back with "status":
+// "interrupted"; such a record is never cached.
+nlohmann::json execute_run(const SuiteRun& run, const std::function<bool()>& stop = {});
 
 // The record cached for `run` in runs_dir, if present and made from the same config.
 std::optional<nlohmann::json> load_record(const std::string& runs_dir, const SuiteRun& run);
@@ -49,8 +51,11 @@ struct ExecuteStats {
 
 // Runs every run assigned to `rank` that is not cached yet, with `jobs` threads, writing each
 // record as it finishes. A run that throws is recorded with "status": "failed" and its message.
+// Once `stop` returns true no run starts and the runs in flight end without a record, so a
+// later call redoes exactly those (stats.executed counts recorded runs only).
 ExecuteStats execute_runs(const std::vector<SuiteRun>& runs, const std::string& runs_dir, int jobs,
                           RankInfo rank,
-                          const std::function<void(const ExecuteProgress&)>& progress = {});
+                          const std::function<void(const ExecuteProgress&)>& progress = {},
+                          const std::function<bool()>& stop = {});
 
 }  // namespace csympnet

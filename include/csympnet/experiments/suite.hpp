@@ -54,7 +54,4 @@ std::vector<SuiteRun> expand_suite(const SuiteSpec& suite);
 // *.model, *.* , else the preset's default budget for the model.
 long suite_epochs(const SuiteSpec& suite, const std::string& preset, const std::string& model);
 
-// 64-bit FNV-1a of a string, as 16 hex digits.
-std::string fnv1a_hex(const std::string& text);
-
 }  // namespace csympnet

@@ -13,7 +13,9 @@
 namespace csympnet {
 
 inline constexpr const char* kModelFormat = "csympnet-model";
-inline constexpr int kModelFormatVersion = 1;
+// Version 2 adds "checksum" (FNV-1a over architecture, meta and parameter bits); version 1
+// files, which have none, are still read.
+inline constexpr int kModelFormatVersion = 2;
 
 struct SavedModel {
   Model model;
@@ -28,8 +30,8 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where =
 // Atomic write (temporary file, then rename).
 void save_model(const std::string& path, const Model& model, const Vector& theta,
                 const nlohmann::json& meta = nlohmann::json::object());
-// Throws Error naming the file and what is wrong (not JSON, wrong format/version, parameter
-// count mismatch, non-finite values).
+// Throws Error naming the file and what is wrong (not JSON — e.g. truncated —, wrong
+// format/version, parameter count mismatch, non-finite values, checksum mismatch).
 SavedModel load_model(const std::string& path);
 
 }  // namespace csympnet

@@ -1,0 +1,24 @@
+// SIGINT and SIGTERM end long commands cleanly: the handler only records the signal; training
+// loops poll `interrupted()` through their progress callback, stop at the next validation,
+// keep their best checkpoint, and the command exits with 128 + the signal number (130 for
+// Ctrl-C, 143 for SIGTERM) after saying what it saved. A second signal kills as usual.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace csympnet::cli {
+
+void install_interrupt_handlers();
+bool interrupted();
+int interrupt_exit_code();  // 128 + signal, or 0 if none arrived
+const char* interrupt_name();
+
+// Thrown by a command after it has saved what it could; main() prints it and exits with
+// interrupt_exit_code().
+class Interrupted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace csympnet::cli

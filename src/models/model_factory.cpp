@@ -11,10 +11,6 @@
 // where CORE is {"type": "la", "layers": L, "sublayers": M} or {"type": "g", "layers": L,
 // "width": W} (a "d" inside CORE is allowed if it equals the outer d). Unknown keys are
 // rejected so that a misspelt option fails loudly instead of silently taking its default.
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <initializer_list>
 #include <string>
 
 #include "csympnet/core/error.hpp"
@@ -24,50 +20,18 @@
 #include "csympnet/models/map_baseline.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/models/sympnet.hpp"
+#include "spec_reading.hpp"
 
 namespace csympnet {
 
 namespace {
 
 using nlohmann::json;
+using namespace specs;
 
 constexpr const char* kValidTypes =
     "csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2, or a bare core la, g";
 constexpr const char* kValidCoreTypes = "la, g";
-
-void require_object(const json& spec, const std::string& where) {
-  require(spec.is_object(), where + ": expected a JSON object, got " + spec.dump());
-}
-
-void reject_unknown_keys(const json& spec, const std::string& where,
-                         std::initializer_list<const char*> allowed) {
-  for (const auto& item : spec.items()) {
-    const bool known = std::any_of(allowed.begin(), allowed.end(),
-                                   [&](const char* key) { return item.key() == key; });
-    std::string list;
-    for (const char* key : allowed) list += std::string(list.empty() ? "" : ", ") + key;
-    require(known, where + ": unknown key '" + item.key() + "' (allowed keys: " + list + ")");
-  }
-}
-
-std::string get_type(const json& spec, const std::string& where, const char* valid) {
-  require(spec.contains("type"),
-          where + ": missing key 'type' (expected one of: " + std::string(valid) + ")");
-  require(spec.at("type").is_string(), where + ": key 'type' = " + spec.at("type").dump() +
-                                           ", expected a string (one of: " + valid + ")");
-  return spec.at("type").get<std::string>();
-}
-
-Index get_count(const json& spec, const char* key, const std::string& where) {
-  require(spec.contains(key), where + ": missing key '" + key + "' (expected an integer >= 1)");
-  const json& value = spec.at(key);
-  require(value.is_number_integer(),
-          where + ": key '" + key + "' = " + value.dump() + ", expected an integer >= 1");
-  const auto count = value.get<std::int64_t>();
-  require(count >= 1,
-          where + ": key '" + key + "' = " + std::to_string(count) + ", expected an integer >= 1");
-  return static_cast<Index>(count);
-}
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.
 std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::string& where) {
@@ -92,18 +56,6 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
               ")");
 }
 
-double get_beta_init(const json& spec, const std::string& where) {
-  if (!spec.contains("beta_init")) return CSympNetId::kDefaultBetaInit;
-  const json& value = spec.at("beta_init");
-  require(value.is_number(),
-          where + ": key 'beta_init' = " + value.dump() + ", expected a nonzero number");
-  const double beta = value.get<double>();
-  require(std::isfinite(beta) && beta != 0.0,
-          where + ": key 'beta_init' = " + value.dump() +
-              ", expected a finite nonzero number (d|beta|/dbeta vanishes at 0)");
-  return beta;
-}
-
 }  // namespace
 
 std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
@@ -123,7 +75,8 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
                                        "\"la\", \"layers\": 5, \"sublayers\": 20})");
     auto core = make_core(spec.at("core"), d, where + ".core");
     if (!conformal) return std::make_unique<SympNet>(std::move(core));
-    return std::make_unique<CSympNetId>(std::move(core), get_beta_init(spec, where));
+    return std::make_unique<CSympNetId>(std::move(core),
+                                        get_beta_init(spec, where, CSympNetId::kDefaultBetaInit));
   }
   if (type == "map") {
     reject_unknown_keys(spec, where, {"type", "d", "width"});

@@ -29,8 +29,14 @@ double TrainOptions::lr_at(long epoch) const {
 }
 
 void to_json(nlohmann::json& j, const TrainOptions& o) {
-  j = {{"optimizer", "adamw"}, {"epochs", o.epochs}, {"val_every", o.val_every},
-       {"adamw", o.adamw},     {"batch", "full"},    {"checkpoint", "best-validation"}};
+  j = {{"optimizer", "adamw"},
+       {"epochs", o.epochs},
+       {"val_every", o.val_every},
+       {"adamw", o.adamw},
+       {"lr_schedule", o.lr_schedule},
+       {"lr_final_fraction", o.lr_final_fraction},
+       {"batch", "full"},
+       {"checkpoint", "best-validation"}};
 }
 
 void from_json(const nlohmann::json& j, TrainOptions& o) {

@@ -133,3 +133,30 @@ TEST(TrainOptions, CosineScheduleRunsFromLrToTheFinalFraction) {
 
 }  // namespace
 }  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+// Every option that changes training is in the JSON (reports and reproduce's cache keys rely
+// on it), and reading it back gives the same options.
+TEST(TrainOptionsJson, RoundTripsEveryField) {
+  TrainOptions o;
+  o.epochs = 1234;
+  o.val_every = 7;
+  o.adamw.lr = 3e-3;
+  o.adamw.weight_decay = 1e-5;
+  o.adamw.decay_damping = false;
+  o.lr_schedule = "cosine";
+  o.lr_final_fraction = 0.25;
+  const nlohmann::json j = o;
+  EXPECT_EQ(j["lr_schedule"], "cosine");
+  EXPECT_EQ(j["lr_final_fraction"], 0.25);
+  const TrainOptions back = j.get<TrainOptions>();
+  EXPECT_EQ(nlohmann::json(back), j);
+  TrainOptions other = o;
+  other.lr_schedule = "constant";
+  EXPECT_NE(nlohmann::json(other), j);
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -222,7 +222,7 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
     """The paper's rollout figure: phase portrait (q1, p1), q1(t), accumulated error and, when
     `energies` ({label: (n+1,)}) is given, energy — one row of panels."""
     panels = 4 if energies is not None else 3
-    fig = Figure(figsize=(3.9 * panels, 3.5), layout="constrained")
+    fig = Figure(figsize=(3.9 * panels + 1.6, 3.5), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, panels)
     phase_portrait(predictions, reference, coord=coord, ax=axes[0])
@@ -230,6 +230,14 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
     accumulated_error(t, predictions, reference, ax=axes[2])
     if energies is not None:
         energy(t, energies, energy_ref, ax=axes[3])
+    # One legend for the row, outside the last panel: with many models, per-panel legends
+    # would cover the curves. The q1(t) panel has every entry (reference included).
+    handles, labels = axes[1].get_legend_handles_labels()
+    for ax in axes:
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+    axes[-1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                    borderaxespad=0.0)
     if title:
         fig.suptitle(title, fontsize=12)
     return _finish(fig, path)

@@ -174,6 +174,11 @@ void reproduce(const Args& a) {
                        p.done + p.cached, p.total, p.cached, clock(p.seconds).c_str(),
                        clock(p.eta_seconds).c_str(), p.last.c_str());
           std::fflush(stderr);
+        } else if (!a.quiet && (p.done * 20 / p.todo != (p.done - 1) * 20 / p.todo)) {
+          // Not a terminal (a log file, CI): a line every 5% of the runs.
+          std::fprintf(stderr, "reproduce: %zu/%zu runs (%zu cached), %s elapsed, ETA %s\n",
+                       p.done + p.cached, p.total, p.cached, clock(p.seconds).c_str(),
+                       clock(p.eta_seconds).c_str());
         }
       },
       [] { return interrupted(); });

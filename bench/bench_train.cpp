@@ -1,65 +1,132 @@
-// Micro-benchmarks of the training hot path: one full-batch epoch (forward, backward, AdamW)
-// of each preset's map models, and an input Jacobian. Run with `make bench`.
+// Micro-benchmarks of the training hot path and the numerics around it. Every benchmark
+// starts from a preset's own training pairs and initial θ (bench_setup.hpp).
+//
+//   epoch/P/M       one full-batch training epoch: loss, gradient and AdamW step, as
+//                   train_parameters() runs it (the table of `make bench` reads epoch/P/csympnet)
+//   lossgrad/P/M    forward + backward only: the model's training loss with its gradient
+//   adamw/P         one AdamW step over the parameters of P's CSympNet-ID
+//   jacobian/P/M    the exact input Jacobian at one training state (h = 0.2); for vector
+//                   fields, the variational equation through dopri5
+//   rollout/P/M     a 50-step test rollout at h = 0.2 (dopri5 for vector fields)
+//   dgemm/eigen/MxKxN  C = A B with Eigen, the GEMM our cores run on, for the FLOP-rate floor
+#include "bench_train.hpp"
+
 #include <benchmark/benchmark.h>
 
-#include "csympnet/experiments/run.hpp"
+#include "bench_setup.hpp"
+#include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/train/adamw.hpp"
-#include "csympnet/train/loss.hpp"
+#include "csympnet/train/objective.hpp"
+
+namespace csympnet::bench {
 
 namespace {
 
-using namespace csympnet;
+const std::vector<std::string> kPresets = {"s1", "s2", "s3", "s2-100"};
+const std::vector<std::string> kModels = {"csympnet", "sympnet", "map",  "ode",
+                                          "dhnn",     "dhnn2",   "phnn", "phnn2"};
 
-struct Setup {
-  std::unique_ptr<OneStepMap> map;
-  Vector theta;
-  PairSet train;
-};
-
-Setup make_setup(const std::string& preset, const std::string& model) {
-  RunConfig c = default_run_config(preset, model);
-  Setup s;
-  Rng rng(42, "train-pairs");
-  const System sys(c.preset.system);
-  s.train = generate_pairs(sys, c.preset.n_train, c.preset.train_steps, rng, c.reference);
-  s.map = make_one_step_map(model_spec_for(c.preset, model));  // map models only
-  s.theta.resize(s.map->n_params());
-  Rng init(42, "init");
-  s.map->init_params(init, s.theta);
-  return s;
-}
-
-void BM_Epoch(benchmark::State& state, const std::string& preset, const std::string& model) {
+void epoch(benchmark::State& state, const std::string& preset, const std::string& model) {
   Setup s = make_setup(preset, model);
-  AdamW opt(s.map->n_params(), {}, s.map->damping_param_index());
-  ForwardCache cache;
-  Vector grad(s.map->n_params());
+  const Objective o = make_objective(s.model, s.train, s.val);
+  AdamW opt(o.n_params, {}, o.damping_index);
+  Vector grad(o.n_params);
   for (auto _ : state) {
-    benchmark::DoNotOptimize(one_step_loss(*s.map, s.theta, s.train, &grad, &cache));
+    benchmark::DoNotOptimize(o.train_loss(s.theta, grad));
     opt.step(s.theta, grad);
   }
-  state.counters["params"] = static_cast<double>(s.map->n_params());
+  state.counters["params"] = static_cast<double>(o.n_params);
+  state.counters["pairs"] = static_cast<double>(s.train.size());
+  if (s.model.type() == "csympnet") {
+    const double flops = csympnet_epoch_flops(*s.model.map, s.train.size());
+    state.counters["flop_per_epoch"] = flops;
+    state.counters["FLOPS"] = benchmark::Counter(flops, benchmark::Counter::kIsIterationInvariantRate);
+  }
 }
 
-void BM_Jacobian(benchmark::State& state, const std::string& preset) {
+void loss_grad(benchmark::State& state, const std::string& preset, const std::string& model) {
+  Setup s = make_setup(preset, model);
+  const Objective o = make_objective(s.model, s.train, s.val);
+  Vector grad(o.n_params);
+  for (auto _ : state) benchmark::DoNotOptimize(o.train_loss(s.theta, grad));
+  state.counters["params"] = static_cast<double>(o.n_params);
+}
+
+void adamw(benchmark::State& state, const std::string& preset) {
   Setup s = make_setup(preset, "csympnet");
-  const Vector z = s.train.z0.col(0);
-  for (auto _ : state) benchmark::DoNotOptimize(s.map->jacobian(s.theta, z, 0.2));
+  AdamW opt(s.model.n_params(), {}, s.model.damping_param_index());
+  // A fixed pseudo-gradient: AdamW's cost does not depend on the values.
+  const Vector grad = Vector::LinSpaced(s.model.n_params(), -1.0, 1.0);
+  for (auto _ : state) {
+    opt.step(s.theta, grad);
+    benchmark::DoNotOptimize(s.theta.data());
+  }
+  state.counters["params"] = static_cast<double>(s.model.n_params());
 }
 
-BENCHMARK_CAPTURE(BM_Epoch, s1_csympnet, std::string("s1"), std::string("csympnet"))
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Epoch, s2_csympnet, std::string("s2"), std::string("csympnet"))
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Epoch, s3_csympnet, std::string("s3"), std::string("csympnet"))
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Epoch, s2_100_csympnet, std::string("s2-100"), std::string("csympnet"))
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Epoch, s1_sympnet, std::string("s1"), std::string("sympnet"))
-    ->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Jacobian, s1, std::string("s1"))->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_Jacobian, s3, std::string("s3"))->Unit(benchmark::kMicrosecond);
+void jacobian(benchmark::State& state, const std::string& preset, const std::string& model) {
+  Setup s = make_setup(preset, model);
+  const LearnedMap map = learned_map(s.model, s.theta);
+  const Vector z = s.train.z0.col(0);
+  for (auto _ : state) benchmark::DoNotOptimize(map.jacobian(z, 0.2));
+}
+
+void rollout_steps(benchmark::State& state, const std::string& preset, const std::string& model) {
+  Setup s = make_setup(preset, model);
+  const LearnedMap map = learned_map(s.model, s.theta);
+  const Vector z0 = s.train.z0.col(0);
+  const Vector steps = Vector::Constant(50, 0.2);
+  for (auto _ : state) benchmark::DoNotOptimize(rollout(map, z0, steps));
+}
+
+void dgemm(benchmark::State& state, Index m, Index k, Index n) {
+  const Matrix a = Matrix::Random(m, k);
+  const Matrix b = Matrix::Random(k, n);
+  Matrix c(m, n);
+  for (auto _ : state) {
+    c.noalias() = a * b;
+    benchmark::DoNotOptimize(c.data());
+  }
+  state.counters["FLOPS"] = benchmark::Counter(2.0 * static_cast<double>(m * k * n),
+                                               benchmark::Counter::kIsIterationInvariantRate);
+}
 
 }  // namespace
 
-BENCHMARK_MAIN();
+void register_benchmarks() {
+  using benchmark::RegisterBenchmark;
+  for (const auto& p : kPresets) {
+    for (const auto& m : kModels) {
+      RegisterBenchmark(("epoch/" + p + "/" + m).c_str(), epoch, p, m)
+          ->Unit(benchmark::kMicrosecond);
+    }
+  }
+  for (const auto& p : kPresets) {
+    for (const auto& m : kModels) {
+      RegisterBenchmark(("lossgrad/" + p + "/" + m).c_str(), loss_grad, p, m)
+          ->Unit(benchmark::kMicrosecond);
+    }
+  }
+  for (const auto& p : kPresets) {
+    RegisterBenchmark(("adamw/" + p).c_str(), adamw, p)->Unit(benchmark::kMicrosecond);
+  }
+  for (const auto& p : kPresets) {
+    RegisterBenchmark(("jacobian/" + p + "/csympnet").c_str(), jacobian, p, std::string("csympnet"))
+        ->Unit(benchmark::kMicrosecond);
+  }
+  for (const std::string m : {"map", "ode", "phnn2"}) {
+    RegisterBenchmark(("jacobian/s1/" + m).c_str(), jacobian, std::string("s1"), m)
+        ->Unit(benchmark::kMicrosecond);
+  }
+  for (const std::string m : {"csympnet", "ode", "phnn2"}) {
+    RegisterBenchmark(("rollout/s1/" + m).c_str(), rollout_steps, std::string("s1"), m)
+        ->Unit(benchmark::kMicrosecond);
+  }
+  RegisterBenchmark("dgemm/eigen/100x100x400", dgemm, Index{100}, Index{100}, Index{400})
+      ->Unit(benchmark::kMicrosecond);
+  RegisterBenchmark("dgemm/eigen/1000x1000x1000", dgemm, Index{1000}, Index{1000}, Index{1000})
+      ->Unit(benchmark::kMillisecond);
+}
+
+}  // namespace csympnet::bench

@@ -107,6 +107,16 @@ const char* column_label(const std::string& c) {
   return it == labels.end() ? c.c_str() : it->second;
 }
 
+// A '|' inside a Markdown table cell ends the cell unless escaped.
+std::string md_escape(const std::string& s) {
+  std::string out;
+  for (const char c : s) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
 std::string latex_escape(std::string s) {
   std::string out;
   for (const char c : s) {
@@ -267,7 +277,7 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
       md += "## " + preset + "\n\n| model |";
       std::string rule = "|---|";
       for (const auto& c : s.columns) {
-        md += std::string(" ") + column_label(c) + " | paper | ratio |";
+        md += " " + md_escape(column_label(c)) + " | paper | ratio |";
         rule += "---:|---:|---:|";
       }
       md += "\n" + rule + "\n";
@@ -309,7 +319,7 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
   md += "Median [q1, q3] over " + std::to_string(s.seeds.size()) + " seeds; varied: " + s.vary +
         ".\n\n";
   md +=
-      "| preset | model | sigma | N_train | h_test | L2 | |gamma_hat-gamma| | lambda_hat "
+      "| preset | model | sigma | N_train | h_test | L2 | \\|gamma_hat-gamma\\| | lambda_hat "
       "(lambda*) | failed |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
   csv =
       "preset,model,sigma,n_train,h_test,l2_median,l2_q1,l2_q3,gamma_err_median,gamma_err_q1,"

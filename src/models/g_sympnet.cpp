@@ -2,6 +2,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
+#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -45,12 +46,12 @@ void GSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, Fo
     Matrix& dst = kick ? p : q;
     if (cache != nullptr) cache->mats[slot++] = src;
     Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
-    product_into(kmat, src, u);
+    detail::core_product(kmat, src, u);
     u.array().colwise() += b;
     sigmoid_into(u, sig);
     // u now holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
     u.array() = (sig.array().colwise() * a).rowwise() * h.transpose().array();
-    product_into(kmat.transpose(), u, inc);
+    detail::core_product(kmat.transpose(), u, inc);
     dst += inc;
   }
 }
@@ -78,17 +79,17 @@ void GSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::
     // dst += Kᵀ y H:  dK = y (G_dst H)ᵀ, dy = K (G_dst H).
     gh = (gdst.array().rowwise() * h.transpose().array()).matrix();
     y = (sig.array().colwise() * a).matrix();
-    product_into(y, gh.transpose(), gk);
+    detail::core_product(y, gh.transpose(), gk);
     grad_k += gk;
-    product_into(kmat, gh, gy);
+    detail::core_product(kmat, gh, gy);
     // y = a ⊙ σ(u):  da = Σ_j dy ⊙ σ,  du = dy ⊙ a ⊙ σ(1 − σ).
     grad.segment(off + width_ * dd, width_).array() += (gy.array() * sig.array()).rowwise().sum();
     gy.array() = (gy.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
     // u = K src + b:  db = Σ_j du,  dK += du srcᵀ,  g_src += Kᵀ du.
     grad.segment(off + width_ * (dd + 1), width_) += gy.rowwise().sum();
-    product_into(gy, src.transpose(), gk);
+    detail::core_product(gy, src.transpose(), gk);
     grad_k += gk;
-    product_into(kmat.transpose(), gy, gsrc_inc);
+    detail::core_product(kmat.transpose(), gy, gsrc_inc);
     gsrc += gsrc_inc;
   }
 }

@@ -1,7 +1,10 @@
 #include "csympnet/models/la_sympnet.hpp"
 
+#include <vector>
+
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
+#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -14,6 +17,39 @@ using MatrixMap = Eigen::Map<Matrix>;
 void symmetric_from(ConstParams theta, Index offset, Index d, Matrix& s) {
   const ConstMatrixMap a(theta.data() + offset, d, d);
   s = a + a.transpose();
+}
+
+using RowMap = Eigen::Map<RowVector>;
+using ConstRowMap = Eigen::Map<const RowVector>;
+
+// Σ_j x_j y_j summed left to right from x_0 y_0: the order Eigen uses for the inner product of
+// two 1 x N rows (and for the row sums of a 1 x N array), so d = 1 gradients keep their bits.
+double sequential_dot(const double* x, const double* y, Index n) {
+  if (n == 0) return 0.0;
+  double acc = x[0] * y[0];
+  for (Index j = 1; j < n; ++j) acc += x[j] * y[j];
+  return acc;
+}
+
+// Four independent sequential_dot()s at once: the same sums in the same order, but four
+// dependency chains in flight instead of one.
+void sequential_dot4(const double* const x[4], const double* const y[4], Index n, double out[4]) {
+  if (n == 0) {
+    out[0] = out[1] = out[2] = out[3] = 0.0;
+    return;
+  }
+  double a0 = x[0][0] * y[0][0], a1 = x[1][0] * y[1][0];
+  double a2 = x[2][0] * y[2][0], a3 = x[3][0] * y[3][0];
+  for (Index j = 1; j < n; ++j) {
+    a0 += x[0][j] * y[0][j];
+    a1 += x[1][j] * y[1][j];
+    a2 += x[2][j] * y[2][j];
+    a3 += x[3][j] * y[3][j];
+  }
+  out[0] = a0;
+  out[1] = a1;
+  out[2] = a2;
+  out[3] = a3;
 }
 
 }  // namespace
@@ -55,6 +91,10 @@ std::size_t LaSympNet::cache_slots() const {
 
 void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
                      std::size_t slot0) const {
+  if (d() == 1) {
+    flow_scalar(theta, q, p, h, cache, slot0);
+    return;
+  }
   const Index dd = d();
   const auto hrow = h.transpose().array();
   Matrix s(dd, dd);
@@ -70,7 +110,7 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
       Matrix& dst = kick ? p : q;
       if (cache != nullptr) cache->mats[slot++] = src;
       symmetric_from(theta, off, dd, s);
-      product_into(s, src, inc);
+      detail::core_product(s, src, inc);
       dst.array() += inc.array().rowwise() * hrow;  // kick p += h S q / drift q += h S p
     }
     p.noalias() += theta.segment(off, dd) * h.transpose();
@@ -89,6 +129,10 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
 
 void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                               const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
+  if (d() == 1) {
+    flow_backward_scalar(theta, cache, slot0, h, gq, gp, grad);
+    return;
+  }
   const Index dd = d();
   const auto hrow = h.transpose().array();
   Matrix s(dd, dd);
@@ -121,13 +165,110 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
       const Matrix& src = cache.mats[--slot];
       const Index off = base + i * dd * dd;
       gh = (gdst.array().rowwise() * hrow).matrix();
-      product_into(gh, src.transpose(), outer);
+      detail::core_product(gh, src.transpose(), outer);
       MatrixMap ga(grad.data() + off, dd, dd);
       ga += outer + outer.transpose();
       symmetric_from(theta, off, dd, s);
-      product_into(s, gh, sg);
+      detail::core_product(s, gh, sg);
       gsrc += sg;
     }
+  }
+}
+
+// d = 1: each S is the scalar 2A and q, p are single rows of N values. The general path's
+// operations, per element and in the same order, without its d x d products and temporaries,
+// so the results are bit-identical to it.
+void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                            ForwardCache* cache, std::size_t slot0) const {
+  const Index n = q.cols();
+  const auto hrow = ConstRowMap(h.data(), n).array();
+  std::size_t slot = slot0;
+  if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
+  Matrix sig_local;
+  for (Index k = 0; k < layers_; ++k) {
+    Index off = module_offset(k);
+    for (Index i = 0; i < sublayers_; ++i, ++off) {
+      const bool kick = i % 2 == 0;
+      const Matrix& src = kick ? q : p;
+      Matrix& dst = kick ? p : q;
+      if (cache != nullptr) cache->mats[slot++] = src;
+      const double s = theta(off) + theta(off);
+      // kick p += h S q / drift q += h S p
+      RowMap(dst.data(), n).array() += (s * ConstRowMap(src.data(), n).array()) * hrow;
+    }
+    RowMap(p.data(), n).array() += hrow * theta(off);
+    RowMap(q.data(), n).array() += hrow * theta(off + 1);
+    if (k + 1 < layers_) {
+      const bool kick = k % 2 == 0;
+      const Matrix& src = kick ? q : p;
+      Matrix& dst = kick ? p : q;
+      Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
+      sigmoid_into(src, sig);
+      const double a = theta(off + 2);
+      // kick p += h a σ(q)
+      RowMap(dst.data(), n).array() += (ConstRowMap(sig.data(), n).array() * a) * hrow;
+    }
+  }
+}
+
+void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cache,
+                                     std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
+                                     ParamsRef grad) const {
+  const Index n = gq.cols();
+  const auto hrow = ConstRowMap(h.data(), n).array();
+  const Index n_shears = layers_ * sublayers_;
+  // The shear gradients ∂A = 2 Σ_j (g_dst,j h_j) src_j feed nothing else in the sweep, so the
+  // sweep only records g_dst h per shear (row `t` of gh) and the sums run at the end, four
+  // at a time.
+  Matrix gh(n, n_shears + 1);  // the last column is scratch for the activation modules
+  std::vector<const double*> shear_src(static_cast<std::size_t>(n_shears));
+  std::vector<Index> shear_off(static_cast<std::size_t>(n_shears));
+  std::size_t slot = slot0 + cache_slots();
+  Index t = n_shears;
+  for (Index k = layers_ - 1; k >= 0; --k) {
+    const Index base = module_offset(k);
+    const Index bias = base + sublayers_;
+    if (k + 1 < layers_) {
+      const bool kick = k % 2 == 0;
+      Matrix& gsrc = kick ? gq : gp;
+      const Matrix& gdst = kick ? gp : gq;
+      const Matrix& sig = cache.mats[--slot];
+      const double a = theta(bias + 2);
+      RowMap g(gh.col(n_shears).data(), n);
+      g.array() = ConstRowMap(gdst.data(), n).array() * hrow;
+      grad(bias + 2) += sequential_dot(g.data(), sig.data(), n);
+      const auto s = ConstRowMap(sig.data(), n).array();
+      RowMap(gsrc.data(), n).array() += ((g.array() * s) * (1.0 - s)) * a;
+    }
+    grad(bias) += sequential_dot(gp.data(), h.data(), n);
+    grad(bias + 1) += sequential_dot(gq.data(), h.data(), n);
+    for (Index i = sublayers_ - 1; i >= 0; --i) {
+      const bool kick = i % 2 == 0;
+      Matrix& gsrc = kick ? gq : gp;
+      const Matrix& gdst = kick ? gp : gq;
+      --t;
+      shear_src[static_cast<std::size_t>(t)] = cache.mats[--slot].data();
+      shear_off[static_cast<std::size_t>(t)] = base + i;
+      RowMap g(gh.col(t).data(), n);
+      g.array() = ConstRowMap(gdst.data(), n).array() * hrow;
+      const double s = theta(base + i) + theta(base + i);
+      RowMap(gsrc.data(), n).array() += s * g.array();
+    }
+  }
+  // ∂A += M + Mᵀ with M = Σ_j (g_dst h)_j src_j.
+  auto add_shear = [&](Index u, double m) { grad(shear_off[static_cast<std::size_t>(u)]) += m + m; };
+  Index u = 0;
+  for (; u + 4 <= n_shears; u += 4) {
+    const double* x[4] = {gh.col(u).data(), gh.col(u + 1).data(), gh.col(u + 2).data(),
+                          gh.col(u + 3).data()};
+    const double* y[4];
+    for (int r = 0; r < 4; ++r) y[r] = shear_src[static_cast<std::size_t>(u + r)];
+    double m[4];
+    sequential_dot4(x, y, n, m);
+    for (int r = 0; r < 4; ++r) add_shear(u + r, m[r]);
+  }
+  for (; u < n_shears; ++u) {
+    add_shear(u, sequential_dot(gh.col(u).data(), shear_src[static_cast<std::size_t>(u)], n));
   }
 }
 

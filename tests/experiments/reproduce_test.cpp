@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <set>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -252,6 +253,23 @@ TEST_F(Reproduce, SummaryAndTablesFollowTheRecords) {
   EXPECT_NE(t1.latex.find("\\begin{tabular}"), std::string::npos);
   const TableFiles g = render_tables(grid, summary);
   EXPECT_NE(g.csv.find("s1,dhnn2,0.01,80,0.2,"), std::string::npos);
+  // Every Markdown table row has as many cell separators (unescaped '|') as its header.
+  for (const std::string& md : {t1.markdown, g.markdown}) {
+    std::istringstream lines(md);
+    std::string line;
+    long header = -1;
+    while (std::getline(lines, line)) {
+      if (line.empty() || line[0] != '|') {
+        header = -1;
+        continue;
+      }
+      long bars = 0;
+      for (std::size_t i = 0; i < line.size(); ++i)
+        bars += line[i] == '|' && (i == 0 || line[i - 1] != '\\');
+      if (header < 0) header = bars;
+      EXPECT_EQ(bars, header) << line;
+    }
+  }
 
   // A missing record is an error naming the run.
   fs::remove(fs::path(sub("s")) / (runs[0].key + ".json"));

@@ -16,14 +16,56 @@ inline double sigmoid(double x) {
   return e / (1.0 + e);
 }
 
+namespace detail {
+// σ of the n contiguous values at x into out (storage of an Eigen Matrix), to the bit as the
+// Eigen path of sigmoid_into() computes them, with AVX-512 where the machine has it.
+// Returns false (writing nothing) when no such kernel runs here (src/models/exact_sigmoid.cpp).
+bool sigmoid_simd(const double* x, double* out, Index n);
+}  // namespace detail
+
 // out = σ(x) elementwise (out may not alias x). Same stable formula as sigmoid(), written
 // with whole-array operations so that Eigen vectorises exp():
-//   e = exp(−|x|),  σ(x) = 1/(1+e) for x ≥ 0,  e/(1+e) for x < 0.
+//   e = exp(−|x|),  σ(x) = n/(1+e) with n = 1 for x ≥ 0, n = e for x < 0.
+// The numerator is picked first and divided once (Eigen's select() is not vectorised and
+// would evaluate both quotients); the quotient is the same IEEE division either way.
 template <typename In>
 void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
+  const auto& xe = x.derived();
+  constexpr int kFlags = static_cast<int>(In::Flags);
+  if constexpr ((kFlags & Eigen::DirectAccessBit) && !(kFlags & Eigen::RowMajorBit)) {
+    // Contiguous column-major x: element j of x and of out are the same (r, c).
+    if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
+      out.resize(x.rows(), x.cols());
+      if (detail::sigmoid_simd(xe.data(), out.data(), out.size())) return;
+    }
+  }
   out = (-x.array().abs()).exp().matrix();
-  out.array() =
-      (x.array() >= 0.0).select(1.0 / (1.0 + out.array()), out.array() / (1.0 + out.array()));
+  const Index n = out.size();
+  double* o = out.data();
+  if constexpr ((kFlags & Eigen::DirectAccessBit) && !(kFlags & Eigen::RowMajorBit)) {
+    using Packet = Eigen::internal::packet_traits<double>::type;
+    constexpr Index kSize = Eigen::internal::packet_traits<double>::size;
+    if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
+      namespace ei = Eigen::internal;
+      const double* xp = xe.data();
+      const Packet one = ei::pset1<Packet>(1.0);
+      const Packet zero = ei::pset1<Packet>(0.0);
+      Index j = 0;
+      for (; j + kSize <= n; j += kSize) {
+        const Packet e = ei::ploadu<Packet>(o + j);
+        const Packet num = ei::pselect(ei::pcmp_le(zero, ei::ploadu<Packet>(xp + j)), one, e);
+        ei::pstoreu(o + j, ei::pdiv(num, ei::padd(one, e)));
+      }
+      for (; j < n; ++j) o[j] = (xp[j] >= 0.0 ? 1.0 : o[j]) / (1.0 + o[j]);
+      return;
+    }
+  }
+  for (Index c = 0; c < out.cols(); ++c) {
+    for (Index r = 0; r < out.rows(); ++r) {
+      double& v = out(r, c);
+      v = (x(r, c) >= 0.0 ? 1.0 : v) / (1.0 + v);
+    }
+  }
 }
 
 // σ'(x) = σ(x)(1 − σ(x)), written in terms of the cached s = σ(x).

@@ -42,6 +42,12 @@ class LaSympNet final : public SymplecticCore {
   Index sublayers() const { return sublayers_; }
 
  private:
+  // flow() and flow_backward() for d = 1 (src/models/la_sympnet.cpp).
+  void flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
+                   std::size_t slot0) const;
+  void flow_backward_scalar(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                            const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+
   // Offset of linear module k in θ (each module but the last is followed by its activation).
   Index module_offset(Index k) const { return k * (sublayers_ * d() * d() + 3 * d()); }
 

@@ -22,8 +22,13 @@ test: build
 demo: build
 	@$(CLI) reproduce --suite quick --out results/quick
 
+# One table, measured in one run: ms per training epoch, csympnet vs PyTorch (float64, same
+# model, data and AdamW), FLOPs, FLOP rate against dgemm, peak memory (docs/benchmarks.md).
+# Needs python3-torch and libopenblas0-pthread (bench/bench_table.py says so if missing);
+# BENCH_ARGS passes options, e.g. BENCH_ARGS="--threads 2". The micro-benchmarks alone:
+# $(BUILD)/bin/csympnet_bench.
 bench: build
-	@$(BUILD)/bin/csympnet_bench --benchmark_min_time=0.2
+	@/usr/bin/python3 bench/bench_table.py --build $(BUILD) $(BENCH_ARGS)
 
 format:
 	@git ls-files '*.cpp' '*.hpp' | xargs clang-format -i

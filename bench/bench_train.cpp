@@ -41,7 +41,8 @@ void epoch(benchmark::State& state, const std::string& preset, const std::string
   if (s.model.type() == "csympnet") {
     const double flops = csympnet_epoch_flops(*s.model.map, s.train.size());
     state.counters["flop_per_epoch"] = flops;
-    state.counters["FLOPS"] = benchmark::Counter(flops, benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["FLOPS"] =
+        benchmark::Counter(flops, benchmark::Counter::kIsIterationInvariantRate);
   }
 }
 

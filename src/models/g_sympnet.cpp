@@ -51,8 +51,7 @@ void GSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, Fo
     sigmoid_into(u, sig);
     // u now holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
     u.array() = (sig.array().colwise() * a).rowwise() * h.transpose().array();
-    detail::core_product(kmat.transpose(), u, inc);
-    dst += inc;
+    detail::core_product_add(kmat.transpose(), u, dst, inc);
   }
 }
 
@@ -79,18 +78,15 @@ void GSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::
     // dst += Kᵀ y H:  dK = y (G_dst H)ᵀ, dy = K (G_dst H).
     gh = (gdst.array().rowwise() * h.transpose().array()).matrix();
     y = (sig.array().colwise() * a).matrix();
-    detail::core_product(y, gh.transpose(), gk);
-    grad_k += gk;
+    detail::core_product_add(y, gh.transpose(), grad_k, gk);
     detail::core_product(kmat, gh, gy);
     // y = a ⊙ σ(u):  da = Σ_j dy ⊙ σ,  du = dy ⊙ a ⊙ σ(1 − σ).
     grad.segment(off + width_ * dd, width_).array() += (gy.array() * sig.array()).rowwise().sum();
     gy.array() = (gy.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
     // u = K src + b:  db = Σ_j du,  dK += du srcᵀ,  g_src += Kᵀ du.
     grad.segment(off + width_ * (dd + 1), width_) += gy.rowwise().sum();
-    detail::core_product(gy, src.transpose(), gk);
-    grad_k += gk;
-    detail::core_product(kmat.transpose(), gy, gsrc_inc);
-    gsrc += gsrc_inc;
+    detail::core_product_add(gy, src.transpose(), grad_k, gk);
+    detail::core_product_add(kmat.transpose(), gy, gsrc, gsrc_inc);
   }
 }
 

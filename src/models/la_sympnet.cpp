@@ -110,8 +110,7 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
       Matrix& dst = kick ? p : q;
       if (cache != nullptr) cache->mats[slot++] = src;
       symmetric_from(theta, off, dd, s);
-      detail::core_product(s, src, inc);
-      dst.array() += inc.array().rowwise() * hrow;  // kick p += h S q / drift q += h S p
+      detail::core_product_add_scaled(s, src, h, dst, inc);  // kick p += h S q / drift q += h S p
     }
     p.noalias() += theta.segment(off, dd) * h.transpose();
     q.noalias() += theta.segment(off + dd, dd) * h.transpose();
@@ -169,8 +168,7 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
       MatrixMap ga(grad.data() + off, dd, dd);
       ga += outer + outer.transpose();
       symmetric_from(theta, off, dd, s);
-      detail::core_product(s, gh, sg);
-      gsrc += sg;
+      detail::core_product_add(s, gh, gsrc, sg);
     }
   }
 }
@@ -218,7 +216,7 @@ void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cach
   const auto hrow = ConstRowMap(h.data(), n).array();
   const Index n_shears = layers_ * sublayers_;
   // The shear gradients ∂A = 2 Σ_j (g_dst,j h_j) src_j feed nothing else in the sweep, so the
-  // sweep only records g_dst h per shear (row `t` of gh) and the sums run at the end, four
+  // sweep only records g_dst h per shear (column `t` of gh) and the sums run at the end, four
   // at a time.
   Matrix gh(n, n_shears + 1);  // the last column is scratch for the activation modules
   std::vector<const double*> shear_src(static_cast<std::size_t>(n_shears));
@@ -256,7 +254,9 @@ void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cach
     }
   }
   // ∂A += M + Mᵀ with M = Σ_j (g_dst h)_j src_j.
-  auto add_shear = [&](Index u, double m) { grad(shear_off[static_cast<std::size_t>(u)]) += m + m; };
+  auto add_shear = [&](Index u, double m) {
+    grad(shear_off[static_cast<std::size_t>(u)]) += m + m;
+  };
   Index u = 0;
   for (; u + 4 <= n_shears; u += 4) {
     const double* x[4] = {gh.col(u).data(), gh.col(u + 1).data(), gh.col(u + 2).data(),

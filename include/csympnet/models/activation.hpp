@@ -32,8 +32,10 @@ template <typename In>
 void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
   const auto& xe = x.derived();
   constexpr int kFlags = static_cast<int>(In::Flags);
-  if constexpr ((kFlags & Eigen::DirectAccessBit) && !(kFlags & Eigen::RowMajorBit)) {
-    // Contiguous column-major x: element j of x and of out are the same (r, c).
+  // The kernel assumes Eigen's linear traversal (packets from element 0, an odd last element
+  // alone), which Eigen uses when x is linearly accessible (matrices, maps, whole columns).
+  constexpr int kLinear = Eigen::DirectAccessBit | Eigen::LinearAccessBit;
+  if constexpr ((kFlags & kLinear) == kLinear && !(kFlags & Eigen::RowMajorBit)) {
     if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
       out.resize(x.rows(), x.cols());
       if (detail::sigmoid_simd(xe.data(), out.data(), out.size())) return;
@@ -45,6 +47,7 @@ void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
   if constexpr ((kFlags & Eigen::DirectAccessBit) && !(kFlags & Eigen::RowMajorBit)) {
     using Packet = Eigen::internal::packet_traits<double>::type;
     constexpr Index kSize = Eigen::internal::packet_traits<double>::size;
+    // Contiguous column-major x: element j of x and of out are the same (r, c).
     if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
       namespace ei = Eigen::internal;
       const double* xp = xe.data();

@@ -1,0 +1,90 @@
+// Internal to src/models: the matrix products of the SympNet cores through SIMD kernels that
+// reproduce, to the bit, what Eigen's own product computes in the portable build.
+//
+// Why it can: in the portable build (SSE2, no FMA) Eigen 3.4's GEMM evaluates a product that
+// fits in one cache block as, per entry, one running sum over the inner index k from 0, with
+// separate multiplies and adds, except on a two-row remainder (rows ≡ 2 mod 4), where it adds
+// even and odd k in two sums first (docs/benchmarks.md, "Exact products"). The kernels here
+// follow the same order with wider registers (AVX-512 or AVX2, still without FMA), so every
+// entry is the same IEEE computation. When a shape, a build or a machine falls outside what
+// is covered, they decline and Eigen runs as before.
+#pragma once
+
+#include "csympnet/models/activation.hpp"
+
+namespace csympnet::detail {
+
+// What happens to an entry v = (A B)(i, j) of the product (v = 0 + s, Eigen's value):
+enum class Epilogue {
+  kStore,      // C(i, j) = v
+  kAdd,        // C(i, j) = C(i, j) + v              (dst += A B)
+  kAddScaled,  // C(i, j) = C(i, j) + v · h_j        (dst.array() += (A B).array().rowwise() * hᵀ)
+};
+
+// C = A B (or the epilogue's update of C), with A column-major m x k (leading dimension lda),
+// B(l, j) = b[l*bl + j*bj] (k x n) and C column-major m x n (leading dimension m); h (length n)
+// is read by kAddScaled only. Returns false, leaving C untouched, unless every entry is
+// bit-identical to Eigen's `P.noalias() = A * B` followed by the epilogue as an Eigen
+// expression.
+bool exact_product(Index m, Index n, Index k, const double* a, Index lda, const double* b, Index bl,
+                   Index bj, double* c, Epilogue mode = Epilogue::kStore,
+                   const double* h = nullptr);
+
+// What the kernels run on this machine: "avx512", "avx" or "eigen" (Eigen itself).
+const char* exact_product_isa();
+
+// exact_product() on Eigen operands: A a plain column-major matrix or map, or the transpose
+// of one; B likewise; c the m x n destination. False when not covered.
+template <typename ADerived, typename BDerived>
+bool exact_product(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<BDerived>& b,
+                   double* c, Epilogue mode, const double* h) {
+  constexpr Index kLazyBelow = 8;  // product_into's switch to the lazy product
+  if (a.rows() < kLazyBelow || a.cols() < kLazyBelow) return false;
+  const Index m = a.rows(), k = a.cols(), n = b.cols();
+  // B's strides: column-major storage, or the transpose of column-major storage.
+  constexpr bool kBTransposed = static_cast<int>(BDerived::Flags) & Eigen::RowMajorBit;
+  const auto& bd = b.derived();
+  const Index bl = kBTransposed ? bd.outerStride() : 1;
+  const Index bj = kBTransposed ? 1 : bd.outerStride();
+  if constexpr (static_cast<int>(ADerived::Flags) & Eigen::RowMajorBit) {
+    // A transposed: packing it column-major first changes no arithmetic (Eigen packs too).
+    const Matrix a_col = a;
+    return exact_product(m, n, k, a_col.data(), m, bd.data(), bl, bj, c, mode, h);
+  } else {
+    return exact_product(m, n, k, a.derived().data(), a.derived().outerStride(), bd.data(), bl, bj,
+                         c, mode, h);
+  }
+}
+
+// out = a b, to the bit as product_into(a, b, out).
+template <typename ADerived, typename BDerived>
+void core_product(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<BDerived>& b,
+                  Matrix& out) {
+  out.resize(a.rows(), b.cols());
+  if (!exact_product(a, b, out.data(), Epilogue::kStore, nullptr)) product_into(a, b, out);
+}
+
+// dst += a b, to the bit as `product_into(a, b, t); dst += t;`. dst is a column-major
+// a.rows() x b.cols() matrix or map with leading dimension a.rows().
+template <typename ADerived, typename BDerived, typename Dst>
+void core_product_add(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<BDerived>& b,
+                      Dst&& dst, Matrix& scratch) {
+  if (dst.outerStride() == a.rows() && exact_product(a, b, dst.data(), Epilogue::kAdd, nullptr)) {
+    return;
+  }
+  product_into(a, b, scratch);
+  dst += scratch;
+}
+
+// dst += (a b) h per column, to the bit as
+// `product_into(a, b, t); dst.array() += t.array().rowwise() * h.transpose().array();`.
+template <typename ADerived, typename BDerived>
+void core_product_add_scaled(const Eigen::MatrixBase<ADerived>& a,
+                             const Eigen::MatrixBase<BDerived>& b, const Vector& h, Matrix& dst,
+                             Matrix& scratch) {
+  if (exact_product(a, b, dst.data(), Epilogue::kAddScaled, h.data())) return;
+  product_into(a, b, scratch);
+  dst.array() += scratch.array().rowwise() * h.transpose().array();
+}
+
+}  // namespace csympnet::detail

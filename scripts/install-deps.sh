@@ -17,6 +17,9 @@ packages=(
   python3-pytest       # Python module: tests
   python3-matplotlib   # csympnet.plot: the paper's figure types
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
+  libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
+  clang-14             # fuzz/: libFuzzer targets (make fuzz)
+  libclang-rt-14-dev   # fuzz/: the libFuzzer and sanitizer runtimes for clang
 )
 
 missing=()

@@ -8,6 +8,9 @@
 //   jacobian/P/M    the exact input Jacobian at one training state (h = 0.2); for vector
 //                   fields, the variational equation through dopri5
 //   rollout/P/M     a 50-step test rollout at h = 0.2 (dopri5 for vector fields)
+//   hessian/closed|rop/NxWxW  ∇²s of a scalar tanh MLP n → w → w → 1 at one input, in closed
+//                   form (Mlp::input_hessian) and by the R-op sweep with G = I, the d = 100
+//                   baselines' H network; the variational equation evaluates one per stage
 //   dgemm/eigen/MxKxN  C = A B with Eigen, the GEMM our cores run on, for the FLOP-rate floor
 #include "bench_train.hpp"
 
@@ -16,6 +19,7 @@
 #include "bench_setup.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/models/mlp.hpp"
 #include "csympnet/train/adamw.hpp"
 #include "csympnet/train/objective.hpp"
 
@@ -81,6 +85,26 @@ void rollout_steps(benchmark::State& state, const std::string& preset, const std
   for (auto _ : state) benchmark::DoNotOptimize(rollout(map, z0, steps));
 }
 
+void hessian(benchmark::State& state, Index n, Index w, bool closed_form) {
+  const Mlp mlp({n, w, w, 1});
+  Rng rng(42, "bench-hessian");
+  Vector theta(mlp.n_params());
+  mlp.init_params(rng, theta);
+  const Vector x = rng.normal_matrix(n, 1, 1.0);
+  const Matrix xs = x.replicate(1, n);
+  const Matrix eye = Matrix::Identity(n, n);
+  Vector grad = Vector::Zero(mlp.n_params());
+  Matrix hess;
+  for (auto _ : state) {
+    if (closed_form) {
+      hess = mlp.input_hessian(theta, x);
+    } else {
+      mlp.input_gradient_backward(theta, xs, eye, grad, &hess);
+    }
+    benchmark::DoNotOptimize(hess.data());
+  }
+}
+
 void dgemm(benchmark::State& state, Index m, Index k, Index n) {
   const Matrix a = Matrix::Random(m, k);
   const Matrix b = Matrix::Random(k, n);
@@ -124,6 +148,12 @@ void register_benchmarks() {
     RegisterBenchmark(("rollout/s1/" + m).c_str(), rollout_steps, std::string("s1"), m)
         ->Unit(benchmark::kMicrosecond);
   }
+  RegisterBenchmark("jacobian/s2-100/dhnn", jacobian, std::string("s2-100"), std::string("dhnn"))
+      ->Unit(benchmark::kMillisecond);
+  RegisterBenchmark("hessian/closed/200x256x256", hessian, Index{200}, Index{256}, true)
+      ->Unit(benchmark::kMillisecond);
+  RegisterBenchmark("hessian/rop/200x256x256", hessian, Index{200}, Index{256}, false)
+      ->Unit(benchmark::kMillisecond);
   RegisterBenchmark("dgemm/eigen/100x100x400", dgemm, Index{100}, Index{100}, Index{400})
       ->Unit(benchmark::kMicrosecond);
   RegisterBenchmark("dgemm/eigen/1000x1000x1000", dgemm, Index{1000}, Index{1000}, Index{1000})

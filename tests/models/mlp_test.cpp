@@ -95,6 +95,23 @@ TEST_P(ScalarMlpTest, InputHessianMatchesFiniteDifferencesOfTheGradient) {
   EXPECT_LE((hess - hess.transpose()).norm(), 1e-13 * (1.0 + hess.norm()));
 }
 
+// Two independent code paths: the closed-form Hessian and the R-op sweep, which returns
+// ∇²s(x) g through input_gradient_backward.
+TEST_P(ScalarMlpTest, InputHessianAgreesWithTheRopSweep) {
+  const Mlp mlp(GetParam());
+  Rng rng(23, "mlp-hessian-rop");
+  for (int trial = 0; trial < 5; ++trial) {
+    const Vector theta = scaled_init(mlp, rng);
+    const Vector x = rng.normal_matrix(mlp.in_dim(), 1, 1.0);
+    const Vector g = rng.normal_matrix(mlp.in_dim(), 1, 1.0);
+    Vector grad = Vector::Zero(mlp.n_params());
+    Matrix hg;
+    mlp.input_gradient_backward(theta, x, g, grad, &hg);
+    const Vector expected = mlp.input_hessian(theta, x) * g;
+    EXPECT_LE((hg.col(0) - expected).norm(), 1e-12 * (1.0 + expected.norm())) << "trial " << trial;
+  }
+}
+
 // L(θ, X) = Σ_j ⟨G_j, ∇s(X_j)⟩, differentiated by input_gradient_backward (the R-op).
 struct RopCase {
   Vector analytic_theta;

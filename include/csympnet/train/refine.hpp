@@ -1,0 +1,64 @@
+// Second-stage optimisers for map models on the one-step loss, run after AdamW
+// (docs/identification.md). The one-step loss is a badly conditioned nonlinear least-squares
+// problem; a trust-region Gauss–Newton method (Levenberg–Marquardt, Ceres) reaches its
+// floor where first-order methods stall. L-BFGS (Ceres' GradientProblemSolver) needs only
+// the loss and its gradient, for models whose residual Jacobian is too large to hold.
+//
+// Checkpointing: the stage extends the best-validation rule. Its starting point (AdamW's
+// checkpoint) and every iterate are validated, and the one with the lowest validation loss
+// is kept, so a second stage can never return parameters that validate worse than it got.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/data/dataset.hpp"
+#include "csympnet/models/one_step_map.hpp"
+
+namespace csympnet {
+
+struct RefineOptions {
+  // "none" (the paper's recipe: AdamW only), "lm" (Levenberg–Marquardt on the residuals
+  // with their exact Jacobian) or "lbfgs" (L-BFGS with a Wolfe line search on the loss).
+  std::string method = "none";
+  // Iteration budget (Jacobian evaluations for lm, gradient iterations for lbfgs).
+  long iterations = 300;
+  // LM's linear solver: "dense_qr" (default, the better conditioned) or
+  // "dense_normal_cholesky" (forms JᵀJ; faster for many residuals, squares the condition).
+  std::string linear_solver = "dense_qr";
+  // Stop when the relative change of the loss falls below this (Ceres function_tolerance).
+  double function_tolerance = 1e-15;
+  // Stop when the max-norm of the gradient falls below this (Ceres gradient_tolerance).
+  double gradient_tolerance = 1e-20;
+  // Stop when the relative step falls below this (Ceres parameter_tolerance).
+  double parameter_tolerance = 1e-15;
+  // L-BFGS history length (Ceres max_lbfgs_rank).
+  int lbfgs_rank = 20;
+  // Keep the iterate with the lowest validation loss (true) or the last one (false).
+  bool keep_best_validation = true;
+  void validate() const;
+};
+void to_json(nlohmann::json& j, const RefineOptions& o);
+void from_json(const nlohmann::json& j, RefineOptions& o);
+
+struct RefineSummary {
+  std::string method = "none";
+  long iterations = 0;             // iterations Ceres ran
+  long best_iteration = 0;         // iterate kept (0 = the starting point)
+  double train_loss_before = 0.0;  // one-step loss (mean over pairs) on the training pairs
+  double train_loss_after = 0.0;   // ... at the kept parameters
+  double val_loss_before = 0.0;
+  double val_loss_after = 0.0;
+  double seconds = 0.0;
+  std::string termination;  // Ceres' termination message
+  std::string brief_report() const;
+};
+// Every field but the wall time, so that reports stay bit-identical run to run.
+void to_json(nlohmann::json& j, const RefineSummary& s);
+
+// Refines theta in place. With method "none", returns a summary of zero iterations.
+RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
+                                  const PairSet& val, const RefineOptions& options);
+
+}  // namespace csympnet

@@ -1,0 +1,239 @@
+#include "csympnet/train/refine.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+#include <ceres/ceres.h>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/train/loss.hpp"
+#include "csympnet/train/residual_jacobian.hpp"
+
+namespace csympnet {
+
+void RefineOptions::validate() const {
+  require(method == "none" || method == "lm" || method == "lbfgs",
+          "refine.method (--refine) must be 'none', 'lm' or 'lbfgs', got '" + method + "'");
+  require(iterations >= 1, "refine.iterations (--refine-iterations) must be >= 1, got " +
+                               std::to_string(iterations));
+  require(linear_solver == "dense_qr" || linear_solver == "dense_normal_cholesky",
+          "refine.linear_solver must be 'dense_qr' or 'dense_normal_cholesky', got '" +
+              linear_solver + "'");
+  auto tol_ok = [](double x) { return std::isfinite(x) && x >= 0.0; };
+  require(tol_ok(function_tolerance), "refine.function_tolerance must be a finite number >= 0");
+  require(tol_ok(gradient_tolerance), "refine.gradient_tolerance must be a finite number >= 0");
+  require(tol_ok(parameter_tolerance), "refine.parameter_tolerance must be a finite number >= 0");
+  require(lbfgs_rank >= 1, "refine.lbfgs_rank must be >= 1, got " + std::to_string(lbfgs_rank));
+}
+
+void to_json(nlohmann::json& j, const RefineOptions& o) {
+  j = {{"method", o.method},
+       {"iterations", o.iterations},
+       {"linear_solver", o.linear_solver},
+       {"function_tolerance", o.function_tolerance},
+       {"gradient_tolerance", o.gradient_tolerance},
+       {"parameter_tolerance", o.parameter_tolerance},
+       {"lbfgs_rank", o.lbfgs_rank},
+       {"keep_best_validation", o.keep_best_validation}};
+}
+
+void from_json(const nlohmann::json& j, RefineOptions& o) {
+  o.method = j.value("method", o.method);
+  o.iterations = j.value("iterations", o.iterations);
+  o.linear_solver = j.value("linear_solver", o.linear_solver);
+  o.function_tolerance = j.value("function_tolerance", o.function_tolerance);
+  o.gradient_tolerance = j.value("gradient_tolerance", o.gradient_tolerance);
+  o.parameter_tolerance = j.value("parameter_tolerance", o.parameter_tolerance);
+  o.lbfgs_rank = j.value("lbfgs_rank", o.lbfgs_rank);
+  o.keep_best_validation = j.value("keep_best_validation", o.keep_best_validation);
+}
+
+std::string RefineSummary::brief_report() const {
+  std::ostringstream s;
+  s << "refine " << method << ": " << iterations << " iterations in " << seconds
+    << " s; train loss " << train_loss_before << " -> " << train_loss_after << ", validation loss "
+    << val_loss_before << " -> " << val_loss_after << " (iterate " << best_iteration << "; "
+    << termination << ")";
+  return s.str();
+}
+
+void to_json(nlohmann::json& j, const RefineSummary& s) {
+  j = {{"method", s.method},
+       {"iterations", s.iterations},
+       {"best_iteration", s.best_iteration},
+       {"train_loss_before", s.train_loss_before},
+       {"train_loss_after", s.train_loss_after},
+       {"val_loss_before", s.val_loss_before},
+       {"val_loss_after", s.val_loss_after},
+       {"termination", s.termination}};
+}
+
+namespace {
+
+// Residuals scaled by 1/√N, so that Ceres' cost ½‖r̃‖² is L/2.
+class OneStepResiduals final : public ceres::CostFunction {
+ public:
+  OneStepResiduals(const OneStepMap& map, const PairSet& pairs) : map_(map), pairs_(pairs) {
+    set_num_residuals(static_cast<int>(pairs.size() * pairs.dim()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(map.n_params()));
+    scale_ = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Map<const Vector> theta(parameters[0], map_.n_params());
+    const Vector r = one_step_residuals(map_, theta, pairs_);
+    Eigen::Map<Vector>(residuals, r.size()) = scale_ * r;
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      Eigen::Map<RowMajorMatrix> jac(jacobians[0], r.size(), map_.n_params());
+      residual_jacobian(map_, theta, pairs_, jac);
+      jac *= scale_;
+    }
+    return r.allFinite();
+  }
+
+ private:
+  const OneStepMap& map_;
+  const PairSet& pairs_;
+  double scale_ = 1.0;
+};
+
+// The one-step loss and its gradient for L-BFGS (Ceres minimises the value as given).
+class OneStepLossFunction final : public ceres::FirstOrderFunction {
+ public:
+  OneStepLossFunction(const OneStepMap& map, const PairSet& pairs) : map_(map), pairs_(pairs) {}
+  bool Evaluate(const double* parameters, double* cost, double* gradient) const override {
+    const Eigen::Map<const Vector> theta(parameters, map_.n_params());
+    if (gradient == nullptr) {
+      *cost = one_step_loss(map_, theta, pairs_);
+      return std::isfinite(*cost);
+    }
+    *cost = one_step_loss(map_, theta, pairs_, &grad_, &cache_);
+    Eigen::Map<Vector>(gradient, map_.n_params()) = grad_;
+    return std::isfinite(*cost) && grad_.allFinite();
+  }
+  int NumParameters() const override { return static_cast<int>(map_.n_params()); }
+
+ private:
+  const OneStepMap& map_;
+  const PairSet& pairs_;
+  mutable Vector grad_;
+  mutable ForwardCache cache_;
+};
+
+// Validates every iterate (Ceres writes it into the parameter array first, since
+// update_state_every_iteration is on) and remembers the best.
+class BestValidation final : public ceres::IterationCallback {
+ public:
+  BestValidation(const OneStepMap& map, const PairSet& val, const double* params,
+                 const Vector& start, double start_loss)
+      : map_(map), val_(val), params_(params), best_(start), best_loss_(start_loss) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (it.iteration == 0 || !it.step_is_successful) return ceres::SOLVER_CONTINUE;
+    const Eigen::Map<const Vector> theta(params_, best_.size());
+    const double loss = one_step_loss(map_, theta, val_);
+    if (loss < best_loss_) {
+      best_loss_ = loss;
+      best_ = theta;
+      best_iteration_ = it.iteration;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+  const Vector& best() const { return best_; }
+  double best_loss() const { return best_loss_; }
+  long best_iteration() const { return best_iteration_; }
+
+ private:
+  const OneStepMap& map_;
+  const PairSet& val_;
+  const double* params_;
+  Vector best_;
+  double best_loss_;
+  long best_iteration_ = 0;
+};
+
+}  // namespace
+
+RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
+                                  const PairSet& val, const RefineOptions& options) {
+  options.validate();
+  train.validate("training pairs");
+  val.validate("validation pairs");
+  require(train.dim() == map.dim() && val.dim() == map.dim(),
+          "refine: data dimension does not match the model's phase-space dimension");
+  require(theta.size() == map.n_params(), "refine: parameter vector has the wrong size");
+  const auto start = std::chrono::steady_clock::now();
+
+  RefineSummary s;
+  s.method = options.method;
+  s.train_loss_before = one_step_loss(map, theta, train);
+  s.val_loss_before = one_step_loss(map, theta, val);
+  if (options.method == "none") {
+    s.train_loss_after = s.train_loss_before;
+    s.val_loss_after = s.val_loss_before;
+    s.termination = "no second stage";
+    return s;
+  }
+
+  const Vector initial = theta;
+  BestValidation best(map, val, theta.data(), initial, s.val_loss_before);
+  if (options.method == "lm") {
+    ceres::Problem::Options po;
+    po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    ceres::Problem problem(po);
+    OneStepResiduals residuals(map, train);
+    problem.AddResidualBlock(&residuals, nullptr, theta.data());
+    ceres::Solver::Options so;
+    so.minimizer_type = ceres::TRUST_REGION;
+    so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+    so.linear_solver_type =
+        options.linear_solver == "dense_qr" ? ceres::DENSE_QR : ceres::DENSE_NORMAL_CHOLESKY;
+    so.max_num_iterations = static_cast<int>(options.iterations);
+    so.function_tolerance = options.function_tolerance;
+    so.gradient_tolerance = options.gradient_tolerance;
+    so.parameter_tolerance = options.parameter_tolerance;
+    so.num_threads = 1;  // same seed, same bits
+    so.logging_type = ceres::SILENT;
+    so.minimizer_progress_to_stdout = false;
+    so.update_state_every_iteration = true;
+    so.callbacks.push_back(&best);
+    ceres::Solver::Summary cs;
+    ceres::Solve(so, &problem, &cs);
+    s.iterations = static_cast<long>(cs.iterations.size()) - 1;
+    s.termination = cs.message;
+  } else {
+    ceres::GradientProblem problem(new OneStepLossFunction(map, train));
+    ceres::GradientProblemSolver::Options so;
+    so.line_search_direction_type = ceres::LBFGS;
+    so.line_search_type = ceres::WOLFE;
+    so.max_lbfgs_rank = options.lbfgs_rank;
+    so.max_num_iterations = static_cast<int>(options.iterations);
+    so.function_tolerance = options.function_tolerance;
+    so.gradient_tolerance = options.gradient_tolerance;
+    so.parameter_tolerance = options.parameter_tolerance;
+    so.logging_type = ceres::SILENT;
+    so.minimizer_progress_to_stdout = false;
+    so.update_state_every_iteration = true;
+    so.callbacks.push_back(&best);
+    ceres::GradientProblemSolver::Summary cs;
+    ceres::Solve(so, problem, theta.data(), &cs);
+    s.iterations = static_cast<long>(cs.iterations.size()) - 1;
+    s.termination = cs.message;
+  }
+  if (options.keep_best_validation) {
+    theta = best.best();
+    s.best_iteration = best.best_iteration();
+  } else {
+    s.best_iteration = s.iterations;
+  }
+  // Ceres leaves the final (or best-cost) iterate in theta; a failed evaluation could leave a
+  // non-finite one, which is never kept.
+  if (!theta.allFinite()) theta = initial;
+  s.train_loss_after = one_step_loss(map, theta, train);
+  s.val_loss_after = one_step_loss(map, theta, val);
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return s;
+}
+
+}  // namespace csympnet

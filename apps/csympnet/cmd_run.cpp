@@ -5,6 +5,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "core_option.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/experiments/paper_values.hpp"
@@ -26,7 +27,10 @@ struct RunArgs {
   std::optional<long> epochs;
   long val_every = 10;
   double sigma = 0.0, beta_init = 0.1;
-  bool no_beta_decay = false, quiet = false, force = false;
+  bool no_beta_decay = false, quiet = false, force = false, warm_start = false;
+  std::string refine = "none", core;
+  std::optional<std::string> refine_solver;
+  std::optional<long> refine_iterations;
   SystemOverrides system;
 };
 
@@ -39,6 +43,7 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
               args.sigma, static_cast<long long>(r.model.n_params()), r.training.epochs_run,
               r.training.seconds);
   std::printf("  recipe %s\n", r.report["recipe"].get<std::string>().c_str());
+  if (r.refine.method != "none") std::printf("  %s\n", r.refine.brief_report().c_str());
   std::printf("  %-26s %-14s %s\n", "quantity", "ours", "paper (seed 42, sigma 0)");
   auto row = [](const char* name, double ours, std::optional<double> theirs) {
     if (theirs)
@@ -96,6 +101,20 @@ void add_run(CLI::App& app) {
   cmd->add_option("--beta-init", args->beta_init, "Initial beta of CSympNet-ID (nonzero)");
   cmd->add_flag("--no-beta-decay", args->no_beta_decay,
                 "Exclude beta from weight decay (beyond the paper's recipe)");
+  cmd->add_option("--refine", args->refine,
+                  "Second stage after AdamW for map models: none (default, the paper's "
+                  "recipe), lm (Levenberg-Marquardt) or lbfgs")
+      ->check(CLI::IsMember({"none", "lm", "lbfgs"}));
+  cmd->add_option("--refine-iterations", args->refine_iterations,
+                  "Iterations of the second stage (default 300)")
+      ->check(CLI::Range(1L, 100000000L));
+  cmd->add_option("--refine-solver", args->refine_solver,
+                  "LM linear solver: dense_qr or dense_normal_cholesky (default: dense_qr)")
+      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky"}));
+  cmd->add_option("--core", args->core,
+                  "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)");
+  cmd->add_flag("--warm-start", args->warm_start,
+                "CSympNet-ID: start beta at the closed-form estimate of gamma from the data");
   cmd->add_option("--out", args->out, "Output directory")->required();
   cmd->add_flag("--force", args->force, "Allow writing into a non-empty output directory");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
@@ -104,6 +123,7 @@ void add_run(CLI::App& app) {
     prepare_output_dir(args->out, args->force);
     RunConfig c = default_run_config(args->preset, args->model);
     args->system.apply(c.preset);
+    if (!args->core.empty()) c.preset.core = parse_core(args->core);
     c.seed = args->seed;
     c.sigma = args->sigma;
     if (args->recipe == "paper") c.train = paper_recipe(c.train.epochs);
@@ -114,6 +134,10 @@ void add_run(CLI::App& app) {
     c.train.adamw.decay_damping = !args->no_beta_decay;
     c.reference.method = parse_reference(args->reference);
     c.beta_init = args->beta_init;
+    c.refine.method = args->refine;
+    if (args->refine_iterations) c.refine.iterations = *args->refine_iterations;
+    if (args->refine_solver) c.refine.linear_solver = *args->refine_solver;
+    c.warm_start = args->warm_start;
     RunResult r;
     {
       ProgressLine progress(args->quiet);

@@ -4,8 +4,10 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "commands.hpp"
+#include "core_option.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/experiments/fit.hpp"
@@ -26,31 +28,11 @@ struct FitArgs {
   long epochs = 0;
   long val_every = 10;
   double val_fraction = 0.2, beta_init = 0.1;
-  bool no_beta_decay = false, quiet = false, force = false;
+  bool no_beta_decay = false, quiet = false, force = false, no_warm_start = false;
+  std::string refine = "auto";
+  std::optional<long> refine_iterations, bootstrap;
+  std::optional<std::string> refine_solver;
 };
-
-// "la:L:m" or "g:L:w".
-nlohmann::json parse_core(const std::string& s) {
-  const std::string expected = "expected la:LAYERS:SUBLAYERS or g:LAYERS:WIDTH, e.g. la:5:20";
-  const auto c1 = s.find(':');
-  const auto c2 = c1 == std::string::npos ? c1 : s.find(':', c1 + 1);
-  if (c2 == std::string::npos) throw Error("--core '" + s + "': " + expected);
-  const std::string type = s.substr(0, c1);
-  int a = 0, b = 0;
-  try {
-    std::size_t pa = 0, pb = 0;
-    const std::string sa = s.substr(c1 + 1, c2 - c1 - 1), sb = s.substr(c2 + 1);
-    a = std::stoi(sa, &pa);
-    b = std::stoi(sb, &pb);
-    if (pa != sa.size() || pb != sb.size()) throw std::invalid_argument("trailing text");
-  } catch (const std::exception&) {
-    throw Error("--core '" + s + "': " + expected);
-  }
-  if (a < 1 || b < 1) throw Error("--core '" + s + "': sizes must be >= 1");
-  if (type == "la") return {{"type", "la"}, {"layers", a}, {"sublayers", b}};
-  if (type == "g") return {{"type", "g"}, {"layers", a}, {"width", b}};
-  throw Error("--core '" + s + "': unknown core type '" + type + "'; " + expected);
-}
 
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
@@ -70,6 +52,21 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(CLI::Range(0.01, 0.99));
   cmd.add_option("--beta-init", a.beta_init, "Initial beta of CSympNet-ID (nonzero)");
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
+  cmd.add_flag("--no-warm-start", a.no_warm_start,
+               "Start beta at --beta-init instead of the closed-form estimate of gamma");
+  cmd.add_option("--refine", a.refine,
+                 "Second stage after AdamW: auto (default: lm, or lbfgs for large models), "
+                 "lm, lbfgs or none (the paper's recipe)")
+      ->check(CLI::IsMember({"auto", "none", "lm", "lbfgs"}));
+  cmd.add_option("--refine-iterations", a.refine_iterations,
+                 "Iterations of the second stage (default 300)")
+      ->check(CLI::Range(1L, 100000000L));
+  cmd.add_option("--refine-solver", a.refine_solver,
+                 "LM linear solver: dense_qr or dense_normal_cholesky (default: dense_qr)")
+      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky"}));
+  cmd.add_option("--bootstrap", a.bootstrap,
+                 "Bootstrap replicates for the interval of gamma_hat (default 100; 0: none)")
+      ->check(CLI::Range(0L, 1000000L));
   cmd.add_option("--out", a.out, "Output directory")->required();
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
   cmd.add_flag("-q,--quiet", a.quiet, "No progress line");
@@ -77,7 +74,18 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
 
 void run_fit(const FitArgs& a, bool verbose_summary) {
   prepare_output_dir(a.out, a.force);
-  const PairSet data = read_any_as_pairs(a.data);
+  // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
+  PairSet data;
+  std::vector<Index> groups;
+  if (detect_csv_kind(a.data) == CsvKind::kTrajectories) {
+    const std::vector<Trajectory> trajs = read_trajectories_csv(a.data);
+    data = pairs_from_trajectories(trajs);
+    for (std::size_t k = 0; k < trajs.size(); ++k)
+      groups.insert(groups.end(), static_cast<std::size_t>(trajs[k].steps()),
+                    static_cast<Index>(k));
+  } else {
+    data = read_pairs_csv(a.data);
+  }
   std::optional<PairSet> val;
   if (!a.val.empty()) val = read_any_as_pairs(a.val);
   FitConfig c;
@@ -91,13 +99,19 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   c.train.adamw.lr = a.lr;
   c.train.lr_schedule = a.lr_schedule;
   c.train.adamw.decay_damping = !a.no_beta_decay;
+  c.warm_start = !a.no_warm_start;
+  c.refine.method = a.refine;
+  if (a.refine_iterations) c.refine.iterations = *a.refine_iterations;
+  if (a.refine_solver) c.refine.linear_solver = *a.refine_solver;
+  c.bootstrap.replicates = a.bootstrap ? *a.bootstrap : -1;
   FitResult r;
   {
     ProgressLine progress(a.quiet);
-    r = fit_pairs(data, val, c, progress.callback());
+    r = fit_pairs(data, val, c, progress.callback(), groups);
   }
   const auto gamma = r.model.damping_rate(r.theta);
-  const double train_loss = one_step_loss(*r.model.map, r.theta, r.train);
+  const FitQuality quality = fit_quality(r.model, r.theta, r.train, r.val);
+  const double train_loss = quality.train_loss;
   nlohmann::json report = {
       {"model", r.config.model},
       {"data", a.data},
@@ -111,24 +125,59 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
       {"seed", a.seed},
       {"epochs", r.training.epochs_run},
       {"train_seconds", r.training.seconds},
-      {"best_val_loss", r.training.best_val_loss},
+      {"best_val_loss", quality.val_loss},
       {"train_loss", train_loss},
       {"gamma_hat", gamma ? nlohmann::json(*gamma) : nlohmann::json(nullptr)},
+      {"gamma_ci_low", r.interval ? nlohmann::json(r.interval->low) : nlohmann::json(nullptr)},
+      {"gamma_ci_high", r.interval ? nlohmann::json(r.interval->high) : nlohmann::json(nullptr)},
+      {"gamma_ci_level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
+      {"gamma_ci_method", r.interval
+                              ? nlohmann::json("percentile bootstrap over " + r.interval->resample)
+                              : nlohmann::json(nullptr)},
+      {"gamma_ci_replicates", r.interval ? r.interval->replicates : 0},
+      {"bootstrap", r.interval ? nlohmann::json(*r.interval) : nlohmann::json(nullptr)},
+      {"warm_start", r.warm_start
+                         ? nlohmann::json({{"gamma", r.warm_start->gamma},
+                                           {"method", r.warm_start->method},
+                                           {"groups", r.warm_start->groups}})
+                         : nlohmann::json(r.warm_start_note.empty() ? "off" : r.warm_start_note)},
+      {"quality", quality},
       {"training", r.training},
+      {"refine", r.refine},
       {"config", r.config},
       {"architecture", r.model.hyperparams()}};
   write_json_file((std::filesystem::path(a.out) / "report.json").string(), report);
+  // Wall times apart from the report, which stays bit-identical run to run.
+  write_json_file((std::filesystem::path(a.out) / "timings.json").string(),
+                  {{"train_seconds", r.training.seconds},
+                   {"refine_seconds", r.refine.seconds},
+                   {"bootstrap_seconds", r.interval ? r.interval->seconds : 0.0}});
   save_model((std::filesystem::path(a.out) / "model.json").string(), r.model, r.theta,
              {{"data", a.data}, {"seed", a.seed}, {"train", r.config.train}});
-  if (gamma) std::printf("gamma_hat = %.10g\n", *gamma);
+  if (gamma && r.interval)
+    std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% %s)\n", *gamma,
+                0.5 * (r.interval->high - r.interval->low), r.interval->low, r.interval->high,
+                100.0 * r.interval->level, "bootstrap interval");
+  else if (gamma)
+    std::printf("gamma_hat = %.10g\n", *gamma);
   if (verbose_summary || !a.quiet) {
     std::printf("%s, d = %lld, %lld training / %lld validation pairs, %lld params\n",
                 r.config.model.c_str(), static_cast<long long>(data.d()),
                 static_cast<long long>(r.train.size()), static_cast<long long>(r.val.size()),
                 static_cast<long long>(r.model.n_params()));
+    if (r.warm_start)
+      std::printf("warm start gamma_0 = %.6g (%s)\n", r.warm_start->gamma,
+                  r.warm_start->method.c_str());
+    else if (!r.warm_start_note.empty())
+      std::printf("no warm start (%s); beta started at %g\n", r.warm_start_note.c_str(),
+                  a.beta_init);
     std::printf("%s\n", r.training.brief_report().c_str());
-    std::printf("train loss %.3e, validation loss %.3e; wrote %s/{report.json,model.json}\n",
-                train_loss, r.training.best_val_loss, a.out.c_str());
+    if (r.refine.method != "none") std::printf("%s\n", r.refine.brief_report().c_str());
+    std::printf("train loss %.3e, validation loss %.3e, unexplained share of a step %.2e\n",
+                train_loss, quality.val_loss, quality.val_relative_residual);
+    std::printf(
+        "structure residual mean %.2e, max %.2e; wrote %s/{report.json,model.json,timings.json}\n",
+        quality.structure_residual_mean, quality.structure_residual_max, a.out.c_str());
   }
   if (r.training.stop_reason == "diverged")
     throw Error("training diverged (non-finite loss); the best checkpoint was kept in " + a.out);

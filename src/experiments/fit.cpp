@@ -1,10 +1,13 @@
 #include "csympnet/experiments/fit.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/train/loss.hpp"
 #include "csympnet/train/objective.hpp"
 
 namespace csympnet {
@@ -18,12 +21,77 @@ void FitConfig::validate() const {
   TrainOptions t = train;
   if (t.epochs <= 0) t.epochs = 0;
   t.validate();
+  RefineOptions r = refine;
+  if (r.method == "auto") r.method = "lm";
+  r.validate();
+  BootstrapOptions b = bootstrap;
+  if (b.replicates < 0) b.replicates = 0;
+  if (b.refine.method == "auto") b.refine.method = "lm";
+  b.validate();
+  require(b.replicates == 0 || model == "csympnet",
+          "--bootstrap needs --model csympnet (the only model here with a damping rate)");
 }
 
 void to_json(nlohmann::json& j, const FitConfig& c) {
-  j = {{"model", c.model}, {"core", c.core},
-       {"seed", c.seed},   {"val_fraction", c.val_fraction},
-       {"train", c.train}, {"beta_init", c.beta_init}};
+  j = {{"model", c.model},
+       {"core", c.core},
+       {"seed", c.seed},
+       {"val_fraction", c.val_fraction},
+       {"train", c.train},
+       {"beta_init", c.beta_init},
+       {"warm_start", c.warm_start},
+       {"refine", c.refine},
+       {"bootstrap", c.bootstrap}};
+}
+
+std::string default_refine_for(Index n_pairs, Index dim, Index n_params) {
+  const double entries =
+      static_cast<double>(n_pairs) * static_cast<double>(dim) * static_cast<double>(n_params);
+  return entries <= kMaxJacobianEntries && n_params <= kMaxLmParams ? "lm" : "lbfgs";
+}
+
+RefineOptions default_replicate_refine_for(const std::string& refine_method) {
+  RefineOptions r;
+  // Replicates start at θ̂ and keep their last iterate: with the best-validation rule they
+  // would mostly keep θ̂ itself, and the interval would collapse to a point (measured).
+  r.keep_best_validation = false;
+  if (refine_method == "lm") {
+    r.method = "lm";
+    r.iterations = 10;
+  } else {
+    r.method = "lbfgs";
+    r.iterations = 100;
+  }
+  return r;
+}
+
+void to_json(nlohmann::json& j, const FitQuality& q) {
+  j = {{"train_loss", q.train_loss},
+       {"val_loss", q.val_loss},
+       {"val_relative_residual", q.val_relative_residual},
+       {"structure_residual_mean", q.structure_residual_mean},
+       {"structure_residual_max", q.structure_residual_max}};
+}
+
+FitQuality fit_quality(const Model& model, const Vector& theta, const PairSet& train,
+                       const PairSet& val) {
+  require(model.is_map(), "fit quality: needs a map model");
+  const OneStepMap& map = *model.map;
+  FitQuality q;
+  q.train_loss = one_step_loss(map, theta, train);
+  q.val_loss = one_step_loss(map, theta, val);
+  const Matrix r = map.apply(theta, val.z0, val.h) - val.z1;
+  q.val_relative_residual = r.norm() / (val.z1 - val.z0).norm();
+  const auto gamma = map.damping_rate(theta);
+  for (Index j = 0; j < val.size(); ++j) {
+    const Matrix jac = map.jacobian(theta, val.z0.col(j), val.h(j));
+    std::optional<double> own;
+    if (gamma) own = std::exp(-*gamma * val.h(j));
+    const double s = structure_at(jac, own.value_or(1.0), own).self_residual;
+    q.structure_residual_mean += s / static_cast<double>(val.size());
+    q.structure_residual_max = std::max(q.structure_residual_max, s);
+  }
+  return q;
 }
 
 nlohmann::json default_core_for(Index d) {
@@ -36,8 +104,10 @@ long default_epochs_for(Index d) {
   return d <= 20 ? 50000 : 3000;
 }
 
-std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction, Rng& rng) {
-  const Index n = all.size();
+namespace {
+// (training indices, validation indices) of a deterministic split.
+std::pair<std::vector<Index>, std::vector<Index>> split_indices(Index n, double val_fraction,
+                                                                Rng& rng) {
   require(n >= 2, "need at least 2 pairs to hold out a validation set, got " + std::to_string(n));
   std::vector<Index> idx(static_cast<std::size_t>(n));
   std::iota(idx.begin(), idx.end(), Index{0});
@@ -48,15 +118,23 @@ std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction,
   }
   Index n_val = static_cast<Index>(std::llround(val_fraction * static_cast<double>(n)));
   n_val = std::clamp<Index>(n_val, 1, n - 1);
-  const std::vector<Index> val_idx(idx.begin(), idx.begin() + n_val);
-  const std::vector<Index> train_idx(idx.begin() + n_val, idx.end());
+  return {std::vector<Index>(idx.begin() + n_val, idx.end()),
+          std::vector<Index>(idx.begin(), idx.begin() + n_val)};
+}
+}  // namespace
+
+std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction, Rng& rng) {
+  const auto [train_idx, val_idx] = split_indices(all.size(), val_fraction, rng);
   return {select_pairs(all, train_idx), select_pairs(all, val_idx)};
 }
 
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
-                    const FitConfig& config, const ProgressCallback& progress) {
+                    const FitConfig& config, const ProgressCallback& progress,
+                    const std::vector<Index>& groups) {
   config.validate();
   train.validate("training pairs");
+  require(groups.empty() || static_cast<Index>(groups.size()) == train.size(),
+          "fit: need one trajectory index per pair");
   FitResult r;
   r.config = config;
   if (r.config.core.is_null()) r.config.core = default_core_for(train.d());
@@ -65,17 +143,47 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   if (val) {
     r.train = train;
     r.val = *val;
+    r.train_groups = groups;
   } else {
     Rng split_rng(config.seed, "validation-split");
-    std::tie(r.train, r.val) = split_pairs(train, config.val_fraction, split_rng);
+    const auto [train_idx, val_idx] = split_indices(train.size(), config.val_fraction, split_rng);
+    r.train = select_pairs(train, train_idx);
+    r.val = select_pairs(train, val_idx);
+    if (!groups.empty())
+      for (Index i : train_idx) r.train_groups.push_back(groups[static_cast<std::size_t>(i)]);
   }
   nlohmann::json spec = {{"type", config.model}, {"d", train.d()}, {"core", r.config.core}};
-  if (config.model == "csympnet") spec["beta_init"] = config.beta_init;
+  if (config.model == "csympnet") {
+    spec["beta_init"] = config.beta_init;
+    if (config.warm_start) {
+      // A convenience, not a requirement: on data it cannot use (too few pairs, states that
+      // do not span phase space) the fit starts from beta_init instead and says why.
+      try {
+        r.warm_start = gamma_warm_start(r.train);
+        // γ̂ = |β|; β must not be 0, where its gradient vanishes.
+        spec["beta_init"] = std::max(std::abs(r.warm_start->gamma), 1e-8);
+      } catch (const Error& e) {
+        r.warm_start_note = e.what();
+      }
+    }
+  }
   r.model = make_model(spec);
   r.theta.resize(r.model.n_params());
   Rng init_rng(config.seed, "init");
   r.model.init_params(init_rng, r.theta);
+  r.config.bootstrap.seed = config.seed;
+  if (r.config.refine.method == "auto")
+    r.config.refine.method = default_refine_for(r.train.size(), r.train.dim(), r.model.n_params());
+  if (r.config.bootstrap.replicates < 0)
+    r.config.bootstrap.replicates = config.model == "csympnet" ? 100 : 0;
+  if (r.config.bootstrap.refine.method == "auto")
+    r.config.bootstrap.refine = default_replicate_refine_for(r.config.refine.method);
   r.training = train_model(r.model, r.theta, r.train, r.val, r.config.train, progress);
+  if (r.training.stop_reason != "budget") return r;  // diverged or stopped: no second stage
+  r.refine = refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine);
+  if (r.config.bootstrap.replicates > 0)
+    r.interval =
+        gamma_bootstrap(*r.model.map, r.theta, r.train, r.val, r.config.bootstrap, r.train_groups);
   return r;
 }
 

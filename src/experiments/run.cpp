@@ -1,5 +1,6 @@
 #include "csympnet/experiments/run.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -23,6 +24,10 @@ void RunConfig::validate() const {
   train.validate();
   reference.validate();
   ode.validate();
+  refine.validate();
+  require(refine.method == "none" || !is_vector_field_type(model),
+          "--refine applies to map models (csympnet, sympnet, map), not to '" + model + "'");
+  require(!warm_start || model == "csympnet", "--warm-start applies to --model csympnet only");
   model_spec_for(preset, model);  // validates the model name
 }
 
@@ -51,6 +56,8 @@ void to_json(nlohmann::json& j, const RunConfig& c) {
        {"loss", is_vector_field_type(c.model)
                     ? "midpoint: mean over pairs of |(z1 - z0)/h - f((z0 + z1)/2)|^2"
                     : "one-step: mean over pairs of |z1 - Phi_h(z0)|^2"}};
+  if (c.refine.method != "none") j["refine"] = c.refine;
+  if (c.warm_start) j["warm_start"] = true;
 }
 
 RunData generate_run_data(const RunConfig& c) {
@@ -82,12 +89,19 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   nlohmann::json spec = model_spec_for(c.preset, c.model);
   if (c.model == "csympnet" || c.model == "dhnn2" || c.model == "phnn2")
     spec["beta_init"] = c.beta_init;
+  if (c.warm_start) {
+    r.warm_start = gamma_warm_start(r.data.train);
+    // γ̂ = |β|, and β must not be 0 (its gradient vanishes there).
+    spec["beta_init"] = std::max(std::abs(r.warm_start->gamma), 1e-8);
+  }
   r.model = make_model(spec);
   r.theta.resize(r.model.n_params());
   Rng init_rng(c.seed, "init");
   r.model.init_params(init_rng, r.theta);
 
   r.training = train_model(r.model, r.theta, r.data.train, r.data.val, c.train, progress);
+  if (r.model.is_map())
+    r.refine = refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine);
 
   const System sys(c.preset.system);
   const auto t0 = std::chrono::steady_clock::now();
@@ -116,6 +130,16 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   rep["test_trajectories"] = r.data.test.trajectories.size();
   rep["test_redraws"] = r.data.test.redraws;
   rep["recipe"] = describe_recipe(c.train);
+  if (c.refine.method != "none") {
+    rep["recipe"] = rep["recipe"].get<std::string>() + "+" + c.refine.method;
+    rep["refine"] = r.refine;
+    rep["refine_seconds"] = r.refine.seconds;
+    rep["best_val_loss"] = r.refine.val_loss_after;
+  }
+  if (r.warm_start)
+    rep["warm_start"] = {{"gamma", r.warm_start->gamma},
+                         {"method", r.warm_start->method},
+                         {"groups", r.warm_start->groups}};
   rep["architecture"] = r.model.hyperparams();
   rep["config"] = c;
   rep["csympnet_version"] = "0.1.0";

@@ -5,11 +5,15 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/model.hpp"
+#include "csympnet/train/gamma_bootstrap.hpp"
+#include "csympnet/train/gamma_warm_start.hpp"
+#include "csympnet/train/refine.hpp"
 #include "csympnet/train/trainer.hpp"
 
 namespace csympnet {
@@ -20,7 +24,23 @@ struct FitConfig {
   std::uint64_t seed = 42;         // validation split and initialisation
   double val_fraction = 0.2;       // share of pairs held out when no validation set is given
   TrainOptions train;              // epochs <= 0 → default_epochs_for(d)
-  double beta_init = 0.1;          // CSympNet-ID: initial β, nonzero
+  double beta_init = 0.1;          // CSympNet-ID: initial β, nonzero (unless warm_start)
+  // The library's defaults below keep the earlier behaviour (and the Python API's results);
+  // `csympnet fit` turns all three on (warm start, refine "auto", 100 replicates).
+  // CSympNet-ID: initial β from the closed-form estimate γ₀ of the data (gamma_warm_start);
+  // beta_init is then unused. Falls back to beta_init when the estimate cannot be formed.
+  bool warm_start = false;
+  // Second stage after AdamW: none, lm, lbfgs, or "auto" → default_refine_for(...): lm
+  // within kMaxJacobianEntries and kMaxLmParams, else lbfgs.
+  RefineOptions refine;
+  // Interval for γ̂ (CSympNet-ID): 0 replicates = off, < 0 → 100; refine.method "auto" →
+  // default_replicate_refine_for(...).
+  BootstrapOptions bootstrap = [] {
+    BootstrapOptions b;
+    b.replicates = 0;
+    b.refine.method = "auto";
+    return b;
+  }();
   void validate() const;
 };
 void to_json(nlohmann::json& j, const FitConfig& c);
@@ -30,22 +50,57 @@ void to_json(nlohmann::json& j, const FitConfig& c);
 nlohmann::json default_core_for(Index d);
 // 50,000 epochs up to d = 20 (the s1/s2 budget, docs/training.md), 3,000 beyond.
 long default_epochs_for(Index d);
+// LM's limits for the default second stage: the residual Jacobian (N·2d × P doubles) and
+// the P × P normal matrix it factors each iteration (docs/identification.md, "Defaults").
+constexpr double kMaxJacobianEntries = 2.5e7;
+constexpr Index kMaxLmParams = 1000;
+// "lm" within both limits, else "lbfgs".
+std::string default_refine_for(Index n_pairs, Index dim, Index n_params);
+// The second stage of each bootstrap replicate, started from the fitted θ̂ and keeping its
+// last iterate: 10 LM iterations after an LM fit (near θ̂ Gauss–Newton converges in a few),
+// else 100 L-BFGS iterations.
+RefineOptions default_replicate_refine_for(const std::string& refine_method);
 
 // Deterministic split of `all` into (train, val) with round(val_fraction·N) ≥ 1 validation
 // pairs (N ≥ 2 required).
 std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction, Rng& rng);
 
+// How well the fitted map explains the data, and how exact its structure is there.
+struct FitQuality {
+  double train_loss = 0.0;  // one-step loss on the training pairs
+  double val_loss = 0.0;    // ... on the validation pairs
+  // ‖Φ̂(z0) − z1‖_F / ‖z1 − z0‖_F on the validation pairs: the share of the change over one
+  // step that the map does not explain.
+  double val_relative_residual = 0.0;
+  // Self residual ‖DΦ̂ᵀJDΦ̂ − λ_own J‖_F at every validation z0 with its own h
+  // (λ_own = e^{−γ̂h} for CSympNet-ID, the projection λ̂ otherwise): rounding level for an
+  // exactly conformally symplectic map.
+  double structure_residual_mean = 0.0;
+  double structure_residual_max = 0.0;
+};
+void to_json(nlohmann::json& j, const FitQuality& q);
+FitQuality fit_quality(const Model& model, const Vector& theta, const PairSet& train,
+                       const PairSet& val);
+
 struct FitResult {
   Model model;  // a map model (csympnet or sympnet)
   Vector theta;
   TrainSummary training;
+  RefineSummary refine;
+  std::optional<GammaWarmStart> warm_start;
+  std::string warm_start_note;  // why no warm start was used, when config asked for one
+  std::optional<GammaInterval> interval;
   PairSet train;
+  std::vector<Index> train_groups;  // trajectory of each training pair (empty: unknown)
   PairSet val;
   FitConfig config;  // with the defaults filled in
 };
 
-// Trains on `train`; validates on `val` if given, else on a split of `train`.
+// Trains on `train`; validates on `val` if given, else on a split of `train`. `groups`, when
+// not empty, names the trajectory of each pair of `train`, and the bootstrap then resamples
+// whole trajectories.
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
-                    const FitConfig& config, const ProgressCallback& progress = {});
+                    const FitConfig& config, const ProgressCallback& progress = {},
+                    const std::vector<Index>& groups = {});
 
 }  // namespace csympnet

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -12,6 +13,8 @@
 #include "csympnet/experiments/preset.hpp"
 #include "csympnet/integrators/dopri5.hpp"
 #include "csympnet/models/model.hpp"
+#include "csympnet/train/gamma_warm_start.hpp"
+#include "csympnet/train/refine.hpp"
 #include "csympnet/train/trainer.hpp"
 
 namespace csympnet {
@@ -26,6 +29,12 @@ struct RunConfig {
   ReferenceOptions reference;      // reference solver for all data
   double beta_init = 0.1;          // CSympNet-ID, DHNN2, pHNN2: initial β (γ̂ = |β|), ≠ 0
   OdeOptions ode;                  // rollout of the vector-field models (PROTOCOL.md)
+  // Second stage after AdamW for map models (default none: the paper's recipe). Written to
+  // the config only when on, so the cache keys of existing runs do not change.
+  RefineOptions refine;
+  // CSympNet-ID: replace beta_init by the closed-form estimate γ₀ from the training pairs
+  // (default off; written to the config only when on).
+  bool warm_start = false;
   void validate() const;
 };
 // Config from a preset with the preset's epoch budget.
@@ -44,6 +53,8 @@ struct RunResult {
   Model model;
   Vector theta;  // best-validation parameters
   TrainSummary training;
+  RefineSummary refine;                      // method "none" when no second stage ran
+  std::optional<GammaWarmStart> warm_start;  // when config.warm_start
   Diagnostics diagnostics;
   RunData data;
   nlohmann::json report;  // the report.json document

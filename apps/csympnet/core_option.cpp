@@ -1,0 +1,32 @@
+#include "core_option.hpp"
+
+#include <stdexcept>
+
+#include "csympnet/core/error.hpp"
+
+namespace csympnet::cli {
+
+// "la:L:m" or "g:L:w".
+nlohmann::json parse_core(const std::string& s) {
+  const std::string expected = "expected la:LAYERS:SUBLAYERS or g:LAYERS:WIDTH, e.g. la:5:20";
+  const auto c1 = s.find(':');
+  const auto c2 = c1 == std::string::npos ? c1 : s.find(':', c1 + 1);
+  if (c2 == std::string::npos) throw Error("--core '" + s + "': " + expected);
+  const std::string type = s.substr(0, c1);
+  int a = 0, b = 0;
+  try {
+    std::size_t pa = 0, pb = 0;
+    const std::string sa = s.substr(c1 + 1, c2 - c1 - 1), sb = s.substr(c2 + 1);
+    a = std::stoi(sa, &pa);
+    b = std::stoi(sb, &pb);
+    if (pa != sa.size() || pb != sb.size()) throw std::invalid_argument("trailing text");
+  } catch (const std::exception&) {
+    throw Error("--core '" + s + "': " + expected);
+  }
+  if (a < 1 || b < 1) throw Error("--core '" + s + "': sizes must be >= 1");
+  if (type == "la") return {{"type", "la"}, {"layers", a}, {"sublayers", b}};
+  if (type == "g") return {{"type", "g"}, {"layers", a}, {"width", b}};
+  throw Error("--core '" + s + "': unknown core type '" + type + "'; " + expected);
+}
+
+}  // namespace csympnet::cli

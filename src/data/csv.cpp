@@ -145,6 +145,22 @@ double field_value(const CsvText& f, const Line& line, const Header& h, std::siz
   return v;
 }
 
+// Data read for training (read_any_as_pairs) enters squared losses; beyond this magnitude a
+// state's or step's square overflows double and training could only diverge, so such values are
+// refused at their line. The other readers keep the full range of double (their round trip is
+// exact for every finite value). Times are only differenced; they are checked as steps.
+constexpr double kMaxTrainingMagnitude = 1e150;
+
+double state_value(const CsvText& f, const Line& line, const Header& h, std::size_t c,
+                   std::string_view field, bool for_training) {
+  const double v = field_value(f, line, h, c, field);
+  if (for_training && std::abs(v) > kMaxTrainingMagnitude)
+    throw Error(at(f.path, line.number) + "column '" + h.names[c] + "': " + quote(field) +
+                " is too large to train on (its square overflows double); expected |value| "
+                "<= 1e150");
+  return v;
+}
+
 Header require_kind(const CsvText& f, CsvKind kind) {
   Header h = parse_header(f);
   if (h.kind != kind)
@@ -156,20 +172,20 @@ Header require_kind(const CsvText& f, CsvKind kind) {
   return h;
 }
 
-PairSet read_pairs(const CsvText& f) {
+PairSet read_pairs(const CsvText& f, bool for_training = false) {
   const Header h = require_kind(f, CsvKind::kPairs);
   const Index dim = 2 * h.d;
   std::vector<double> hs, z0, z1;
   for_each_row(f, h, [&](const Line& line, const std::vector<std::string_view>& fields) {
-    const double step = field_value(f, line, h, 0, fields[0]);
+    const double step = state_value(f, line, h, 0, fields[0], for_training);
     if (!(step > 0))
       throw Error(at(f.path, line.number) + "column 'h': expected a step h > 0, got " +
                   quote(fields[0]));
     hs.push_back(step);
     for (Index i = 0; i < dim; ++i) {
       const auto c0 = static_cast<std::size_t>(1 + i), c1 = static_cast<std::size_t>(1 + dim + i);
-      z0.push_back(field_value(f, line, h, c0, fields[c0]));
-      z1.push_back(field_value(f, line, h, c1, fields[c1]));
+      z0.push_back(state_value(f, line, h, c0, fields[c0], for_training));
+      z1.push_back(state_value(f, line, h, c1, fields[c1], for_training));
     }
   });
   const auto n = static_cast<Index>(hs.size());
@@ -181,7 +197,7 @@ PairSet read_pairs(const CsvText& f) {
   return p;
 }
 
-std::vector<Trajectory> read_trajectories(const CsvText& f) {
+std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = false) {
   const Header h = require_kind(f, CsvKind::kTrajectories);
   const Index dim = 2 * h.d;
   const std::size_t tcol = h.has_traj ? 1 : 0;
@@ -222,11 +238,18 @@ std::vector<Trajectory> read_trajectories(const CsvText& f) {
                   " after t = " + shortest(cur.t.back()) + " on line " +
                   std::to_string(cur.last_line) +
                   "; expected times to strictly increase within a trajectory");
+    // Every consumer uses the steps t[n] - t[n-1]; one that overflows is an error here, at
+    // its line, rather than an infinite step later.
+    if (!cur.t.empty() && !std::isfinite(t - cur.t.back()))
+      throw Error(at(f.path, line.number) +
+                  "column 't': the step from t = " + shortest(cur.t.back()) + " on line " +
+                  std::to_string(cur.last_line) + " to " + quote(fields[tcol]) +
+                  " overflows double; expected times whose differences are finite");
     cur.t.push_back(t);
     cur.last_line = line.number;
     for (Index i = 0; i < dim; ++i) {
       const auto c = tcol + 1 + static_cast<std::size_t>(i);
-      cur.z.push_back(field_value(f, line, h, c, fields[c]));
+      cur.z.push_back(state_value(f, line, h, c, fields[c], for_training));
     }
   });
   done.push_back(std::move(cur));
@@ -257,6 +280,18 @@ void append_header(std::string& out, const std::vector<std::string>& names) {
   out += '\n';
 }
 
+PairSet any_as_pairs(const CsvText& f) {
+  if (parse_header(f).kind == CsvKind::kPairs) return read_pairs(f, true);
+  const std::vector<Trajectory> trajs = read_trajectories(f, true);
+  Index pairs = 0;
+  for (const Trajectory& tr : trajs) pairs += tr.steps();
+  if (pairs == 0)
+    throw Error(f.path + ": all " + std::to_string(trajs.size()) +
+                " trajectories have a single row, so the file gives no pairs; expected at "
+                "least one trajectory with two or more rows");
+  return pairs_from_trajectories(trajs);
+}
+
 }  // namespace
 
 CsvKind detect_csv_kind(const std::string& path) {
@@ -271,21 +306,24 @@ std::vector<Trajectory> read_trajectories_csv(const std::string& path) {
   return read_trajectories(csv_detail::load_csv_text(path));
 }
 
-PairSet read_any_as_pairs(const std::string& path) {
-  const CsvText f = csv_detail::load_csv_text(path);
-  if (parse_header(f).kind == CsvKind::kPairs) return read_pairs(f);
-  const std::vector<Trajectory> trajs = read_trajectories(f);
-  Index pairs = 0;
-  for (const Trajectory& tr : trajs) pairs += tr.steps();
-  if (pairs == 0)
-    throw Error(f.path + ": all " + std::to_string(trajs.size()) +
-                " trajectories have a single row, so the file gives no pairs; expected at "
-                "least one trajectory with two or more rows");
-  return pairs_from_trajectories(trajs);
+PairSet parse_pairs_csv(std::string text, const std::string& name) {
+  return read_pairs(csv_detail::csv_text_from_bytes(name, std::move(text)));
 }
 
-void write_pairs_csv(const std::string& path, const PairSet& pairs) {
-  pairs.validate("write_pairs_csv('" + path + "')");
+std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name) {
+  return read_trajectories(csv_detail::csv_text_from_bytes(name, std::move(text)));
+}
+
+PairSet read_any_as_pairs(const std::string& path) {
+  return any_as_pairs(csv_detail::load_csv_text(path));
+}
+
+PairSet parse_any_as_pairs(std::string text, const std::string& name) {
+  return any_as_pairs(csv_detail::csv_text_from_bytes(name, std::move(text)));
+}
+
+std::string pairs_csv_text(const PairSet& pairs) {
+  pairs.validate("pairs_csv_text");
   std::string out;
   append_header(out, header_names(CsvKind::kPairs, pairs.d(), false));
   for (Index j = 0; j < pairs.size(); ++j) {
@@ -297,11 +335,11 @@ void write_pairs_csv(const std::string& path, const PairSet& pairs) {
       }
     out += '\n';
   }
-  write_text_atomic(path, out);
+  return out;
 }
 
-void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs) {
-  const std::string where = "write_trajectories_csv('" + path + "')";
+std::string trajectories_csv_text(const std::vector<Trajectory>& trajs) {
+  const std::string where = "trajectories_csv_text";
   require(!trajs.empty(), where + ": no trajectories; expected at least one");
   const Index dim = trajs.front().z.rows();
   for (std::size_t k = 0; k < trajs.size(); ++k) {
@@ -325,7 +363,28 @@ void write_trajectories_csv(const std::string& path, const std::vector<Trajector
       out += '\n';
     }
   }
-  write_text_atomic(path, out);
+  return out;
+}
+
+// Validation errors name the path, so they are rethrown with it.
+void write_pairs_csv(const std::string& path, const PairSet& pairs) {
+  std::string text;
+  try {
+    text = pairs_csv_text(pairs);
+  } catch (const Error& e) {
+    throw Error("write_pairs_csv('" + path + "'): " + e.what());
+  }
+  write_text_atomic(path, text);
+}
+
+void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs) {
+  std::string text;
+  try {
+    text = trajectories_csv_text(trajs);
+  } catch (const Error& e) {
+    throw Error("write_trajectories_csv('" + path + "'): " + e.what());
+  }
+  write_text_atomic(path, text);
 }
 
 }  // namespace csympnet

@@ -67,8 +67,12 @@ bool is_blank(std::string_view s) {
 }
 
 CsvText load_csv_text(const std::string& path) {
-  CsvText f{path, read_text_file(path), {}};
-  std::string_view text = f.bytes;
+  return csv_text_from_bytes(path, read_text_file(path));
+}
+
+CsvText csv_text_from_bytes(const std::string& path, std::string bytes) {
+  CsvText f{path, std::make_unique<const std::string>(std::move(bytes)), {}};
+  std::string_view text = *f.bytes;
   // Spreadsheet programs often prepend a byte-order mark; it carries no data.
   if (text.substr(0, kUtf8Bom.size()) == kUtf8Bom) text.remove_prefix(kUtf8Bom.size());
   check_bytes(path, text);

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -17,13 +18,17 @@ struct Line {
 };
 
 // A CSV file's text split into lines. Trailing blank lines are dropped, so `lines` ends at
-// the last non-blank line. Throws Error for unreadable, empty or non-text files.
+// the last non-blank line. The bytes live on the heap so the line views stay valid when a
+// CsvText is moved (a moved short std::string would take its inline buffer with it).
 struct CsvText {
   std::string path;
-  std::string bytes;
+  std::unique_ptr<const std::string> bytes;
   std::vector<Line> lines;
 };
+// Throws Error for unreadable, empty or non-text files.
 CsvText load_csv_text(const std::string& path);
+// The same checks on text already in memory; `path` only names it in messages.
+CsvText csv_text_from_bytes(const std::string& path, std::string bytes);
 
 // "path:line: " — every reader message starts like this.
 std::string at(const std::string& path, std::size_t line);

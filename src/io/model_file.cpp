@@ -1,5 +1,9 @@
 #include "csympnet/io/model_file.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
 
 #include "csympnet/core/error.hpp"
@@ -26,6 +30,43 @@ std::string checksum_of(const nlohmann::json& model, const nlohmann::json& meta,
   return "fnv1a64:" + hex64(h);
 }
 
+// The model constructors compute parameter counts as products of the sizes in the spec
+// (layers x sublayers x d^2, width^2, ...) without overflow checks. A file's sizes come from
+// outside, so their product is bounded first: with every size product P <= 2^28 each such
+// count stays below P^2 <= 2^56. A real model that large could not be stored in a file anyway.
+constexpr double kMaxSizeProduct = 268435456.0;  // 2^28
+
+// The parser quotes what it last read, which for a binary file is raw bytes; a message shows
+// them as \xNN so it stays plain text.
+std::string printable(const std::string& text) {
+  std::string out;
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c < 0x7f) {
+      out += ch;
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", static_cast<unsigned>(c));
+      out += buf;
+    }
+  }
+  return out;
+}
+
+std::string short_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+void product_of_sizes(const nlohmann::json& spec, double& product) {
+  if (spec.is_number_integer()) {
+    product *= std::max(1.0, std::abs(spec.get<double>()));
+  } else if (spec.is_object() || spec.is_array()) {
+    for (const auto& item : spec) product_of_sizes(item, product);
+  }
+}
+
 }  // namespace
 
 nlohmann::json model_to_json(const Model& model, const Vector& theta, const nlohmann::json& meta) {
@@ -44,40 +85,62 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
   require(doc.contains("format") && doc["format"] == kModelFormat,
           where + ": not a csympnet model file (expected \"format\": \"" + kModelFormat + "\")");
   require(doc.contains("version") && doc["version"].is_number_integer(),
-          where + ": missing integer \"version\"");
-  const int version = doc["version"].get<int>();
+          where + ": missing integer \"version\"; expected \"version\": " +
+              std::to_string(kModelFormatVersion));
+  const auto version = doc["version"].get<std::int64_t>();
   require(version == 1 || version == kModelFormatVersion,
           where + ": model format version " + std::to_string(version) +
               " is not supported (expected 1 or " + std::to_string(kModelFormatVersion) +
               "; a newer csympnet wrote it?)");
-  require(doc.contains("model"), where + ": missing \"model\" (the architecture)");
+  require(
+      doc.contains("model"),
+      where + ": missing \"model\"; expected the architecture, e.g. {\"type\": \"csympnet\", ...}");
+  double sizes = 1.0;
+  product_of_sizes(doc["model"], sizes);
+  require(sizes <= kMaxSizeProduct,
+          where + ": the architecture's sizes multiply to " + short_number(sizes) +
+              ", more than any model file can hold; expected sizes whose product is at most " +
+              std::to_string(static_cast<long long>(kMaxSizeProduct)));
   SavedModel out;
   try {
     out.model = make_model(doc["model"]);
   } catch (const Error& e) {
     throw Error(where + ": " + e.what());
   }
-  require(doc.contains("params") && doc["params"].is_array(), where + ": missing array \"params\"");
+  require(doc.contains("params") && doc["params"].is_array(),
+          where + ": missing array \"params\"; expected the flat parameter vector");
   const auto& params = doc["params"];
   require(static_cast<Index>(params.size()) == out.model.n_params(),
           where + ": \"params\" has " + std::to_string(params.size()) +
-              " entries but the architecture needs " + std::to_string(out.model.n_params()));
+              " entries but the architecture needs " + std::to_string(out.model.n_params()) +
+              "; expected one entry per parameter");
+  // n_params is redundant (the architecture fixes it) but written since version 1; a file
+  // that disagrees with itself is damaged.
+  if (doc.contains("n_params"))
+    require(doc["n_params"].is_number_integer() &&
+                doc["n_params"].get<std::int64_t>() == out.model.n_params(),
+            where + ": \"n_params\" = " + doc["n_params"].dump().substr(0, 40) +
+                " but the architecture has " + std::to_string(out.model.n_params()) +
+                " parameters; expected them to agree");
   out.theta.resize(out.model.n_params());
   for (Index i = 0; i < out.theta.size(); ++i) {
     const auto& v = params[static_cast<std::size_t>(i)];
-    require(v.is_number(), where + ": params[" + std::to_string(i) + "] is not a number");
+    require(v.is_number(), where + ": params[" + std::to_string(i) + "] is not a number (" +
+                               v.dump().substr(0, 40) + "); expected a finite number");
     out.theta(i) = v.get<double>();
+    require(std::isfinite(out.theta(i)), where + ": params[" + std::to_string(i) + "] = " +
+                                             v.dump() + " is not finite; expected finite numbers");
   }
-  require(out.theta.allFinite(), where + ": parameters contain NaN or Inf");
   out.meta = doc.value("meta", nlohmann::json::object());
   if (version >= 2) {  // version 1 files predate the checksum
     require(doc.contains("checksum") && doc["checksum"].is_string(),
-            where + ": missing string \"checksum\" (required from format version 2)");
+            where + ": missing string \"checksum\"; expected one from format version 2 on");
     const std::string expected = doc["checksum"].get<std::string>();
     const std::string actual = checksum_of(doc["model"], out.meta, out.theta);
     require(expected == actual, where + ": checksum mismatch (the file says " + expected +
                                     ", its contents give " + actual +
-                                    "): it was modified or corrupted after it was written");
+                                    "): it was modified or corrupted after it was written; "
+                                    "expected the file exactly as csympnet wrote it");
   }
   return out;
 }
@@ -87,15 +150,19 @@ void save_model(const std::string& path, const Model& model, const Vector& theta
   write_text_atomic(path, model_to_json(model, theta, meta).dump(1) + "\n");
 }
 
-SavedModel load_model(const std::string& path) {
-  const std::string text = read_text_file(path);
+SavedModel model_from_text(const std::string& text, const std::string& where) {
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw Error(path + ": not valid JSON (" + e.what() + ")");
+  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range for 1e999
+    throw Error(where + ": not valid JSON (" + printable(std::string(e.what()).substr(0, 200)) +
+                "); expected a csympnet model file (was it truncated or overwritten?)");
   }
-  return model_from_json(doc, path);
+  return model_from_json(doc, where);
+}
+
+SavedModel load_model(const std::string& path) {
+  return model_from_text(read_text_file(path), path);
 }
 
 }  // namespace csympnet

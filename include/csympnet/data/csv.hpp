@@ -21,11 +21,21 @@ CsvKind detect_csv_kind(const std::string& path);
 
 PairSet read_pairs_csv(const std::string& path);
 std::vector<Trajectory> read_trajectories_csv(const std::string& path);
-// Either format; trajectories become pairs of consecutive rows.
+// Either format; trajectories become pairs of consecutive rows. For training: states and
+// steps beyond 1e150 in magnitude (whose squares overflow) are refused at their line.
 PairSet read_any_as_pairs(const std::string& path);
+
+// The same readers on text already in memory (the fuzz targets use these); `name` stands for
+// the path in messages.
+PairSet parse_pairs_csv(std::string text, const std::string& name);
+std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name);
+PairSet parse_any_as_pairs(std::string text, const std::string& name);
 
 // Values are written with 17 significant digits, so they read back bit-identical.
 void write_pairs_csv(const std::string& path, const PairSet& pairs);
 void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs);
+// The text the writers write (after the same validation).
+std::string pairs_csv_text(const PairSet& pairs);
+std::string trajectories_csv_text(const std::vector<Trajectory>& trajs);
 
 }  // namespace csympnet

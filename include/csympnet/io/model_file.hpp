@@ -26,6 +26,8 @@ struct SavedModel {
 nlohmann::json model_to_json(const Model& model, const Vector& theta,
                              const nlohmann::json& meta = nlohmann::json::object());
 SavedModel model_from_json(const nlohmann::json& doc, const std::string& where = "model");
+// Parses the text of a model file; `where` (the path) prefixes every message.
+SavedModel model_from_text(const std::string& text, const std::string& where);
 
 // Atomic write (temporary file, then rename).
 void save_model(const std::string& path, const Model& model, const Vector& theta,

@@ -34,8 +34,7 @@ void to_json(nlohmann::json& j, const GammaInterval& g) {
        {"level", g.level},
        {"replicates", g.replicates},
        {"resample", g.resample},
-       {"gammas", g.gammas},
-       {"seconds", g.seconds}};
+       {"gammas", g.gammas}};
 }
 
 double sample_quantile(std::vector<double> values, double q) {

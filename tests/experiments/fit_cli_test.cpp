@@ -1,0 +1,102 @@
+// `csympnet fit` end to end on a small trajectory file: γ̂ with its interval on stdout and in
+// report.json, wall times apart in timings.json; and a smoke run of experiments/coverage.py.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <sys/wait.h>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/data/csv.hpp"
+#include "csympnet/data/generate.hpp"
+#include "data/temp_dir.hpp"
+
+namespace csympnet {
+namespace {
+
+namespace fs = std::filesystem;
+
+int shell(const std::string& cmd) {
+  const int status = std::system(cmd.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Six trajectories of the s1 oscillator (γ = 0.05) by expm at irregular steps.
+std::vector<Trajectory> oscillator_trajectories() {
+  ReferenceOptions ref;
+  ref.method = Reference::kExpm;
+  const System sys(SystemSpec{});
+  Rng rng(7, "fit-cli-test");
+  std::vector<Trajectory> trajs;
+  for (int m = 0; m < 6; ++m) {
+    Trajectory t;
+    t.t.resize(11);
+    t.z.resize(2, 11);
+    t.t(0) = 0.0;
+    t.z.col(0) = rng.uniform_vector(2, -1.0, 1.0);
+    for (int k = 1; k <= 10; ++k) {
+      const double h = rng.uniform(0.05, 0.15);
+      t.t(k) = t.t(k - 1) + h;
+      t.z.col(k) = expm_propagator(sys, h) * t.z.col(k - 1);
+    }
+    trajs.push_back(t);
+  }
+  return trajs;
+}
+
+TEST(FitCli, PrintsAndWritesTheInterval) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "traj.csv", out = dir.path() / "fit";
+  write_trajectories_csv(data.string(), oscillator_trajectories());
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  ASSERT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                  out.string() + " --epochs 300 --refine-iterations 5 --bootstrap 10 -q > " +
+                  stdout_file.string() + " 2>&1"),
+            0)
+      << slurp(stdout_file);
+  const std::string printed = slurp(stdout_file);
+  EXPECT_NE(printed.find("gamma_hat = "), std::string::npos) << printed;
+  EXPECT_NE(printed.find(" ± "), std::string::npos) << printed;
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  ASSERT_TRUE(rep["gamma_ci_low"].is_number() && rep["gamma_ci_high"].is_number()) << rep.dump();
+  EXPECT_LT(rep["gamma_ci_low"].get<double>(), rep["gamma_ci_high"].get<double>());
+  EXPECT_EQ(rep["gamma_ci_replicates"], 10);
+  EXPECT_EQ(rep["gamma_ci_method"], "percentile bootstrap over trajectories");
+  EXPECT_EQ(rep["refine"]["method"], "lm");
+  EXPECT_EQ(rep["warm_start"]["method"], "midpoint");
+  EXPECT_LT(rep["quality"]["structure_residual_max"].get<double>(), 1e-12);
+  // Wall times live in timings.json, so that the report is bit-identical run to run.
+  EXPECT_FALSE(rep["refine"].contains("seconds"));
+  EXPECT_FALSE(rep["bootstrap"].contains("seconds"));
+  const auto timings = nlohmann::json::parse(slurp(out / "timings.json"));
+  EXPECT_TRUE(timings.contains("bootstrap_seconds"));
+}
+
+TEST(FitCli, CoverageScriptSmoke) {
+  testing::TempDir dir;
+  const std::string cmd = "/usr/bin/python3 " + std::string(CSYMPNET_SOURCE_DIR) +
+                          "/experiments/coverage.py --csympnet " + CSYMPNET_CLI_PATH +
+                          " --sigmas 1e-2 --seeds 1 --n 40 --epochs 200 --bootstrap 10 --out " +
+                          dir.path().string() + " > " + (dir.path() / "table.md").string() +
+                          " 2>&1";
+  ASSERT_EQ(shell(cmd), 0) << slurp(dir.path() / "table.md");
+  const auto records = nlohmann::json::parse(slurp(dir.path() / "coverage.json"));
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_LT(records[0]["low"].get<double>(), records[0]["high"].get<double>());
+  EXPECT_NE(slurp(dir.path() / "table.md").find("| s1 | 0.01 | 1 |"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -39,7 +39,8 @@ Vector parse_state(const std::string& s, Index dim) {
       pos = 0;
     }
     if (pos == 0 || pos != item.size() || !std::isfinite(x))
-      throw Error("--z0: '" + item + "' is not a finite number");
+      throw Error("--z0: '" + item + "' is not a finite number; expected " + std::to_string(dim) +
+                  " comma-separated finite numbers q1,..,qd,p1,..,pd");
     v.push_back(x);
   }
   if (static_cast<Index>(v.size()) != dim)
@@ -60,6 +61,7 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--data", a->data, "Test trajectories CSV (default: the preset's test set)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--h-test", a->h_test, "Step of the Jacobian diagnostics (default 0.2)")
+      ->check(kFiniteNumber)
       ->check(CLI::PositiveNumber);
   cmd->add_option("--out", a->out, "Also write DIR/report.json");
   cmd->add_flag("--force", a->force, "Allow writing into a non-empty output directory");
@@ -71,7 +73,12 @@ void add_evaluate(CLI::App& app) {
     if (a->preset.empty()) {
       require(saved.meta.contains("system"),
               "--preset is required: " + a->model + " does not record its system");
-      c.preset.system = saved.meta["system"].get<SystemSpec>();
+      try {
+        c.preset.system = saved.meta["system"].get<SystemSpec>();
+      } catch (const std::exception& e) {  // Error or nlohmann::json::exception
+        throw Error(a->model + ": meta.system is not a valid system (" + e.what() +
+                    "); expected one as written by csympnet run, or pass --preset");
+      }
     }
     a->system.apply(c.preset);
     if (a->h_test) c.preset.h_test = *a->h_test;
@@ -82,6 +89,22 @@ void add_evaluate(CLI::App& app) {
     std::vector<Trajectory> tests;
     if (!a->data.empty()) {
       tests = read_trajectories_csv(a->data);
+      // Reading accepts single-point trajectories (they are valid data); a rollout needs two.
+      for (std::size_t k = 0; k < tests.size(); ++k) {
+        require(tests[k].z.rows() == saved.model.dim(),
+                a->data + ": the trajectories have " + std::to_string(tests[k].z.rows() / 2) +
+                    " degrees of freedom; expected d = " + std::to_string(saved.model.dim() / 2) +
+                    " like the model " + a->model);
+        // The L2 error squares differences of states; beyond 1e150 they overflow.
+        require(tests[k].z.cwiseAbs().maxCoeff() <= 1e150,
+                a->data + ": trajectory " + std::to_string(k + 1) +
+                    " has a state value beyond 1e150 in magnitude (its square overflows "
+                    "double); expected |value| <= 1e150");
+        require(tests[k].steps() >= 1,
+                a->data + ": trajectory " + std::to_string(k + 1) + " of " +
+                    std::to_string(tests.size()) +
+                    " has a single point; expected at least two points per test trajectory");
+      }
     } else {
       require(!a->preset.empty(), "--data or --preset is required to know the test set");
       Rng rng(c.test_seed, "test-trajectories");
@@ -114,7 +137,7 @@ void add_rollout(CLI::App& app) {
       app.add_subcommand("rollout", "Iterate a saved model from z0; print t,q..,p.. as CSV");
   cmd->add_option("--model", *model, "Model file")->required()->check(CLI::ExistingFile);
   cmd->add_option("--z0", *z0, "Initial state q1,..,qd,p1,..,pd")->required();
-  cmd->add_option("--h", *h, "Step")->required()->check(CLI::PositiveNumber);
+  cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(CLI::PositiveNumber);
   cmd->add_option("--steps", *steps, "Number of steps")
       ->required()
       ->check(CLI::Range(1L, 100000000L));

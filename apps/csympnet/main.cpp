@@ -26,7 +26,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11 prints the message; every usage error exits 2 (CLI11's own codes are 100-127,
+    // which scripts cannot tell apart from other failures), --help and --version exit 0.
+    return app.exit(e) == 0 ? 0 : 2;
   } catch (const csympnet::cli::Interrupted& e) {
     std::fprintf(stderr, "csympnet: interrupted by %s: %s\n", csympnet::cli::interrupt_name(),
                  e.what());

@@ -1,16 +1,31 @@
 #include "system_options.hpp"
 
+#include <cmath>
+
 namespace csympnet::cli {
+
+const CLI::Validator kFiniteNumber(
+    [](std::string& input) {
+      double v = 0;
+      if (!CLI::detail::lexical_cast(input, v)) return "'" + input + "' is not a number";
+      if (!std::isfinite(v)) return "'" + input + "' is not finite; expected a finite number";
+      return std::string();
+    },
+    "FINITE");
 
 void SystemOverrides::add_to(CLI::App& cmd) {
   cmd.add_option("--d", d, "Degrees of freedom (overrides the preset)")
       ->check(CLI::Range(1, 100000));
   cmd.add_option("--gamma", gamma, "Damping rate gamma >= 0 (default 0.05)")
+      ->check(kFiniteNumber)
       ->check(CLI::NonNegativeNumber);
   cmd.add_option("--omega", omega, "Frequency omega > 0 (oscillator, cubic)")
+      ->check(kFiniteNumber)
       ->check(CLI::PositiveNumber);
-  cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain)")->check(CLI::NonNegativeNumber);
-  cmd.add_option("--alpha", alpha, "Cubic coefficient alpha (cubic)");
+  cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain)")
+      ->check(kFiniteNumber)
+      ->check(CLI::NonNegativeNumber);
+  cmd.add_option("--alpha", alpha, "Cubic coefficient alpha (cubic)")->check(kFiniteNumber);
 }
 
 void SystemOverrides::apply(Preset& p) const {

@@ -1,4 +1,5 @@
-// Command-line overrides of a preset's system constants (d, γ, ω, k, α).
+// Command-line overrides of a preset's system constants (d, γ, ω, k, α), and the finite-number
+// check the numeric options share.
 #pragma once
 
 #include <optional>
@@ -8,6 +9,10 @@
 #include "csympnet/experiments/preset.hpp"
 
 namespace csympnet::cli {
+
+// Accepts only finite numbers. CLI11's Range and PositiveNumber let NaN through (every
+// comparison with NaN is false), so numeric options take this check first.
+extern const CLI::Validator kFiniteNumber;
 
 struct SystemOverrides {
   std::optional<int> d;

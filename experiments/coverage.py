@@ -2,8 +2,8 @@
 """Empirical coverage of the bootstrap interval for gamma_hat (docs/identification.md).
 
 For each noise level and seed: `csympnet generate` draws a preset's training pairs with
-relative noise sigma (known gamma), `csympnet fit` fits CSympNet-ID with its defaults
-(warm start, AdamW, Levenberg-Marquardt, 100-replicate bootstrap), and we record whether
+relative noise sigma (known gamma), `csympnet fit --warm-start --refine auto --bootstrap 100`
+fits CSympNet-ID (warm start, AdamW, Levenberg-Marquardt, 100-replicate bootstrap), and we record whether
 [gamma_ci_low, gamma_ci_high] contains the true gamma. Prints one row per sigma: coverage,
 median |gamma_hat - gamma|, median interval width, and writes every record as JSON.
 
@@ -48,8 +48,9 @@ def main():
             run([a.csympnet, "generate", "--preset", a.preset, "--n", str(a.n), "--sigma",
                  str(sigma), "--seed", str(seed), "--gamma", str(a.gamma), "--out", data,
                  "--force"])
-            fit = [a.csympnet, "fit", data, "-q", "--force", "--seed", str(seed), "--bootstrap",
-                   str(a.bootstrap), "--out", os.path.join(a.out, tag)]
+            fit = [a.csympnet, "fit", data, "-q", "--force", "--seed", str(seed), "--warm-start",
+                   "--refine", "auto", "--bootstrap", str(a.bootstrap), "--out",
+                   os.path.join(a.out, tag)]
             if a.epochs > 0:
                 fit += ["--epochs", str(a.epochs)]
             run(fit + a.extra)

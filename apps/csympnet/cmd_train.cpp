@@ -28,8 +28,8 @@ struct FitArgs {
   long epochs = 0;
   long val_every = 10;
   double val_fraction = 0.2, beta_init = 0.1;
-  bool no_beta_decay = false, quiet = false, force = false, no_warm_start = false;
-  std::string refine = "auto";
+  bool no_beta_decay = false, quiet = false, force = false, warm_start = false;
+  std::string refine = "none";
   std::optional<long> refine_iterations, bootstrap;
   std::optional<std::string> refine_solver;
 };
@@ -52,11 +52,11 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(CLI::Range(0.01, 0.99));
   cmd.add_option("--beta-init", a.beta_init, "Initial beta of CSympNet-ID (nonzero)");
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
-  cmd.add_flag("--no-warm-start", a.no_warm_start,
-               "Start beta at --beta-init instead of the closed-form estimate of gamma");
+  cmd.add_flag("--warm-start", a.warm_start,
+               "Start beta at the closed-form estimate of gamma from the data");
   cmd.add_option("--refine", a.refine,
-                 "Second stage after AdamW: auto (default: lm, or lbfgs for large models), "
-                 "lm, lbfgs or none (the paper's recipe)")
+                 "Second stage after AdamW: none (default, the paper's recipe), lm, lbfgs, or "
+                 "auto (lm, or lbfgs for large models)")
       ->check(CLI::IsMember({"auto", "none", "lm", "lbfgs"}));
   cmd.add_option("--refine-iterations", a.refine_iterations,
                  "Iterations of the second stage (default 300)")
@@ -65,7 +65,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "LM linear solver: dense_qr or dense_normal_cholesky (default: dense_qr)")
       ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky"}));
   cmd.add_option("--bootstrap", a.bootstrap,
-                 "Bootstrap replicates for the interval of gamma_hat (default 100; 0: none)")
+                 "Bootstrap replicates for an interval of gamma_hat (default 0: none; >= 10)")
       ->check(CLI::Range(0L, 1000000L));
   cmd.add_option("--out", a.out, "Output directory")->required();
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
@@ -99,11 +99,11 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   c.train.adamw.lr = a.lr;
   c.train.lr_schedule = a.lr_schedule;
   c.train.adamw.decay_damping = !a.no_beta_decay;
-  c.warm_start = !a.no_warm_start;
+  c.warm_start = a.warm_start;
   c.refine.method = a.refine;
   if (a.refine_iterations) c.refine.iterations = *a.refine_iterations;
   if (a.refine_solver) c.refine.linear_solver = *a.refine_solver;
-  c.bootstrap.replicates = a.bootstrap ? *a.bootstrap : -1;
+  c.bootstrap.replicates = a.bootstrap.value_or(0);
   FitResult r;
   {
     ProgressLine progress(a.quiet);

@@ -61,10 +61,11 @@ TEST(FitCli, PrintsAndWritesTheInterval) {
   const fs::path data = dir.path() / "traj.csv", out = dir.path() / "fit";
   write_trajectories_csv(data.string(), oscillator_trajectories());
   const fs::path stdout_file = dir.path() / "stdout.txt";
-  ASSERT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                  out.string() + " --epochs 300 --refine-iterations 5 --bootstrap 10 -q > " +
-                  stdout_file.string() + " 2>&1"),
-            0)
+  ASSERT_EQ(
+      shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " + out.string() +
+            " --epochs 300 --warm-start --refine auto --refine-iterations 5 --bootstrap 10 -q > " +
+            stdout_file.string() + " 2>&1"),
+      0)
       << slurp(stdout_file);
   const std::string printed = slurp(stdout_file);
   EXPECT_NE(printed.find("gamma_hat = "), std::string::npos) << printed;

@@ -68,7 +68,7 @@ FitConfig small_budget() {
   c.train.epochs = 20000;
   c.train.adamw.lr = 1e-2;
   c.train.lr_schedule = "cosine";
-  c.warm_start = true;  // what `csympnet fit` does by default
+  c.warm_start = true;  // the recommended identification settings (identification.md)
   c.refine.method = "auto";
   c.refine.iterations = 200;
   return c;

@@ -25,8 +25,9 @@ struct FitConfig {
   double val_fraction = 0.2;       // share of pairs held out when no validation set is given
   TrainOptions train;              // epochs <= 0 → default_epochs_for(d)
   double beta_init = 0.1;          // CSympNet-ID: initial β, nonzero (unless warm_start)
-  // The library's defaults below keep the earlier behaviour (and the Python API's results);
-  // `csympnet fit` turns all three on (warm start, refine "auto", 100 replicates).
+  // The defaults below keep the paper's recipe, and `csympnet fit` shares them so that it
+  // and the Python API agree to the bit; docs/identification.md gives the recommended
+  // `--warm-start --refine auto --bootstrap 100`.
   // CSympNet-ID: initial β from the closed-form estimate γ₀ of the data (gamma_warm_start);
   // beta_init is then unused. Falls back to beta_init when the estimate cannot be formed.
   bool warm_start = false;

@@ -1,9 +1,11 @@
 # Thin wrapper over CMake. `make demo` and `make test` work on a fresh Debian 12 machine.
 BUILD ?= build
 JOBS  ?= $(shell nproc)
+# LeakSanitizer needs ptrace; where that is missing (some containers) pass ASAN_OPTIONS_CI=detect_leaks=0.
+ASAN_OPTIONS_CI ?= detect_leaks=1:abort_on_error=1
 CLI   := $(BUILD)/bin/csympnet
 
-.PHONY: all deps build test demo bench format clean
+.PHONY: all deps build test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo bench format clean
 
 all: build
 
@@ -16,6 +18,44 @@ build: deps
 
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+# The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (gcc), in $(ASAN_BUILD).
+# ASAN_EXCLUDE (a ctest -E regex, empty by default: the whole suite runs) leaves out tests if
+# CI time ever needs it; docs/hardening.md says which are pure numerics covered by `make test`.
+ASAN_BUILD   ?= build-asan
+ASAN_EXCLUDE ?=
+test-asan: deps
+	@cmake -S . -B $(ASAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCSYMPNET_SANITIZE=ON \
+	  -DCSYMPNET_BUILD_PYTHON=OFF -DCSYMPNET_BUILD_BENCH=OFF >/dev/null
+	@cmake --build $(ASAN_BUILD) -j $(JOBS)
+	@cd $(ASAN_BUILD) && ASAN_OPTIONS=$(ASAN_OPTIONS_CI) UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+	  ctest --output-on-failure -j $(JOBS) $(if $(ASAN_EXCLUDE),-E '$(ASAN_EXCLUDE)')
+
+# libFuzzer targets (clang-14 from Debian), FUZZ_SECONDS per target; the time spent is
+# appended to fuzz/hours.md. Crashes are kept in fuzz/regressions/, which `make test` replays.
+FUZZ_BUILD   ?= build-fuzz
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS := fuzz_csv_pairs fuzz_csv_trajectories fuzz_model_file
+fuzz-build:
+	@CC=clang-14 CXX=clang++-14 cmake -S . -B $(FUZZ_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DCSYMPNET_FUZZ=ON -DCSYMPNET_SANITIZE=ON -DCSYMPNET_BUILD_PYTHON=OFF \
+	  -DCSYMPNET_BUILD_BENCH=OFF -DCSYMPNET_BUILD_TESTS=OFF >/dev/null
+	@cmake --build $(FUZZ_BUILD) -j $(JOBS) --target $(FUZZ_TARGETS)
+
+fuzz: fuzz-build
+	@bash fuzz/run.sh $(FUZZ_BUILD) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
+# Minimises each working corpus (libFuzzer -merge=1) back into the checked-in fuzz/corpus.
+fuzz-merge: fuzz-build
+	@for t in $(FUZZ_TARGETS); do \
+	  rm -rf $(FUZZ_BUILD)/merged/$$t && mkdir -p $(FUZZ_BUILD)/merged/$$t $(FUZZ_BUILD)/corpus/$$t && \
+	  $(FUZZ_BUILD)/bin/$$t -merge=1 -max_len=32768 $(FUZZ_BUILD)/merged/$$t fuzz/corpus/$$t \
+	    $(FUZZ_BUILD)/corpus/$$t 2>/dev/null && \
+	  rm -f fuzz/corpus/$$t/* && cp $(FUZZ_BUILD)/merged/$$t/* fuzz/corpus/$$t/ && \
+	  echo "$$t: $$(ls fuzz/corpus/$$t | wc -l) files"; done
+
+fuzz-hours:
+	@awk -F'|' '$$5 ~ /^ *[0-9]+ *$$/ {s += $$5} END {printf "fuzzed %.0f CPU s = %.2f CPU hours\n", s, s / 3600}' fuzz/hours.md
 
 # The quick reproduction: Tables 2-4 at seed 42 beside the paper's numbers (docs/reproduce.md).
 # A rerun resumes: finished runs are cached in results/quick/runs.

@@ -82,7 +82,9 @@ void add_run(CLI::App& app) {
       "run", "Generate a preset's data, train a model, evaluate it, write DIR/report.json");
   add_preset_option(*cmd, args->preset);
   cmd->add_option("--model", args->model, "Model to train")->check(CLI::IsMember(model_types()));
-  cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42");
+  // NonNegativeNumber: CLI11 would wrap "-1" into 2^64 - 1 for an unsigned seed.
+  cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
       ->check(CLI::Range(0L, 100000000L));
   cmd->add_option("--recipe", args->recipe,

@@ -46,7 +46,9 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(CLI::IsMember({"constant", "cosine"}));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
       ->check(CLI::Range(1L, 100000000L));
-  cmd.add_option("--seed", a.seed, "Seed of the validation split and the init (default 42)");
+  // NonNegativeNumber: CLI11 would wrap "-1" into 2^64 - 1 for an unsigned seed.
+  cmd.add_option("--seed", a.seed, "Seed of the validation split and the init (default 42)")
+      ->check(CLI::NonNegativeNumber);
   cmd.add_option("--val-fraction", a.val_fraction,
                  "Held-out share when no --val is given (default 0.2)")
       ->check(CLI::Range(0.01, 0.99));
@@ -75,16 +77,15 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
 void run_fit(const FitArgs& a, bool verbose_summary) {
   prepare_output_dir(a.out, a.force);
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
-  PairSet data;
+  // The training reader first: it refuses, at their line, values too large to train on and
+  // files whose trajectories give no pairs, which the plain readers accept.
+  const PairSet data = read_any_as_pairs(a.data);
   std::vector<Index> groups;
   if (detect_csv_kind(a.data) == CsvKind::kTrajectories) {
     const std::vector<Trajectory> trajs = read_trajectories_csv(a.data);
-    data = pairs_from_trajectories(trajs);
     for (std::size_t k = 0; k < trajs.size(); ++k)
       groups.insert(groups.end(), static_cast<std::size_t>(trajs[k].steps()),
                     static_cast<Index>(k));
-  } else {
-    data = read_pairs_csv(a.data);
   }
   std::optional<PairSet> val;
   if (!a.val.empty()) val = read_any_as_pairs(a.val);

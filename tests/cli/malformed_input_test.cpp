@@ -103,19 +103,6 @@ const std::map<std::string, std::string> kModels = {
     {"negative_size.json", "expected an integer >= 1"},
 };
 
-// Cases where fit and train (apps/csympnet/cmd_train.cpp, which reads trajectories itself
-// through read_trajectories_csv and pairs_from_trajectories) still fall short: the exit is 1
-// with a csympnet error, but the message does not name the file (single-point files) or
-// training starts and diverges, writing its outputs (values near overflow, which
-// read_any_as_pairs would refuse at their line). Listed in docs/hardening.md; delete an entry
-// when cmd_train.cpp is fixed, and the full checks apply again.
-const std::set<std::string> kKnownGapsInFit = {
-    "trajectories/single_point.csv",
-    "trajectories/single_points_only.csv",
-    "trajectories/near_overflow.csv",
-    "pairs/near_overflow.csv",
-};
-
 struct Row {
   std::string command, file, message;
   int code;
@@ -156,7 +143,6 @@ class Malformed : public CliTest {
     EXPECT_EQ(r.code, 1);
     EXPECT_EQ(r.err.rfind("csympnet: error: ", 0), 0u);
     EXPECT_EQ(r.err.find("internal error"), std::string::npos);
-    if ((command == "fit" || command == "train") && kKnownGapsInFit.count(name)) return;
     // Plain text even for a binary file: no raw bytes copied from the input.
     EXPECT_TRUE(std::all_of(r.err.begin(), r.err.end(), [](char c) {
       return c == '\n' ||

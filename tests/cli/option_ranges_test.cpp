@@ -129,9 +129,9 @@ TEST_F(OptionRanges, Reproduce) {
 }
 
 // run, train and fit: their option declarations live in cmd_run.cpp and cmd_train.cpp. Not
-// checked there yet (docs/hardening.md): `--seed -1` wraps to 2^64 - 1, `run --epochs 0` is
-// accepted; --lr, --sigma and --val-fraction NaN are refused by the library (exit 1, naming
-// the setting) rather than while parsing.
+// checked there yet (docs/hardening.md): `run --epochs 0` is accepted; --lr, --sigma and
+// --val-fraction NaN are refused by the library (exit 1, naming the setting) rather than while
+// parsing.
 TEST_F(OptionRanges, RunTrainAndFit) {
   const std::string data = (dir_ / "data.csv").string();
   ASSERT_EQ(run("generate --preset s1 --n 20 --out " + data).code, 0);
@@ -147,6 +147,7 @@ TEST_F(OptionRanges, RunTrainAndFit) {
       {"--beta-init nan", "beta", 1},
       {"--model nosuch", "--model", 2},
       {"--seed x", "--seed", 2},
+      {"--seed -1", "--seed", 2},
   };
   std::vector<BadOption> run_cases = common;
   run_cases.push_back({"--epochs x", "--epochs", 2});

@@ -76,18 +76,7 @@ TEST(ResidualJacobian, CheckCatchesAPlantedWrongEntry) {
 
 // Damped rotation data (the exact flow of s1), for the optimiser tests.
 PairSet rotation_pairs(Index n, std::uint64_t seed) {
-  Rng rng(seed, "rotation");
-  PairSet p;
-  p.z0 = rng.uniform_matrix(2, n, -1, 1);
-  p.h = rng.uniform_vector(n, 0.05, 0.15);
-  p.z1.resize(2, n);
-  for (Index j = 0; j < n; ++j) {
-    const double h = p.h(j), a = std::exp(-0.05 * h / 2);
-    const double q = p.z0(0, j), v = a * p.z0(1, j);
-    p.z1(0, j) = std::cos(h) * q + std::sin(h) * v;
-    p.z1(1, j) = a * (-std::sin(h) * q + std::cos(h) * v);
-  }
-  return p;
+  return testing::damped_rotation_pairs(n, seed, "rotation");
 }
 
 struct Trained {

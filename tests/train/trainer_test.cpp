@@ -4,24 +4,14 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/train/loss.hpp"
+#include "support/model_fixtures.hpp"
 
 namespace csympnet {
 namespace {
 
 // A tiny damped-rotation data set: z1 = e^{-γh/2} R(h) e^{-γh/2}-ish, enough to train on.
 PairSet toy_pairs(Index n, std::uint64_t seed) {
-  Rng rng(seed, "toy");
-  PairSet p;
-  p.z0 = rng.uniform_matrix(2, n, -1, 1);
-  p.h = rng.uniform_vector(n, 0.05, 0.15);
-  p.z1.resize(2, n);
-  for (Index j = 0; j < n; ++j) {
-    const double h = p.h(j), a = std::exp(-0.05 * h / 2);
-    const double q = p.z0(0, j), v = a * p.z0(1, j);
-    p.z1(0, j) = std::cos(h) * q + std::sin(h) * v;
-    p.z1(1, j) = a * (-std::sin(h) * q + std::cos(h) * v);
-  }
-  return p;
+  return testing::damped_rotation_pairs(n, seed, "toy");
 }
 
 std::unique_ptr<OneStepMap> tiny_model() {

@@ -53,12 +53,18 @@ class Cli : public ::testing::Test {
     return r;
   }
 
-  // Starts the CLI, sends `signal` after `delay` seconds, and waits for it.
-  Result run_and_signal(const std::string& args, const char* signal, double delay) {
+  // Starts the CLI in the background, waits until `ready` exists (the command has passed option
+  // parsing, so its signal handlers are installed) plus `delay` seconds, sends `signal`, and
+  // waits for it. A fixed delay from process start flaked on a loaded CI machine: the signal
+  // arrived before main() had installed the handlers and the default action killed the process.
+  Result run_and_signal(const std::string& args, const fs::path& ready, const char* signal,
+                        double delay) {
     const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
-    const std::string cmd = "timeout --preserve-status -s " + std::string(signal) + " " +
-                            std::to_string(delay) + " " + CSYMPNET_CLI_PATH + " " + args + " >" +
-                            out.string() + " 2>" + err.string() + " </dev/null";
+    const std::string cmd = std::string(CSYMPNET_CLI_PATH) + " " + args + " >" + out.string() +
+                            " 2>" + err.string() + " </dev/null & pid=$!; i=0; " +
+                            "while [ ! -e '" + ready.string() + "' ] && [ $i -lt 1200 ]; " +
+                            "do sleep 0.05; i=$((i+1)); done; sleep " + std::to_string(delay) +
+                            "; kill -" + signal + " $pid; wait $pid";
     const int status = std::system(cmd.c_str());
     Result r;
     r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
@@ -296,10 +302,10 @@ TEST_F(Cli, ReproduceRunsResumesAndMatchesAcrossRanks) {
 // SIGINT/SIGTERM: training stops at the next validation, the best checkpoint is evaluated and
 // saved, and the exit code is 128 + the signal; an interrupted reproduction resumes.
 TEST_F(Cli, InterruptSavesTheBestCheckpointAndExitsWithTheSignalCode) {
-  if (std::system("command -v timeout >/dev/null 2>&1") != 0) GTEST_SKIP() << "no timeout(1)";
   const fs::path out = dir_ / "run";
   Result r = run_and_signal(
-      "run --preset s2 --model csympnet --epochs 1000000 -q --out " + out.string(), "TERM", 1.5);
+      "run --preset s2 --model csympnet --epochs 1000000 -q --out " + out.string(), out, "TERM",
+      0.5);
   EXPECT_EQ(r.code, 143) << r.err;
   EXPECT_NE(r.err.find("interrupted by SIGTERM"), std::string::npos) << r.err;
   const auto report = nlohmann::json::parse(slurp(out / "report.json"));
@@ -314,7 +320,7 @@ TEST_F(Cli, InterruptSavesTheBestCheckpointAndExitsWithTheSignalCode) {
              "models": ["csympnet"], "seeds": [1, 2, 3], "epochs": {"*": {"*": 150000}}})";
   const std::string cmd = "reproduce --suites-dir " + suites.string() +
                           " --no-figures --suite slow --jobs 1 --out " + (dir_ / "rep").string();
-  r = run_and_signal(cmd, "INT", 1.5);
+  r = run_and_signal(cmd, dir_ / "rep", "INT", 0.5);
   EXPECT_EQ(r.code, 130) << r.err;
   EXPECT_NE(r.err.find("rerun the same command to resume"), std::string::npos) << r.err;
   std::size_t kept = 0;

@@ -91,16 +91,20 @@ void add_run(CLI::App& app) {
                   "Training recipe: default (cosine-annealed rate) or paper (constant rate)")
       ->check(CLI::IsMember({"default", "paper"}));
   cmd->add_option("--lr", args->lr, "AdamW learning rate (default: the recipe's)")
+      ->check(kFiniteNumber)
       ->check(CLI::Range(1e-12, 10.0));
   cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
       ->check(CLI::IsMember({"constant", "cosine"}));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
       ->check(CLI::Range(1L, 100000000L));
   cmd->add_option("--sigma", args->sigma, "Relative observation noise (default 0)")
+      ->check(kFiniteNumber)
       ->check(CLI::Range(0.0, 10.0));
   cmd->add_option("--reference", args->reference, "Reference solver for the data")
       ->check(CLI::IsMember({"splitting", "expm", "rk"}));
-  cmd->add_option("--beta-init", args->beta_init, "Initial beta of CSympNet-ID (nonzero)");
+  cmd->add_option("--beta-init", args->beta_init, "Initial beta of CSympNet-ID (nonzero)")
+      ->check(kFiniteNumber)
+      ->check(kNonZero);
   cmd->add_flag("--no-beta-decay", args->no_beta_decay,
                 "Exclude beta from weight decay (beyond the paper's recipe)");
   cmd->add_option("--refine", args->refine,
@@ -114,7 +118,8 @@ void add_run(CLI::App& app) {
                   "LM linear solver: dense_qr or dense_normal_cholesky (default: dense_qr)")
       ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky"}));
   cmd->add_option("--core", args->core,
-                  "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)");
+                  "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)")
+      ->check(kCoreSpec);
   cmd->add_flag("--warm-start", args->warm_start,
                 "CSympNet-ID: start beta at the closed-form estimate of gamma from the data");
   cmd->add_option("--out", args->out, "Output directory")->required();
@@ -149,8 +154,9 @@ void add_run(CLI::App& app) {
     const auto& rep = r.report;
     if (!args->quiet) print_run_summary(*args, r);
     if (rep["stop_reason"] == "diverged")
-      throw Error("training diverged (non-finite loss); the best checkpoint was kept in " +
-                  args->out);
+      throw Error("training diverged at epoch " + std::to_string(r.training.epochs_run + 1) +
+                  " (non-finite loss or gradient); the best checkpoint (epoch " +
+                  std::to_string(r.training.best_epoch) + ") was kept in " + args->out);
     if (interrupted())
       throw Interrupted("stopped at epoch " + std::to_string(r.training.epochs_run) +
                         "; the best checkpoint (epoch " + std::to_string(r.training.best_epoch) +

@@ -17,6 +17,7 @@
 #include "csympnet/train/loss.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
+#include "system_options.hpp"
 
 namespace csympnet::cli {
 
@@ -37,10 +38,12 @@ struct FitArgs {
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
       ->check(CLI::IsMember({"csympnet", "sympnet"}));
-  cmd.add_option("--core", a.core, "Symplectic core: la:L:m or g:L:w (default: by dimension)");
+  cmd.add_option("--core", a.core, "Symplectic core: la:L:m or g:L:w (default: by dimension)")
+      ->check(kCoreSpec);
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
       ->check(CLI::Range(1L, 100000000L));
   cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")
+      ->check(kFiniteNumber)
       ->check(CLI::Range(1e-12, 10.0));
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
       ->check(CLI::IsMember({"constant", "cosine"}));
@@ -51,8 +54,11 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(CLI::NonNegativeNumber);
   cmd.add_option("--val-fraction", a.val_fraction,
                  "Held-out share when no --val is given (default 0.2)")
+      ->check(kFiniteNumber)
       ->check(CLI::Range(0.01, 0.99));
-  cmd.add_option("--beta-init", a.beta_init, "Initial beta of CSympNet-ID (nonzero)");
+  cmd.add_option("--beta-init", a.beta_init, "Initial beta of CSympNet-ID (nonzero)")
+      ->check(kFiniteNumber)
+      ->check(kNonZero);
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
   cmd.add_flag("--warm-start", a.warm_start,
                "Start beta at the closed-form estimate of gamma from the data");
@@ -181,7 +187,9 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
         quality.structure_residual_mean, quality.structure_residual_max, a.out.c_str());
   }
   if (r.training.stop_reason == "diverged")
-    throw Error("training diverged (non-finite loss); the best checkpoint was kept in " + a.out);
+    throw Error("training diverged at epoch " + std::to_string(r.training.epochs_run + 1) +
+                " (non-finite loss or gradient); the best checkpoint (epoch " +
+                std::to_string(r.training.best_epoch) + ") was kept in " + a.out);
   if (interrupted())
     throw Interrupted("stopped at epoch " + std::to_string(r.training.epochs_run) +
                       "; the best checkpoint (epoch " + std::to_string(r.training.best_epoch) +

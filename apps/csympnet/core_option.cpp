@@ -29,4 +29,17 @@ nlohmann::json parse_core(const std::string& s) {
   throw Error("--core '" + s + "': unknown core type '" + type + "'; " + expected);
 }
 
+const CLI::Validator kCoreSpec(
+    [](std::string& input) {
+      try {
+        parse_core(input);
+      } catch (const Error& e) {
+        // parse_core says "--core 'S': ..."; CLI11 prefixes the option name itself.
+        const std::string what = e.what(), prefix = "--core ";
+        return what.rfind(prefix, 0) == 0 ? what.substr(prefix.size()) : what;
+      }
+      return std::string();
+    },
+    "la:L:m|g:L:w");
+
 }  // namespace csympnet::cli

@@ -3,6 +3,7 @@
 
 #include <string>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 namespace csympnet::cli {
@@ -10,5 +11,9 @@ namespace csympnet::cli {
 // {"type": "la", "layers": L, "sublayers": m} or {"type": "g", "layers": L, "width": w};
 // throws Error naming --core and the expected form.
 nlohmann::json parse_core(const std::string& s);
+
+// The same check as a CLI11 validator, so a bad --core is refused while parsing the options,
+// before the output directory exists.
+extern const CLI::Validator kCoreSpec;
 
 }  // namespace csympnet::cli

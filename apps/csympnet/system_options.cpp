@@ -13,6 +13,15 @@ const CLI::Validator kFiniteNumber(
     },
     "FINITE");
 
+const CLI::Validator kNonZero(
+    [](std::string& input) {
+      double v = 0;
+      if (!CLI::detail::lexical_cast(input, v)) return "'" + input + "' is not a number";
+      if (v == 0.0) return std::string("must be nonzero");
+      return std::string();
+    },
+    "NONZERO");
+
 void SystemOverrides::add_to(CLI::App& cmd) {
   cmd.add_option("--d", d, "Degrees of freedom (overrides the preset)")
       ->check(CLI::Range(1, 100000));

@@ -13,6 +13,9 @@ namespace csympnet::cli {
 // Accepts only finite numbers. CLI11's Range and PositiveNumber let NaN through (every
 // comparison with NaN is false), so numeric options take this check first.
 extern const CLI::Validator kFiniteNumber;
+// Refuses exactly zero (with kFiniteNumber first): CSympNet-ID's beta starts away from 0, where
+// |beta| has no derivative.
+extern const CLI::Validator kNonZero;
 
 struct SystemOverrides {
   std::optional<int> d;

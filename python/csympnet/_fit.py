@@ -56,8 +56,10 @@ def _progress(progress):
 
 def _warn_if_diverged(model):
     if model.training and model.training.get("stop_reason") == "diverged":
+        t = model.training
         warnings.warn(
-            "training diverged (non-finite loss); the model holds the best checkpoint before it",
+            f"training diverged at epoch {t.get('epochs_run', 0) + 1} (non-finite loss or "
+            f"gradient); the model holds the best checkpoint, from epoch {t.get('best_epoch')}",
             RuntimeWarning, stacklevel=3,
         )
 

@@ -29,11 +29,8 @@ class OptionRanges : public CliTest {
     EXPECT_NE(r.err.find(c.fragment), std::string::npos);
     EXPECT_EQ(r.err.find("internal error"), std::string::npos);
     EXPECT_TRUE(r.out.empty()) << r.out;
-    // Refused before any work: nothing was written. (run, fit and train check --beta-init
-    // and --core only after creating the output directory, which then stays empty.)
-    if (std::filesystem::exists(dir_ / "o")) {
-      EXPECT_TRUE(std::filesystem::is_empty(dir_ / "o")) << "an output was written";
-    }
+    // Refused before any work: not even the output directory was created.
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "o")) << "the output directory was created";
   }
   std::string out() const { return " --out " + (dir_ / "o").string(); }
 };
@@ -128,10 +125,8 @@ TEST_F(OptionRanges, Reproduce) {
     expect_refused(base, c);
 }
 
-// run, train and fit: their option declarations live in cmd_run.cpp and cmd_train.cpp. Not
-// checked there yet (docs/hardening.md): `run --epochs 0` is accepted; --lr, --sigma and
-// --val-fraction NaN are refused by the library (exit 1, naming the setting) rather than while
-// parsing.
+// run, train and fit: their option declarations live in cmd_run.cpp and cmd_train.cpp.
+// `run --epochs 0` is accepted on purpose (it evaluates the initial parameters).
 TEST_F(OptionRanges, RunTrainAndFit) {
   const std::string data = (dir_ / "data.csv").string();
   ASSERT_EQ(run("generate --preset s1 --n 20 --out " + data).code, 0);
@@ -140,11 +135,17 @@ TEST_F(OptionRanges, RunTrainAndFit) {
       {"--lr 0", "--lr", 2},
       {"--lr -1e-3", "--lr", 2},
       {"--lr 100", "--lr", 2},
-      {"--lr nan", "lr must be a finite number > 0", 1},
+      {"--lr nan", "--lr", 2},
+      {"--lr inf", "--lr", 2},
       {"--lr-schedule x", "--lr-schedule", 2},
       {"--val-every 0", "--val-every", 2},
-      {"--beta-init 0", "beta", 1},
-      {"--beta-init nan", "beta", 1},
+      {"--beta-init 0", "--beta-init", 2},
+      {"--beta-init -0.0", "--beta-init", 2},
+      {"--beta-init nan", "--beta-init", 2},
+      {"--beta-init x", "--beta-init", 2},
+      {"--core la:0:3", "--core", 2},
+      {"--core xx:1:1", "--core", 2},
+      {"--core g:3", "--core", 2},
       {"--model nosuch", "--model", 2},
       {"--seed x", "--seed", 2},
       {"--seed -1", "--seed", 2},
@@ -152,7 +153,7 @@ TEST_F(OptionRanges, RunTrainAndFit) {
   std::vector<BadOption> run_cases = common;
   run_cases.push_back({"--epochs x", "--epochs", 2});
   run_cases.push_back({"--sigma -1", "--sigma", 2});
-  run_cases.push_back({"--sigma nan", "--sigma must be a finite number", 1});
+  run_cases.push_back({"--sigma nan", "--sigma", 2});
   run_cases.push_back({"--recipe x", "--recipe", 2});
   run_cases.push_back({"--reference euler", "--reference", 2});
   for (const BadOption& c : kSystem) run_cases.push_back(c);
@@ -162,9 +163,7 @@ TEST_F(OptionRanges, RunTrainAndFit) {
   fit_cases.push_back({"--epochs 0", "--epochs", 2});
   fit_cases.push_back({"--val-fraction 0", "--val-fraction", 2});
   fit_cases.push_back({"--val-fraction 1", "--val-fraction", 2});
-  fit_cases.push_back({"--val-fraction nan", "--val-fraction", 1});
-  fit_cases.push_back({"--core la:0:3", "--core", 1});
-  fit_cases.push_back({"--core xx:1:1", "--core", 1});
+  fit_cases.push_back({"--val-fraction nan", "--val-fraction", 2});
   fit_cases.push_back({"--val " + (dir_ / "none.csv").string(), "--val", 2});
   for (const BadOption& c : fit_cases) {
     expect_refused("fit " + data + " -q" + out(), c);

@@ -303,9 +303,9 @@ TEST_F(Cli, ReproduceRunsResumesAndMatchesAcrossRanks) {
 // saved, and the exit code is 128 + the signal; an interrupted reproduction resumes.
 TEST_F(Cli, InterruptSavesTheBestCheckpointAndExitsWithTheSignalCode) {
   const fs::path out = dir_ / "run";
-  Result r = run_and_signal(
-      "run --preset s2 --model csympnet --epochs 1000000 -q --out " + out.string(), out, "TERM",
-      0.5);
+  Result r =
+      run_and_signal("run --preset s2 --model csympnet --epochs 1000000 -q --out " + out.string(),
+                     out, "TERM", 0.5);
   EXPECT_EQ(r.code, 143) << r.err;
   EXPECT_NE(r.err.find("interrupted by SIGTERM"), std::string::npos) << r.err;
   const auto report = nlohmann::json::parse(slurp(out / "report.json"));

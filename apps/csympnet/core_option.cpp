@@ -6,17 +6,21 @@
 
 namespace csympnet::cli {
 
-// "la:L:m" or "g:L:w".
+// "la:L:m", "la:L:m:h2" (LA with step polynomials) or "g:L:w".
 nlohmann::json parse_core(const std::string& s) {
-  const std::string expected = "expected la:LAYERS:SUBLAYERS or g:LAYERS:WIDTH, e.g. la:5:20";
+  const std::string expected =
+      "expected la:LAYERS:SUBLAYERS[:h2] or g:LAYERS:WIDTH, e.g. la:5:20 or la:5:20:h2";
   const auto c1 = s.find(':');
   const auto c2 = c1 == std::string::npos ? c1 : s.find(':', c1 + 1);
   if (c2 == std::string::npos) throw Error("--core '" + s + "': " + expected);
+  const auto c3 = s.find(':', c2 + 1);
   const std::string type = s.substr(0, c1);
+  const std::string suffix = c3 == std::string::npos ? "" : s.substr(c3 + 1);
   int a = 0, b = 0;
   try {
     std::size_t pa = 0, pb = 0;
-    const std::string sa = s.substr(c1 + 1, c2 - c1 - 1), sb = s.substr(c2 + 1);
+    const std::string sa = s.substr(c1 + 1, c2 - c1 - 1);
+    const std::string sb = s.substr(c2 + 1, c3 == std::string::npos ? c3 : c3 - c2 - 1);
     a = std::stoi(sa, &pa);
     b = std::stoi(sb, &pb);
     if (pa != sa.size() || pb != sb.size()) throw std::invalid_argument("trailing text");
@@ -24,7 +28,13 @@ nlohmann::json parse_core(const std::string& s) {
     throw Error("--core '" + s + "': " + expected);
   }
   if (a < 1 || b < 1) throw Error("--core '" + s + "': sizes must be >= 1");
-  if (type == "la") return {{"type", "la"}, {"layers", a}, {"sublayers", b}};
+  if (c3 != std::string::npos && (type != "la" || suffix != "h2"))
+    throw Error("--core '" + s + "': the only suffix is ':h2', on la cores; " + expected);
+  if (type == "la") {
+    nlohmann::json core = {{"type", "la"}, {"layers", a}, {"sublayers", b}};
+    if (suffix == "h2") core["step_terms"] = 2;
+    return core;
+  }
   if (type == "g") return {{"type", "g"}, {"layers", a}, {"width", b}};
   throw Error("--core '" + s + "': unknown core type '" + type + "'; " + expected);
 }
@@ -40,6 +50,6 @@ const CLI::Validator kCoreSpec(
       }
       return std::string();
     },
-    "la:L:m|g:L:w");
+    "la:L:m[:h2]|g:L:w");
 
 }  // namespace csympnet::cli

@@ -8,7 +8,8 @@
 
 namespace csympnet::cli {
 
-// {"type": "la", "layers": L, "sublayers": m} or {"type": "g", "layers": L, "width": w};
+// {"type": "la", "layers": L, "sublayers": m} (plus "step_terms": 2 for "la:L:m:h2") or
+// {"type": "g", "layers": L, "width": w};
 // throws Error naming --core and the expected form.
 nlohmann::json parse_core(const std::string& s);
 

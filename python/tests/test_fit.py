@@ -53,6 +53,13 @@ def test_options_change_the_fit(s1_pairs):
         "type": "g", "layers": 2, "width": 4}
     assert csympnet.fit(*s1_pairs, epochs=10, core={"type": "la", "layers": 2, "sublayers": 3}
                         ).n_params == csympnet.fit(*s1_pairs, epochs=10, core="la:2:3").n_params
+    # Step polynomials: one coefficient per linear sublayer (2 x 3) and activation module (1).
+    poly = csympnet.fit(*s1_pairs, epochs=10, core="la:2:3:h2")
+    assert poly.hyperparams["core"]["step_terms"] == 2
+    assert poly.n_params == csympnet.fit(*s1_pairs, epochs=10, core="la:2:3").n_params + 7
+    for bad in ("g:2:4:h2", "la:2:3:h3"):
+        with pytest.raises(ValueError, match="h2"):
+            csympnet.fit(*s1_pairs, epochs=10, core=bad)
 
 
 def test_explicit_validation_set(s1_pairs):

@@ -54,15 +54,33 @@ void sequential_dot4(const double* const x[4], const double* const y[4], Index n
 
 }  // namespace
 
-LaSympNet::LaSympNet(Index d, Index layers, Index sublayers)
-    : SymplecticCore(d), layers_(layers), sublayers_(sublayers) {
+LaSympNet::LaSympNet(Index d, Index layers, Index sublayers, Index step_terms)
+    : SymplecticCore(d), layers_(layers), sublayers_(sublayers), step_terms_(step_terms) {
   require(layers >= 1, "la core: layers = " + std::to_string(layers) + ", expected >= 1");
   require(sublayers >= 1, "la core: sublayers = " + std::to_string(sublayers) + ", expected >= 1");
+  require(step_terms == 1 || step_terms == 2,
+          "la core: step_terms = " + std::to_string(step_terms) + ", expected 1 or 2");
+}
+
+Index LaSympNet::n_layer_params() const {
+  const Index dd = d();
+  return layers_ * (sublayers_ * dd * dd + 2 * dd) + (layers_ - 1) * dd;
 }
 
 Index LaSympNet::n_params() const {
-  const Index dd = d();
-  return layers_ * (sublayers_ * dd * dd + 2 * dd) + (layers_ - 1) * dd;
+  return n_layer_params() + (step_terms_ == 2 ? layers_ * sublayers_ + layers_ - 1 : 0);
+}
+
+const Vector& LaSympNet::unit_step(ConstParams theta, Index coef, const Vector& h,
+                                   Vector& buf) const {
+  if (step_terms_ == 1) return h;
+  const double c = theta(coef);
+  buf = h.array() * (1.0 + c * h.array());
+  return buf;
+}
+
+double LaSympNet::unit_step(ConstParams theta, Index coef, double h) const {
+  return step_terms_ == 1 ? h : h * (1.0 + theta(coef) * h);
 }
 
 void LaSympNet::init_params(Rng& rng, ParamsRef theta) const {
@@ -78,10 +96,13 @@ void LaSympNet::init_params(Rng& rng, ParamsRef theta) const {
       for (Index i = 0; i < dd; ++i) theta(off++) = kInitStddev * rng.normal();
     }
   }
+  theta.tail(n_params() - n_layer_params()).setZero();  // step coefficients: τ = h
 }
 
 nlohmann::json LaSympNet::core_spec() const {
-  return {{"type", "la"}, {"layers", layers_}, {"sublayers", sublayers_}};
+  nlohmann::json spec = {{"type", "la"}, {"layers", layers_}, {"sublayers", sublayers_}};
+  if (step_terms_ != 1) spec["step_terms"] = step_terms_;  // absent: the paper's core
+  return spec;
 }
 
 std::size_t LaSympNet::cache_slots() const {
@@ -96,10 +117,10 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
     return;
   }
   const Index dd = d();
-  const auto hrow = h.transpose().array();
   Matrix s(dd, dd);
   Matrix inc(dd, q.cols());
   Matrix sig_local;
+  Vector tau_buf;
   std::size_t slot = slot0;
   if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
   for (Index k = 0; k < layers_; ++k) {
@@ -110,7 +131,8 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
       Matrix& dst = kick ? p : q;
       if (cache != nullptr) cache->mats[slot++] = src;
       symmetric_from(theta, off, dd, s);
-      detail::core_product_add_scaled(s, src, h, dst, inc);  // kick p += h S q / drift q += h S p
+      const Vector& tau = unit_step(theta, shear_coef(k, i), h, tau_buf);
+      detail::core_product_add_scaled(s, src, tau, dst, inc);  // kick p += h S q / drift q += h S p
     }
     p.noalias() += theta.segment(off, dd) * h.transpose();
     q.noalias() += theta.segment(off + dd, dd) * h.transpose();
@@ -121,7 +143,8 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
       Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
       sigmoid_into(src, sig);
       const auto a = theta.segment(off + 2 * dd, dd).array();
-      dst.array() += (sig.array().colwise() * a).rowwise() * hrow;  // kick p += h a ⊙ σ(q)
+      const auto trow = unit_step(theta, act_coef(k), h, tau_buf).transpose().array();
+      dst.array() += (sig.array().colwise() * a).rowwise() * trow;  // kick p += h a ⊙ σ(q)
     }
   }
 }
@@ -133,11 +156,13 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
     return;
   }
   const Index dd = d();
-  const auto hrow = h.transpose().array();
   Matrix s(dd, dd);
   Matrix gh(dd, gq.cols());  // upstream gradient of the updated variable, times h per column
   Matrix sg(dd, gq.cols());
   Matrix outer(dd, dd);
+  Vector tau_buf;
+  const bool poly = step_terms_ == 2;
+  const Vector h2 = poly ? Vector(h.array().square()) : Vector();
   std::size_t slot = slot0 + cache_slots();
   for (Index k = layers_ - 1; k >= 0; --k) {
     const Index base = module_offset(k);
@@ -149,7 +174,12 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
       const Matrix& gdst = kick ? gp : gq;
       const Matrix& sig = cache.mats[--slot];
       const auto a = theta.segment(bias + 2 * dd, dd).array();
-      gh = (gdst.array().rowwise() * hrow).matrix();
+      // With step polynomials, dτ_j/dc = h_j²:  dc = Σ_j h_j² g_dst,j · (a ⊙ σ_j).
+      if (poly)
+        grad(act_coef(k)) +=
+            ((gdst.array() * sig.array()).colwise() * a).colwise().sum().matrix().dot(h2);
+      gh = (gdst.array().rowwise() * unit_step(theta, act_coef(k), h, tau_buf).transpose().array())
+               .matrix();
       grad.segment(bias + 2 * dd, dd).array() += (gh.array() * sig.array()).rowwise().sum();
       gsrc.array() += (gh.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
     }
@@ -163,11 +193,17 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
       const Matrix& gdst = kick ? gp : gq;
       const Matrix& src = cache.mats[--slot];
       const Index off = base + i * dd * dd;
-      gh = (gdst.array().rowwise() * hrow).matrix();
+      symmetric_from(theta, off, dd, s);
+      // dc = Σ_j h_j² g_dst,j · (S src_j).
+      if (poly)
+        grad(shear_coef(k, i)) +=
+            (gdst.array() * (s * src).array()).colwise().sum().matrix().dot(h2);
+      gh = (gdst.array().rowwise() *
+            unit_step(theta, shear_coef(k, i), h, tau_buf).transpose().array())
+               .matrix();
       detail::core_product(gh, src.transpose(), outer);
       MatrixMap ga(grad.data() + off, dd, dd);
       ga += outer + outer.transpose();
-      symmetric_from(theta, off, dd, s);
       detail::core_product_add(s, gh, gsrc, sg);
     }
   }
@@ -183,6 +219,7 @@ void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vecto
   std::size_t slot = slot0;
   if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
   Matrix sig_local;
+  Vector tau_buf;
   for (Index k = 0; k < layers_; ++k) {
     Index off = module_offset(k);
     for (Index i = 0; i < sublayers_; ++i, ++off) {
@@ -191,8 +228,10 @@ void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vecto
       Matrix& dst = kick ? p : q;
       if (cache != nullptr) cache->mats[slot++] = src;
       const double s = theta(off) + theta(off);
+      const auto trow =
+          ConstRowMap(unit_step(theta, shear_coef(k, i), h, tau_buf).data(), n).array();
       // kick p += h S q / drift q += h S p
-      RowMap(dst.data(), n).array() += (s * ConstRowMap(src.data(), n).array()) * hrow;
+      RowMap(dst.data(), n).array() += (s * ConstRowMap(src.data(), n).array()) * trow;
     }
     RowMap(p.data(), n).array() += hrow * theta(off);
     RowMap(q.data(), n).array() += hrow * theta(off + 1);
@@ -203,8 +242,9 @@ void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vecto
       Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
       sigmoid_into(src, sig);
       const double a = theta(off + 2);
+      const auto trow = ConstRowMap(unit_step(theta, act_coef(k), h, tau_buf).data(), n).array();
       // kick p += h a σ(q)
-      RowMap(dst.data(), n).array() += (ConstRowMap(sig.data(), n).array() * a) * hrow;
+      RowMap(dst.data(), n).array() += (ConstRowMap(sig.data(), n).array() * a) * trow;
     }
   }
 }
@@ -213,8 +253,10 @@ void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cach
                                      std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
                                      ParamsRef grad) const {
   const Index n = gq.cols();
-  const auto hrow = ConstRowMap(h.data(), n).array();
   const Index n_shears = layers_ * sublayers_;
+  Vector tau_buf;
+  const bool poly = step_terms_ == 2;
+  const Vector h2 = poly ? Vector(h.array().square()) : Vector();
   // The shear gradients ∂A = 2 Σ_j (g_dst,j h_j) src_j feed nothing else in the sweep, so the
   // sweep only records g_dst h per shear (column `t` of gh) and the sums run at the end, four
   // at a time.
@@ -232,8 +274,14 @@ void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cach
       const Matrix& gdst = kick ? gp : gq;
       const Matrix& sig = cache.mats[--slot];
       const double a = theta(bias + 2);
+      if (poly) {
+        const auto gd = ConstRowMap(gdst.data(), n).array();
+        grad(act_coef(k)) +=
+            a * (gd * ConstRowMap(sig.data(), n).array() * ConstRowMap(h2.data(), n).array()).sum();
+      }
       RowMap g(gh.col(n_shears).data(), n);
-      g.array() = ConstRowMap(gdst.data(), n).array() * hrow;
+      g.array() = ConstRowMap(gdst.data(), n).array() *
+                  ConstRowMap(unit_step(theta, act_coef(k), h, tau_buf).data(), n).array();
       grad(bias + 2) += sequential_dot(g.data(), sig.data(), n);
       const auto s = ConstRowMap(sig.data(), n).array();
       RowMap(gsrc.data(), n).array() += ((g.array() * s) * (1.0 - s)) * a;
@@ -247,9 +295,17 @@ void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cach
       --t;
       shear_src[static_cast<std::size_t>(t)] = cache.mats[--slot].data();
       shear_off[static_cast<std::size_t>(t)] = base + i;
-      RowMap g(gh.col(t).data(), n);
-      g.array() = ConstRowMap(gdst.data(), n).array() * hrow;
       const double s = theta(base + i) + theta(base + i);
+      if (poly) {
+        const auto gd = ConstRowMap(gdst.data(), n).array();
+        grad(shear_coef(k, i)) +=
+            s * (gd * ConstRowMap(shear_src[static_cast<std::size_t>(t)], n).array() *
+                 ConstRowMap(h2.data(), n).array())
+                    .sum();
+      }
+      RowMap g(gh.col(t).data(), n);
+      g.array() = ConstRowMap(gdst.data(), n).array() *
+                  ConstRowMap(unit_step(theta, shear_coef(k, i), h, tau_buf).data(), n).array();
       RowMap(gsrc.data(), n).array() += s * g.array();
     }
   }
@@ -280,12 +336,13 @@ void LaSympNet::flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq
     Index off = module_offset(k);
     for (Index i = 0; i < sublayers_; ++i, off += dd * dd) {
       symmetric_from(theta, off, dd, s);
+      const double tau = unit_step(theta, shear_coef(k, i), h);
       if (i % 2 == 0) {
-        p.noalias() += h * (s * q);
-        tp.noalias() += h * (s * tq);
+        p.noalias() += tau * (s * q);
+        tp.noalias() += tau * (s * tq);
       } else {
-        q.noalias() += h * (s * p);
-        tq.noalias() += h * (s * tp);
+        q.noalias() += tau * (s * p);
+        tq.noalias() += tau * (s * tp);
       }
     }
     p += h * theta.segment(off, dd);
@@ -298,10 +355,11 @@ void LaSympNet::flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq
       const Matrix& tsrc = kick ? tq : tp;
       Matrix& tdst = kick ? tp : tq;
       const auto a = theta.segment(off + 2 * dd, dd).array();
+      const double tau = unit_step(theta, act_coef(k), h);
       const Vector sig = src.unaryExpr([](double v) { return sigmoid(v); });
-      const Vector slope = h * a * sig.array() * (1.0 - sig.array());
+      const Vector slope = tau * a * sig.array() * (1.0 - sig.array());
       tdst += slope.asDiagonal() * tsrc;
-      dst.array() += h * a * sig.array();
+      dst.array() += tau * a * sig.array();
     }
   }
 }

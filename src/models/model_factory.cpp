@@ -43,9 +43,12 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
                             " disagrees with the model's d = " + std::to_string(d));
   }
   if (type == "la") {
-    reject_unknown_keys(spec, where, {"type", "d", "layers", "sublayers"});
+    reject_unknown_keys(spec, where, {"type", "d", "layers", "sublayers", "step_terms"});
+    const Index step_terms = spec.contains("step_terms") ? get_count(spec, "step_terms", where) : 1;
+    require(step_terms == 1 || step_terms == 2,
+            where + ": key 'step_terms' = " + std::to_string(step_terms) + ", expected 1 or 2");
     return std::make_unique<LaSympNet>(d, get_count(spec, "layers", where),
-                                       get_count(spec, "sublayers", where));
+                                       get_count(spec, "sublayers", where), step_terms);
   }
   if (type == "g") {
     reject_unknown_keys(spec, where, {"type", "d", "layers", "width"});

@@ -146,6 +146,8 @@ TEST_F(OptionRanges, RunTrainAndFit) {
       {"--core la:0:3", "--core", 2},
       {"--core xx:1:1", "--core", 2},
       {"--core g:3", "--core", 2},
+      {"--core g:3:4:h2", "--core", 2},
+      {"--core la:3:4:h3", "--core", 2},
       {"--model nosuch", "--model", 2},
       {"--seed x", "--seed", 2},
       {"--seed -1", "--seed", 2},

@@ -63,16 +63,20 @@ TEST_P(ModelGradientTest, JacobianEqualsRowsFromBackward) {
 
 INSTANTIATE_TEST_SUITE_P(
     Cores, ModelGradientTest,
-    ::testing::Values(GradientCase{R"({"type":"la","d":1,"layers":1,"sublayers":1})", 0.5, 0.0},
-                      GradientCase{R"({"type":"la","d":1,"layers":3,"sublayers":4})", 0.3, 0.0},
-                      GradientCase{R"({"type":"la","d":1,"layers":5,"sublayers":20})", 0.3, 0.0},
-                      GradientCase{R"({"type":"la","d":3,"layers":2,"sublayers":3})", 0.3, 0.0},
-                      GradientCase{R"({"type":"la","d":3,"layers":4,"sublayers":2})", 0.3, 0.0},
-                      GradientCase{R"({"type":"la","d":10,"layers":2,"sublayers":2})", 0.2, 0.0},
-                      GradientCase{R"({"type":"g","d":1,"layers":2,"width":5})", 0.5, 0.0},
-                      GradientCase{R"({"type":"g","d":3,"layers":3,"width":4})", 0.5, 0.0},
-                      GradientCase{R"({"type":"g","d":2,"layers":4,"width":7})", 0.4, 0.0},
-                      GradientCase{R"({"type":"g","d":10,"layers":2,"width":8})", 0.3, 0.0}));
+    ::testing::Values(
+        GradientCase{R"({"type":"la","d":1,"layers":1,"sublayers":1})", 0.5, 0.0},
+        GradientCase{R"({"type":"la","d":1,"layers":3,"sublayers":4})", 0.3, 0.0},
+        GradientCase{R"({"type":"la","d":1,"layers":5,"sublayers":20})", 0.3, 0.0},
+        GradientCase{R"({"type":"la","d":3,"layers":2,"sublayers":3})", 0.3, 0.0},
+        GradientCase{R"({"type":"la","d":3,"layers":4,"sublayers":2})", 0.3, 0.0},
+        GradientCase{R"({"type":"la","d":10,"layers":2,"sublayers":2})", 0.2, 0.0},
+        // Step polynomials: the coefficients c are drawn like every entry.
+        GradientCase{R"({"type":"la","d":1,"layers":3,"sublayers":4,"step_terms":2})", 0.5, 0.0},
+        GradientCase{R"({"type":"la","d":3,"layers":3,"sublayers":3,"step_terms":2})", 0.5, 0.0},
+        GradientCase{R"({"type":"g","d":1,"layers":2,"width":5})", 0.5, 0.0},
+        GradientCase{R"({"type":"g","d":3,"layers":3,"width":4})", 0.5, 0.0},
+        GradientCase{R"({"type":"g","d":2,"layers":4,"width":7})", 0.4, 0.0},
+        GradientCase{R"({"type":"g","d":10,"layers":2,"width":8})", 0.3, 0.0}));
 
 INSTANTIATE_TEST_SUITE_P(
     Wrappers, ModelGradientTest,
@@ -89,6 +93,12 @@ INSTANTIATE_TEST_SUITE_P(
                      0.3, -1.3},
         GradientCase{R"({"type":"csympnet","d":1,"core":{"type":"g","layers":3,"width":5}})", 0.5,
                      -0.8},
+        GradientCase{
+            R"({"type":"csympnet","d":1,"core":{"type":"la","layers":5,"sublayers":20,"step_terms":2}})",
+            0.3, 0.6},
+        GradientCase{
+            R"({"type":"csympnet","d":2,"core":{"type":"la","layers":3,"sublayers":2,"step_terms":2}})",
+            0.4, -0.9},
         GradientCase{R"({"type":"csympnet","d":3,"core":{"type":"g","layers":4,"width":6}})", 0.4,
                      1.5}));
 

@@ -108,12 +108,15 @@ TEST_P(StructureTest, ScalingConjugacyRecoversTheCore) {
 
 INSTANTIATE_TEST_SUITE_P(
     Cores, StructureTest,
-    ::testing::Values(StructureCase{R"({"type":"la","layers":5,"sublayers":20})", 1, 0.5},
-                      StructureCase{R"({"type":"la","layers":3,"sublayers":4})", 3, 0.7},
-                      StructureCase{R"({"type":"la","layers":4,"sublayers":10})", 10, 0.3},
-                      StructureCase{R"({"type":"g","layers":4,"width":10})", 1, 1.5},
-                      StructureCase{R"({"type":"g","layers":5,"width":8})", 3, 1.8},
-                      StructureCase{R"({"type":"g","layers":7,"width":50})", 10, 1.0}));
+    ::testing::Values(
+        StructureCase{R"({"type":"la","layers":5,"sublayers":20})", 1, 0.5},
+        StructureCase{R"({"type":"la","layers":3,"sublayers":4})", 3, 0.7},
+        StructureCase{R"({"type":"la","layers":4,"sublayers":10})", 10, 0.3},
+        StructureCase{R"({"type":"la","layers":5,"sublayers":20,"step_terms":2})", 1, 0.5},
+        StructureCase{R"({"type":"la","layers":3,"sublayers":4,"step_terms":2})", 3, 0.7},
+        StructureCase{R"({"type":"g","layers":4,"width":10})", 1, 1.5},
+        StructureCase{R"({"type":"g","layers":5,"width":8})", 3, 1.8},
+        StructureCase{R"({"type":"g","layers":7,"width":50})", 10, 1.0}));
 
 }  // namespace
 }  // namespace csympnet::testing

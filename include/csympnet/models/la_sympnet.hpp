@@ -12,6 +12,15 @@
 //
 // init_params walks θ in that order and draws one rng.normal() per A or a entry (scaled by
 // kInitStddev = 0.01); biases are set to 0 without consuming draws.
+//
+// Step polynomials (step_terms = 2, beyond Jin et al.): every linear sublayer and activation
+// module gets its own coefficient c and scales its increment by τ = h (1 + c h) instead of h.
+// Each update stays a shear, so Ψ is symplectic at every h. Why (docs/identification.md, "An
+// h-dependent core"): with increments linear in h, the qp-part of log Ψ_h is even in h, while
+// the exact Ψ_h of a damped system has it at h³, a misfit no width or depth removes. The
+// coefficients follow the other parameters in θ, linear sublayers first (module-major), then
+// the activation modules: L m + L − 1 more parameters, initialised to 0 without consuming
+// draws (τ = h exactly, so the map at initialisation is the step_terms = 1 map).
 #pragma once
 
 #include "csympnet/models/symplectic_core.hpp"
@@ -22,8 +31,8 @@ class LaSympNet final : public SymplecticCore {
  public:
   static constexpr double kInitStddev = 0.01;
 
-  // Throws Error unless d, layers, sublayers >= 1.
-  LaSympNet(Index d, Index layers, Index sublayers);
+  // Throws Error unless d, layers, sublayers >= 1 and step_terms is 1 or 2.
+  LaSympNet(Index d, Index layers, Index sublayers, Index step_terms = 1);
 
   std::string type() const override { return "la"; }
   Index n_params() const override;
@@ -40,6 +49,7 @@ class LaSympNet final : public SymplecticCore {
 
   Index layers() const { return layers_; }
   Index sublayers() const { return sublayers_; }
+  Index step_terms() const { return step_terms_; }
 
  private:
   // flow() and flow_backward() for d = 1 (src/models/la_sympnet.cpp).
@@ -50,9 +60,19 @@ class LaSympNet final : public SymplecticCore {
 
   // Offset of linear module k in θ (each module but the last is followed by its activation).
   Index module_offset(Index k) const { return k * (sublayers_ * d() * d() + 3 * d()); }
+  // θ entries of the step coefficients (step_terms = 2 only): linear sublayer i of module k,
+  // and the activation module after linear module k.
+  Index shear_coef(Index k, Index i) const { return n_layer_params() + k * sublayers_ + i; }
+  Index act_coef(Index k) const { return n_layer_params() + layers_ * sublayers_ + k; }
+  Index n_layer_params() const;
+  // The step a unit with coefficient at θ(coef) scales its increment by: h itself when
+  // step_terms = 1, else τ = h ⊙ (1 + c h), written to buf.
+  const Vector& unit_step(ConstParams theta, Index coef, const Vector& h, Vector& buf) const;
+  double unit_step(ConstParams theta, Index coef, double h) const;
 
   Index layers_;
   Index sublayers_;
+  Index step_terms_;
 };
 
 }  // namespace csympnet

@@ -71,7 +71,9 @@ def _warn_if_diverged(model):
 
 def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None, seed=42,
         val_fraction=0.2, beta_init=0.1, beta_decay=True, lr=1e-3, lr_schedule="cosine",
-        lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, progress=None, meta=None):
+        lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=False,
+        refine="none", refine_iterations=None, refine_solver=None, bootstrap=0, progress=None,
+        meta=None, _groups=None):
     """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs: what `csympnet fit` does, with the
     same defaults, so the same pairs and options give the same parameters to the bit.
 
@@ -86,6 +88,15 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     beta_init: initial β (γ̂ = |β|), nonzero. beta_decay: apply weight decay to β too.
     lr, lr_schedule ("cosine" or "constant"), lr_final_fraction, weight_decay, val_every:
         the optimiser (docs/training.md).
+    warm_start: start β at the closed-form estimate of γ from the data (csympnet only).
+    refine: second stage after AdamW: "none" (the paper's recipe), "lm"
+        (Levenberg–Marquardt), "lbfgs", or "auto" (lm, or lbfgs for large models);
+        refine_iterations (default 300), refine_solver ("dense_qr" or
+        "dense_normal_cholesky") tune it.
+    bootstrap: replicates of a percentile bootstrap for `model.gamma_interval` (0: none;
+        at least 10 otherwise). From `fit_trajectories` it resamples whole trajectories.
+    The recommended identification recipe is warm_start=True, refine="auto", bootstrap=100,
+    with core="la:5:20:h2" when the steps vary (docs/identification.md).
     progress: optional callable, called after each validation with a dict (epoch, epochs,
         train_loss, val_loss, best_val_loss, gamma, seconds); returning False stops training.
     meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
@@ -125,12 +136,23 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction, positive=True)
     weight_decay = _checks.real("weight_decay", weight_decay, nonnegative=True)
     val_every = _checks.integer("val_every", val_every, minimum=1)
+    if not isinstance(warm_start, (bool, np.bool_)):
+        raise TypeError(f"warm_start: expected True or False, got {type(warm_start).__name__}")
+    _checks.choice("refine", refine, ("none", "lm", "lbfgs", "auto"))
+    if refine_iterations is not None:
+        refine_iterations = _checks.integer("refine_iterations", refine_iterations, minimum=1)
+    if refine_solver is not None:
+        _checks.choice("refine_solver", refine_solver, ("dense_qr", "dense_normal_cholesky"))
+    bootstrap = _checks.integer("bootstrap", bootstrap, minimum=0)
+    groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):
         raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")
 
     m = Model(_core.fit_pairs(a0, a1, hs, val, model, _core_spec(core), seed, val_fraction,
                               beta_init, epochs, val_every, lr, lr_schedule, lr_final_fraction,
-                              weight_decay, bool(beta_decay), _progress(progress)))
+                              weight_decay, bool(beta_decay), bool(warm_start), refine,
+                              refine_iterations, refine_solver, bootstrap, groups,
+                              _progress(progress)))
     if meta:
         m.meta.update(meta)
     _warn_if_diverged(m)
@@ -193,7 +215,11 @@ def fit_trajectories(t, z, traj=None, model="csympnet", **options):
     if sum(len(tr.t) - 1 for tr in checked) < 1:
         raise ValueError("t, z: the trajectories give no pairs; expected at least one with 2 rows")
     z0, z1, h = _core.pairs_from_trajectories(checked)
-    return fit(z0, z1, h, model, **options)
+    if "_groups" in options:
+        raise TypeError("fit_trajectories: unexpected keyword '_groups'")
+    # The trajectory of each pair, so that a bootstrap resamples whole trajectories.
+    groups = np.repeat(np.arange(len(checked)), [len(tr.t) - 1 for tr in checked])
+    return fit(z0, z1, h, model, _groups=groups, **options)
 
 
 def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="default", lr=None,

@@ -63,40 +63,6 @@ class PythonProgress {
   std::optional<py::error_already_set> error_;
 };
 
-// The confidence interval for γ̂ that a fit may carry: FitResult::gamma_ci_low/high once the
-// library provides them (as optional<double> or as double with NaN for none). Detected at
-// compile time, so the binding needs no change when they arrive.
-[[maybe_unused]] std::optional<double> finite_or_none(double x) {
-  return std::isfinite(x) ? std::optional<double>(x) : std::nullopt;
-}
-[[maybe_unused]] std::optional<double> finite_or_none(const std::optional<double>& x) {
-  return x && std::isfinite(*x) ? x : std::nullopt;
-}
-template <class Result>
-std::optional<std::pair<double, double>> gamma_interval_of(const Result& r) {
-  if constexpr (requires {
-                  r.gamma_ci_low;
-                  r.gamma_ci_high;
-                }) {
-    const auto lo = finite_or_none(r.gamma_ci_low), hi = finite_or_none(r.gamma_ci_high);
-    if (lo && hi) return std::pair{*lo, *hi};
-  }
-  return std::nullopt;
-}
-
-// Stand-ins for a FitResult with an interval, so a test can check the detection above before the
-// library provides one (python/tests/test_fit.py).
-struct WithDoubleInterval {
-  double gamma_ci_low = 0.5, gamma_ci_high = 0.75;
-};
-struct WithNanInterval {
-  double gamma_ci_low = std::numeric_limits<double>::quiet_NaN(), gamma_ci_high = 1.0;
-};
-struct WithOptionalInterval {
-  std::optional<double> gamma_ci_low = 0.25, gamma_ci_high = 2.0;
-};
-struct WithoutInterval {};
-
 PairSet pairs_from(const DArray& z0, const DArray& z1, const DArray& h, const std::string& name) {
   PairSet p;
   p.z0 = states_from(z0, name + " z0");
@@ -112,6 +78,13 @@ struct FitArgs {
   double val_fraction, beta_init, lr, lr_final_fraction, weight_decay;
   long epochs, val_every;
   bool decay_damping;
+  // Identification beyond the paper's recipe (the options of `csympnet fit`).
+  bool warm_start;
+  std::string refine;
+  std::optional<long> refine_iterations;
+  std::optional<std::string> refine_solver;
+  long bootstrap;
+  std::vector<Index> groups;  // trajectory of each training pair, or empty
 };
 
 std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h,
@@ -137,18 +110,25 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
   c.train.adamw.decay_damping = a.decay_damping;
   c.train.lr_schedule = a.lr_schedule;
   c.train.lr_final_fraction = a.lr_final_fraction;
+  c.warm_start = a.warm_start;
+  c.refine.method = a.refine;
+  if (a.refine_iterations) c.refine.iterations = *a.refine_iterations;
+  if (a.refine_solver) c.refine.linear_solver = *a.refine_solver;
+  c.bootstrap.replicates = a.bootstrap;
+  require(a.groups.empty() || static_cast<Index>(a.groups.size()) == train.size(),
+          "groups: expected one trajectory label per training pair");
 
   PythonProgress watch(progress);
   FitResult r;
   {
     py::gil_scoped_release nogil;
-    r = fit_pairs(train, val_pairs, c, watch.callback());
+    r = fit_pairs(train, val_pairs, c, watch.callback(), a.groups);
   }
   watch.rethrow_if_stopped();
 
   auto out = std::make_unique<PyModel>();
   out->training = r.training;
-  out->gamma_interval = gamma_interval_of(r);
+  if (r.interval) out->gamma_interval = std::pair{r.interval->low, r.interval->high};
   nlohmann::json train_json = r.config.train;
   train_json["lr_schedule"] = r.config.train.lr_schedule;
   out->meta = {{"source", "python fit"},        {"seed", r.config.seed},
@@ -223,29 +203,42 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
 }  // namespace
 
 void bind_fit(py::module_& m) {
-  m.def("_gamma_interval_detection", [] {
-    return std::vector{gamma_interval_of(WithDoubleInterval{}),
-                       gamma_interval_of(WithNanInterval{}),
-                       gamma_interval_of(WithOptionalInterval{}),
-                       gamma_interval_of(WithoutInterval{}), gamma_interval_of(FitResult{})};
-  });
   m.def(
       "fit_pairs",
       [](const DArray& z0, const DArray& z1, const DArray& h, const std::optional<py::tuple>& val,
          const std::string& model, const std::string& core_json, std::uint64_t seed,
          double val_fraction, double beta_init, long epochs, long val_every, double lr,
          const std::string& lr_schedule, double lr_final_fraction, double weight_decay,
-         bool decay_damping, const py::object& progress) {
-        const FitArgs a{model,        core_json, lr_schedule, seed,
-                        val_fraction, beta_init, lr,          lr_final_fraction,
-                        weight_decay, epochs,    val_every,   decay_damping};
+         bool decay_damping, bool warm_start, const std::string& refine,
+         std::optional<long> refine_iterations, std::optional<std::string> refine_solver,
+         long bootstrap, std::vector<Index> groups, const py::object& progress) {
+        const FitArgs a{model,
+                        core_json,
+                        lr_schedule,
+                        seed,
+                        val_fraction,
+                        beta_init,
+                        lr,
+                        lr_final_fraction,
+                        weight_decay,
+                        epochs,
+                        val_every,
+                        decay_damping,
+                        warm_start,
+                        refine,
+                        refine_iterations,
+                        std::move(refine_solver),
+                        bootstrap,
+                        std::move(groups)};
         return fit(z0, z1, h, val, a, progress);
       },
       py::arg("z0"), py::arg("z1"), py::arg("h"), py::arg("val"), py::arg("model"),
       py::arg("core_json"), py::arg("seed"), py::arg("val_fraction"), py::arg("beta_init"),
       py::arg("epochs"), py::arg("val_every"), py::arg("lr"), py::arg("lr_schedule"),
       py::arg("lr_final_fraction"), py::arg("weight_decay"), py::arg("decay_damping"),
-      py::arg("progress"), "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
+      py::arg("warm_start"), py::arg("refine"), py::arg("refine_iterations"),
+      py::arg("refine_solver"), py::arg("bootstrap"), py::arg("groups"), py::arg("progress"),
+      "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
   m.def(
       "run",
       [](const std::string& preset, const std::string& model, std::uint64_t seed,

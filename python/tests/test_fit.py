@@ -156,6 +156,36 @@ def test_fit_trajectories_equals_cli_fit_of_the_csv(tmp_path, run_cli):
     assert np.array_equal(py_model.params, cli_model.params)
 
 
+def test_identification_options_equal_cli_fit_bit_for_bit(tmp_path, run_cli):
+    # Warm start, LM and a trajectory bootstrap, as `csympnet fit` runs them from the CSV.
+    trajs = _trajectories(n=6, steps=12)
+    path = tmp_path / "traj.csv"
+    csympnet.write_csv(path, trajs)
+    run_cli("fit", path, "--epochs", 200, "--warm-start", "--refine", "lm",
+            "--refine-iterations", 20, "--bootstrap", 10, "--core", "la:3:4:h2",
+            "--out", tmp_path / "out", "-q")
+    cli_model = csympnet.load(tmp_path / "out" / "model.json")
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    py_model = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs],
+                                         epochs=200, warm_start=True, refine="lm",
+                                         refine_iterations=20, bootstrap=10, core="la:3:4:h2")
+    assert np.array_equal(py_model.params, cli_model.params)
+    assert report["gamma_hat"] == py_model.gamma
+    assert report["bootstrap"]["resample"] == "trajectories"
+    assert py_model.gamma_interval == (report["gamma_ci_low"], report["gamma_ci_high"])
+    assert py_model.gamma_interval[0] < py_model.gamma_interval[1]
+
+
+def test_identification_options_are_checked(s1_pairs):
+    for kwargs, exc, match in (({"refine": "newton"}, ValueError, "refine"),
+                               ({"refine_iterations": 0}, ValueError, "refine_iterations"),
+                               ({"refine_solver": "svd"}, ValueError, "refine_solver"),
+                               ({"bootstrap": -1}, ValueError, "bootstrap"),
+                               ({"warm_start": 1}, TypeError, "warm_start")):
+        with pytest.raises(exc, match=match):
+            csympnet.fit(*s1_pairs, epochs=10, **kwargs)
+
+
 def test_fit_trajectories_forms_agree():
     trajs = _trajectories(steps=10)
     lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20)
@@ -192,11 +222,3 @@ def test_run_trains_a_baseline():
     result = csympnet.run("s1", "dhnn2", epochs=20)
     assert result.model.type == "dhnn2" and result.model.gamma is not None
     assert result.report["model"] == "dhnn2" and np.isfinite(result.report["l2_error"])
-
-
-def test_gamma_interval_detection():
-    # FitResult fields gamma_ci_low/high, once the library has them, reach Model.gamma_interval
-    # without a binding change: double (NaN = none) and optional<double> are both understood.
-    double, nan, optional, absent, fit_result = csympnet._core._gamma_interval_detection()
-    assert double == (0.5, 0.75) and nan is None and optional == (0.25, 2.0) and absent is None
-    assert fit_result is None or fit_result[0] <= fit_result[1]

@@ -83,7 +83,7 @@ json execute_run(const SuiteRun& run, const std::function<bool()>& stop) {
   try {
     ProgressCallback keep_going;
     if (stop) keep_going = [&stop](const TrainProgress&) { return !stop(); };
-    RunResult r = run_experiment(run.config, keep_going);
+    RunResult r = run_experiment(run.config, keep_going, /*evaluate_if_stopped=*/false);
     if (r.training.stop_reason == "callback") {
       rec["status"] = "interrupted";  // never cached: the run starts afresh next time
       return rec;

@@ -81,7 +81,8 @@ RunData generate_run_data(const RunConfig& c) {
   return d;
 }
 
-RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
+RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
+                         bool evaluate_if_stopped) {
   c.validate();
   RunResult r;
   r.data = generate_run_data(c);
@@ -100,7 +101,9 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   r.model.init_params(init_rng, r.theta);
 
   r.training = train_model(r.model, r.theta, r.data.train, r.data.val, c.train, progress);
-  if (r.model.is_map())
+  const bool stopped = r.training.stop_reason == "callback";
+  if (stopped && !evaluate_if_stopped) return r;
+  if (r.model.is_map() && !stopped)
     r.refine = refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine);
 
   const System sys(c.preset.system);
@@ -132,9 +135,9 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress) {
   rep["recipe"] = describe_recipe(c.train);
   if (c.refine.method != "none") {
     rep["recipe"] = rep["recipe"].get<std::string>() + "+" + c.refine.method;
-    rep["refine"] = r.refine;
+    rep["refine"] = r.refine;  // method "none": skipped because training was stopped
     rep["refine_seconds"] = r.refine.seconds;
-    rep["best_val_loss"] = r.refine.val_loss_after;
+    if (r.refine.method != "none") rep["best_val_loss"] = r.refine.val_loss_after;
   }
   if (r.warm_start)
     rep["warm_start"] = {{"gamma", r.warm_start->gamma},

@@ -313,6 +313,17 @@ TEST_F(Cli, InterruptSavesTheBestCheckpointAndExitsWithTheSignalCode) {
   EXPECT_LT(report["epochs"].get<long>(), 1000000);
   EXPECT_TRUE(fs::exists(out / "model.json"));
 
+  // A second stage is not started after an interrupted first one.
+  const fs::path lm = dir_ / "lm";
+  r = run_and_signal(
+      "run --preset s1 --model csympnet --epochs 100000000 --refine lm -q --out " + lm.string(), lm,
+      "TERM", 0.5);
+  EXPECT_EQ(r.code, 143) << r.err;
+  const auto lm_report = nlohmann::json::parse(slurp(lm / "report.json"));
+  EXPECT_EQ(lm_report["stop_reason"], "callback");
+  EXPECT_EQ(lm_report["refine"]["method"], "none");
+  EXPECT_GT(lm_report["best_val_loss"].get<double>(), 0.0);  // AdamW's, not a skipped stage's 0
+
   const fs::path suites = dir_ / "suites";
   fs::create_directories(suites);
   std::ofstream(suites / "slow.json")

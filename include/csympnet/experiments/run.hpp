@@ -60,6 +60,10 @@ struct RunResult {
   nlohmann::json report;  // the report.json document
 };
 
-RunResult run_experiment(const RunConfig& config, const ProgressCallback& progress = {});
+// When `progress` stops training (stop_reason "callback", e.g. on Ctrl-C) the second stage is
+// skipped, and so is the evaluation unless `evaluate_if_stopped` (then r.diagnostics and
+// r.report stay empty: `reproduce` discards such runs and should not wait for them).
+RunResult run_experiment(const RunConfig& config, const ProgressCallback& progress = {},
+                         bool evaluate_if_stopped = true);
 
 }  // namespace csympnet

@@ -18,6 +18,8 @@ packages=(
   python3-matplotlib   # csympnet.plot: the paper's figure types
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
+  liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf
+  libopenblas0-pthread # ... through OpenBLAS (Debian alternatives), not the reference BLAS
   clang-14             # fuzz/: libFuzzer targets (make fuzz)
   libclang-rt-14-dev   # fuzz/: the libFuzzer and sanitizer runtimes for clang
 )

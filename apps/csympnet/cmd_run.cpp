@@ -115,8 +115,10 @@ void add_run(CLI::App& app) {
                   "Iterations of the second stage (default 300)")
       ->check(CLI::Range(1L, 100000000L));
   cmd->add_option("--refine-solver", args->refine_solver,
-                  "LM linear solver: dense_qr or dense_normal_cholesky (default: dense_qr)")
-      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky"}));
+                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
+                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
+                  "many parameters) (default: dense_qr)")
+      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
   cmd->add_option("--core", args->core,
                   "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)")
       ->check(kCoreSpec);

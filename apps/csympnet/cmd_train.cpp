@@ -70,8 +70,10 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "Iterations of the second stage (default 300)")
       ->check(CLI::Range(1L, 100000000L));
   cmd.add_option("--refine-solver", a.refine_solver,
-                 "LM linear solver: dense_qr or dense_normal_cholesky (default: dense_qr)")
-      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky"}));
+                 "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
+                 "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
+                 "many parameters) (default: dense_qr)")
+      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
   cmd.add_option("--bootstrap", a.bootstrap,
                  "Bootstrap replicates for an interval of gamma_hat (default 0: none; >= 10)")
       ->check(CLI::Range(0L, 1000000L));

@@ -8,6 +8,7 @@
 #include <ceres/ceres.h>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/train/levenberg_marquardt.hpp"
 #include "csympnet/train/loss.hpp"
 #include "csympnet/train/residual_jacobian.hpp"
 
@@ -18,8 +19,10 @@ void RefineOptions::validate() const {
           "refine.method (--refine) must be 'none', 'lm' or 'lbfgs', got '" + method + "'");
   require(iterations >= 1, "refine.iterations (--refine-iterations) must be >= 1, got " +
                                std::to_string(iterations));
-  require(linear_solver == "dense_qr" || linear_solver == "dense_normal_cholesky",
-          "refine.linear_solver must be 'dense_qr' or 'dense_normal_cholesky', got '" +
+  require(linear_solver == "dense_qr" || linear_solver == "dense_normal_cholesky" ||
+              linear_solver == "blas_normal_cholesky",
+          "refine.linear_solver (--refine-solver) must be 'dense_qr', 'dense_normal_cholesky' or "
+          "'blas_normal_cholesky', got '" +
               linear_solver + "'");
   auto tol_ok = [](double x) { return std::isfinite(x) && x >= 0.0; };
   require(tol_ok(function_tolerance), "refine.function_tolerance must be a finite number >= 0");
@@ -122,23 +125,22 @@ class OneStepLossFunction final : public ceres::FirstOrderFunction {
   mutable ForwardCache cache_;
 };
 
-// Validates every iterate (Ceres writes it into the parameter array first, since
-// update_state_every_iteration is on) and remembers the best.
-class BestValidation final : public ceres::IterationCallback {
+// Validates iterates and remembers the best. `consider` reads the parameter array, which both
+// optimisers update in place (Ceres writes every iterate there first, since
+// update_state_every_iteration is on).
+class BestValidation {
  public:
   BestValidation(const OneStepMap& map, const PairSet& val, const double* params,
                  const Vector& start, double start_loss)
       : map_(map), val_(val), params_(params), best_(start), best_loss_(start_loss) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-    if (it.iteration == 0 || !it.step_is_successful) return ceres::SOLVER_CONTINUE;
+  void consider(long iteration) {
     const Eigen::Map<const Vector> theta(params_, best_.size());
     const double loss = one_step_loss(map_, theta, val_);
     if (loss < best_loss_) {
       best_loss_ = loss;
       best_ = theta;
-      best_iteration_ = it.iteration;
+      best_iteration_ = iteration;
     }
-    return ceres::SOLVER_CONTINUE;
   }
   const Vector& best() const { return best_; }
   double best_loss() const { return best_loss_; }
@@ -152,6 +154,36 @@ class BestValidation final : public ceres::IterationCallback {
   double best_loss_;
   long best_iteration_ = 0;
 };
+
+// Hands Ceres' accepted iterates to BestValidation.
+class CeresBestValidation final : public ceres::IterationCallback {
+ public:
+  explicit CeresBestValidation(BestValidation& best) : best_(best) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (it.iteration != 0 && it.step_is_successful) best_.consider(it.iteration);
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  BestValidation& best_;
+};
+
+// The one-step residuals and their Jacobian, scaled by 1/√N like OneStepResiduals.
+LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs) {
+  LeastSquaresProblem p;
+  p.n_residuals = pairs.size() * pairs.dim();
+  p.n_params = map.n_params();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
+  p.residuals = [&map, &pairs, scale](ConstParams theta, Eigen::Ref<Vector> r) {
+    r = scale * one_step_residuals(map, theta, pairs);
+    return r.allFinite();
+  };
+  p.jacobian = [&map, &pairs, scale](ConstParams theta, Eigen::Ref<RowMajorMatrix> jac) {
+    residual_jacobian(map, theta, pairs, jac);
+    jac *= scale;
+  };
+  return p;
+}
 
 }  // namespace
 
@@ -178,7 +210,17 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
 
   const Vector initial = theta;
   BestValidation best(map, val, theta.data(), initial, s.val_loss_before);
-  if (options.method == "lm") {
+  if (options.method == "lm" && options.linear_solver == "blas_normal_cholesky") {
+    LmSettings ls;
+    ls.max_iterations = options.iterations;
+    ls.function_tolerance = options.function_tolerance;
+    ls.gradient_tolerance = options.gradient_tolerance;
+    ls.parameter_tolerance = options.parameter_tolerance;
+    const LmReport lr = levenberg_marquardt(one_step_problem(map, train), theta, ls,
+                                            [&best](long it) { best.consider(it); });
+    s.iterations = lr.iterations;
+    s.termination = lr.message;
+  } else if (options.method == "lm") {
     ceres::Problem::Options po;
     po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(po);
@@ -197,7 +239,8 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     so.logging_type = ceres::SILENT;
     so.minimizer_progress_to_stdout = false;
     so.update_state_every_iteration = true;
-    so.callbacks.push_back(&best);
+    CeresBestValidation callback(best);
+    so.callbacks.push_back(&callback);
     ceres::Solver::Summary cs;
     ceres::Solve(so, &problem, &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;
@@ -215,7 +258,8 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     so.logging_type = ceres::SILENT;
     so.minimizer_progress_to_stdout = false;
     so.update_state_every_iteration = true;
-    so.callbacks.push_back(&best);
+    CeresBestValidation callback(best);
+    so.callbacks.push_back(&callback);
     ceres::GradientProblemSolver::Summary cs;
     ceres::Solve(so, problem, theta.data(), &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;

@@ -102,7 +102,10 @@ Trained adamw_start() {
   return t;
 }
 
-TEST(Refine, LevenbergMarquardtGoesFarBelowMoreAdamW) {
+// Both LM implementations: Ceres' (dense QR) and the normal-equations one with BLAS.
+class RefineLm : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(RefineLm, GoesFarBelowMoreAdamW) {
   Trained t = adamw_start();
   // The same start, given 2,000 more AdamW epochs instead of 50 LM iterations: LM ends at
   // least ten times lower (measured: 83x; the best-validation iterate is kept).
@@ -116,6 +119,7 @@ TEST(Refine, LevenbergMarquardtGoesFarBelowMoreAdamW) {
 
   RefineOptions o;
   o.method = "lm";
+  o.linear_solver = GetParam();
   o.iterations = 50;
   const RefineSummary s = refine_one_step_map(*t.map, t.theta, t.train, t.val, o);
   EXPECT_GT(s.iterations, 0);
@@ -137,10 +141,11 @@ TEST(Refine, LbfgsLowersTheLoss) {
   EXPECT_LE(s.val_loss_after, s.val_loss_before);
 }
 
-TEST(Refine, IsDeterministicAndNoneLeavesThetaAlone) {
+TEST_P(RefineLm, IsDeterministicAndNoneLeavesThetaAlone) {
   Trained a = adamw_start(), b = adamw_start();
   RefineOptions o;
   o.method = "lm";
+  o.linear_solver = GetParam();
   o.iterations = 10;
   refine_one_step_map(*a.map, a.theta, a.train, a.val, o);
   refine_one_step_map(*b.map, b.theta, b.train, b.val, o);
@@ -152,7 +157,7 @@ TEST(Refine, IsDeterministicAndNoneLeavesThetaAlone) {
   EXPECT_EQ(s.iterations, 0);
 }
 
-TEST(Refine, KeepsTheBestValidationIterate) {
+TEST_P(RefineLm, KeepsTheBestValidationIterate) {
   // Validation data from another damping rate: the kept iterate's validation loss is the
   // lowest seen, never above the start, although training drives the loss elsewhere.
   Trained t = adamw_start();
@@ -160,6 +165,7 @@ TEST(Refine, KeepsTheBestValidationIterate) {
   other.z1 *= 1.01;
   RefineOptions o;
   o.method = "lm";
+  o.linear_solver = GetParam();
   o.iterations = 30;
   const RefineSummary s = refine_one_step_map(*t.map, t.theta, t.train, other, o);
   EXPECT_LE(s.val_loss_after, s.val_loss_before);
@@ -167,6 +173,25 @@ TEST(Refine, KeepsTheBestValidationIterate) {
   o.keep_best_validation = false;
   const RefineSummary last = refine_one_step_map(*u.map, u.theta, u.train, other, o);
   EXPECT_LE(last.train_loss_after, s.train_loss_after);
+}
+
+INSTANTIATE_TEST_SUITE_P(Solvers, RefineLm, ::testing::Values("dense_qr", "blas_normal_cholesky"));
+
+TEST(Refine, BothLevenbergMarquardtsReachTheSameFloor) {
+  // Two implementations of one method, different step control details (Ceres scales the
+  // Jacobian's columns): from the same start both reach the loss floor, and the same γ̂.
+  Trained a = adamw_start(), b = adamw_start();
+  RefineOptions o;
+  o.method = "lm";
+  o.iterations = 200;
+  o.keep_best_validation = false;
+  const RefineSummary sa = refine_one_step_map(*a.map, a.theta, a.train, a.val, o);
+  o.linear_solver = "blas_normal_cholesky";
+  const RefineSummary sb = refine_one_step_map(*b.map, b.theta, b.train, b.val, o);
+  EXPECT_LT(sb.train_loss_after, 2.0 * sa.train_loss_after) << sa.brief_report() << "\n"
+                                                            << sb.brief_report();
+  EXPECT_LT(sa.train_loss_after, 2.0 * sb.train_loss_after);
+  EXPECT_NEAR(*a.map->damping_rate(a.theta), *b.map->damping_rate(b.theta), 1e-6);
 }
 
 TEST(Refine, RejectsBadOptionsByName) {

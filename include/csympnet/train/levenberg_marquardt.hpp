@@ -1,0 +1,56 @@
+// Levenberg–Marquardt on the normal equations, for dense least-squares problems with many
+// more residuals than parameters (the one-step loss of a G-SympNet core: 8,000 residuals,
+// 4,201 parameters on s3).
+//
+// Why not Ceres' DENSE_NORMAL_CHOLESKY: Ceres forms JᵀJ again for every trial step, including
+// the rejected ones, with Eigen compiled for the generic x86-64 target. Here JᵀJ and Jᵀr are
+// formed once per Jacobian with BLAS (dsyrk, dgemv), and each trial step costs one Cholesky
+// factorisation (LAPACK dpotrf) of JᵀJ + μD. The step control is Ceres' (Nielsen's update):
+//
+//   (JᵀJ + μ D) δ = −Jᵀr,   D = diag(JᵀJ) clamped to [1e-6, 1e32],
+//   ρ = (F(θ) − F(θ + δ)) / (F(θ) − m(δ)),  m(δ) = F + gᵀδ + ½ δᵀJᵀJδ,  F = ½‖r‖²,
+//   accept if ρ > 1e-3: μ ← μ · max(1/3, 1 − (2ρ − 1)³), ν ← 2;  else μ ← μ ν, ν ← 2ν,
+//
+// starting from μ = 1e-4 (Ceres' initial trust region radius 1e4). Every trial step, accepted
+// or not, counts as an iteration, as in Ceres. docs/identification.md measures it against Ceres.
+#pragma once
+
+#include <functional>
+#include <string>
+
+#include "csympnet/core/types.hpp"
+#include "csympnet/train/residual_jacobian.hpp"
+
+namespace csympnet {
+
+struct LeastSquaresProblem {
+  Index n_residuals = 0;
+  Index n_params = 0;
+  // Writes r(θ) (length n_residuals); returns false when it cannot be evaluated.
+  std::function<bool(ConstParams theta, Eigen::Ref<Vector> r)> residuals;
+  // Writes J(θ) = ∂r/∂θ (n_residuals × n_params, row-major).
+  std::function<void(ConstParams theta, Eigen::Ref<RowMajorMatrix> jac)> jacobian;
+};
+
+struct LmSettings {
+  long max_iterations = 300;
+  double function_tolerance = 1e-15;   // stop when |ΔF| / F of an accepted step is below
+  double gradient_tolerance = 1e-20;   // stop when ‖Jᵀr‖∞ is below
+  double parameter_tolerance = 1e-15;  // stop when ‖δ‖ ≤ tol (‖θ‖ + tol)
+};
+
+struct LmReport {
+  long iterations = 0;  // trial steps, accepted or not
+  long accepted = 0;
+  double initial_cost = 0.0;  // F = ½‖r‖²
+  double final_cost = 0.0;
+  std::string message;
+};
+
+// Minimises ½‖r(θ)‖² from theta, in place. `on_accepted(iteration)` runs after every accepted
+// step, with theta already updated.
+LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
+                             const LmSettings& settings,
+                             const std::function<void(long iteration)>& on_accepted = {});
+
+}  // namespace csympnet

@@ -1,0 +1,44 @@
+// The few BLAS and LAPACK routines the normal-equations Levenberg–Marquardt needs
+// (levenberg_marquardt.cpp), behind C++ signatures. They resolve to whatever libblas.so.3 and
+// liblapack.so.3 Debian's alternatives select: OpenBLAS when libopenblas0-pthread is installed
+// (scripts/install-deps.sh installs it), the reference implementation otherwise. Matrices are
+// column-major; only the lower triangle of a symmetric matrix is read or written.
+#pragma once
+
+#include "csympnet/core/types.hpp"
+
+namespace csympnet::lapack {
+
+// While alive, OpenBLAS runs on one thread. Its threaded dsyrk and dpotrf give results that
+// differ in the last bits between thread counts (measured: 1 against 2 threads on s3), and
+// csympnet promises the same bits for the same seed; on s3 the second thread saved 5 %.
+// Restores the previous count on destruction. No effect with other BLAS implementations.
+class SingleThreaded {
+ public:
+  SingleThreaded();
+  ~SingleThreaded();
+  SingleThreaded(const SingleThreaded&) = delete;
+  SingleThreaded& operator=(const SingleThreaded&) = delete;
+
+ private:
+  int saved_ = 0;
+};
+
+// C = Aᵀ A (lower triangle), with A given as its transpose At (n × k, column-major, leading
+// dimension n): that is a row-major k × n matrix, as residual_jacobian() writes it.
+void gram_from_transpose(const double* at, Index n, Index k, double* c);
+
+// y = At x, At as above (n × k): the product Jᵀ r for a row-major J.
+void transpose_times(const double* at, Index n, Index k, const double* x, double* y);
+
+// y = C x for symmetric C (n × n, lower triangle).
+void symmetric_times(const double* c, Index n, const double* x, double* y);
+
+// Cholesky factorisation of symmetric C (n × n, lower triangle) in place. Returns false when C
+// is not numerically positive definite.
+bool cholesky(double* c, Index n);
+
+// Solves L Lᵀ x = b in place, L from cholesky().
+void cholesky_solve(const double* l, Index n, double* b);
+
+}  // namespace csympnet::lapack

@@ -1,0 +1,128 @@
+#include "csympnet/train/levenberg_marquardt.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "csympnet/core/error.hpp"
+#include "lapack.hpp"
+
+namespace csympnet {
+
+namespace {
+
+constexpr double kInitialMu = 1e-4;  // Ceres: initial_trust_region_radius = 1e4
+constexpr double kMinMu = 1e-16;     // Ceres: max_trust_region_radius = 1e16
+constexpr double kMaxMu = 1e32;      // Ceres: min_trust_region_radius = 1e-32
+constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres: min/max_lm_diagonal
+constexpr double kMinRelativeDecrease = 1e-3;               // Ceres: min_relative_decrease
+
+// JᵀJ (lower triangle) and Jᵀr at the current iterate.
+struct NormalEquations {
+  Matrix a;
+  Vector g;
+  void form(const RowMajorMatrix& jac, const Vector& r) {
+    const Index m = jac.rows(), n = jac.cols();
+    a.resize(n, n);
+    g.resize(n);
+    // A row-major m × n J is a column-major n × m Jᵀ.
+    lapack::gram_from_transpose(jac.data(), n, m, a.data());
+    lapack::transpose_times(jac.data(), n, m, r.data(), g.data());
+  }
+};
+
+}  // namespace
+
+LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
+                             const LmSettings& settings,
+                             const std::function<void(long iteration)>& on_accepted) {
+  const Index m = problem.n_residuals, n = problem.n_params;
+  require(m >= 1 && n >= 1, "levenberg_marquardt: the problem needs residuals and parameters");
+  require(theta.size() == n, "levenberg_marquardt: parameter vector has the wrong size");
+  require(settings.max_iterations >= 1, "levenberg_marquardt: max_iterations must be >= 1");
+  const lapack::SingleThreaded one_thread;
+  LmReport report;
+  Vector r(m), r_trial(m);
+  if (!problem.residuals(theta, r) || !r.allFinite()) {
+    report.message = "the residuals at the starting point are not finite";
+    return report;
+  }
+  double cost = 0.5 * r.squaredNorm();
+  report.initial_cost = report.final_cost = cost;
+  RowMajorMatrix jac(m, n);
+  problem.jacobian(theta, jac);
+  if (!jac.allFinite()) {
+    report.message = "the Jacobian at the starting point is not finite";
+    return report;
+  }
+  NormalEquations ne;
+  ne.form(jac, r);
+
+  Matrix lhs(n, n);
+  Vector diag(n), step(n), a_step(n), trial(n);
+  double mu = kInitialMu, nu = 2.0;
+  report.message = "maximum number of iterations reached";
+  while (report.iterations < settings.max_iterations) {
+    if (ne.g.lpNorm<Eigen::Infinity>() <= settings.gradient_tolerance) {
+      report.message = "gradient tolerance reached";
+      break;
+    }
+    ++report.iterations;
+    diag = ne.a.diagonal().cwiseMax(kMinDiagonal).cwiseMin(kMaxDiagonal);
+    lhs.triangularView<Eigen::Lower>() = ne.a.triangularView<Eigen::Lower>();
+    lhs.diagonal() += mu * diag;
+    bool accepted = false;
+    double rho = 0.0;
+    if (lapack::cholesky(lhs.data(), n)) {
+      step = -ne.g;
+      lapack::cholesky_solve(lhs.data(), n, step.data());
+      const double tol = settings.parameter_tolerance;
+      if (step.norm() <= tol * (theta.norm() + tol)) {
+        report.message = "parameter tolerance reached";
+        break;
+      }
+      trial = theta + step;
+      lapack::symmetric_times(ne.a.data(), n, step.data(), a_step.data());
+      const double predicted = -(ne.g.dot(step) + 0.5 * step.dot(a_step));
+      if (problem.residuals(trial, r_trial) && r_trial.allFinite() && predicted > 0.0) {
+        const double new_cost = 0.5 * r_trial.squaredNorm();
+        rho = (cost - new_cost) / predicted;
+        accepted = rho > kMinRelativeDecrease;
+        if (accepted) {
+          const double relative = (cost - new_cost) / cost;
+          theta = trial;
+          r.swap(r_trial);
+          cost = new_cost;
+          report.final_cost = cost;
+          ++report.accepted;
+          if (on_accepted) on_accepted(report.iterations);
+          if (relative <= settings.function_tolerance) {
+            report.message = "function tolerance reached";
+            break;
+          }
+          problem.jacobian(theta, jac);
+          if (!jac.allFinite()) {
+            report.message = "the Jacobian became non-finite";
+            break;
+          }
+          ne.form(jac, r);
+        }
+      }
+    }
+    if (accepted) {
+      const double t = 2.0 * rho - 1.0;
+      mu = std::max(kMinMu, mu * std::max(1.0 / 3.0, 1.0 - t * t * t));
+      nu = 2.0;
+    } else {
+      mu *= nu;
+      nu *= 2.0;
+      if (mu > kMaxMu) {
+        report.message = "the damping grew past 1e32 without an acceptable step";
+        break;
+      }
+    }
+  }
+  return report;
+}
+
+}  // namespace csympnet

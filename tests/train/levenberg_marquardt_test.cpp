@@ -1,0 +1,190 @@
+#include "csympnet/train/levenberg_marquardt.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <cmath>
+#include <vector>
+
+#include "../../src/train/lapack.hpp"
+#include "csympnet/core/rng.hpp"
+
+namespace csympnet {
+namespace {
+
+RowMajorMatrix random_rows(Index m, Index n, Rng& rng) {
+  RowMajorMatrix a(m, n);
+  const Matrix x = rng.normal_matrix(m, n, 1.0);
+  a = x;
+  return a;
+}
+
+TEST(Lapack, WrappersAgreeWithEigen) {
+  Rng rng(41, "lapack");
+  for (const auto& [m, n] : {std::pair<Index, Index>{7, 3}, {40, 17}, {130, 64}}) {
+    const RowMajorMatrix j = random_rows(m, n, rng);
+    const Vector r = rng.normal_matrix(m, 1, 1.0);
+    const Matrix want = j.transpose() * j;
+    Matrix a(n, n);
+    lapack::gram_from_transpose(j.data(), n, m, a.data());
+    const Matrix lower = a.triangularView<Eigen::Lower>();
+    const Matrix want_lower = want.triangularView<Eigen::Lower>();
+    EXPECT_LE((lower - want_lower).norm(), 1e-13 * want.norm()) << m << "x" << n;
+
+    Vector g(n);
+    lapack::transpose_times(j.data(), n, m, r.data(), g.data());
+    EXPECT_LE((g - j.transpose() * r).norm(), 1e-13 * (j.norm() * r.norm()));
+
+    const Vector x = rng.normal_matrix(n, 1, 1.0);
+    Vector ax(n);
+    lapack::symmetric_times(a.data(), n, x.data(), ax.data());
+    EXPECT_LE((ax - want * x).norm(), 1e-13 * want.norm() * x.norm());
+
+    Matrix l = a;
+    l.diagonal().array() += 1.0;  // JᵀJ + I: positive definite
+    ASSERT_TRUE(lapack::cholesky(l.data(), n));
+    Vector b = x;
+    lapack::cholesky_solve(l.data(), n, b.data());
+    const Matrix spd = want + Matrix::Identity(n, n);
+    EXPECT_LE((spd * b - x).norm(), 1e-10 * x.norm());
+  }
+}
+
+TEST(Lapack, CholeskyReportsAnIndefiniteMatrix) {
+  Matrix c(2, 2);
+  c << 1.0, 0.0, 2.0, 1.0;  // lower triangle of [[1, 2], [2, 1]]: eigenvalues 3 and −1
+  EXPECT_FALSE(lapack::cholesky(c.data(), 2));
+}
+
+LeastSquaresProblem rosenbrock() {
+  LeastSquaresProblem p;
+  p.n_residuals = 2;
+  p.n_params = 2;
+  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
+    r(0) = 10.0 * (x(1) - x(0) * x(0));
+    r(1) = 1.0 - x(0);
+    return true;
+  };
+  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) {
+    j << -20.0 * x(0), 10.0, -1.0, 0.0;
+  };
+  return p;
+}
+
+TEST(LevenbergMarquardt, SolvesRosenbrockFromTheClassicStart) {
+  Vector x(2);
+  x << -1.2, 1.0;
+  LmSettings s;
+  s.max_iterations = 200;
+  const LmReport r = levenberg_marquardt(rosenbrock(), x, s);
+  EXPECT_NEAR(x(0), 1.0, 1e-10) << r.message;
+  EXPECT_NEAR(x(1), 1.0, 1e-10) << r.message;
+  EXPECT_LT(r.final_cost, 1e-20);
+  EXPECT_NEAR(r.initial_cost, 12.1, 1e-12);  // ½ (4.4² + 2.2²)
+  EXPECT_LE(r.iterations, 200);
+}
+
+TEST(LevenbergMarquardt, RejectsAnOvershootAndStillConverges) {
+  // r = atan(x) from x = 3: the Gauss–Newton step −atan(3)(1 + 9) lands at x ≈ −9.5, where
+  // |r| is larger, so the first trial must be rejected and μ raised.
+  LeastSquaresProblem p;
+  p.n_residuals = 1;
+  p.n_params = 1;
+  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
+    r(0) = std::atan(x(0));
+    return true;
+  };
+  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) {
+    j(0, 0) = 1.0 / (1.0 + x(0) * x(0));
+  };
+  Vector x(1);
+  x << 3.0;
+  std::vector<long> accepted_at;
+  const LmReport r =
+      levenberg_marquardt(p, x, LmSettings{}, [&](long it) { accepted_at.push_back(it); });
+  EXPECT_LT(std::abs(x(0)), 1e-12) << r.message;
+  ASSERT_FALSE(accepted_at.empty());
+  EXPECT_GT(accepted_at.front(), 1);  // iteration 1 was the rejected overshoot
+  EXPECT_EQ(static_cast<long>(accepted_at.size()), r.accepted);
+  EXPECT_LT(r.accepted, r.iterations);
+}
+
+TEST(LevenbergMarquardt, FindsTheLinearLeastSquaresSolution) {
+  Rng rng(42, "linear");
+  const RowMajorMatrix a = random_rows(60, 12, rng);
+  const Vector b = rng.normal_matrix(60, 1, 1.0);
+  LeastSquaresProblem p;
+  p.n_residuals = 60;
+  p.n_params = 12;
+  p.residuals = [&](ConstParams x, Eigen::Ref<Vector> r) {
+    r = a * x - b;
+    return true;
+  };
+  p.jacobian = [&](ConstParams, Eigen::Ref<RowMajorMatrix> j) { j = a; };
+  Vector x = Vector::Zero(12);
+  const LmReport r = levenberg_marquardt(p, x, LmSettings{});
+  EXPECT_LT(r.iterations, 100) << r.message;
+  const Vector want = Matrix(a).colPivHouseholderQr().solve(b);
+  // A cost-based method resolves the cost to its rounding, ε F: steps whose gain is below
+  // that are noise. So x is exact up to ‖e‖ with ½ σ_min² ‖e‖² = ε F, F = ½‖A x* − b‖².
+  const double cost = 0.5 * (a * want - b).squaredNorm();
+  const double sigma_min = Eigen::JacobiSVD<Matrix>(a).singularValues().minCoeff();
+  const double floor = std::sqrt(2.0 * 2.2e-16 * cost) / sigma_min;
+  EXPECT_LE((x - want).norm(), floor) << r.message << " after " << r.iterations;
+  EXPECT_LT(floor, 1e-6 * want.norm());  // and that bound says something
+}
+
+TEST(LevenbergMarquardt, StopsAtAZeroGradientAndAtTheBudget) {
+  Vector x(2);
+  x << 1.0, 1.0;  // Rosenbrock's minimum: Jᵀr = 0
+  LmReport r = levenberg_marquardt(rosenbrock(), x, LmSettings{});
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_EQ(r.message, "gradient tolerance reached");
+  x << -1.2, 1.0;
+  LmSettings s;
+  s.max_iterations = 3;
+  r = levenberg_marquardt(rosenbrock(), x, s);
+  EXPECT_EQ(r.iterations, 3);
+  EXPECT_EQ(r.message, "maximum number of iterations reached");
+}
+
+TEST(LevenbergMarquardt, LeavesThetaAloneWhenTheStartIsNotFinite) {
+  LeastSquaresProblem p = rosenbrock();
+  p.residuals = [](ConstParams, Eigen::Ref<Vector> r) {
+    r.setConstant(std::nan(""));
+    return true;
+  };
+  Vector x(2);
+  x << -1.2, 1.0;
+  const Vector before = x;
+  const LmReport r = levenberg_marquardt(p, x, LmSettings{});
+  EXPECT_EQ(x, before);
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_NE(r.message.find("not finite"), std::string::npos) << r.message;
+}
+
+TEST(LevenbergMarquardt, TreatsANonFiniteTrialAsARejection) {
+  // r = log x from x = 5: the Gauss–Newton step −x log x ≈ −8.05 lands at x < 0, where r is
+  // NaN. That trial must count as a rejection (not poison θ), and the damped steps that
+  // follow must reach the root x = 1.
+  LeastSquaresProblem p;
+  p.n_residuals = 1;
+  p.n_params = 1;
+  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
+    r(0) = std::log(x(0));
+    return true;
+  };
+  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) { j(0, 0) = 1.0 / x(0); };
+  Vector x(1);
+  x << 5.0;
+  std::vector<long> accepted_at;
+  const LmReport r =
+      levenberg_marquardt(p, x, LmSettings{}, [&](long it) { accepted_at.push_back(it); });
+  EXPECT_NEAR(x(0), 1.0, 1e-12) << r.message;
+  ASSERT_FALSE(accepted_at.empty());
+  EXPECT_GT(accepted_at.front(), 1);
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -5,6 +5,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
 #include "exact_product.hpp"
+#include "la_scalar_sweep.hpp"
 
 namespace csympnet {
 
@@ -209,11 +210,39 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
   }
 }
 
+detail::LaScalarCore LaSympNet::scalar_core() const {
+  return {layers_, sublayers_, step_terms_ == 2, n_layer_params()};
+}
+
+void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                            ForwardCache* cache, std::size_t slot0) const {
+  if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
+  if (scalar_simd_in_use() &&
+      detail::la_scalar_flow_simd(scalar_core(), theta.data(), q.data(), p.data(), h.data(),
+                                  q.cols(), cache != nullptr ? &cache->mats : nullptr, slot0)) {
+    return;
+  }
+  flow_scalar_portable(theta, q, p, h, cache, slot0);
+}
+
+void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cache,
+                                     std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
+                                     ParamsRef grad) const {
+  if (scalar_simd_in_use() &&
+      detail::la_scalar_backward_simd(scalar_core(), theta.data(), cache.mats, slot0, h.data(),
+                                      gq.cols(), gq.data(), gp.data(), grad.data())) {
+    return;
+  }
+  flow_backward_scalar_portable(theta, cache, slot0, h, gq, gp, grad);
+}
+
 // d = 1: each S is the scalar 2A and q, p are single rows of N values. The general path's
 // operations, per element and in the same order, without its d x d products and temporaries,
 // so the results are bit-identical to it.
-void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                            ForwardCache* cache, std::size_t slot0) const {
+void LaSympNet::flow_scalar_portable(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                                     ForwardCache* cache, std::size_t slot0) const {
+  if (d() != 1)
+    throw Error("la::flow_scalar_portable: d = " + std::to_string(d()) + ", expected 1");
   const Index n = q.cols();
   const auto hrow = ConstRowMap(h.data(), n).array();
   std::size_t slot = slot0;
@@ -249,9 +278,12 @@ void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vecto
   }
 }
 
-void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cache,
-                                     std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
-                                     ParamsRef grad) const {
+void LaSympNet::flow_backward_scalar_portable(ConstParams theta, const ForwardCache& cache,
+                                              std::size_t slot0, const Vector& h, Matrix& gq,
+                                              Matrix& gp, ParamsRef grad) const {
+  if (d() != 1) {
+    throw Error("la::flow_backward_scalar_portable: d = " + std::to_string(d()) + ", expected 1");
+  }
   const Index n = gq.cols();
   const Index n_shears = layers_ * sublayers_;
   Vector tau_buf;

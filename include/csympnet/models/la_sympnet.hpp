@@ -27,6 +27,10 @@
 
 namespace csympnet {
 
+namespace detail {
+struct LaScalarCore;  // src/models/la_scalar_sweep.hpp
+}
+
 class LaSympNet final : public SymplecticCore {
  public:
   static constexpr double kInitStddev = 0.01;
@@ -51,12 +55,26 @@ class LaSympNet final : public SymplecticCore {
   Index sublayers() const { return sublayers_; }
   Index step_terms() const { return step_terms_; }
 
+  // Whether flow() and flow_backward() run the AVX-512 kernels at d = 1: the machine has
+  // AVX-512F, the build is the portable one, and the kernels reproduced the portable code on
+  // random values (checked once per process).
+  static bool scalar_simd_in_use();
+  // flow() and flow_backward() for d = 1 without the AVX-512 kernels of
+  // src/models/la_scalar_sweep.cpp: what runs where they do not, and the reference they must
+  // equal to the bit (tests/models/la_scalar_sweep_test.cpp). Throw Error unless d = 1.
+  void flow_scalar_portable(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                            ForwardCache* cache, std::size_t slot0) const;
+  void flow_backward_scalar_portable(ConstParams theta, const ForwardCache& cache,
+                                     std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
+                                     ParamsRef grad) const;
+
  private:
-  // flow() and flow_backward() for d = 1 (src/models/la_sympnet.cpp).
+  // flow() and flow_backward() for d = 1: the kernels where they run, else the portable code.
   void flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
                    std::size_t slot0) const;
   void flow_backward_scalar(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                             const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  detail::LaScalarCore scalar_core() const;
 
   // Offset of linear module k in θ (each module but the last is followed by its activation).
   Index module_offset(Index k) const { return k * (sublayers_ * d() * d() + 3 * d()); }

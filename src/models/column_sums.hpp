@@ -1,0 +1,60 @@
+// Internal to src/models: the running sums Σ_j x_c,j over samples j = 0, 1, ... of many columns
+// c at once, each summed left to right from x_c,0 (the order of a sequential dot product, and of
+// Eigen's inner product of two 1 x N rows), eight columns per AVX-512 instruction.
+//
+// Why a transpose: the products x_c,j come from code that holds samples in SIMD lanes (one
+// register: one column, eight samples), while the sums need the columns in lanes (one register:
+// eight columns, one sample; the sums then advance one sample per add, in order). The columns'
+// rows are gathered in a small buffer and, whenever it fills, transposed by 8 x 8 tiles and
+// added. The buffer of kFlushColumns rows stays in the L1 cache, where a table of every column
+// would not (the s1 backward sweep has 114 columns: 73 KB).
+//
+// Used by the AVX-512 kernels of la_scalar_sweep.cpp only: flush() needs AVX-512F.
+#pragma once
+
+#include <memory>
+
+#include "csympnet/core/types.hpp"
+
+namespace csympnet::detail {
+
+// Samples per block: a row of the buffer.
+constexpr Index kColumnSumsBlock = 80;
+
+class ColumnSums {
+ public:
+  static constexpr Index kFlushColumns = 24;  // three groups of 8 columns
+
+  // `columns` running sums, each starting at −0 (−0 + x = x for every x, so the first add
+  // gives x_c,0 itself).
+  explicit ColumnSums(Index columns);
+  ColumnSums(const ColumnSums&) = delete;
+  ColumnSums& operator=(const ColumnSums&) = delete;
+
+  // The row (kColumnSumsBlock values, 64-byte aligned) for the next column's products at the
+  // block's samples; columns come in the order 0, 1, ... in every block.
+  double* next_column() { return products_ + filled_ * kColumnSumsBlock; }
+  // That row is written, with the block's first cnt samples live.
+  void column_done(Index cnt) {
+    if (++filled_ == kFlushColumns) flush(cnt);
+  }
+  // Every column of the block is done: the next column is column 0 of the next block.
+  void end_block(Index cnt) {
+    flush(cnt);
+    first_ = 0;
+  }
+  // The sums so far (after end_block()), column c at c.
+  const double* sums() const { return sums_; }
+
+ private:
+  void flush(Index cnt);
+
+  alignas(64) double products_[kFlushColumns * kColumnSumsBlock];
+  alignas(64) double sums_local_[256];
+  double* sums_ = sums_local_;
+  std::unique_ptr<double[]> sums_heap_;  // more than 256 columns
+  Index filled_ = 0;                     // rows of products_ in use
+  Index first_ = 0;                      // the column of row 0
+};
+
+}  // namespace csympnet::detail

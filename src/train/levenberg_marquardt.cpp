@@ -23,7 +23,7 @@ struct NormalEquations {
   Vector g;
   void form(const RowMajorMatrix& jac, const Vector& r) {
     const Index m = jac.rows(), n = jac.cols();
-    a.resize(n, n);
+    if (a.rows() != n) a.setZero(n, n);  // dsyrk writes the lower triangle; the upper stays 0
     g.resize(n);
     // A row-major m × n J is a column-major n × m Jᵀ.
     lapack::gram_from_transpose(jac.data(), n, m, a.data());
@@ -69,7 +69,7 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
     }
     ++report.iterations;
     diag = ne.a.diagonal().cwiseMax(kMinDiagonal).cwiseMin(kMaxDiagonal);
-    lhs.triangularView<Eigen::Lower>() = ne.a.triangularView<Eigen::Lower>();
+    lhs = ne.a;  // a plain copy runs at memory speed; dpotrf reads the lower triangle only
     lhs.diagonal() += mu * diag;
     bool accepted = false;
     double rho = 0.0;

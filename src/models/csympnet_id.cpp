@@ -2,8 +2,10 @@
 
 #include <cmath>
 
+#include "conformal_rows.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/shape_checks.hpp"
+#include "exact_exp.hpp"
 
 namespace csympnet {
 
@@ -14,6 +16,114 @@ double abs_derivative(double beta) {
   if (beta > 0.0) return 1.0;
   if (beta < 0.0) return -1.0;
   return 0.0;
+}
+
+// The state and gradient rows are split and joined here column by column: Eigen's loops over
+// a block of rows of a column-major matrix (a 1 x N row of a 2 x N matrix above all) are
+// slow, and copies and single products give the same IEEE values in any order. kD = d when
+// fixed at compile time (d = 1, the hot case), else 0.
+
+// q = the top d rows of the 2d x n matrix z; p = its bottom rows, times a_j in column j when
+// kScale; when kRaw, p_raw = the bottom rows unscaled.
+template <int kD, bool kScale, bool kRaw>
+void split_rows_impl(const double* z, Index n, Index d, const double* a, double* q, double* p,
+                     double* p_raw) {
+  const Index dd = kD > 0 ? kD : d;
+  for (Index j = 0; j < n; ++j) {
+    const double* zj = z + 2 * dd * j;
+    for (Index i = 0; i < dd; ++i) {
+      const double bottom = zj[dd + i];
+      q[dd * j + i] = zj[i];
+      p[dd * j + i] = kScale ? bottom * a[j] : bottom;
+      if (kRaw) p_raw[dd * j + i] = bottom;
+    }
+  }
+}
+
+template <int kD>
+void split_rows_d(const double* z, Index n, Index d, const double* a, double* q, double* p,
+                  double* p_raw) {
+  if (a != nullptr && p_raw != nullptr) {
+    split_rows_impl<kD, true, true>(z, n, d, a, q, p, p_raw);
+  } else if (a != nullptr) {
+    split_rows_impl<kD, true, false>(z, n, d, a, q, p, p_raw);
+  } else if (p_raw != nullptr) {
+    split_rows_impl<kD, false, true>(z, n, d, a, q, p, p_raw);
+  } else {
+    split_rows_impl<kD, false, false>(z, n, d, a, q, p, p_raw);
+  }
+}
+
+// q, p (d x n, sized by the caller) from z (2d x n): q = top rows, p = a ⊙ bottom rows (the
+// rows' `.rowwise() *= aᵀ`; unscaled when a is null); p_raw, if not null, = bottom rows.
+void split_rows(const Matrix& z, const Vector* a, Matrix& q, Matrix& p, Matrix* p_raw) {
+  const Index d = q.rows();
+  const double* av = a != nullptr ? a->data() : nullptr;
+  double* raw = p_raw != nullptr ? p_raw->data() : nullptr;
+  if (d == 1) {
+    if (av != nullptr &&
+        detail::split_scaled_rows_simd(z.data(), z.cols(), av, q.data(), p.data(), raw)) {
+      return;
+    }
+    split_rows_d<1>(z.data(), z.cols(), d, av, q.data(), p.data(), raw);
+  } else {
+    split_rows_d<0>(z.data(), z.cols(), d, av, q.data(), p.data(), raw);
+  }
+}
+
+template <int kD>
+void join_rows_impl(const double* q, const double* p, const double* a, Index n, Index d,
+                    double* out) {
+  const Index dd = kD > 0 ? kD : d;
+  for (Index j = 0; j < n; ++j) {
+    double* oj = out + 2 * dd * j;
+    for (Index i = 0; i < dd; ++i) {
+      oj[i] = q[dd * j + i];
+      oj[dd + i] = p[dd * j + i] * a[j];
+    }
+  }
+}
+
+// out (2d x n) = [q; p ⊙ a] (the rows' `p.array().rowwise() * aᵀ`).
+void join_rows(const Matrix& q, const Matrix& p, const Vector& a, Matrix& out) {
+  const Index d = q.rows();
+  out.resize(2 * d, q.cols());
+  if (d == 1) {
+    if (detail::join_scaled_rows_simd(q.data(), p.data(), a.data(), q.cols(), out.data())) return;
+    join_rows_impl<1>(q.data(), p.data(), a.data(), q.cols(), d, out.data());
+  } else {
+    join_rows_impl<0>(q.data(), p.data(), a.data(), q.cols(), d, out.data());
+  }
+}
+
+// a_j = exp(c h_j), c = −γ̂/2: the values of the Eigen expression `(c * h.array()).exp()`,
+// through the AVX-512 kernel where it runs (exact_exp.hpp).
+void conformal_factors(double gamma, const Vector& h, Vector& a) {
+  const double c = -0.5 * gamma;
+  a.resize(h.size());
+  if (detail::scaled_exp_simd(c, h.data(), a.data(), h.size())) return;
+  a = (c * h.array()).exp().matrix();
+}
+
+// d = 1: Σ_j (dL/da_j) h_j a_j with dL/da_j = G_j p_core,j + G̃_j p_in,j, where G is the p row
+// of dZout and G̃ the core's input gradient gp. The column sums of the general path are single
+// products here; the terms go to `terms` (n doubles, 16-byte aligned storage of an Eigen
+// object) and are summed by Eigen's reduction, in the order of the expression
+// `(grad_a.array() * h.array() * a.array()).sum()` of the general path (both start their packets
+// at element 0).
+double scalar_damping_sum(const Matrix& dZout, const Matrix& p_core, const Matrix& gp,
+                          const Matrix& p_in, const Vector& h, const Vector& a, double* terms) {
+  const Index n = dZout.cols();
+  const double* g = dZout.data() + 1;
+  if (detail::damping_terms_simd(dZout.data(), p_core.data(), gp.data(), p_in.data(), h.data(),
+                                 a.data(), n, terms)) {
+    return Eigen::Map<const Vector>(terms, n).sum();
+  }
+  for (Index j = 0; j < n; ++j) {
+    const double grad_a = g[2 * j] * p_core(0, j) + gp(0, j) * p_in(0, j);
+    terms[j] = grad_a * h(j) * a(j);
+  }
+  return Eigen::Map<const Vector>(terms, n).sum();
 }
 
 }  // namespace
@@ -36,27 +146,42 @@ void CSympNetId::init_params(Rng& rng, ParamsRef theta) const {
 
 Matrix CSympNetId::forward(ConstParams theta, const Matrix& Z, const Vector& h,
                            ForwardCache* cache) const {
-  check_forward_args(*this, theta, Z, h);
+  // The checks build their messages before testing; run them only when something is wrong.
+  if (theta.size() != n_params() || Z.rows() != dim() || h.size() != Z.cols()) {
+    check_forward_args(*this, theta, Z, h);
+  }
   const Index d = core_->d();
   const Index nc = core_->n_params();
-  const double gamma = std::abs(theta(nc));
-  // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
-  const Vector a = (-0.5 * gamma * h.array()).exp().matrix();
-  Matrix q = Z.topRows(d);
-  Matrix p = Z.bottomRows(d);
-  p.array().rowwise() *= a.transpose().array();
+  const Index n = Z.cols();
+  // Working rows: with a cache, its own slots (swapped out and back, so that the core may grow
+  // cache->mats meanwhile); an epoch then allocates only the returned matrix.
+  Vector a;
+  Matrix q, p;
+  Matrix* p_in = nullptr;
   if (cache != nullptr) {
+    const std::size_t q_slot = kCoreSlot0 + core_->cache_slots();
     if (cache->vecs.size() < 2) cache->vecs.resize(2);
-    if (cache->mats.size() < kCoreSlot0) cache->mats.resize(kCoreSlot0);
+    if (cache->mats.size() < q_slot + 1) cache->mats.resize(q_slot + 1);
     cache->vecs[0] = h;
-    cache->vecs[1] = a;
-    cache->mats[0] = Z.bottomRows(d);
+    a.swap(cache->vecs[1]);
+    p.swap(cache->mats[1]);
+    q.swap(cache->mats[q_slot]);
+    p_in = &cache->mats[0];
+    p_in->resize(d, n);
   }
+  // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
+  conformal_factors(std::abs(theta(nc)), h, a);
+  q.resize(d, n);
+  p.resize(d, n);
+  split_rows(Z, &a, q, p, p_in);
   core_->flow(theta.head(nc), q, p, h, cache, kCoreSlot0);
-  if (cache != nullptr) cache->mats[1] = p;
-  Matrix out(2 * d, Z.cols());
-  out.topRows(d) = q;
-  out.bottomRows(d) = (p.array().rowwise() * a.transpose().array()).matrix();
+  Matrix out;
+  join_rows(q, p, a, out);
+  if (cache != nullptr) {
+    cache->vecs[1].swap(a);
+    cache->mats[1].swap(p);
+    cache->mats[kCoreSlot0 + core_->cache_slots()].swap(q);
+  }
   return out;
 }
 
@@ -64,28 +189,44 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
                           ParamsRef grad, Matrix* dZin) const {
   const bool recorded =
       cache.vecs.size() >= 2 && cache.mats.size() >= kCoreSlot0 + core_->cache_slots();
-  check_backward_args(*this, theta, recorded ? cache.vecs[0].size() : -1, dZout, grad);
+  const Index batch = recorded ? cache.vecs[0].size() : -1;
+  if (!recorded || theta.size() != n_params() || dZout.rows() != dim() || dZout.cols() != batch ||
+      grad.size() != n_params()) {
+    check_backward_args(*this, theta, batch, dZout, grad);
+  }
   const Index d = core_->d();
   const Index nc = core_->n_params();
+  const Index n = dZout.cols();
   const Vector& h = cache.vecs[0];
   const Vector& a = cache.vecs[1];
-  const auto arow = a.transpose().array();
-  Matrix gq = dZout.topRows(d);
-  Matrix gp = dZout.bottomRows(d);
+  const Matrix& p_in = cache.mats[0];
+  const Matrix& p_core = cache.mats[1];
+  Matrix gq(d, n), gp(d, n);
   // Outer scaling p_out = a ⊙ p_core:  dL/da_j = Σ_i G_ij p_core,ij,  dL/dp_core = a G.
-  Vector grad_a = (gp.array() * cache.mats[1].array()).colwise().sum().transpose();
-  gp.array().rowwise() *= arow;
+  // (For d = 1 the column sums are single products, formed after the core below.)
+  Vector grad_a;
+  if (d == 1) {
+    split_rows(dZout, &a, gq, gp, nullptr);
+  } else {
+    split_rows(dZout, nullptr, gq, gp, nullptr);
+    grad_a = (gp.array() * p_core.array()).colwise().sum().transpose();
+    gp.array().rowwise() *= a.transpose().array();
+  }
   core_->flow_backward(theta.head(nc), cache, kCoreSlot0, h, gq, gp, grad.head(nc));
   // Inner scaling p̃ = a ⊙ p_in:  dL/da_j += Σ_i G̃_ij p_in,ij,  dL/dp_in = a G̃.
-  grad_a.array() += (gp.array() * cache.mats[0].array()).colwise().sum().transpose();
   // a_j = exp(−|β| h_j / 2):  da_j/dβ = −(h_j / 2) a_j sign(β).
-  grad(nc) += -0.5 * abs_derivative(theta(nc)) * (grad_a.array() * h.array() * a.array()).sum();
-  if (dZin != nullptr) {
-    gp.array().rowwise() *= arow;
-    dZin->resize(2 * d, dZout.cols());
-    dZin->topRows(d) = gq;
-    dZin->bottomRows(d) = gp;
+  double sum;
+  if (d == 1) {
+    // gq's storage is spare from here unless dZin needs it.
+    Vector spare(dZin != nullptr ? n : 0);
+    sum = scalar_damping_sum(dZout, p_core, gp, p_in, h, a,
+                             dZin != nullptr ? spare.data() : gq.data());
+  } else {
+    grad_a.array() += (gp.array() * p_in.array()).colwise().sum().transpose();
+    sum = (grad_a.array() * h.array() * a.array()).sum();
   }
+  grad(nc) += -0.5 * abs_derivative(theta(nc)) * sum;
+  if (dZin != nullptr) join_rows(gq, gp, a, *dZin);
 }
 
 Matrix CSympNetId::jacobian(ConstParams theta, const Vector& z, double h) const {

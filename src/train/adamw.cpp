@@ -1,6 +1,7 @@
 #include "csympnet/train/adamw.hpp"
 
 #include <cmath>
+#include <string>
 
 #include "csympnet/core/error.hpp"
 
@@ -44,8 +45,12 @@ AdamW::AdamW(Index n_params, AdamWOptions options, std::optional<Index> damping_
 }
 
 void AdamW::step(ParamsRef theta, const Vector& g) {
-  require(theta.size() == m_.size() && g.size() == m_.size(),
-          "AdamW::step: parameter and gradient sizes must match the optimiser's");
+  // Tested before the message is built: a std::string of it would be an allocation per step.
+  if (theta.size() != m_.size() || g.size() != m_.size()) {
+    throw Error("AdamW::step: parameter and gradient sizes must match the optimiser's (" +
+                std::to_string(m_.size()) + "), got " + std::to_string(theta.size()) + " and " +
+                std::to_string(g.size()));
+  }
   ++t_;
   const double decay = 1.0 - opt_.lr * opt_.weight_decay;
   double kept = 0.0;

@@ -6,14 +6,19 @@ double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pa
                      ForwardCache* cache) {
   ForwardCache local;
   ForwardCache* c = grad != nullptr ? (cache != nullptr ? cache : &local) : nullptr;
-  const Matrix residual = map.forward(theta, pairs.z0, pairs.h, c) - pairs.z1;
+  // In place: the same elementwise differences and products as `Φ̂ − z1` and `(2/N) r`, without
+  // two temporaries per epoch.
+  Matrix residual = map.forward(theta, pairs.z0, pairs.h, c);
+  residual -= pairs.z1;
   const double n = static_cast<double>(pairs.size());
+  const double loss = residual.squaredNorm() / n;
   if (grad != nullptr) {
     grad->setZero(map.n_params());
     // dL/dΦ̂ = (2/N)(Φ̂ − z1)
-    map.backward(theta, *c, (2.0 / n) * residual, *grad, nullptr);
+    residual *= 2.0 / n;
+    map.backward(theta, *c, residual, *grad, nullptr);
   }
-  return residual.squaredNorm() / n;
+  return loss;
 }
 
 }  // namespace csympnet

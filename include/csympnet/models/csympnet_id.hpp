@@ -39,7 +39,8 @@ class CSympNetId final : public OneStepMap {
   void init_params(Rng& rng, ParamsRef theta) const override;
 
   // Cache layout: vecs[0] = h, vecs[1] = a(h); mats[0] = input p, mats[1] = core output p
-  // (before the outer scaling); the core's own slots follow from mats[2].
+  // (before the outer scaling); the core's own slots follow from mats[2]; after them, the core
+  // output q (a working buffer, kept so that a training epoch reuses it).
   Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
                  ForwardCache* cache) const override;
   void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,

@@ -1,0 +1,147 @@
+// conformal_rows.hpp's AVX-512 kernels: CSympNet-ID's d = 1 passes, eight samples per
+// instruction. A 2 x n batch is stored as (q_0, p_0, q_1, p_1, …): two registers hold eight
+// samples, split into a q and a p register by one two-source permute each, and joined back
+// likewise. Permutes and masked loads and stores move values unchanged; the arithmetic is the
+// portable loops' multiplies and adds, one instruction per operation, in their order (the file
+// is compiled with fp-contract off, so that none is fused into an FMA).
+#include "conformal_rows.hpp"
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC optimize("fp-contract=off")  // multiplies and adds stay separate, as in SSE2
+#endif
+#if defined(__clang__)
+#pragma clang fp contract(off)
+#endif
+
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
+#define CSYMPNET_CONFORMAL_ROWS_SIMD 1
+#include <immintrin.h>
+#endif
+
+namespace csympnet::detail {
+
+#ifdef CSYMPNET_CONFORMAL_ROWS_SIMD
+
+namespace {
+
+bool avx512_usable() {
+  static const bool usable = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") != 0;
+  }();
+  return usable;
+}
+
+// Masks for `count` (1..8) samples from column j: one lane per sample, and the two registers'
+// lanes of the interleaved 2 x n storage.
+struct Masks {
+  __mmask8 one, lo, hi;
+};
+
+Masks masks_for(Index count) {
+  const unsigned c = static_cast<unsigned>(count);
+  Masks m;
+  m.one = static_cast<__mmask8>((1u << c) - 1u);
+  m.lo = static_cast<__mmask8>(c >= 4 ? 0xFFu : (1u << (2 * c)) - 1u);
+  m.hi = static_cast<__mmask8>(c > 4 ? (1u << (2 * c - 8)) - 1u : 0u);
+  return m;
+}
+
+// Rows 0 and 1 of eight interleaved samples (lo: samples 0-3, hi: samples 4-7).
+__attribute__((target("avx512f"))) inline void split(__m512d lo, __m512d hi, __m512d& top,
+                                                     __m512d& bottom) {
+  const __m512i even = _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0);
+  const __m512i odd = _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1);
+  top = _mm512_permutex2var_pd(lo, even, hi);
+  bottom = _mm512_permutex2var_pd(lo, odd, hi);
+}
+
+__attribute__((target("avx512f"))) void split_avx512(const double* z, Index n, const double* a,
+                                                     double* q, double* p, double* p_raw) {
+  for (Index j = 0; j < n; j += 8) {
+    const Masks m = masks_for(n - j < 8 ? n - j : 8);
+    __m512d top, bottom;
+    split(_mm512_maskz_loadu_pd(m.lo, z + 2 * j), _mm512_maskz_loadu_pd(m.hi, z + 2 * j + 8), top,
+          bottom);
+    _mm512_mask_storeu_pd(q + j, m.one, top);
+    if (p_raw != nullptr) _mm512_mask_storeu_pd(p_raw + j, m.one, bottom);
+    const __m512d av = _mm512_maskz_loadu_pd(m.one, a + j);
+    _mm512_mask_storeu_pd(p + j, m.one, _mm512_mul_pd(bottom, av));
+  }
+}
+
+__attribute__((target("avx512f"))) void join_avx512(const double* q, const double* p,
+                                                    const double* a, Index n, double* out) {
+  const __m512i first = _mm512_set_epi64(11, 3, 10, 2, 9, 1, 8, 0);
+  const __m512i second = _mm512_set_epi64(15, 7, 14, 6, 13, 5, 12, 4);
+  for (Index j = 0; j < n; j += 8) {
+    const Masks m = masks_for(n - j < 8 ? n - j : 8);
+    const __m512d qv = _mm512_maskz_loadu_pd(m.one, q + j);
+    const __m512d pa =
+        _mm512_mul_pd(_mm512_maskz_loadu_pd(m.one, p + j), _mm512_maskz_loadu_pd(m.one, a + j));
+    _mm512_mask_storeu_pd(out + 2 * j, m.lo, _mm512_permutex2var_pd(qv, first, pa));
+    _mm512_mask_storeu_pd(out + 2 * j + 8, m.hi, _mm512_permutex2var_pd(qv, second, pa));
+  }
+}
+
+__attribute__((target("avx512f"))) void terms_avx512(const double* dz, const double* p_core,
+                                                     const double* gp, const double* p_in,
+                                                     const double* h, const double* a, Index n,
+                                                     double* terms) {
+  for (Index j = 0; j < n; j += 8) {
+    const Masks m = masks_for(n - j < 8 ? n - j : 8);
+    __m512d unused, g;
+    split(_mm512_maskz_loadu_pd(m.lo, dz + 2 * j), _mm512_maskz_loadu_pd(m.hi, dz + 2 * j + 8),
+          unused, g);
+    const __m512d outer = _mm512_mul_pd(g, _mm512_maskz_loadu_pd(m.one, p_core + j));
+    const __m512d inner =
+        _mm512_mul_pd(_mm512_maskz_loadu_pd(m.one, gp + j), _mm512_maskz_loadu_pd(m.one, p_in + j));
+    const __m512d grad_a = _mm512_add_pd(outer, inner);
+    const __m512d t = _mm512_mul_pd(_mm512_mul_pd(grad_a, _mm512_maskz_loadu_pd(m.one, h + j)),
+                                    _mm512_maskz_loadu_pd(m.one, a + j));
+    _mm512_mask_storeu_pd(terms + j, m.one, t);
+  }
+}
+
+}  // namespace
+
+bool split_scaled_rows_simd(const double* z, Index n, const double* a, double* q, double* p,
+                            double* p_raw) {
+  if (!avx512_usable()) return false;
+  split_avx512(z, n, a, q, p, p_raw);
+  return true;
+}
+
+bool join_scaled_rows_simd(const double* q, const double* p, const double* a, Index n,
+                           double* out) {
+  if (!avx512_usable()) return false;
+  join_avx512(q, p, a, n, out);
+  return true;
+}
+
+bool damping_terms_simd(const double* dz, const double* p_core, const double* gp,
+                        const double* p_in, const double* h, const double* a, Index n,
+                        double* terms) {
+  if (!avx512_usable()) return false;
+  terms_avx512(dz, p_core, gp, p_in, h, a, n, terms);
+  return true;
+}
+
+#else
+
+bool split_scaled_rows_simd(const double*, Index, const double*, double*, double*, double*) {
+  return false;
+}
+
+bool join_scaled_rows_simd(const double*, const double*, const double*, Index, double*) {
+  return false;
+}
+
+bool damping_terms_simd(const double*, const double*, const double*, const double*, const double*,
+                        const double*, Index, double*) {
+  return false;
+}
+
+#endif
+
+}  // namespace csympnet::detail

@@ -1,0 +1,140 @@
+// scaled_exp_simd() (exact_exp.hpp): exp(c h_j), the same values to the bit as the portable
+// build's Eigen expression `(c * h.array()).exp()`, eight elements per instruction instead of
+// two. The approach of exact_sigmoid.cpp, for arguments of either sign.
+//
+// Why the bits agree: Eigen's packet exp (pexp_double) is a fixed sequence of IEEE operations
+// (Cephes' method: n = ⌊x log2(e) + ½⌋, g = x − n·C1 − n·C2, a rational approximation of e^g,
+// then scaling by 2^n and max(·, x) as a non-finite guard), each a multiply, add, subtract,
+// divide, floor or power-of-two scaling, and the SSE2 build evaluates them without FMA. The
+// same operations on wider registers give the same results. For x in [−700, 700] Eigen's
+// clamping is inactive, 2^n and the result are normal numbers, so the scaling is exact however
+// it is split, and the guard max(e^x, x) returns e^x; lanes outside that range (or NaN) are
+// handed to Eigen's own routine.
+#include "exact_exp.hpp"
+
+#include <cmath>
+#include <cstring>
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC optimize("fp-contract=off")  // multiplies and adds stay separate, as in SSE2
+#endif
+#if defined(__clang__)
+#pragma clang fp contract(off)
+#endif
+
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__)) && \
+    defined(EIGEN_VECTORIZE_SSE2) && !defined(EIGEN_VECTORIZE_AVX) &&                          \
+    !defined(EIGEN_VECTORIZE_FMA)
+#define CSYMPNET_EXACT_EXP 1
+#include <immintrin.h>
+#endif
+
+namespace csympnet::detail {
+
+#ifdef CSYMPNET_EXACT_EXP
+
+namespace {
+
+// The coefficients of the Cephes exp approximation, as Eigen's pexp_double uses them.
+constexpr double kLog2e = 1.4426950408889634073599;
+constexpr double kP0 = 1.26177193074810590878e-4;
+constexpr double kP1 = 3.02994407707441961300e-2;
+constexpr double kP2 = 9.99999999999999999910e-1;
+constexpr double kQ0 = 3.00198505138664455042e-6;
+constexpr double kQ1 = 2.52448340349684104192e-3;
+constexpr double kQ2 = 2.27265548208155028766e-1;
+constexpr double kQ3 = 2.00000000000000000009e0;
+constexpr double kC1 = 0.693145751953125;
+constexpr double kC2 = 1.42860682030941723212e-6;
+constexpr double kBound = 700.0;  // |x| beyond this (or NaN): Eigen's own routine
+
+// exp(c h) for the element pairs [i, i + count) with Eigen's own SSE2 packets, as the Eigen
+// expression evaluates them: the product c·h as one packet multiply, then pexp.
+void exp_pairs_eigen(double c, const double* h, double* out, Index i, Index count) {
+  namespace ei = Eigen::internal;
+  using Packet = ei::packet_traits<double>::type;
+  const Packet cv = ei::pset1<Packet>(c);
+  for (Index j = i; j < i + count; j += 2) {
+    ei::pstoreu(out + j, ei::pexp(ei::pmul(cv, ei::ploadu<Packet>(h + j))));
+  }
+}
+
+// n2 is even: the pairs region of Eigen's loop.
+__attribute__((target("avx512f"))) void exp_avx512(double c, const double* h, double* out,
+                                                   Index n2) {
+  const __m512d cv = _mm512_set1_pd(c);
+  for (Index i = 0; i < n2; i += 8) {
+    const Index count = n2 - i < 8 ? n2 - i : 8;
+    const __mmask8 live = static_cast<__mmask8>((1u << count) - 1u);
+    const __m512d x = _mm512_mul_pd(cv, _mm512_maskz_loadu_pd(live, h + i));
+    const __mmask8 above = _mm512_mask_cmp_pd_mask(live, x, _mm512_set1_pd(-kBound), _CMP_GE_OQ);
+    const __mmask8 handled = _mm512_mask_cmp_pd_mask(above, x, _mm512_set1_pd(kBound), _CMP_LE_OQ);
+    if (handled != live) {
+      exp_pairs_eigen(c, h, out, i, count);
+      continue;
+    }
+    __m512d fx = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kLog2e), x), _mm512_set1_pd(0.5));
+    fx = _mm512_mask_roundscale_pd(fx, 0xFF, fx, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
+    __m512d g = _mm512_sub_pd(x, _mm512_mul_pd(fx, _mm512_set1_pd(kC1)));
+    g = _mm512_sub_pd(g, _mm512_mul_pd(fx, _mm512_set1_pd(kC2)));
+    const __m512d g2 = _mm512_mul_pd(g, g);
+    __m512d px = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kP0), g2), _mm512_set1_pd(kP1));
+    px = _mm512_add_pd(_mm512_mul_pd(px, g2), _mm512_set1_pd(kP2));
+    px = _mm512_mul_pd(px, g);
+    __m512d qx = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kQ0), g2), _mm512_set1_pd(kQ1));
+    qx = _mm512_add_pd(_mm512_mul_pd(qx, g2), _mm512_set1_pd(kQ2));
+    qx = _mm512_add_pd(_mm512_mul_pd(qx, g2), _mm512_set1_pd(kQ3));
+    __m512d e = _mm512_div_pd(px, _mm512_sub_pd(qx, px));
+    e = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(2.0), e), _mm512_set1_pd(1.0));
+    e = _mm512_mask_scalef_pd(e, 0xFF, e, fx);  // e · 2^fx, exact: 2^fx and the result are normal
+    _mm512_mask_storeu_pd(out + i, live, e);
+  }
+}
+
+bool avx512_usable() {
+  static const bool usable = [] {
+    __builtin_cpu_init();
+    if (!__builtin_cpu_supports("avx512f")) return false;
+    // Once per process: the kernel must reproduce Eigen on this machine, else it is not used.
+    // Arguments of both signs up to the bounds, and tiny ones around 0.
+    constexpr Index kN = 64;
+    double h[kN], mine[kN], ref[kN];
+    for (Index i = 0; i < kN; ++i) {
+      h[i] = (static_cast<double>(i) - 31.5) * 22.2 + 1e-3 * static_cast<double>(i % 7);
+    }
+    h[5] = -0.0;
+    h[9] = 0.0;
+    h[10] = 1e-300;
+    h[11] = -3e-17;
+    h[12] = 699.999;
+    h[13] = -699.999;
+    const double c = -0.999;
+    exp_avx512(c, h, mine, kN);
+    exp_pairs_eigen(c, h, ref, 0, kN);
+    for (Index i = 0; i < kN; ++i) {
+      if (std::memcmp(&mine[i], &ref[i], sizeof(double)) != 0) return false;
+    }
+    return true;
+  }();
+  return usable;
+}
+
+}  // namespace
+
+bool scaled_exp_simd(double c, const double* h, double* out, Index n) {
+  if (!avx512_usable()) return false;
+  const Index n2 = n - n % 2;  // Eigen's packet region; an odd last element is scalar
+  exp_avx512(c, h, out, n2);
+  if (n2 < n) out[n2] = std::exp(c * h[n2]);
+  return true;
+}
+
+#else
+
+bool scaled_exp_simd(double, const double*, double*, Index) {
+  return false;
+}
+
+#endif
+
+}  // namespace csympnet::detail

@@ -31,6 +31,7 @@ struct FitArgs {
   double val_fraction = 0.2, beta_init = 0.1;
   bool no_beta_decay = false, quiet = false, force = false, warm_start = false;
   std::string refine = "none";
+  long bootstrap_default = 0;  // when --bootstrap is not given; < 0 = FitConfig's "auto"
   std::optional<long> refine_iterations, bootstrap;
   std::optional<std::string> refine_solver;
 };
@@ -60,11 +61,14 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(kFiniteNumber)
       ->check(kNonZero);
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
-  cmd.add_flag("--warm-start", a.warm_start,
-               "Start beta at the closed-form estimate of gamma from the data");
+  cmd.add_flag(
+      "--warm-start,!--no-warm-start", a.warm_start,
+      std::string("Start beta at the closed-form estimate of gamma from the data (") +
+          (a.warm_start ? "default; --no-warm-start: start at --beta-init)" : "default: off)"));
   cmd.add_option("--refine", a.refine,
-                 "Second stage after AdamW: none (default, the paper's recipe), lm, lbfgs, or "
-                 "auto (lm, or lbfgs for large models)")
+                 "Second stage after AdamW: none (the paper's recipe), lm, lbfgs, or auto (lm, "
+                 "or lbfgs for large models) (default: " +
+                     a.refine + ")")
       ->check(CLI::IsMember({"auto", "none", "lm", "lbfgs"}));
   cmd.add_option("--refine-iterations", a.refine_iterations,
                  "Iterations of the second stage (default 300)")
@@ -72,10 +76,13 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--refine-solver", a.refine_solver,
                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
-                 "many parameters) (default: dense_qr)")
+                 "many parameters) (default: dense_qr; --refine auto takes "
+                 "blas_normal_cholesky above 1000 parameters)")
       ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
   cmd.add_option("--bootstrap", a.bootstrap,
-                 "Bootstrap replicates for an interval of gamma_hat (default 0: none; >= 10)")
+                 std::string("Bootstrap replicates for an interval of gamma_hat (0: none; >= 10) "
+                             "(default: ") +
+                     (a.bootstrap_default < 0 ? "100 up to 1000 parameters, else none)" : "0)"))
       ->check(CLI::Range(0L, 1000000L));
   cmd.add_option("--out", a.out, "Output directory")->required();
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
@@ -112,7 +119,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   c.refine.method = a.refine;
   if (a.refine_iterations) c.refine.iterations = *a.refine_iterations;
   if (a.refine_solver) c.refine.linear_solver = *a.refine_solver;
-  c.bootstrap.replicates = a.bootstrap.value_or(0);
+  c.bootstrap.replicates = a.bootstrap.value_or(a.bootstrap_default);
   FitResult r;
   {
     ProgressLine progress(a.quiet);
@@ -155,6 +162,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
       {"refine", r.refine},
       {"config", r.config},
       {"architecture", r.model.hyperparams()}};
+  if (gamma && !r.interval_note.empty()) report["gamma_ci_note"] = r.interval_note;
   write_json_file((std::filesystem::path(a.out) / "report.json").string(), report);
   // Wall times apart from the report, which stays bit-identical run to run.
   write_json_file((std::filesystem::path(a.out) / "timings.json").string(),
@@ -167,6 +175,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% %s)\n", *gamma,
                 0.5 * (r.interval->high - r.interval->low), r.interval->low, r.interval->high,
                 100.0 * r.interval->level, "bootstrap interval");
+  else if (gamma && !r.interval_note.empty())
+    std::printf("gamma_hat = %.10g (%s)\n", *gamma, r.interval_note.c_str());
   else if (gamma)
     std::printf("gamma_hat = %.10g\n", *gamma);
   if (verbose_summary || !a.quiet) {
@@ -213,6 +223,11 @@ void add_train(CLI::App& app) {
 
 void add_fit(CLI::App& app) {
   auto a = std::make_shared<FitArgs>();
+  // fit identifies γ: FitConfig's defaults, the identification recipe (docs/identification.md).
+  const FitConfig defaults;
+  a->warm_start = defaults.warm_start;
+  a->refine = defaults.refine.method;
+  a->bootstrap_default = defaults.bootstrap.replicates;
   CLI::App* cmd = app.add_subcommand(
       "fit", "Fit CSympNet-ID to your own pairs or trajectories and print gamma_hat");
   cmd->add_option("data", a->data, "CSV of pairs or trajectories")

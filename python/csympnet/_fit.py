@@ -71,8 +71,8 @@ def _warn_if_diverged(model):
 
 def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None, seed=42,
         val_fraction=0.2, beta_init=0.1, beta_decay=True, lr=1e-3, lr_schedule="cosine",
-        lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=False,
-        refine="none", refine_iterations=None, refine_solver=None, bootstrap=0, progress=None,
+        lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=True,
+        refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, progress=None,
         meta=None, _groups=None):
     """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs: what `csympnet fit` does, with the
     same defaults, so the same pairs and options give the same parameters to the bit.
@@ -88,17 +88,21 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     beta_init: initial β (γ̂ = |β|), nonzero. beta_decay: apply weight decay to β too.
     lr, lr_schedule ("cosine" or "constant"), lr_final_fraction, weight_decay, val_every:
         the optimiser (docs/training.md).
+    The defaults are the identification recipe (docs/identification.md); for the paper's
+    recipe pass warm_start=False, refine="none", bootstrap=0.
     warm_start: start β at the closed-form estimate of γ from the data (csympnet only).
     refine: second stage after AdamW: "none" (the paper's recipe), "lm"
-        (Levenberg–Marquardt), "lbfgs", or "auto" (lm, or lbfgs for large models);
+        (Levenberg–Marquardt), "lbfgs", or "auto" (default: lm, with the BLAS solver above
+        1000 parameters, or lbfgs for large models);
         refine_iterations (default 300), refine_solver ("dense_qr" or
         "dense_normal_cholesky", both Ceres, or "blas_normal_cholesky", the normal
         equations formed once per Jacobian with BLAS: the fastest for thousands of
         parameters) tune it.
     bootstrap: replicates of a percentile bootstrap for `model.gamma_interval` (0: none;
-        at least 10 otherwise). From `fit_trajectories` it resamples whole trajectories.
-    The recommended identification recipe is warm_start=True, refine="auto", bootstrap=100,
-    with core="la:5:20:h2" when the steps vary (docs/identification.md).
+        at least 10 otherwise). Default: 100 for csympnet with at most 1000 parameters,
+        else none (`meta["gamma_interval_note"]` says why). From `fit_trajectories` it
+        resamples whole trajectories.
+    Add core="la:5:20:h2" when the steps vary (docs/identification.md).
     progress: optional callable, called after each validation with a dict (epoch, epochs,
         train_loss, val_loss, best_val_loss, gamma, seconds); returning False stops training.
     meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
@@ -146,7 +150,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if refine_solver is not None:
         _checks.choice("refine_solver", refine_solver,
                        ("dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"))
-    bootstrap = _checks.integer("bootstrap", bootstrap, minimum=0)
+    bootstrap = -1 if bootstrap is None else _checks.integer("bootstrap", bootstrap, minimum=0)
     groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):
         raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")

@@ -136,6 +136,7 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
                {"pairs_train", r.train.size()}, {"pairs_val", r.val.size()}};
   if (out->gamma_interval)
     out->meta["gamma_interval"] = {out->gamma_interval->first, out->gamma_interval->second};
+  if (!r.interval_note.empty()) out->meta["gamma_interval_note"] = r.interval_note;
   out->model = std::move(r.model);
   out->theta = std::move(r.theta);
   return out;

@@ -45,10 +45,16 @@ def test_fit_equals_cli_fit_bit_for_bit(tmp_path, run_cli, s1_pairs):
 
 def test_options_change_the_fit(s1_pairs):
     base = csympnet.fit(*s1_pairs, epochs=100)
-    for kwargs in ({"seed": 1}, {"lr": 2e-3}, {"lr_schedule": "constant"}, {"beta_init": -0.2},
-                   {"beta_decay": False}, {"core": "la:2:3"}, {"weight_decay": 0.0}):
+    for kwargs in ({"seed": 1}, {"lr": 2e-3}, {"lr_schedule": "constant"}, {"warm_start": False},
+                   {"beta_decay": False}, {"core": "la:2:3"}, {"weight_decay": 0.0},
+                   {"refine": "none"}):
         other = csympnet.fit(*s1_pairs, epochs=100, **kwargs)
         assert other.n_params != base.n_params or not np.array_equal(other.params, base.params), kwargs
+    # beta_init is the start only without the warm start.
+    cold = csympnet.fit(*s1_pairs, epochs=100, warm_start=False)
+    assert not np.array_equal(
+        csympnet.fit(*s1_pairs, epochs=100, warm_start=False, beta_init=-0.2).params, cold.params)
+    assert np.array_equal(csympnet.fit(*s1_pairs, epochs=100, beta_init=-0.2).params, base.params)
     assert csympnet.fit(*s1_pairs, epochs=10, core="g:2:4").hyperparams["core"] == {
         "type": "g", "layers": 2, "width": 4}
     assert csympnet.fit(*s1_pairs, epochs=10, core={"type": "la", "layers": 2, "sublayers": 3}

@@ -44,19 +44,27 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
        {"bootstrap", c.bootstrap}};
 }
 
-std::string default_refine_for(Index n_pairs, Index dim, Index n_params) {
+void resolve_auto_refine(RefineOptions& refine, Index n_pairs, Index dim, Index n_params) {
   const double entries =
       static_cast<double>(n_pairs) * static_cast<double>(dim) * static_cast<double>(n_params);
-  return entries <= kMaxJacobianEntries && n_params <= kMaxLmParams ? "lm" : "lbfgs";
+  if (entries <= kMaxJacobianEntries && n_params <= kMaxLmParams) {
+    refine.method = "lm";
+  } else if (entries <= kMaxNormalLmJacobianEntries && n_params <= kMaxNormalLmParams) {
+    refine.method = "lm";
+    refine.linear_solver = "blas_normal_cholesky";
+  } else {
+    refine.method = "lbfgs";
+  }
 }
 
-RefineOptions default_replicate_refine_for(const std::string& refine_method) {
+RefineOptions default_replicate_refine_for(const RefineOptions& refine) {
   RefineOptions r;
   // Replicates start at θ̂ and keep their last iterate: with the best-validation rule they
   // would mostly keep θ̂ itself, and the interval would collapse to a point (measured).
   r.keep_best_validation = false;
-  if (refine_method == "lm") {
+  if (refine.method == "lm") {
     r.method = "lm";
+    r.linear_solver = refine.linear_solver;
     r.iterations = 10;
   } else {
     r.method = "lbfgs";
@@ -173,11 +181,20 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   r.model.init_params(init_rng, r.theta);
   r.config.bootstrap.seed = config.seed;
   if (r.config.refine.method == "auto")
-    r.config.refine.method = default_refine_for(r.train.size(), r.train.dim(), r.model.n_params());
-  if (r.config.bootstrap.replicates < 0)
-    r.config.bootstrap.replicates = config.model == "csympnet" ? 100 : 0;
+    resolve_auto_refine(r.config.refine, r.train.size(), r.train.dim(), r.model.n_params());
+  if (r.config.bootstrap.replicates < 0) {
+    r.config.bootstrap.replicates = 0;
+    if (config.model == "csympnet" && r.model.n_params() <= kMaxLmParams) {
+      r.config.bootstrap.replicates = kAutoBootstrapReplicates;
+    } else if (config.model == "csympnet") {
+      r.interval_note = "no interval by default for " + std::to_string(r.model.n_params()) +
+                        " parameters (more than " + std::to_string(kMaxLmParams) +
+                        "): each bootstrap replicate refits them; ask for one with --bootstrap N "
+                        "(Python: bootstrap=N)";
+    }
+  }
   if (r.config.bootstrap.refine.method == "auto")
-    r.config.bootstrap.refine = default_replicate_refine_for(r.config.refine.method);
+    r.config.bootstrap.refine = default_replicate_refine_for(r.config.refine);
   r.training = train_model(r.model, r.theta, r.train, r.val, r.config.train, progress);
   if (r.training.stop_reason != "budget") return r;  // diverged or stopped: no second stage
   r.refine = refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine);

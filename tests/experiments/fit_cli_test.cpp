@@ -85,6 +85,52 @@ TEST(FitCli, PrintsAndWritesTheInterval) {
   EXPECT_TRUE(timings.contains("bootstrap_seconds"));
 }
 
+TEST(FitCli, DefaultsAreTheIdentificationRecipe) {
+  // `fit` with no identification options: warm start, LM (s1-sized), a 100-replicate
+  // interval. `train` on the same data keeps the paper's recipe.
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "traj.csv";
+  write_trajectories_csv(data.string(), oscillator_trajectories());
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  const std::string cli = CSYMPNET_CLI_PATH;
+  ASSERT_EQ(shell(cli + " fit " + data.string() + " --out " + (dir.path() / "fit").string() +
+                  " --epochs 200 --refine-iterations 5 -q > " + stdout_file.string() + " 2>&1"),
+            0)
+      << slurp(stdout_file);
+  EXPECT_NE(slurp(stdout_file).find(" ± "), std::string::npos) << slurp(stdout_file);
+  auto rep = nlohmann::json::parse(slurp(dir.path() / "fit" / "report.json"));
+  EXPECT_EQ(rep["refine"]["method"], "lm");
+  EXPECT_EQ(rep["config"]["refine"]["linear_solver"], "dense_qr");
+  EXPECT_EQ(rep["warm_start"]["method"], "midpoint");
+  EXPECT_EQ(rep["gamma_ci_replicates"], 100);
+
+  ASSERT_EQ(
+      shell(cli + " train --data " + data.string() + " --out " + (dir.path() / "train").string() +
+            " --epochs 200 -q > " + stdout_file.string() + " 2>&1"),
+      0)
+      << slurp(stdout_file);
+  rep = nlohmann::json::parse(slurp(dir.path() / "train" / "report.json"));
+  EXPECT_EQ(rep["refine"]["method"], "none");
+  EXPECT_EQ(rep["warm_start"], "off");
+  EXPECT_TRUE(rep["gamma_ci_low"].is_null());
+
+  // Above 1000 parameters the default takes no interval, and says so; --no-warm-start and
+  // --refine none switch the rest off.
+  ASSERT_EQ(shell(cli + " fit " + data.string() + " --out " + (dir.path() / "big").string() +
+                  " --core la:3:400 --epochs 20 --refine none --no-warm-start -q > " +
+                  stdout_file.string() + " 2>&1"),
+            0)
+      << slurp(stdout_file);
+  const std::string printed = slurp(stdout_file);
+  EXPECT_NE(printed.find("no interval by default for 1209 parameters"), std::string::npos)
+      << printed;
+  rep = nlohmann::json::parse(slurp(dir.path() / "big" / "report.json"));
+  EXPECT_TRUE(rep["gamma_ci_low"].is_null());
+  EXPECT_NE(rep["gamma_ci_note"].get<std::string>().find("--bootstrap N"), std::string::npos);
+  EXPECT_EQ(rep["warm_start"], "off");
+  EXPECT_EQ(rep["refine"]["method"], "none");
+}
+
 TEST(FitCli, CoverageScriptSmoke) {
   testing::TempDir dir;
   const std::string cmd = "/usr/bin/python3 " + std::string(CSYMPNET_SOURCE_DIR) +

@@ -25,20 +25,26 @@ struct FitConfig {
   double val_fraction = 0.2;       // share of pairs held out when no validation set is given
   TrainOptions train;              // epochs <= 0 → default_epochs_for(d)
   double beta_init = 0.1;          // CSympNet-ID: initial β, nonzero (unless warm_start)
-  // The defaults below keep the paper's recipe, and `csympnet fit` shares them so that it
-  // and the Python API agree to the bit; docs/identification.md gives the recommended
-  // `--warm-start --refine auto --bootstrap 100`.
+  // The defaults below are the identification recipe of docs/identification.md: warm start,
+  // a second stage chosen by size, and a bootstrap interval for γ̂. `csympnet fit` and the
+  // Python `fit` share them (and agree to the bit); `csympnet train` and FitConfig users who
+  // want the paper's recipe set warm_start = false, refine.method = "none", replicates = 0.
   // CSympNet-ID: initial β from the closed-form estimate γ₀ of the data (gamma_warm_start);
   // beta_init is then unused. Falls back to beta_init when the estimate cannot be formed.
-  bool warm_start = false;
-  // Second stage after AdamW: none, lm, lbfgs, or "auto" → default_refine_for(...): lm
-  // within kMaxJacobianEntries and kMaxLmParams, else lbfgs.
-  RefineOptions refine;
-  // Interval for γ̂ (CSympNet-ID): 0 replicates = off, < 0 → 100; refine.method "auto" →
-  // default_replicate_refine_for(...).
+  bool warm_start = true;
+  // Second stage after AdamW: none, lm, lbfgs, or "auto" → resolve_auto_refine(...).
+  RefineOptions refine = [] {
+    RefineOptions r;
+    r.method = "auto";
+    return r;
+  }();
+  // Interval for γ̂ (CSympNet-ID): 0 replicates = off, < 0 = "auto": kAutoBootstrapReplicates
+  // for CSympNet-ID with at most kMaxLmParams parameters (each replicate is a few LM
+  // iterations: seconds in all), else none, and FitResult::interval_note says why.
+  // refine.method "auto" → default_replicate_refine_for(...).
   BootstrapOptions bootstrap = [] {
     BootstrapOptions b;
-    b.replicates = 0;
+    b.replicates = -1;
     b.refine.method = "auto";
     return b;
   }();
@@ -53,14 +59,22 @@ nlohmann::json default_core_for(Index d);
 long default_epochs_for(Index d);
 // LM's limits for the default second stage: the residual Jacobian (N·2d × P doubles) and
 // the P × P normal matrix it factors each iteration (docs/identification.md, "Defaults").
+// Up to kMaxLmParams, Ceres' dense QR (the better conditioned); up to kMaxNormalLmParams, the
+// normal equations on BLAS (train/levenberg_marquardt.hpp), whose P × P matrix and its
+// factor take 2 · 8 P² bytes (580 MB at the limit).
+constexpr long kAutoBootstrapReplicates = 100;
 constexpr double kMaxJacobianEntries = 2.5e7;
 constexpr Index kMaxLmParams = 1000;
-// "lm" within both limits, else "lbfgs".
-std::string default_refine_for(Index n_pairs, Index dim, Index n_params);
+constexpr double kMaxNormalLmJacobianEntries = 5e7;
+constexpr Index kMaxNormalLmParams = 6000;
+// What `--refine auto` becomes: "lm" within kMaxJacobianEntries and kMaxLmParams; "lm" with
+// linear_solver "blas_normal_cholesky" within the kMaxNormalLm limits; else "lbfgs". Sets
+// refine.method, and refine.linear_solver in the middle case only.
+void resolve_auto_refine(RefineOptions& refine, Index n_pairs, Index dim, Index n_params);
 // The second stage of each bootstrap replicate, started from the fitted θ̂ and keeping its
-// last iterate: 10 LM iterations after an LM fit (near θ̂ Gauss–Newton converges in a few),
-// else 100 L-BFGS iterations.
-RefineOptions default_replicate_refine_for(const std::string& refine_method);
+// last iterate: 10 LM iterations (with the fit's linear solver) after an LM fit (near θ̂
+// Gauss–Newton converges in a few), else 100 L-BFGS iterations.
+RefineOptions default_replicate_refine_for(const RefineOptions& refine);
 
 // Deterministic split of `all` into (train, val) with round(val_fraction·N) ≥ 1 validation
 // pairs (N ≥ 2 required).
@@ -91,6 +105,7 @@ struct FitResult {
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;  // why no warm start was used, when config asked for one
   std::optional<GammaInterval> interval;
+  std::string interval_note;  // why there is no interval, when the "auto" bootstrap skipped it
   PairSet train;
   std::vector<Index> train_groups;  // trajectory of each training pair (empty: unknown)
   PairSet val;

@@ -1,7 +1,7 @@
 // Second-stage optimisers for map models on the one-step loss, run after AdamW
 // (docs/identification.md). The one-step loss is a badly conditioned nonlinear least-squares
-// problem; a trust-region Gauss–Newton method (Levenberg–Marquardt, Ceres) reaches its
-// floor where first-order methods stall. L-BFGS (Ceres' GradientProblemSolver) needs only
+// problem; a trust-region Gauss–Newton method (Levenberg–Marquardt, Ceres' or our own on
+// BLAS) reaches its floor where first-order methods stall. L-BFGS (Ceres' GradientProblemSolver) needs only
 // the loss and its gradient, for models whose residual Jacobian is too large to hold.
 //
 // Checkpointing: the stage extends the best-validation rule. Its starting point (AdamW's
@@ -22,10 +22,12 @@ struct RefineOptions {
   // "none" (the paper's recipe: AdamW only), "lm" (Levenberg–Marquardt on the residuals
   // with their exact Jacobian) or "lbfgs" (L-BFGS with a Wolfe line search on the loss).
   std::string method = "none";
-  // Iteration budget (Jacobian evaluations for lm, gradient iterations for lbfgs).
+  // Iteration budget (trial steps, accepted or not, for lm; gradient iterations for lbfgs).
   long iterations = 300;
-  // LM's linear solver: "dense_qr" (default, the better conditioned) or
-  // "dense_normal_cholesky" (forms JᵀJ; faster for many residuals, squares the condition).
+  // LM's linear solver: Ceres' "dense_qr" (default, the better conditioned) or
+  // "dense_normal_cholesky" (forms JᵀJ; faster for many residuals, squares the condition), or
+  // "blas_normal_cholesky": csympnet's LM (train/levenberg_marquardt.hpp), JᵀJ formed once
+  // per Jacobian with BLAS; the fastest for thousands of parameters.
   std::string linear_solver = "dense_qr";
   // Stop when the relative change of the loss falls below this (Ceres function_tolerance).
   double function_tolerance = 1e-15;
@@ -44,14 +46,14 @@ void from_json(const nlohmann::json& j, RefineOptions& o);
 
 struct RefineSummary {
   std::string method = "none";
-  long iterations = 0;             // iterations Ceres ran
+  long iterations = 0;             // iterations the optimiser ran
   long best_iteration = 0;         // iterate kept (0 = the starting point)
   double train_loss_before = 0.0;  // one-step loss (mean over pairs) on the training pairs
   double train_loss_after = 0.0;   // ... at the kept parameters
   double val_loss_before = 0.0;
   double val_loss_after = 0.0;
   double seconds = 0.0;
-  std::string termination;  // Ceres' termination message
+  std::string termination;  // the optimiser's termination message
   std::string brief_report() const;
 };
 // Every field but the wall time, so that reports stay bit-identical run to run.

@@ -14,27 +14,13 @@
 #include <cstring>
 #include <random>
 
-#if defined(__GNUC__) && !defined(__clang__)
-// The kernels must multiply and add separately, as the SSE2 build does: no contraction into
-// FMA inside the AVX-512 / AVX2 functions below.
-#pragma GCC optimize("fp-contract=off")
-#endif
-#if defined(__clang__)
-#pragma clang fp contract(off)
-#endif
-
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__)) && \
-    defined(EIGEN_VECTORIZE_SSE2) && !defined(EIGEN_VECTORIZE_AVX) &&                          \
-    !defined(EIGEN_VECTORIZE_FMA)
-#define CSYMPNET_EXACT_KERNELS 1
-#include <immintrin.h>
-#endif
+#include "exact_simd.hpp"
 
 namespace csympnet::detail {
 
 namespace {
 
-#ifdef CSYMPNET_EXACT_KERNELS
+#ifdef CSYMPNET_EXACT_SIMD
 
 // Writing a finished entry v = 0 + s (the product's value) to its destination p:
 // kStore: p = v;  kAdd: p = p + v;  kAddScaled: p = p + v·h_j (hs points at h_j).
@@ -492,13 +478,13 @@ const Choice& chosen() {
   return c;
 }
 
-#endif  // CSYMPNET_EXACT_KERNELS
+#endif  // CSYMPNET_EXACT_SIMD
 
 }  // namespace
 
 bool exact_product(Index m, Index n, Index k, const double* a, Index lda, const double* b, Index bl,
                    Index bj, double* c, Epilogue mode, const double* h) {
-#ifdef CSYMPNET_EXACT_KERNELS
+#ifdef CSYMPNET_EXACT_SIMD
   const Choice& ch = chosen();
   if (ch.rows == nullptr) return false;
   // Eigen's lazy product (tiny sizes), its GEMV fallbacks (a single row or column), odd row
@@ -515,7 +501,7 @@ bool exact_product(Index m, Index n, Index k, const double* a, Index lda, const 
 }
 
 const char* exact_product_isa() {
-#ifdef CSYMPNET_EXACT_KERNELS
+#ifdef CSYMPNET_EXACT_SIMD
   return chosen().isa;
 #else
   return "eigen";

@@ -16,37 +16,14 @@
 
 #include "csympnet/models/activation.hpp"
 
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC optimize("fp-contract=off")  // multiplies and adds stay separate, as in SSE2
-#endif
-#if defined(__clang__)
-#pragma clang fp contract(off)
-#endif
-
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__)) && \
-    defined(EIGEN_VECTORIZE_SSE2) && !defined(EIGEN_VECTORIZE_AVX) &&                          \
-    !defined(EIGEN_VECTORIZE_FMA)
-#define CSYMPNET_EXACT_SIGMOID 1
-#include <immintrin.h>
-#endif
+#include "exact_simd.hpp"
 
 namespace csympnet::detail {
 
-#ifdef CSYMPNET_EXACT_SIGMOID
+#ifdef CSYMPNET_EXACT_SIMD
 
 namespace {
 
-// The coefficients of the Cephes exp approximation, as Eigen's pexp_double uses them.
-constexpr double kLog2e = 1.4426950408889634073599;
-constexpr double kP0 = 1.26177193074810590878e-4;
-constexpr double kP1 = 3.02994407707441961300e-2;
-constexpr double kP2 = 9.99999999999999999910e-1;
-constexpr double kQ0 = 3.00198505138664455042e-6;
-constexpr double kQ1 = 2.52448340349684104192e-3;
-constexpr double kQ2 = 2.27265548208155028766e-1;
-constexpr double kQ3 = 2.00000000000000000009e0;
-constexpr double kC1 = 0.693145751953125;
-constexpr double kC2 = 1.42860682030941723212e-6;
 constexpr double kLowest = -700.0;  // below this, Eigen's clamp and scaling cases are handed back
 
 // σ for the element pairs [i, i + count) with Eigen's own SSE2 packet exp.
@@ -77,20 +54,7 @@ __attribute__((target("avx512f"))) void sigmoid_avx512(const double* x, double* 
       sigmoid_pairs_eigen(x, out, i, count);
       continue;
     }
-    __m512d fx = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kLog2e), v), _mm512_set1_pd(0.5));
-    fx = _mm512_mask_roundscale_pd(fx, 0xFF, fx, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
-    __m512d g = _mm512_sub_pd(v, _mm512_mul_pd(fx, _mm512_set1_pd(kC1)));
-    g = _mm512_sub_pd(g, _mm512_mul_pd(fx, _mm512_set1_pd(kC2)));
-    const __m512d g2 = _mm512_mul_pd(g, g);
-    __m512d px = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kP0), g2), _mm512_set1_pd(kP1));
-    px = _mm512_add_pd(_mm512_mul_pd(px, g2), _mm512_set1_pd(kP2));
-    px = _mm512_mul_pd(px, g);
-    __m512d qx = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kQ0), g2), _mm512_set1_pd(kQ1));
-    qx = _mm512_add_pd(_mm512_mul_pd(qx, g2), _mm512_set1_pd(kQ2));
-    qx = _mm512_add_pd(_mm512_mul_pd(qx, g2), _mm512_set1_pd(kQ3));
-    __m512d e = _mm512_div_pd(px, _mm512_sub_pd(qx, px));
-    e = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(2.0), e), one);
-    e = _mm512_mask_scalef_pd(e, 0xFF, e, fx);  // e · 2^fx, exact: 2^fx is normal here
+    const __m512d e = cephes_exp512(v);
     const __mmask8 nonneg = _mm512_cmp_pd_mask(xv, zero, _CMP_GE_OQ);
     const __m512d num = _mm512_mask_blend_pd(nonneg, e, one);
     _mm512_mask_storeu_pd(out + i, live, _mm512_div_pd(num, _mm512_add_pd(one, e)));

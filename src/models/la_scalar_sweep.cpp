@@ -12,23 +12,11 @@
 #include "column_sums.hpp"
 #include "csympnet/models/activation.hpp"
 
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC optimize("fp-contract=off")  // multiplies and adds stay separate, as in SSE2
-#endif
-#if defined(__clang__)
-#pragma clang fp contract(off)
-#endif
-
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__)) && \
-    defined(EIGEN_VECTORIZE_SSE2) && !defined(EIGEN_VECTORIZE_AVX) &&                          \
-    !defined(EIGEN_VECTORIZE_FMA)
-#define CSYMPNET_LA_SCALAR_SIMD 1
-#include <immintrin.h>
-#endif
+#include "exact_simd.hpp"
 
 namespace csympnet::detail {
 
-#ifdef CSYMPNET_LA_SCALAR_SIMD
+#ifdef CSYMPNET_EXACT_SIMD
 
 namespace {
 

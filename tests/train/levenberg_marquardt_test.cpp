@@ -85,19 +85,24 @@ TEST(LevenbergMarquardt, SolvesRosenbrockFromTheClassicStart) {
   EXPECT_LE(r.iterations, 200);
 }
 
-TEST(LevenbergMarquardt, RejectsAnOvershootAndStillConverges) {
-  // r = atan(x) from x = 3: the Gauss–Newton step −atan(3)(1 + 9) lands at x ≈ −9.5, where
-  // |r| is larger, so the first trial must be rejected and μ raised.
+// One residual r(x) of one parameter, with its derivative.
+LeastSquaresProblem scalar_problem(double (*r)(double), double (*dr)(double)) {
   LeastSquaresProblem p;
   p.n_residuals = 1;
   p.n_params = 1;
-  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
-    r(0) = std::atan(x(0));
+  p.residuals = [r](ConstParams x, Eigen::Ref<Vector> out) {
+    out(0) = r(x(0));
     return true;
   };
-  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) {
-    j(0, 0) = 1.0 / (1.0 + x(0) * x(0));
-  };
+  p.jacobian = [dr](ConstParams x, Eigen::Ref<RowMajorMatrix> j) { j(0, 0) = dr(x(0)); };
+  return p;
+}
+
+TEST(LevenbergMarquardt, RejectsAnOvershootAndStillConverges) {
+  // r = atan(x) from x = 3: the Gauss–Newton step −atan(3)(1 + 9) lands at x ≈ −9.5, where
+  // |r| is larger, so the first trial must be rejected and μ raised.
+  const LeastSquaresProblem p = scalar_problem([](double x) { return std::atan(x); },
+                                               [](double x) { return 1.0 / (1.0 + x * x); });
   Vector x(1);
   x << 3.0;
   std::vector<long> accepted_at;
@@ -168,14 +173,8 @@ TEST(LevenbergMarquardt, TreatsANonFiniteTrialAsARejection) {
   // r = log x from x = 5: the Gauss–Newton step −x log x ≈ −8.05 lands at x < 0, where r is
   // NaN. That trial must count as a rejection (not poison θ), and the damped steps that
   // follow must reach the root x = 1.
-  LeastSquaresProblem p;
-  p.n_residuals = 1;
-  p.n_params = 1;
-  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
-    r(0) = std::log(x(0));
-    return true;
-  };
-  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) { j(0, 0) = 1.0 / x(0); };
+  const LeastSquaresProblem p =
+      scalar_problem([](double x) { return std::log(x); }, [](double x) { return 1.0 / x; });
   Vector x(1);
   x << 5.0;
   std::vector<long> accepted_at;

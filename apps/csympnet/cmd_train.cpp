@@ -90,6 +90,12 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
 }
 
 void run_fit(const FitArgs& a, bool verbose_summary) {
+  // auto picks the solver with the method; an explicit one would be overridden silently.
+  if (a.refine == "auto" && a.refine_solver) {
+    throw CLI::ValidationError("--refine-solver",
+                               "needs --refine lm: --refine auto (fit's default) chooses the "
+                               "solver by the model's size");
+  }
   prepare_output_dir(a.out, a.force);
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
   // The training reader first: it refuses, at their line, values too large to train on and

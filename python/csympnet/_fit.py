@@ -97,7 +97,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         refine_iterations (default 300), refine_solver ("dense_qr" or
         "dense_normal_cholesky", both Ceres, or "blas_normal_cholesky", the normal
         equations formed once per Jacobian with BLAS: the fastest for thousands of
-        parameters) tune it.
+        parameters; only with refine="lm": "auto" picks it) tune it.
     bootstrap: replicates of a percentile bootstrap for `model.gamma_interval` (0: none;
         at least 10 otherwise). Default: 100 for csympnet with at most 1000 parameters,
         else none (`meta["gamma_interval_note"]` says why). From `fit_trajectories` it
@@ -150,6 +150,9 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if refine_solver is not None:
         _checks.choice("refine_solver", refine_solver,
                        ("dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"))
+        if refine == "auto":
+            raise ValueError("refine_solver: needs refine=\"lm\"; refine=\"auto\" (the default) "
+                             "chooses the solver by the model's size")
     bootstrap = -1 if bootstrap is None else _checks.integer("bootstrap", bootstrap, minimum=0)
     groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):

@@ -185,7 +185,8 @@ def test_identification_options_equal_cli_fit_bit_for_bit(tmp_path, run_cli):
 def test_identification_options_are_checked(s1_pairs):
     for kwargs, exc, match in (({"refine": "newton"}, ValueError, "refine"),
                                ({"refine_iterations": 0}, ValueError, "refine_iterations"),
-                               ({"refine_solver": "svd"}, ValueError, "refine_solver"),
+                               ({"refine_solver": "svd", "refine": "lm"}, ValueError, "refine_solver"),
+                               ({"refine_solver": "dense_qr"}, ValueError, "refine_solver"),
                                ({"bootstrap": -1}, ValueError, "bootstrap"),
                                ({"warm_start": 1}, TypeError, "warm_start")):
         with pytest.raises(exc, match=match):

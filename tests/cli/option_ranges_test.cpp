@@ -171,6 +171,11 @@ TEST_F(OptionRanges, RunTrainAndFit) {
     expect_refused("fit " + data + " -q" + out(), c);
     expect_refused("train --data " + data + " -q" + out(), c);
   }
+  // fit's default --refine auto chooses the solver itself: an explicit one is refused, not
+  // silently overridden (train's default is none, so it needs --refine auto to refuse).
+  expect_refused("fit " + data + " -q" + out(), {"--refine-solver dense_qr", "--refine-solver", 2});
+  expect_refused("train --data " + data + " -q" + out(),
+                 {"--refine auto --refine-solver blas_normal_cholesky", "--refine-solver", 2});
   expect_refused("fit -q" + out(), {(dir_ / "none.csv").string(), "none.csv", 2});
   expect_refused("train -q" + out(), {"--data " + (dir_ / "none.csv").string(), "--data", 2});
 }

@@ -1,8 +1,8 @@
 // Second-stage optimisers for map models on the one-step loss, run after AdamW
 // (docs/identification.md). The one-step loss is a badly conditioned nonlinear least-squares
 // problem; a trust-region Gauss–Newton method (Levenberg–Marquardt, Ceres' or our own on
-// BLAS) reaches its floor where first-order methods stall. L-BFGS (Ceres' GradientProblemSolver) needs only
-// the loss and its gradient, for models whose residual Jacobian is too large to hold.
+// BLAS) reaches its floor where first-order methods stall. L-BFGS (Ceres' GradientProblemSolver)
+// needs only the loss and its gradient, for models whose residual Jacobian is too large to hold.
 //
 // Checkpointing: the stage extends the best-validation rule. Its starting point (AdamW's
 // checkpoint) and every iterate are validated, and the one with the lowest validation loss

@@ -8,14 +8,10 @@
 #include <random>
 
 #include "../src/models/conformal_rows.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-bool same_bits(const Matrix& a, const Matrix& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() &&
-         std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
-}
 
 Matrix random_matrix(Index rows, Index cols, std::mt19937_64& gen) {
   std::normal_distribution<double> normal;

@@ -16,15 +16,10 @@
 #include "csympnet/models/csympnet_id.hpp"
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-template <typename A, typename B>
-bool same_bits(const A& a, const B& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() &&
-         std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
-}
 
 // The previous CSympNetId::forward, verbatim but for the core accessor.
 Matrix reference_forward(const CSympNetId& m, ConstParams theta, const Matrix& Z, const Vector& h,

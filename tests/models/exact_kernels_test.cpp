@@ -12,14 +12,10 @@
 
 #include "../src/models/exact_product.hpp"
 #include "csympnet/models/activation.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-bool same_bits(const Matrix& a, const Matrix& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() &&
-         std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
-}
 
 Matrix random_matrix(std::mt19937_64& gen, Index rows, Index cols) {
   std::normal_distribution<double> normal;

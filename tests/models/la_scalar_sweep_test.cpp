@@ -12,15 +12,10 @@
 #include "../src/models/exact_product.hpp"
 #include "../src/models/la_scalar_sweep.hpp"
 #include "csympnet/models/la_sympnet.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-template <typename A, typename B>
-bool same_bits(const A& a, const B& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() &&
-         std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
-}
 
 struct Case {
   Index layers, sublayers, step_terms, n;

@@ -17,18 +17,12 @@
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/train/adamw.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet {
 namespace {
 
-bool same_bits(const Vector& a, const Vector& b) {
-  return a.size() == b.size() &&
-         std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
-}
-
-bool same_bits(double a, double b) {
-  return std::memcmp(&a, &b, sizeof(double)) == 0;
-}
+using testing::same_bits;
 
 // The previous one_step_loss.
 double reference_loss(const OneStepMap& map, ConstParams theta, const PairSet& pairs,

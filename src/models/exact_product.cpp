@@ -57,21 +57,6 @@ __attribute__((target("avx512f"), always_inline)) inline void put512(double* p, 
   }
 }
 
-// put512 on lanes 0 and 1 only (the two tail rows).
-__attribute__((target("avx512f"), always_inline)) inline void put512_tail(double* p, __m512d v,
-                                                                          Epilogue mode,
-                                                                          const double* hs) {
-  constexpr __mmask8 kTwo = 0x3;
-  if (mode == Epilogue::kStore) {
-    _mm512_mask_storeu_pd(p, kTwo, v);
-  } else if (mode == Epilogue::kAdd) {
-    _mm512_mask_storeu_pd(p, kTwo, _mm512_add_pd(_mm512_maskz_loadu_pd(kTwo, p), v));
-  } else {
-    const __m512d scaled = _mm512_mul_pd(v, _mm512_set1_pd(*hs));
-    _mm512_mask_storeu_pd(p, kTwo, _mm512_add_pd(_mm512_maskz_loadu_pd(kTwo, p), scaled));
-  }
-}
-
 // Rows m4, m4 + 1 of an m ≡ 2 (mod 4) product in Eigen's 1-packet order (see the top), with
 // the same registers it uses: one SSE2 packet holds the two rows, four columns at a time.
 void tail_rows(Index m4, Index n, Index k, const double* a, Index lda, const double* b, Index bl,
@@ -132,22 +117,25 @@ void tail_rows(Index m4, Index n, Index k, const double* a, Index lda, const dou
 enum class Tail { kNone, kPairs, kRunning };  // none; even/odd sums; one running sum
 
 // One l step of an AVX-512 tile: R x 8 rows of A from a, NC columns of B; with a tail, rows
-// m4, m4 + 1 (at `at`, lanes 0 and 1 of one register) into tacc.
+// m4, m4 + 1 (at `at`) into tacc, in 128-bit registers: the two rows need no more, and on
+// CPUs that split wide operations (AMD Zen 4) a 128-bit multiply or add costs a quarter of a
+// 512-bit one.
 template <int R, int NC, bool kWithTail>
 __attribute__((target("avx512f"), always_inline)) inline void step512(
     Index l, const double* a, const double* at, Index lda, const double* b, Index bl, Index bj,
-    __m512d (&acc)[R][NC], __m512d (&tacc)[NC]) {
+    __m512d (&acc)[R][NC], __m128d (&tacc)[NC]) {
   __m512d av[R];
 #pragma GCC unroll 4
   for (int r = 0; r < R; ++r) av[r] = _mm512_loadu_pd(a + l * lda + 8 * r);
-  __m512d tv = _mm512_setzero_pd();
-  if constexpr (kWithTail) tv = _mm512_maskz_loadu_pd(0x3, at + l * lda);
+  __m128d tv = _mm_setzero_pd();
+  if constexpr (kWithTail) tv = _mm_loadu_pd(at + l * lda);
 #pragma GCC unroll 8
   for (int s = 0; s < NC; ++s) {
-    const __m512d bv = _mm512_set1_pd(b[l * bl + s * bj]);
+    const double bs = b[l * bl + s * bj];
+    const __m512d bv = _mm512_set1_pd(bs);
 #pragma GCC unroll 4
     for (int r = 0; r < R; ++r) acc[r][s] = _mm512_add_pd(acc[r][s], _mm512_mul_pd(av[r], bv));
-    if constexpr (kWithTail) tacc[s] = _mm512_add_pd(tacc[s], _mm512_mul_pd(tv, bv));
+    if constexpr (kWithTail) tacc[s] = _mm_add_pd(tacc[s], _mm_mul_pd(tv, _mm_set1_pd(bs)));
   }
 }
 
@@ -160,14 +148,14 @@ __attribute__((target("avx512f"), always_inline)) inline void tile512(
     double* c, double* ct, Index ldc, Epilogue mode, const double* h) {
   constexpr bool kWithTail = kTail != Tail::kNone;
   __m512d acc[R][NC];
-  __m512d even[NC];
-  __m512d odd[NC];
+  __m128d even[NC];
+  __m128d odd[NC];
 #pragma GCC unroll 8
   for (int s = 0; s < NC; ++s) {
 #pragma GCC unroll 4
     for (int r = 0; r < R; ++r) acc[r][s] = _mm512_setzero_pd();
-    even[s] = _mm512_setzero_pd();
-    odd[s] = _mm512_setzero_pd();
+    even[s] = _mm_setzero_pd();
+    odd[s] = _mm_setzero_pd();
   }
   Index l = 0;
   if constexpr (kTail == Tail::kPairs) {
@@ -176,7 +164,7 @@ __attribute__((target("avx512f"), always_inline)) inline void tile512(
       step512<R, NC, true>(l + 1, a, at, lda, b, bl, bj, acc, odd);
     }
 #pragma GCC unroll 8
-    for (int s = 0; s < NC; ++s) even[s] = _mm512_add_pd(even[s], odd[s]);
+    for (int s = 0; s < NC; ++s) even[s] = _mm_add_pd(even[s], odd[s]);
   }
   for (; l < k; ++l) step512<R, NC, kWithTail>(l, a, at, lda, b, bl, bj, acc, even);
   const __m512d zero = _mm512_setzero_pd();
@@ -186,7 +174,8 @@ __attribute__((target("avx512f"), always_inline)) inline void tile512(
     for (int r = 0; r < R; ++r) {
       put512(c + s * ldc + 8 * r, _mm512_add_pd(zero, acc[r][s]), mode, h + s);
     }
-    if constexpr (kWithTail) put512_tail(ct + s * ldc, _mm512_add_pd(zero, even[s]), mode, h + s);
+    if constexpr (kWithTail)
+      put128(ct + s * ldc, _mm_add_pd(_mm_setzero_pd(), even[s]), mode, h + s);
   }
 }
 

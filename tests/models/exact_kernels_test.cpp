@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <utility>
 
 #include "../src/models/exact_product.hpp"
 #include "csympnet/models/activation.hpp"
@@ -145,6 +146,18 @@ TEST(ExactSigmoid, MatchesEigenToTheBit) {
     sigmoid_into(x, mine);
     EXPECT_TRUE(same_bits(reference_sigmoid(x), mine)) << "case " << t;
   }
+}
+
+// The comparisons above pass vacuously if sigmoid_into() never reaches its kernel (it did not,
+// from commit 7d33cec until the fix that added this test: its dispatch read the expression's
+// Flags, which never carry LinearAccessBit). Contiguous operands must reach it.
+TEST(ExactSigmoid, ContiguousOperandsReachTheKernel) {
+  EXPECT_TRUE(detail::sigmoid_kernel_applies<Matrix>());
+  EXPECT_TRUE(detail::sigmoid_kernel_applies<Eigen::Map<const Matrix>>());
+  EXPECT_TRUE(detail::sigmoid_kernel_applies<decltype(std::declval<Matrix&>().middleCols(1, 2))>());
+  EXPECT_FALSE(detail::sigmoid_kernel_applies<decltype(std::declval<Matrix&>().topRows(2))>());
+  using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  EXPECT_FALSE(detail::sigmoid_kernel_applies<RowMajorMatrix>());
 }
 
 TEST(ExactSigmoid, BlocksMatchEigenToTheBit) {

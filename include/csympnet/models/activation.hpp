@@ -21,6 +21,17 @@ namespace detail {
 // Eigen path of sigmoid_into() computes them, with AVX-512 where the machine has it.
 // Returns false (writing nothing) when no such kernel runs here (src/models/exact_sigmoid.cpp).
 bool sigmoid_simd(const double* x, double* out, Index n);
+
+// Whether sigmoid_into() may hand x of type In to sigmoid_simd(): the kernel assumes Eigen's
+// linear traversal (packets from element 0, an odd last element alone), which Eigen uses when
+// x's *evaluator* allows linear access (matrices, maps, whole columns). The expression's own
+// Flags never carry LinearAccessBit, so they cannot be used for this test.
+template <typename In>
+constexpr bool sigmoid_kernel_applies() {
+  constexpr int kEval = static_cast<int>(Eigen::internal::evaluator<In>::Flags);
+  constexpr int kLinear = Eigen::DirectAccessBit | Eigen::LinearAccessBit;
+  return (kEval & kLinear) == kLinear && !(kEval & Eigen::RowMajorBit);
+}
 }  // namespace detail
 
 // out = σ(x) elementwise (out may not alias x). Same stable formula as sigmoid(), written
@@ -32,10 +43,7 @@ template <typename In>
 void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
   const auto& xe = x.derived();
   constexpr int kFlags = static_cast<int>(In::Flags);
-  // The kernel assumes Eigen's linear traversal (packets from element 0, an odd last element
-  // alone), which Eigen uses when x is linearly accessible (matrices, maps, whole columns).
-  constexpr int kLinear = Eigen::DirectAccessBit | Eigen::LinearAccessBit;
-  if constexpr ((kFlags & kLinear) == kLinear && !(kFlags & Eigen::RowMajorBit)) {
+  if constexpr (detail::sigmoid_kernel_applies<In>()) {
     if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
       out.resize(x.rows(), x.cols());
       if (detail::sigmoid_simd(xe.data(), out.data(), out.size())) return;

@@ -3,6 +3,8 @@
 //
 //   epoch/P/M       one full-batch training epoch: loss, gradient and AdamW step, as
 //                   train_parameters() runs it (the table of `make bench` reads epoch/P/csympnet)
+//   epoch/P/csympnet/threads:T  the same on a team of T threads (TrainOptions::threads; wall
+//                   time, since CPU time would count the calling thread only)
 //   lossgrad/P/M    forward + backward only: the model's training loss with its gradient
 //   adamw/P         one AdamW step over the parameters of P's CSympNet-ID
 //   jacobian/P/M    the exact input Jacobian at one training state (h = 0.2); for vector
@@ -31,9 +33,10 @@ const std::vector<std::string> kPresets = {"s1", "s2", "s3", "s2-100"};
 const std::vector<std::string> kModels = {"csympnet", "sympnet", "map",  "ode",
                                           "dhnn",     "dhnn2",   "phnn", "phnn2"};
 
-void epoch(benchmark::State& state, const std::string& preset, const std::string& model) {
+void epoch(benchmark::State& state, const std::string& preset, const std::string& model,
+           int threads) {
   Setup s = make_setup(preset, model);
-  const Objective o = make_objective(s.model, s.train, s.val);
+  const Objective o = make_objective(s.model, s.train, s.val, threads);
   AdamW opt(o.n_params, {}, o.damping_index);
   Vector grad(o.n_params);
   for (auto _ : state) {
@@ -123,8 +126,16 @@ void register_benchmarks() {
   using benchmark::RegisterBenchmark;
   for (const auto& p : kPresets) {
     for (const auto& m : kModels) {
-      RegisterBenchmark(("epoch/" + p + "/" + m).c_str(), epoch, p, m)
+      RegisterBenchmark(("epoch/" + p + "/" + m).c_str(), epoch, p, m, 1)
           ->Unit(benchmark::kMicrosecond);
+    }
+  }
+  for (const auto& p : kPresets) {
+    for (int t : {2, 3, 4}) {
+      const std::string name = "epoch/" + p + "/csympnet/threads:" + std::to_string(t);
+      RegisterBenchmark(name.c_str(), epoch, p, std::string("csympnet"), t)
+          ->Unit(benchmark::kMicrosecond)
+          ->UseRealTime();
     }
   }
   for (const auto& p : kPresets) {

@@ -4,6 +4,7 @@
 model.json (θ to the last digit written, 17 significant) exactly.
 
     bench/compare_reports.py --before OLD/csympnet --after build/bin/csympnet [--quick]
+                             [--after-threads 2]
 
 The default list covers every model on s1 and the map models (whose training path the
 optimisations touch) on s2, s3 and s2-100 with short budgets; s1 CSympNet-ID runs its full
@@ -41,7 +42,8 @@ QUICK = [("s1", "csympnet", None), ("s2", "csympnet", 300), ("s3", "csympnet", 3
 
 
 def is_timing(key):
-    return key.endswith("seconds")
+    # Wall times, and the thread count a run was given (results do not depend on it).
+    return key.endswith("seconds") or key == "train_threads"
 
 
 def strip_timing(value):
@@ -52,9 +54,9 @@ def strip_timing(value):
     return value
 
 
-def run(binary, preset, model, epochs, out):
+def run(binary, preset, model, epochs, out, extra=()):
     cmd = ["nice", "-n", "19", binary, "run", "--preset", preset, "--model", model, "--seed", "42",
-           "--out", out, "-q"]
+           "--out", out, "-q", *extra]
     if epochs is not None:
         cmd += ["--epochs", str(epochs)]
     subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
@@ -78,13 +80,18 @@ def main():
     ap.add_argument("--before", required=True, help="csympnet binary built from the old code")
     ap.add_argument("--after", required=True, help="csympnet binary built from the new code")
     ap.add_argument("--quick", action="store_true", help="CSympNet-ID on the four presets only")
+    ap.add_argument("--after-threads", type=int, default=1,
+                    help="run the new binary with --threads N (N > 1: also checks that the "
+                    "threaded epochs give the serial bits)")
     args = ap.parse_args()
     bad = 0
     with tempfile.TemporaryDirectory() as tmp:
         for preset, model, epochs in QUICK if args.quick else RUNS:
             label = f"{preset}/{model} ({'default' if epochs is None else epochs} epochs)"
             before = run(args.before, preset, model, epochs, os.path.join(tmp, "a", preset, model))
-            after = run(args.after, preset, model, epochs, os.path.join(tmp, "b", preset, model))
+            extra = ["--threads", str(args.after_threads)] if args.after_threads > 1 else []
+            after = run(args.after, preset, model, epochs, os.path.join(tmp, "b", preset, model),
+                        extra)
             diffs = list(differences(before[0], after[0]))
             if before[1] != after[1]:
                 diffs.append("model.json: θ differs")

@@ -31,6 +31,7 @@ struct RunArgs {
   std::string refine = "none", core;
   std::optional<std::string> refine_solver;
   std::optional<long> refine_iterations;
+  int threads = 1;
   SystemOverrides system;
 };
 
@@ -124,6 +125,7 @@ void add_run(CLI::App& app) {
       ->check(kCoreSpec);
   cmd->add_flag("--warm-start", args->warm_start,
                 "CSympNet-ID: start beta at the closed-form estimate of gamma from the data");
+  add_threads_option(*cmd, args->threads);
   cmd->add_option("--out", args->out, "Output directory")->required();
   cmd->add_flag("--force", args->force, "Allow writing into a non-empty output directory");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
@@ -140,6 +142,7 @@ void add_run(CLI::App& app) {
     if (args->lr) c.train.adamw.lr = *args->lr;
     if (args->lr_schedule) c.train.lr_schedule = *args->lr_schedule;
     c.train.val_every = args->val_every;
+    c.train.threads = args->threads;
     c.train.adamw.decay_damping = !args->no_beta_decay;
     c.reference.method = parse_reference(args->reference);
     c.beta_init = args->beta_init;

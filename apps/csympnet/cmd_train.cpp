@@ -34,6 +34,7 @@ struct FitArgs {
   long bootstrap_default = 0;  // when --bootstrap is not given; < 0 = FitConfig's "auto"
   std::optional<long> refine_iterations, bootstrap;
   std::optional<std::string> refine_solver;
+  int threads = 1;
 };
 
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
@@ -84,6 +85,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                              "(default: ") +
                      (a.bootstrap_default < 0 ? "100 up to 1000 parameters, else none)" : "0)"))
       ->check(CLI::Range(0L, 1000000L));
+  add_threads_option(cmd, a.threads);
   cmd.add_option("--out", a.out, "Output directory")->required();
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
   cmd.add_flag("-q,--quiet", a.quiet, "No progress line");
@@ -118,6 +120,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   c.beta_init = a.beta_init;
   c.train.epochs = a.epochs;
   c.train.val_every = a.val_every;
+  c.train.threads = a.threads;
   c.train.adamw.lr = a.lr;
   c.train.lr_schedule = a.lr_schedule;
   c.train.adamw.decay_damping = !a.no_beta_decay;

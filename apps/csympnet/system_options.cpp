@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "csympnet/core/thread_team.hpp"
+
 namespace csympnet::cli {
 
 const CLI::Validator kFiniteNumber(
@@ -21,6 +23,14 @@ const CLI::Validator kNonZero(
       return std::string();
     },
     "NONZERO");
+
+CLI::Option* add_threads_option(CLI::App& cmd, int& threads) {
+  return cmd
+      .add_option("--threads", threads,
+                  "Threads for each training epoch of CSympNet-ID with d > 1 (other models train "
+                  "on one); results are identical for any value (default 1)")
+      ->check(CLI::Range(1, ThreadTeam::kMaxThreads));
+}
 
 void SystemOverrides::add_to(CLI::App& cmd) {
   cmd.add_option("--d", d, "Degrees of freedom (overrides the preset)")

@@ -17,6 +17,9 @@ extern const CLI::Validator kFiniteNumber;
 // |beta| has no derivative.
 extern const CLI::Validator kNonZero;
 
+// --threads N of the training commands: TrainOptions::threads.
+CLI::Option* add_threads_option(CLI::App& cmd, int& threads);
+
 struct SystemOverrides {
   std::optional<int> d;
   std::optional<double> gamma, omega, k, alpha;

@@ -13,6 +13,8 @@ from ._model import Model
 
 # The models fit_pairs() trains (experiments/fit.hpp); csympnet.run trains every model type.
 FIT_MODELS = ("csympnet", "sympnet")
+# ThreadTeam::kMaxThreads (include/csympnet/core/thread_team.hpp).
+MAX_THREADS = 256
 
 RunResult = namedtuple("RunResult", "model report rollouts tests")
 RunResult.__doc__ = """What `csympnet.run` returns: the trained Model, the report dict (as
@@ -72,8 +74,8 @@ def _warn_if_diverged(model):
 def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None, seed=42,
         val_fraction=0.2, beta_init=0.1, beta_decay=True, lr=1e-3, lr_schedule="cosine",
         lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=True,
-        refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, progress=None,
-        meta=None, _groups=None):
+        refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, threads=1,
+        progress=None, meta=None, _groups=None):
     """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs: what `csympnet fit` does, with the
     same defaults, so the same pairs and options give the same parameters to the bit.
 
@@ -103,6 +105,8 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         else none (`meta["gamma_interval_note"]` says why). From `fit_trajectories` it
         resamples whole trajectories.
     Add core="la:5:20:h2" when the steps vary (docs/identification.md).
+    threads: threads for each training epoch of CSympNet-ID with d > 1 (other models train
+        on one); the results are the same to the bit for any value.
     progress: optional callable, called after each validation with a dict (epoch, epochs,
         train_loss, val_loss, best_val_loss, gamma, seconds); returning False stops training.
     meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
@@ -154,6 +158,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
             raise ValueError("refine_solver: needs refine=\"lm\"; refine=\"auto\" (the default) "
                              "chooses the solver by the model's size")
     bootstrap = -1 if bootstrap is None else _checks.integer("bootstrap", bootstrap, minimum=0)
+    threads = _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS)
     groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):
         raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")
@@ -161,7 +166,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     m = Model(_core.fit_pairs(a0, a1, hs, val, model, _core_spec(core), seed, val_fraction,
                               beta_init, epochs, val_every, lr, lr_schedule, lr_final_fraction,
                               weight_decay, bool(beta_decay), bool(warm_start), refine,
-                              refine_iterations, refine_solver, bootstrap, groups,
+                              refine_iterations, refine_solver, bootstrap, groups, threads,
                               _progress(progress)))
     if meta:
         m.meta.update(meta)
@@ -234,14 +239,14 @@ def fit_trajectories(t, z, traj=None, model="csympnet", **options):
 
 def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="default", lr=None,
         lr_schedule=None, val_every=10, beta_init=0.1, beta_decay=True, reference="splitting",
-        system=None, progress=None):
+        system=None, threads=1, progress=None):
     """One experiment as `csympnet run --preset PRESET --model MODEL` runs it: generate the
     preset's data, train, evaluate on the test trajectories (data seed 0). Trains any model
     type (`csympnet.model_types()`), including the baselines.
 
     epochs: budget (default: the preset's); recipe: "default" (cosine-annealed rate) or
     "paper" (constant rate); sigma: relative observation noise; system: dict of fields that
-    replace the preset's system; progress: as in `csympnet.fit`.
+    replace the preset's system; threads, progress: as in `csympnet.fit`.
 
     Returns RunResult(model, report, rollouts, tests).
     """
@@ -261,9 +266,10 @@ def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="de
     beta_init = _checks.real("beta_init", beta_init)
     if beta_init == 0:
         raise ValueError("beta_init: expected a nonzero number (d|β|/dβ vanishes at 0)")
+    threads = _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS)
     core_model, report, rollouts, tests = _core.run(
         preset, model, seed, epochs, recipe, lr, lr_schedule, val_every, sigma, beta_init,
-        bool(beta_decay), reference, _system_overrides(system), _progress(progress))
+        bool(beta_decay), reference, _system_overrides(system), threads, _progress(progress))
     m = Model(core_model)
     _warn_if_diverged(m)
     return RunResult(m, json.loads(report), list(rollouts), [Trajectory(t, z) for t, z in tests])

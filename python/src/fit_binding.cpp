@@ -85,6 +85,7 @@ struct FitArgs {
   std::optional<std::string> refine_solver;
   long bootstrap;
   std::vector<Index> groups;  // trajectory of each training pair, or empty
+  int threads;
 };
 
 std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h,
@@ -105,6 +106,7 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
   c.beta_init = a.beta_init;
   c.train.epochs = a.epochs;
   c.train.val_every = a.val_every;
+  c.train.threads = a.threads;
   c.train.adamw.lr = a.lr;
   c.train.adamw.weight_decay = a.weight_decay;
   c.train.adamw.decay_damping = a.decay_damping;
@@ -151,6 +153,7 @@ struct RunArgs {
   long val_every;
   double sigma, beta_init;
   bool decay_damping;
+  int threads;
 };
 
 // One preset run as `csympnet run` does it (apps/csympnet/cmd_run.cpp): returns the model,
@@ -174,6 +177,7 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   if (a.lr) c.train.adamw.lr = *a.lr;
   if (a.lr_schedule) c.train.lr_schedule = *a.lr_schedule;
   c.train.val_every = a.val_every;
+  c.train.threads = a.threads;
   c.train.adamw.decay_damping = a.decay_damping;
   c.reference.method = parse_reference(a.reference);
   c.beta_init = a.beta_init;
@@ -212,7 +216,7 @@ void bind_fit(py::module_& m) {
          const std::string& lr_schedule, double lr_final_fraction, double weight_decay,
          bool decay_damping, bool warm_start, const std::string& refine,
          std::optional<long> refine_iterations, std::optional<std::string> refine_solver,
-         long bootstrap, std::vector<Index> groups, const py::object& progress) {
+         long bootstrap, std::vector<Index> groups, int threads, const py::object& progress) {
         const FitArgs a{model,
                         core_json,
                         lr_schedule,
@@ -230,7 +234,8 @@ void bind_fit(py::module_& m) {
                         refine_iterations,
                         std::move(refine_solver),
                         bootstrap,
-                        std::move(groups)};
+                        std::move(groups),
+                        threads};
         return fit(z0, z1, h, val, a, progress);
       },
       py::arg("z0"), py::arg("z1"), py::arg("h"), py::arg("val"), py::arg("model"),
@@ -238,23 +243,25 @@ void bind_fit(py::module_& m) {
       py::arg("epochs"), py::arg("val_every"), py::arg("lr"), py::arg("lr_schedule"),
       py::arg("lr_final_fraction"), py::arg("weight_decay"), py::arg("decay_damping"),
       py::arg("warm_start"), py::arg("refine"), py::arg("refine_iterations"),
-      py::arg("refine_solver"), py::arg("bootstrap"), py::arg("groups"), py::arg("progress"),
-      "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
+      py::arg("refine_solver"), py::arg("bootstrap"), py::arg("groups"), py::arg("threads"),
+      py::arg("progress"), "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
   m.def(
       "run",
       [](const std::string& preset, const std::string& model, std::uint64_t seed,
          std::optional<long> epochs, const std::string& recipe, std::optional<double> lr,
          std::optional<std::string> lr_schedule, long val_every, double sigma, double beta_init,
          bool decay_damping, const std::string& reference, const std::string& system_json,
-         const py::object& progress) {
-        const RunArgs a{preset,      model,     recipe, reference, system_json,  seed, epochs, lr,
-                        lr_schedule, val_every, sigma,  beta_init, decay_damping};
+         int threads, const py::object& progress) {
+        const RunArgs a{preset,        model,  recipe,      reference, system_json, seed,
+                        epochs,        lr,     lr_schedule, val_every, sigma,       beta_init,
+                        decay_damping, threads};
         return run(a, progress);
       },
       py::arg("preset"), py::arg("model"), py::arg("seed"), py::arg("epochs"), py::arg("recipe"),
       py::arg("lr"), py::arg("lr_schedule"), py::arg("val_every"), py::arg("sigma"),
       py::arg("beta_init"), py::arg("decay_damping"), py::arg("reference"), py::arg("system_json"),
-      py::arg("progress"), "run_experiment() of experiments/run.hpp (wrapped by csympnet.run).");
+      py::arg("threads"), py::arg("progress"),
+      "run_experiment() of experiments/run.hpp (wrapped by csympnet.run).");
 }
 
 }  // namespace csympnet::py_binding

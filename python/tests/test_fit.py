@@ -193,6 +193,25 @@ def test_identification_options_are_checked(s1_pairs):
             csympnet.fit(*s1_pairs, epochs=10, **kwargs)
 
 
+def test_threads_give_the_same_bits():
+    # d = 10 pairs: CSympNet-ID's epochs then run on a team of threads (docs/architecture.md).
+    z0, z1, h = csympnet.generate("s2", "train")
+    one = csympnet.fit(z0, z1, h, epochs=30, refine="none", bootstrap=0)
+    two = csympnet.fit(z0, z1, h, epochs=30, refine="none", bootstrap=0, threads=2)
+    assert np.array_equal(one.params, two.params)
+    a = csympnet.run("s3", epochs=20)
+    b = csympnet.run("s3", epochs=20, threads=2)
+    assert np.array_equal(a.model.params, b.model.params)
+    assert b.report["train_threads"] == 2 and "train_threads" not in a.report
+    for bad in (0, -1, 257):
+        with pytest.raises(ValueError, match="threads"):
+            csympnet.fit(z0, z1, h, epochs=1, threads=bad)
+        with pytest.raises(ValueError, match="threads"):
+            csympnet.run("s3", epochs=1, threads=bad)
+    with pytest.raises(TypeError, match="threads"):
+        csympnet.run("s3", epochs=1, threads=1.5)
+
+
 def test_fit_trajectories_forms_agree():
     trajs = _trajectories(steps=10)
     lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20)

@@ -124,6 +124,8 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   rep["best_epoch"] = r.training.best_epoch;
   rep["stop_reason"] = r.training.stop_reason;
   rep["train_seconds"] = r.training.seconds;
+  // Results do not depend on it; only a run that asked for more than one says so.
+  if (c.train.threads > 1) rep["train_threads"] = c.train.threads;
   rep["eval_seconds"] = eval_seconds;
   rep["best_val_loss"] = r.training.best_val_loss;
   rep["final_train_loss"] = r.training.final_train_loss;

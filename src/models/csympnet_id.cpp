@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "column_scaling.hpp"
 #include "conformal_rows.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/shape_checks.hpp"
@@ -105,6 +106,18 @@ void conformal_factors(double gamma, const Vector& h, Vector& a) {
   a = (c * h.array()).exp().matrix();
 }
 
+// conformal_factors() on columns cols of a sized vector a. The kernel and Eigen both treat
+// elements in pairs from the first; ranges start at even columns, so every element is
+// computed as in one call on the whole vector.
+void conformal_factors(double gamma, const Vector& h, Vector& a, Columns cols) {
+  const double c = -0.5 * gamma;
+  const Index n = cols.size();
+  double* out = a.data() + cols.begin;
+  const double* hs = h.data() + cols.begin;
+  if (detail::scaled_exp_simd(c, hs, out, n)) return;
+  Eigen::Map<Vector>(out, n) = (c * Eigen::Map<const Vector>(hs, n).array()).exp().matrix();
+}
+
 // d = 1: Σ_j (dL/da_j) h_j a_j with dL/da_j = G_j p_core,j + G̃_j p_in,j, where G is the p row
 // of dZout and G̃ the core's input gradient gp. The column sums of the general path are single
 // products here; the terms go to `terms` (n doubles, 16-byte aligned storage of an Eigen
@@ -149,6 +162,13 @@ Matrix CSympNetId::forward(ConstParams theta, const Matrix& Z, const Vector& h,
   // The checks build their messages before testing; run them only when something is wrong.
   if (theta.size() != n_params() || Z.rows() != dim() || h.size() != Z.cols()) {
     check_forward_args(*this, theta, Z, h);
+  }
+  if (cache != nullptr && core_->d() > 1) {
+    // The column pass on all columns: what the column-split epoch runs range by range.
+    size_forward(h, *cache);
+    Matrix out(Z.rows(), Z.cols());
+    forward_columns(theta, Z, *cache, out, {0, Z.cols()});
+    return out;
   }
   const Index d = core_->d();
   const Index nc = core_->n_params();
@@ -210,7 +230,7 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
   } else {
     split_rows(dZout, nullptr, gq, gp, nullptr);
     grad_a = (gp.array() * p_core.array()).colwise().sum().transpose();
-    gp.array().rowwise() *= a.transpose().array();
+    detail::scale_columns(gp, a.data());
   }
   core_->flow_backward(theta.head(nc), cache, kCoreSlot0, h, gq, gp, grad.head(nc));
   // Inner scaling p̃ = a ⊙ p_in:  dL/da_j += Σ_i G̃_ij p_in,ij,  dL/dp_in = a G̃.
@@ -227,6 +247,94 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
   }
   grad(nc) += -0.5 * abs_derivative(theta(nc)) * sum;
   if (dZin != nullptr) join_rows(gq, gp, a, *dZin);
+}
+
+void CSympNetId::size_forward(const Vector& h, ForwardCache& cache) const {
+  const Index d = core_->d();
+  const Index n = h.size();
+  if (cache.vecs.size() < 2) cache.vecs.resize(2);
+  if (cache.mats.size() < q_slot() + 1) cache.mats.resize(q_slot() + 1);
+  cache.vecs[0] = h;
+  cache.vecs[1].resize(n);
+  cache.mats[0].resize(d, n);
+  cache.mats[1].resize(d, n);
+  cache.mats[q_slot()].resize(d, n);
+  core_->size_slots(cache, kCoreSlot0, n, false);
+}
+
+bool CSympNetId::splits(Index n, const std::vector<Columns>& ranges) const {
+  return core_->d() > 1 && core_->splits_columns(n, ranges);
+}
+
+void CSympNetId::prepare(ConstParams theta, const Vector& h, ForwardCache& cache) const {
+  check_theta(*this, theta, "prepare");
+  require(core_->d() > 1, "csympnet: the column-split passes need d > 1");
+  const Index n = h.size();
+  size_forward(h, cache);
+  core_->size_slots(cache, kCoreSlot0, n, true);
+  const std::size_t r = core_->record_slots();
+  if (cache.records.size() < r + 2) cache.records.resize(r + 2);
+  cache.records[r].resize(core_->d(), n);
+  cache.records[r + 1].resize(core_->d(), n);
+  if (cache.record_vecs.empty()) cache.record_vecs.resize(1);
+  cache.record_vecs[0].resize(n);
+}
+
+void CSympNetId::forward_columns(ConstParams theta, const Matrix& Z, ForwardCache& cache,
+                                 Matrix& out, Columns cols) const {
+  const Index d = core_->d();
+  const Index nc = core_->n_params();
+  const Index c0 = cols.begin;
+  const Index n = cols.size();
+  const Vector& h = cache.vecs[0];
+  Vector& a = cache.vecs[1];
+  Matrix& p_in = cache.mats[0];
+  Matrix& p = cache.mats[1];  // the core's p, in place: it ends as the core output
+  Matrix& q = cache.mats[q_slot()];
+  // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
+  conformal_factors(std::abs(theta(nc)), h, a, cols);
+  split_rows_d<0>(Z.data() + 2 * d * c0, n, d, a.data() + c0, q.data() + d * c0, p.data() + d * c0,
+                  p_in.data() + d * c0);
+  core_->flow_columns(theta.head(nc), q, p, h, &cache, kCoreSlot0, cols);
+  join_rows_impl<0>(q.data() + d * c0, p.data() + d * c0, a.data() + c0, n, d,
+                    out.data() + 2 * d * c0);
+}
+
+void CSympNetId::backward_columns(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
+                                  Columns cols) const {
+  const Index d = core_->d();
+  const Index nc = core_->n_params();
+  const Index c0 = cols.begin;
+  const Index n = cols.size();
+  const Vector& h = cache.vecs[0];
+  const Vector& a = cache.vecs[1];
+  const std::size_t r = core_->record_slots();
+  Matrix& gq = cache.records[r];
+  Matrix& gp = cache.records[r + 1];
+  auto grad_a = cache.record_vecs[0].segment(c0, n);
+  const auto gpc = gp.middleCols(c0, n);
+  // As backward(): dL/da_j from the outer scaling, then the core, then the inner scaling.
+  split_rows_d<0>(dZout.data() + 2 * d * c0, n, d, nullptr, gq.data() + d * c0, gp.data() + d * c0,
+                  nullptr);
+  grad_a = (gpc.array() * cache.mats[1].middleCols(c0, n).array()).colwise().sum().transpose();
+  detail::scale_columns(gp.middleCols(c0, n), a.data() + c0);
+  core_->backward_columns(theta.head(nc), cache, kCoreSlot0, h, gq, gp, cols);
+  grad_a.array() +=
+      (gpc.array() * cache.mats[0].middleCols(c0, n).array()).colwise().sum().transpose();
+}
+
+void CSympNetId::backward_params(ConstParams theta, const ForwardCache& cache, ParamsRef grad,
+                                 Share share) const {
+  const Index nc = core_->n_params();
+  core_->backward_params(theta.head(nc), cache, kCoreSlot0, cache.vecs[0], grad.head(nc), share);
+}
+
+void CSympNetId::backward_finish(ConstParams theta, const ForwardCache& cache,
+                                 ParamsRef grad) const {
+  const Index nc = core_->n_params();
+  const Vector& grad_a = cache.record_vecs[0];
+  const double sum = (grad_a.array() * cache.vecs[0].array() * cache.vecs[1].array()).sum();
+  grad(nc) += -0.5 * abs_derivative(theta(nc)) * sum;
 }
 
 Matrix CSympNetId::jacobian(ConstParams theta, const Vector& z, double h) const {

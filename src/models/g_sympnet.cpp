@@ -1,8 +1,9 @@
 #include "csympnet/models/g_sympnet.hpp"
 
+#include "block_products.hpp"
+#include "column_scaling.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
-#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -27,66 +28,149 @@ nlohmann::json GSympNet::core_spec() const {
   return {{"type", "g"}, {"layers", layers_}, {"width", width_}};
 }
 
-void GSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-                    std::size_t slot0) const {
+// The forward and backward sweeps work on a range of columns (the whole batch when serial);
+// the parameter sums run over all columns, module by module (column_split.hpp).
+
+void GSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const {
+  reserve_slots(cache, slot0 + cache_slots());
+  for (Index k = 0; k < layers_; ++k) {
+    const auto s = slot0 + static_cast<std::size_t>(2 * k);
+    cache.mats[s].resize(d(), n);         // the module's input
+    cache.mats[s + 1].resize(width_, n);  // σ(K x + b)
+  }
+  if (records) {
+    if (cache.records.size() < record_slots()) cache.records.resize(record_slots());
+    for (Index k = 0; k < layers_; ++k) {
+      const auto r = static_cast<std::size_t>(3 * k);
+      cache.records[r].resize(d(), n);
+      cache.records[r + 1].resize(width_, n);
+      cache.records[r + 2].resize(width_, n);
+    }
+  }
+}
+
+bool GSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const {
+  if (ranges.empty() || ranges.front().begin != 0 || ranges.back().end != n) return false;
+  // The sweeps' products with the columns as their n: K X and Kᵀ U.
+  auto covered = [this](Index cols) {
+    return detail::exact_product_covers(width_, d(), cols) &&
+           detail::exact_product_covers(d(), width_, cols);
+  };
+  if (!covered(n)) return false;
+  for (std::size_t r = 0; r < ranges.size(); ++r) {
+    const Columns c = ranges[r];
+    if (c.begin % kColumnAlign != 0 || c.size() < 1 || (r > 0 && c.begin != ranges[r - 1].end) ||
+        !covered(c.size())) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                            ForwardCache* cache, std::size_t slot0, Columns cols) const {
   const Index dd = d();
-  const Index n = q.cols();
+  const Index c0 = cols.begin;
+  const Index n = cols.size();
   Matrix u(width_, n);
   Matrix sig_local;
-  Matrix inc(dd, n);
-  std::size_t slot = slot0;
-  if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
+  Matrix scratch;
   for (Index k = 0; k < layers_; ++k) {
     const Index off = module_offset(k);
     const Eigen::Map<const Matrix> kmat(theta.data() + off, width_, dd);
     const auto a = theta.segment(off + width_ * dd, width_).array();
     const auto b = theta.segment(off + width_ * (dd + 1), width_).array();
     const bool kick = k % 2 == 0;
-    const Matrix& src = kick ? q : p;
-    Matrix& dst = kick ? p : q;
-    if (cache != nullptr) cache->mats[slot++] = src;
-    Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
-    detail::core_product(kmat, src, u);
+    const auto src = (kick ? q : p).middleCols(c0, n);
+    auto dst = (kick ? p : q).middleCols(c0, n);
+    const auto slot = slot0 + static_cast<std::size_t>(2 * k);
+    if (cache != nullptr) cache->mats[slot].middleCols(c0, n) = src;
+    detail::product_to(kmat, src, u, scratch);
     u.array().colwise() += b;
-    sigmoid_into(u, sig);
-    // u now holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
-    u.array() = (sig.array().colwise() * a).rowwise() * h.transpose().array();
-    detail::core_product_add(kmat.transpose(), u, dst, inc);
+    // u then holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
+    if (cache != nullptr) {
+      auto sig = cache->mats[slot + 1].middleCols(c0, n);
+      sigmoid_to(u, sig);
+      detail::columns_times_scaled(sig, a, h.data() + c0, u);
+    } else {
+      sigmoid_into(u, sig_local);
+      detail::columns_times_scaled(sig_local, a, h.data() + c0, u);
+    }
+    detail::add_product(kmat.transpose(), u, dst, scratch);
   }
+}
+
+void GSympNet::sweep_module(ConstParams theta, Index k, const ForwardCache& cache,
+                            std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
+                            Columns cols, Matrix& gh, Matrix& gy, Matrix& gu) const {
+  const Index dd = d();
+  const Index c0 = cols.begin;
+  const Index n = cols.size();
+  const Index off = module_offset(k);
+  const Eigen::Map<const Matrix> kmat(theta.data() + off, width_, dd);
+  const auto a = theta.segment(off + width_ * dd, width_).array();
+  const bool kick = k % 2 == 0;
+  auto gsrc = (kick ? gq : gp).middleCols(c0, n);
+  const auto gdst = (kick ? gp : gq).middleCols(c0, n);
+  const auto sig = cache.mats[slot0 + static_cast<std::size_t>(2 * k + 1)].middleCols(c0, n);
+  Matrix scratch;
+  // dst += Kᵀ y H:  dy = K (G_dst H);  y = a ⊙ σ(u):  du = dy ⊙ a ⊙ σ(1 − σ);
+  // u = K src + b:  g_src += Kᵀ du.
+  auto ghc = gh.middleCols(c0, n);
+  detail::columns_times(gdst, h.data() + c0, ghc);
+  auto gyc = gy.middleCols(c0, n);
+  detail::product_to(kmat, ghc, gyc, scratch);
+  auto guc = gu.middleCols(c0, n);
+  guc = ((gyc.array() * sig.array() * (1.0 - sig.array())).colwise() * a).matrix();
+  detail::add_product(kmat.transpose(), guc, gsrc, scratch);
+}
+
+void GSympNet::params_module(ConstParams theta, Index k, const ForwardCache& cache,
+                             std::size_t slot0, const Matrix& gh, const Matrix& gy,
+                             const Matrix& gu, ParamsRef grad) const {
+  const Index dd = d();
+  const Index off = module_offset(k);
+  const auto a = theta.segment(off + width_ * dd, width_).array();
+  const Matrix& src = cache.mats[slot0 + static_cast<std::size_t>(2 * k)];
+  const Matrix& sig = cache.mats[slot0 + static_cast<std::size_t>(2 * k + 1)];
+  Eigen::Map<Matrix> grad_k(grad.data() + off, width_, dd);
+  Matrix gk;
+  // dK = y (G_dst H)ᵀ + du srcᵀ,  da = Σ_j dy ⊙ σ,  db = Σ_j du.
+  const Matrix y = (sig.array().colwise() * a).matrix();
+  detail::core_product_add(y, gh.transpose(), grad_k, gk);
+  grad.segment(off + width_ * dd, width_).array() += (gy.array() * sig.array()).rowwise().sum();
+  grad.segment(off + width_ * (dd + 1), width_) += gu.rowwise().sum();
+  detail::core_product_add(gu, src.transpose(), grad_k, gk);
 }
 
 void GSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                              const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
-  const Index dd = d();
   const Index n = gq.cols();
-  Matrix gh(dd, n);        // G_dst H
-  Matrix gy(width_, n);    // dL/dy for y = a ⊙ σ(u), then dL/du
-  Matrix y(width_, n);     // a ⊙ σ(u)
-  Matrix gk(width_, dd);   // dL/dK contributions
-  Matrix gsrc_inc(dd, n);  // Kᵀ dL/du
-  std::size_t slot = slot0 + cache_slots();
+  Matrix gh(d(), n);
+  Matrix gy(width_, n);
+  Matrix gu(width_, n);
   for (Index k = layers_ - 1; k >= 0; --k) {
-    const Index off = module_offset(k);
-    const Eigen::Map<const Matrix> kmat(theta.data() + off, width_, dd);
-    const auto a = theta.segment(off + width_ * dd, width_).array();
-    Eigen::Map<Matrix> grad_k(grad.data() + off, width_, dd);
-    const bool kick = k % 2 == 0;
-    Matrix& gsrc = kick ? gq : gp;
-    const Matrix& gdst = kick ? gp : gq;
-    const Matrix& sig = cache.mats[--slot];
-    const Matrix& src = cache.mats[--slot];
-    // dst += Kᵀ y H:  dK = y (G_dst H)ᵀ, dy = K (G_dst H).
-    gh = (gdst.array().rowwise() * h.transpose().array()).matrix();
-    y = (sig.array().colwise() * a).matrix();
-    detail::core_product_add(y, gh.transpose(), grad_k, gk);
-    detail::core_product(kmat, gh, gy);
-    // y = a ⊙ σ(u):  da = Σ_j dy ⊙ σ,  du = dy ⊙ a ⊙ σ(1 − σ).
-    grad.segment(off + width_ * dd, width_).array() += (gy.array() * sig.array()).rowwise().sum();
-    gy.array() = (gy.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
-    // u = K src + b:  db = Σ_j du,  dK += du srcᵀ,  g_src += Kᵀ du.
-    grad.segment(off + width_ * (dd + 1), width_) += gy.rowwise().sum();
-    detail::core_product_add(gy, src.transpose(), grad_k, gk);
-    detail::core_product_add(kmat.transpose(), gy, gsrc, gsrc_inc);
+    sweep_module(theta, k, cache, slot0, h, gq, gp, {0, n}, gh, gy, gu);
+    params_module(theta, k, cache, slot0, gh, gy, gu, grad);
+  }
+}
+
+void GSympNet::backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                                const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const {
+  for (Index k = layers_ - 1; k >= 0; --k) {
+    const auto r = static_cast<std::size_t>(3 * k);
+    sweep_module(theta, k, cache, slot0, h, gq, gp, cols, cache.records[r], cache.records[r + 1],
+                 cache.records[r + 2]);
+  }
+}
+
+void GSympNet::backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                               const Vector& /*h*/, ParamsRef grad, Share share) const {
+  for (Index k = layers_ - 1; k >= 0; --k) {
+    if (!share.owns(layers_ - 1 - k)) continue;
+    const auto r = static_cast<std::size_t>(3 * k);
+    params_module(theta, k, cache, slot0, cache.records[r], cache.records[r + 1],
+                  cache.records[r + 2], grad);
   }
 }
 

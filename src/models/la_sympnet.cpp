@@ -4,7 +4,6 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
-#include "exact_product.hpp"
 #include "la_scalar_sweep.hpp"
 
 namespace csympnet {
@@ -115,38 +114,8 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
                      std::size_t slot0) const {
   if (d() == 1) {
     flow_scalar(theta, q, p, h, cache, slot0);
-    return;
-  }
-  const Index dd = d();
-  Matrix s(dd, dd);
-  Matrix inc(dd, q.cols());
-  Matrix sig_local;
-  Vector tau_buf;
-  std::size_t slot = slot0;
-  if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
-  for (Index k = 0; k < layers_; ++k) {
-    Index off = module_offset(k);
-    for (Index i = 0; i < sublayers_; ++i, off += dd * dd) {
-      const bool kick = i % 2 == 0;
-      const Matrix& src = kick ? q : p;
-      Matrix& dst = kick ? p : q;
-      if (cache != nullptr) cache->mats[slot++] = src;
-      symmetric_from(theta, off, dd, s);
-      const Vector& tau = unit_step(theta, shear_coef(k, i), h, tau_buf);
-      detail::core_product_add_scaled(s, src, tau, dst, inc);  // kick p += h S q / drift q += h S p
-    }
-    p.noalias() += theta.segment(off, dd) * h.transpose();
-    q.noalias() += theta.segment(off + dd, dd) * h.transpose();
-    if (k + 1 < layers_) {
-      const bool kick = k % 2 == 0;
-      const Matrix& src = kick ? q : p;
-      Matrix& dst = kick ? p : q;
-      Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
-      sigmoid_into(src, sig);
-      const auto a = theta.segment(off + 2 * dd, dd).array();
-      const auto trow = unit_step(theta, act_coef(k), h, tau_buf).transpose().array();
-      dst.array() += (sig.array().colwise() * a).rowwise() * trow;  // kick p += h a ⊙ σ(q)
-    }
+  } else {
+    SymplecticCore::flow(theta, q, p, h, cache, slot0);
   }
 }
 
@@ -154,59 +123,8 @@ void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std:
                               const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
   if (d() == 1) {
     flow_backward_scalar(theta, cache, slot0, h, gq, gp, grad);
-    return;
-  }
-  const Index dd = d();
-  Matrix s(dd, dd);
-  Matrix gh(dd, gq.cols());  // upstream gradient of the updated variable, times h per column
-  Matrix sg(dd, gq.cols());
-  Matrix outer(dd, dd);
-  Vector tau_buf;
-  const bool poly = step_terms_ == 2;
-  const Vector h2 = poly ? Vector(h.array().square()) : Vector();
-  std::size_t slot = slot0 + cache_slots();
-  for (Index k = layers_ - 1; k >= 0; --k) {
-    const Index base = module_offset(k);
-    const Index bias = base + sublayers_ * dd * dd;
-    if (k + 1 < layers_) {
-      // dst += h a ⊙ σ(src):  da = Σ_j h_j g_dst ⊙ σ,  g_src += h a ⊙ σ' ⊙ g_dst.
-      const bool kick = k % 2 == 0;
-      Matrix& gsrc = kick ? gq : gp;
-      const Matrix& gdst = kick ? gp : gq;
-      const Matrix& sig = cache.mats[--slot];
-      const auto a = theta.segment(bias + 2 * dd, dd).array();
-      // With step polynomials, dτ_j/dc = h_j²:  dc = Σ_j h_j² g_dst,j · (a ⊙ σ_j).
-      if (poly)
-        grad(act_coef(k)) +=
-            ((gdst.array() * sig.array()).colwise() * a).colwise().sum().matrix().dot(h2);
-      gh = (gdst.array().rowwise() * unit_step(theta, act_coef(k), h, tau_buf).transpose().array())
-               .matrix();
-      grad.segment(bias + 2 * dd, dd).array() += (gh.array() * sig.array()).rowwise().sum();
-      gsrc.array() += (gh.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
-    }
-    // p += h b_p, q += h b_q:  db = G h.
-    grad.segment(bias, dd).noalias() += gp * h;
-    grad.segment(bias + dd, dd).noalias() += gq * h;
-    for (Index i = sublayers_ - 1; i >= 0; --i) {
-      // dst += S src H:  dS = (G_dst H) srcᵀ, dA = dS + dSᵀ,  g_src += S (G_dst H).
-      const bool kick = i % 2 == 0;
-      Matrix& gsrc = kick ? gq : gp;
-      const Matrix& gdst = kick ? gp : gq;
-      const Matrix& src = cache.mats[--slot];
-      const Index off = base + i * dd * dd;
-      symmetric_from(theta, off, dd, s);
-      // dc = Σ_j h_j² g_dst,j · (S src_j).
-      if (poly)
-        grad(shear_coef(k, i)) +=
-            (gdst.array() * (s * src).array()).colwise().sum().matrix().dot(h2);
-      gh = (gdst.array().rowwise() *
-            unit_step(theta, shear_coef(k, i), h, tau_buf).transpose().array())
-               .matrix();
-      detail::core_product(gh, src.transpose(), outer);
-      MatrixMap ga(grad.data() + off, dd, dd);
-      ga += outer + outer.transpose();
-      detail::core_product_add(s, gh, gsrc, sg);
-    }
+  } else {
+    flow_backward_batch(theta, cache, slot0, h, gq, gp, grad);
   }
 }
 

@@ -13,6 +13,12 @@ void SymplecticCore::reserve_slots(ForwardCache& cache, std::size_t n) {
   if (cache.mats.size() < n) cache.mats.resize(n);
 }
 
+void SymplecticCore::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                          ForwardCache* cache, std::size_t slot0) const {
+  if (cache != nullptr) size_slots(*cache, slot0, q.cols(), false);
+  flow_columns(theta, q, p, h, cache, slot0, {0, q.cols()});
+}
+
 Matrix SymplecticCore::forward(ConstParams theta, const Matrix& Z, const Vector& h,
                                ForwardCache* cache) const {
   check_forward_args(*this, theta, Z, h);

@@ -6,7 +6,8 @@
 
 namespace csympnet {
 
-Objective make_objective(const Model& model, const PairSet& train, const PairSet& val) {
+Objective make_objective(const Model& model, const PairSet& train, const PairSet& val,
+                         int threads) {
   train.validate("training pairs");
   val.validate("validation pairs");
   require(train.dim() == model.dim() && val.dim() == model.dim(),
@@ -21,8 +22,16 @@ Objective make_objective(const Model& model, const PairSet& train, const PairSet
     auto tr = std::make_shared<PairSet>(train);
     auto va = std::make_shared<PairSet>(val);
     auto cache = std::make_shared<ForwardCache>();
-    o.train_loss = [map, tr, cache](const Vector& th, Vector& grad) {
-      return one_step_loss(*map, th, *tr, &grad, cache.get());
+    // The team lives as long as the objective; the split is planned once for the batch.
+    std::shared_ptr<ThreadTeam> team;
+    LossSplit split;
+    if (threads > 1) {
+      team = std::make_shared<ThreadTeam>(threads);
+      split = plan_loss_split(*map, tr->size(), team.get());
+      if (!split.active()) team.reset();  // nothing to share: no idle workers
+    }
+    o.train_loss = [map, tr, cache, team, split](const Vector& th, Vector& grad) {
+      return one_step_loss(*map, th, *tr, &grad, cache.get(), split);
     };
     o.val_loss = [map, va](const Vector& th) { return one_step_loss(*map, th, *va); };
   } else {
@@ -40,7 +49,9 @@ Objective make_objective(const Model& model, const PairSet& train, const PairSet
 TrainSummary train_model(const Model& model, Vector& theta, const PairSet& train,
                          const PairSet& val, const TrainOptions& options,
                          const ProgressCallback& progress) {
-  return train_parameters(make_objective(model, train, val), theta, options, progress);
+  options.validate();
+  return train_parameters(make_objective(model, train, val, options.threads), theta, options,
+                          progress);
 }
 
 }  // namespace csympnet

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/thread_team.hpp"
 #include "csympnet/train/loss.hpp"
 
 namespace csympnet {
@@ -18,6 +19,9 @@ void TrainOptions::validate() const {
           "train.lr_schedule must be 'constant' or 'cosine', got '" + lr_schedule + "'");
   require(std::isfinite(lr_final_fraction) && lr_final_fraction > 0.0 && lr_final_fraction <= 1.0,
           "train.lr_final_fraction must be in (0, 1]");
+  require(threads >= 1 && threads <= ThreadTeam::kMaxThreads,
+          "train.threads must be between 1 and " + std::to_string(ThreadTeam::kMaxThreads) +
+              ", got " + std::to_string(threads));
 }
 
 double TrainOptions::lr_at(long epoch) const {

@@ -151,6 +151,10 @@ TEST_F(OptionRanges, RunTrainAndFit) {
       {"--model nosuch", "--model", 2},
       {"--seed x", "--seed", 2},
       {"--seed -1", "--seed", 2},
+      {"--threads 0", "--threads", 2},
+      {"--threads -2", "--threads", 2},
+      {"--threads 257", "--threads", 2},
+      {"--threads 1.5", "--threads", 2},
   };
   std::vector<BadOption> run_cases = common;
   run_cases.push_back({"--epochs x", "--epochs", 2});

@@ -34,30 +34,45 @@ constexpr bool sigmoid_kernel_applies() {
 }
 }  // namespace detail
 
-// out = σ(x) elementwise (out may not alias x). Same stable formula as sigmoid(), written
-// with whole-array operations so that Eigen vectorises exp():
+namespace detail {
+// Whether x's storage is one contiguous column-major run of x.size() values.
+template <typename Derived>
+bool contiguous(const Eigen::MatrixBase<Derived>& x) {
+  const auto& xe = x.derived();
+  return xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1);
+}
+}  // namespace detail
+
+// out = σ(x) elementwise into out, a matrix of x's shape or a writable block or map of one
+// (out may not alias x). Same stable formula as sigmoid(), written with whole-array operations
+// so that Eigen vectorises exp():
 //   e = exp(−|x|),  σ(x) = n/(1+e) with n = 1 for x ≥ 0, n = e for x < 0.
 // The numerator is picked first and divided once (Eigen's select() is not vectorised and
 // would evaluate both quotients); the quotient is the same IEEE division either way.
-template <typename In>
-void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
+template <typename In, typename Out>
+void sigmoid_to(const Eigen::MatrixBase<In>& x, const Eigen::MatrixBase<Out>& out_) {
+  auto& out = const_cast<Eigen::MatrixBase<Out>&>(out_).derived();  // Eigen's idiom for blocks
   const auto& xe = x.derived();
-  constexpr int kFlags = static_cast<int>(In::Flags);
-  if constexpr (detail::sigmoid_kernel_applies<In>()) {
-    if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
-      out.resize(x.rows(), x.cols());
-      if (detail::sigmoid_simd(xe.data(), out.data(), out.size())) return;
+  constexpr int kInFlags = static_cast<int>(In::Flags);
+  constexpr int kOutFlags = static_cast<int>(Out::Flags);
+  constexpr bool kDirect =
+      (kInFlags & Eigen::DirectAccessBit) && !(kInFlags & Eigen::RowMajorBit) &&
+      (kOutFlags & Eigen::DirectAccessBit) && !(kOutFlags & Eigen::RowMajorBit);
+  if constexpr (detail::sigmoid_kernel_applies<In>() && kDirect) {
+    if (detail::contiguous(x) && detail::contiguous(out) &&
+        detail::sigmoid_simd(xe.data(), out.data(), out.size())) {
+      return;
     }
   }
   out = (-x.array().abs()).exp().matrix();
-  const Index n = out.size();
-  double* o = out.data();
-  if constexpr ((kFlags & Eigen::DirectAccessBit) && !(kFlags & Eigen::RowMajorBit)) {
-    using Packet = Eigen::internal::packet_traits<double>::type;
-    constexpr Index kSize = Eigen::internal::packet_traits<double>::size;
-    // Contiguous column-major x: element j of x and of out are the same (r, c).
-    if (xe.innerStride() == 1 && (xe.outerStride() == xe.rows() || xe.cols() == 1)) {
+  if constexpr (kDirect) {
+    // Contiguous column-major x and out: element j of both is the same (r, c).
+    if (detail::contiguous(x) && detail::contiguous(out)) {
       namespace ei = Eigen::internal;
+      using Packet = ei::packet_traits<double>::type;
+      constexpr Index kSize = ei::packet_traits<double>::size;
+      const Index n = out.size();
+      double* o = out.data();
       const double* xp = xe.data();
       const Packet one = ei::pset1<Packet>(1.0);
       const Packet zero = ei::pset1<Packet>(0.0);
@@ -77,6 +92,13 @@ void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
       v = (x(r, c) >= 0.0 ? 1.0 : v) / (1.0 + v);
     }
   }
+}
+
+// sigmoid_to() into a matrix resized to x's shape.
+template <typename In>
+void sigmoid_into(const Eigen::MatrixBase<In>& x, Matrix& out) {
+  out.resize(x.rows(), x.cols());
+  sigmoid_to(x, out);
 }
 
 // σ'(x) = σ(x)(1 − σ(x)), written in terms of the cached s = σ(x).

@@ -23,7 +23,7 @@
 
 namespace csympnet {
 
-class CSympNetId final : public OneStepMap {
+class CSympNetId final : public OneStepMap, public ColumnSplitPasses {
  public:
   static constexpr double kDefaultBetaInit = 0.1;
 
@@ -51,8 +51,26 @@ class CSympNetId final : public OneStepMap {
   std::optional<Index> damping_param_index() const override { return n_params() - 1; }
   nlohmann::json hyperparams() const override;
 
+  // The column-split passes (column_split.hpp), for cores with d > 1 whose sweeps split.
+  // Their records follow the core's in cache.records: the input gradients gq, gp of the sweep;
+  // cache.record_vecs[0] holds dL/da per column.
+  const ColumnSplitPasses* column_split() const override { return this; }
+  bool splits(Index n, const std::vector<Columns>& ranges) const override;
+  void prepare(ConstParams theta, const Vector& h, ForwardCache& cache) const override;
+  void forward_columns(ConstParams theta, const Matrix& Z, ForwardCache& cache, Matrix& out,
+                       Columns cols) const override;
+  void backward_columns(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
+                        Columns cols) const override;
+  void backward_params(ConstParams theta, const ForwardCache& cache, ParamsRef grad,
+                       Share share) const override;
+  void backward_finish(ConstParams theta, const ForwardCache& cache, ParamsRef grad) const override;
+
  private:
   static constexpr std::size_t kCoreSlot0 = 2;
+
+  std::size_t q_slot() const { return kCoreSlot0 + core_->cache_slots(); }
+  // Sizes the forward's cache entries (not the backward records) for the steps h.
+  void size_forward(const Vector& h, ForwardCache& cache) const;
 
   std::unique_ptr<SymplecticCore> core_;
   double beta_init_;

@@ -31,18 +31,34 @@ class GSympNet final : public SymplecticCore {
   // Per module: the input it reads and σ(K x + b).
   std::size_t cache_slots() const override { return static_cast<std::size_t>(2 * layers_); }
 
-  void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-            std::size_t slot0) const override;
   void flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                      const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const override;
   void flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq, Matrix& tp,
                     double h) const override;
+
+  bool splits_columns(Index n, const std::vector<Columns>& ranges) const override;
+  // Per module: G_dst H, dL/dy and dL/du (y = a ⊙ σ(u), u = K x + b).
+  std::size_t record_slots() const override { return static_cast<std::size_t>(3 * layers_); }
+  void size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const override;
+  void flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
+                    std::size_t slot0, Columns cols) const override;
+  void backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                        const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const override;
+  void backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                       const Vector& h, ParamsRef grad, Share share) const override;
 
   Index layers() const { return layers_; }
   Index width() const { return width_; }
 
  private:
   Index module_offset(Index k) const { return k * width_ * (d() + 2); }
+  // Module k's backward as a sweep step on columns cols (the input gradients, and gh, gy, gu
+  // on those columns) and a parameter step over all columns.
+  void sweep_module(ConstParams theta, Index k, const ForwardCache& cache, std::size_t slot0,
+                    const Vector& h, Matrix& gq, Matrix& gp, Columns cols, Matrix& gh, Matrix& gy,
+                    Matrix& gu) const;
+  void params_module(ConstParams theta, Index k, const ForwardCache& cache, std::size_t slot0,
+                     const Matrix& gh, const Matrix& gy, const Matrix& gu, ParamsRef grad) const;
 
   Index layers_;
   Index width_;

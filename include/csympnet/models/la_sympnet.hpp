@@ -44,12 +44,25 @@ class LaSympNet final : public SymplecticCore {
   nlohmann::json core_spec() const override;
   std::size_t cache_slots() const override;
 
+  // d = 1 runs single-row sweeps (below); d > 1 the column passes of la_sympnet_sweeps.cpp.
   void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
             std::size_t slot0) const override;
   void flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                      const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const override;
   void flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq, Matrix& tp,
                     double h) const override;
+
+  // The column-split passes need d > 1 (false from splits_columns() at d = 1, and the other
+  // four throw Error there).
+  bool splits_columns(Index n, const std::vector<Columns>& ranges) const override;
+  std::size_t record_slots() const override;
+  void size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const override;
+  void flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
+                    std::size_t slot0, Columns cols) const override;
+  void backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                        const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const override;
+  void backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                       const Vector& h, ParamsRef grad, Share share) const override;
 
   Index layers() const { return layers_; }
   Index sublayers() const { return sublayers_; }
@@ -75,6 +88,25 @@ class LaSympNet final : public SymplecticCore {
   void flow_backward_scalar(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                             const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
   detail::LaScalarCore scalar_core() const;
+
+  // The backward sweep at d > 1 as a sequence of units (la_sympnet_sweeps.cpp): for k = L−1
+  // … 0, the activation module after linear module k (k < L − 1), the biases of module k, then
+  // its shears m−1 … 0. Each unit's sweep step updates the input gradients on a range of
+  // columns; its parameter step adds its block of dL/dθ from what the sweep step left.
+  struct Unit;
+  struct UnitRecords;
+  std::vector<Unit> backward_units(std::size_t slot0) const;
+  void require_batch_core(const char* what) const;
+  void sweep_unit(ConstParams theta, const Unit& u, const ForwardCache& cache, const Vector& h,
+                  Matrix& gq, Matrix& gp, Columns cols, const UnitRecords& out) const;
+  void params_unit(ConstParams theta, const Unit& u, const ForwardCache& cache, const Vector& h,
+                   const Vector& h2, const UnitRecords& in, ParamsRef grad) const;
+  // flow_backward() at d > 1: each unit's sweep step on all columns, then its parameter step.
+  void flow_backward_batch(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                           const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  // τ on columns cols: h itself when step_terms = 1, else h ⊙ (1 + c h) written to buf.
+  const double* unit_step_columns(ConstParams theta, Index coef, const Vector& h, Columns cols,
+                                  Vector& buf) const;
 
   // Offset of linear module k in θ (each module but the last is followed by its activation).
   Index module_offset(Index k) const { return k * (sublayers_ * d() * d() + 3 * d()); }

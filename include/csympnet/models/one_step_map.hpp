@@ -15,6 +15,7 @@
 
 #include "csympnet/core/rng.hpp"
 #include "csympnet/core/types.hpp"
+#include "csympnet/models/column_split.hpp"
 
 namespace csympnet {
 
@@ -23,6 +24,11 @@ namespace csympnet {
 struct ForwardCache {
   std::vector<Matrix> mats;
   std::vector<Vector> vecs;
+  // The column-split backward's records (column_split.hpp): written by its sweep over column
+  // ranges, read by its parameter sums. Scratch of backward(), which takes the cache as const;
+  // kept here so that the epochs of a training run reuse the storage.
+  mutable std::vector<Matrix> records;
+  mutable std::vector<Vector> record_vecs;
 };
 
 class OneStepMap {
@@ -57,6 +63,10 @@ class OneStepMap {
   // Everything needed to rebuild the architecture (not the parameters); accepted back by
   // make_one_step_map().
   virtual nlohmann::json hyperparams() const = 0;
+
+  // The column-split training passes, for models that have them (column_split.hpp); null
+  // otherwise. Whether a given batch may be split is then asked of the passes.
+  virtual const ColumnSplitPasses* column_split() const { return nullptr; }
 
   // Convenience: forward without a cache.
   Matrix apply(ConstParams theta, const Matrix& Z, const Vector& h) const {

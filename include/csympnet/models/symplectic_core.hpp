@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
 
+#include "csympnet/models/column_split.hpp"
 #include "csympnet/models/one_step_map.hpp"
 
 namespace csympnet {
@@ -35,12 +37,36 @@ class SymplecticCore : public OneStepMap {
   // Ψ_h applied in place to the batch (q, p) (d x N each), column j with step h(j). When
   // cache is not null, records into cache->mats[slot0, slot0 + cache_slots()), growing
   // mats if needed but never shrinking it (entries outside the range belong to the caller).
+  // Default: size_slots(), then flow_columns() on all columns.
   virtual void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-                    std::size_t slot0) const = 0;
+                    std::size_t slot0) const;
   // Reverse mode of flow(): on entry gq, gp hold dL/d(q_out, p_out); on exit dL/d(q_in, p_in).
   // grad (size n_params()) += dL/dθ.
   virtual void flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                              const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const = 0;
+
+  // The column-split passes (column_split.hpp): flow() is size_slots() and flow_columns() on
+  // each range; flow_backward() is backward_columns() on each range, then backward_params()
+  // for each share. The backward records live in cache.records[0, record_slots()).
+  //
+  // Whether the passes may run on `ranges` (from column_ranges(n, ·)) of a batch of n columns
+  // with the results of flow() and flow_backward() to the bit.
+  virtual bool splits_columns(Index n, const std::vector<Columns>& ranges) const = 0;
+  // How many entries of ForwardCache::records the column-split backward writes.
+  virtual std::size_t record_slots() const = 0;
+  // Sizes cache.mats[slot0, slot0 + cache_slots()) for a batch of n columns (growing mats if
+  // needed), and with `records` the backward records too.
+  virtual void size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const = 0;
+  // flow() on columns `cols` of q and p; a non-null cache must be sized by size_slots().
+  virtual void flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                            ForwardCache* cache, std::size_t slot0, Columns cols) const = 0;
+  // The input-gradient sweep of flow_backward() on columns `cols` of gq, gp; records what the
+  // parameter gradient needs.
+  virtual void backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                                const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const = 0;
+  // grad += the share's parameter blocks of dL/dθ, from the records of backward_columns().
+  virtual void backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                               const Vector& h, ParamsRef grad, Share share) const = 0;
   // Forward mode: advances the state (q, p) through Ψ_h and the tangents (tq, tp) (d x k
   // each, the q and p rows of k tangent vectors) through DΨ_h.
   virtual void flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq, Matrix& tp,

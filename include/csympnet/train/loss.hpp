@@ -3,7 +3,11 @@
 // (The sum runs over the 2d components; the mean over pairs only, as in the paper.)
 #pragma once
 
+#include <vector>
+
+#include "csympnet/core/thread_team.hpp"
 #include "csympnet/data/dataset.hpp"
+#include "csympnet/models/column_split.hpp"
 #include "csympnet/models/one_step_map.hpp"
 
 namespace csympnet {
@@ -12,5 +16,23 @@ namespace csympnet {
 // cache reused across calls with the same batch.
 double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
                      Vector* grad = nullptr, ForwardCache* cache = nullptr);
+
+// How one_step_loss() runs on a team of threads: one column range of the batch per member,
+// through the model's column-split passes (column_split.hpp). Planned once per batch size,
+// since asking whether a model splits runs a few products.
+struct LossSplit {
+  ThreadTeam* team = nullptr;
+  std::vector<Columns> ranges;  // empty: the serial passes
+  bool active() const { return team != nullptr && ranges.size() > 1; }
+};
+
+// The split for batches of n columns of `map` on `team`: active only when the team has more
+// than one member, the model has column-split passes and they accept the ranges.
+LossSplit plan_loss_split(const OneStepMap& map, Index n, ThreadTeam* team);
+
+// one_step_loss() with `split`: the same value and gradient, to the bit, on split.team when
+// split.active() (cache must then not be null and pairs must have the planned size).
+double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pairs, Vector* grad,
+                     ForwardCache* cache, const LossSplit& split);
 
 }  // namespace csympnet

@@ -23,6 +23,10 @@ struct TrainOptions {
   // improvement: it removes the late oscillation of a constant rate; docs/training.md).
   std::string lr_schedule = "constant";
   double lr_final_fraction = 1e-3;
+  // Threads for the training loss of models with column-split passes (CSympNet-ID with a core
+  // of d > 1: column_split.hpp); other models train on one. Results are the same to the bit
+  // for any value, so it is not part of the configuration's JSON.
+  int threads = 1;
   void validate() const;
   // adamw.lr scaled by the schedule at epoch (1-based) of the budget.
   double lr_at(long epoch) const;

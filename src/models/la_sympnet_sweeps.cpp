@@ -1,0 +1,286 @@
+// LA-SympNet at d > 1 (la_sympnet.hpp): the forward sweep and the backward sweep on a range of
+// batch columns, and the parameter sums over all columns. The serial flow() and
+// flow_backward() and the column-split passes (column_split.hpp) are made of the same steps,
+// so they agree to the bit: the split only changes where a unit's intermediates are kept
+// (records in the cache, filled range by range) and when its parameter step runs.
+#include <vector>
+
+#include "block_products.hpp"
+#include "column_scaling.hpp"
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/activation.hpp"
+#include "csympnet/models/la_sympnet.hpp"
+
+namespace csympnet {
+
+namespace {
+
+// S = A + Aᵀ for the d x d block of θ at `offset`.
+void symmetric_from(ConstParams theta, Index offset, Index d, Matrix& s) {
+  const Eigen::Map<const Matrix> a(theta.data() + offset, d, d);
+  s = a + a.transpose();
+}
+
+}  // namespace
+
+struct LaSympNet::Unit {
+  enum class Kind { kActivation, kBias, kShear };
+  Kind kind;
+  Index k;           // linear module
+  Index i;           // shear within it (kShear)
+  std::size_t slot;  // cache slot of its σ (kActivation) or of its input (kShear)
+  // Whether the update it reverses is a kick (it changes p; its gradient flows into g_q).
+  bool kick() const { return (kind == Kind::kShear ? i : k) % 2 == 0; }
+};
+
+// What a unit's parameter step reads: gh = g_dst ⊙ τ (activation, shear), and g1 = g_dst
+// (with step polynomials) or g1, g2 = g_p, g_q (biases) as the sweep step found them. With
+// `copy` these are records that the sweep step fills on its columns; without, g1 and g2 are
+// the live gradients, read before any later unit changes them.
+struct LaSympNet::UnitRecords {
+  Matrix* gh = nullptr;
+  Matrix* g1 = nullptr;
+  Matrix* g2 = nullptr;
+  bool copy = false;
+};
+
+void LaSympNet::require_batch_core(const char* what) const {
+  if (d() == 1) throw Error(std::string("la::") + what + ": the column passes need d > 1");
+}
+
+std::vector<LaSympNet::Unit> LaSympNet::backward_units(std::size_t slot0) const {
+  std::vector<Unit> units;
+  std::size_t slot = slot0 + cache_slots();
+  for (Index k = layers_ - 1; k >= 0; --k) {
+    if (k + 1 < layers_) units.push_back({Unit::Kind::kActivation, k, 0, --slot});
+    units.push_back({Unit::Kind::kBias, k, 0, 0});
+    for (Index i = sublayers_ - 1; i >= 0; --i) units.push_back({Unit::Kind::kShear, k, i, --slot});
+  }
+  return units;
+}
+
+std::size_t LaSympNet::record_slots() const {
+  // Per unit: gh and, with step polynomials, g_dst; per bias unit: g_p and g_q.
+  const auto poly = static_cast<std::size_t>(step_terms_ == 2 ? 1 : 0);
+  const auto shears = static_cast<std::size_t>(layers_ * sublayers_);
+  const auto activations = static_cast<std::size_t>(layers_ - 1);
+  return (shears + activations) * (1 + poly) + 2 * static_cast<std::size_t>(layers_);
+}
+
+void LaSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const {
+  reserve_slots(cache, slot0 + cache_slots());
+  for (std::size_t s = slot0; s < slot0 + cache_slots(); ++s) cache.mats[s].resize(d(), n);
+  if (records) {
+    if (cache.records.size() < record_slots()) cache.records.resize(record_slots());
+    for (std::size_t r = 0; r < record_slots(); ++r) cache.records[r].resize(d(), n);
+  }
+}
+
+bool LaSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const {
+  if (d() == 1 || ranges.empty() || ranges.front().begin != 0 || ranges.back().end != n) {
+    return false;
+  }
+  // The sweeps' only products with the columns as their n: S X (forward) and S G (backward).
+  if (!detail::exact_product_covers(d(), d(), n)) return false;
+  for (std::size_t r = 0; r < ranges.size(); ++r) {
+    const Columns c = ranges[r];
+    if (c.begin % kColumnAlign != 0 || c.size() < 1 || (r > 0 && c.begin != ranges[r - 1].end) ||
+        !detail::exact_product_covers(d(), d(), c.size())) {
+      return false;
+    }
+  }
+  return true;
+}
+
+const double* LaSympNet::unit_step_columns(ConstParams theta, Index coef, const Vector& h,
+                                           Columns cols, Vector& buf) const {
+  const auto hc = h.segment(cols.begin, cols.size());
+  if (step_terms_ == 1) return hc.data();
+  const double c = theta(coef);
+  buf = hc.array() * (1.0 + c * hc.array());
+  return buf.data();
+}
+
+void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                             ForwardCache* cache, std::size_t slot0, Columns cols) const {
+  require_batch_core("flow_columns");
+  const Index dd = d();
+  const Index c0 = cols.begin;
+  const Index n = cols.size();
+  const auto hrow = h.segment(c0, n).transpose();
+  Matrix s(dd, dd);
+  Matrix scratch;
+  Matrix sig_local;
+  Vector tau_buf;
+  std::size_t slot = slot0;
+  for (Index k = 0; k < layers_; ++k) {
+    Index off = module_offset(k);
+    for (Index i = 0; i < sublayers_; ++i, off += dd * dd) {
+      const bool kick = i % 2 == 0;
+      const auto src = (kick ? q : p).middleCols(c0, n);
+      auto dst = (kick ? p : q).middleCols(c0, n);
+      if (cache != nullptr) cache->mats[slot++].middleCols(c0, n) = src;
+      symmetric_from(theta, off, dd, s);
+      const double* tau = unit_step_columns(theta, shear_coef(k, i), h, cols, tau_buf);
+      detail::add_product_scaled(s, src, tau, dst, scratch);  // kick p += h S q / drift q += h S p
+    }
+    p.middleCols(c0, n).noalias() += theta.segment(off, dd) * hrow;
+    q.middleCols(c0, n).noalias() += theta.segment(off + dd, dd) * hrow;
+    if (k + 1 < layers_) {
+      const bool kick = k % 2 == 0;
+      const auto src = (kick ? q : p).middleCols(c0, n);
+      auto dst = (kick ? p : q).middleCols(c0, n);
+      const auto a = theta.segment(off + 2 * dd, dd).array();
+      const double* tau = unit_step_columns(theta, act_coef(k), h, cols, tau_buf);
+      // kick p += h a ⊙ σ(q)
+      if (cache != nullptr) {
+        auto sig = cache->mats[slot++].middleCols(c0, n);
+        sigmoid_to(src, sig);
+        detail::add_columns_times_scaled(sig, a, tau, dst);
+      } else {
+        sigmoid_into(src, sig_local);
+        detail::add_columns_times_scaled(sig_local, a, tau, dst);
+      }
+    }
+  }
+}
+
+void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const ForwardCache& cache,
+                           const Vector& h, Matrix& gq, Matrix& gp, Columns cols,
+                           const UnitRecords& out) const {
+  const Index dd = d();
+  const Index c0 = cols.begin;
+  const Index n = cols.size();
+  if (u.kind == Unit::Kind::kBias) {
+    // p += h b_p, q += h b_q leave the input gradients as they are.
+    if (out.copy) {
+      out.g1->middleCols(c0, n) = gp.middleCols(c0, n);
+      out.g2->middleCols(c0, n) = gq.middleCols(c0, n);
+    }
+    return;
+  }
+  auto gsrc = (u.kick() ? gq : gp).middleCols(c0, n);
+  const auto gdst = (u.kick() ? gp : gq).middleCols(c0, n);
+  if (out.copy && step_terms_ == 2) out.g1->middleCols(c0, n) = gdst;
+  const bool act = u.kind == Unit::Kind::kActivation;
+  Vector tau_buf;
+  const Index coef = act ? act_coef(u.k) : shear_coef(u.k, u.i);
+  auto gh = out.gh->middleCols(c0, n);
+  detail::columns_times(gdst, unit_step_columns(theta, coef, h, cols, tau_buf), gh);
+  if (act) {
+    // dst += h a ⊙ σ(src):  g_src += h a ⊙ σ' ⊙ g_dst.
+    const auto sig = cache.mats[u.slot].middleCols(c0, n);
+    const auto a = theta.segment(module_offset(u.k) + sublayers_ * dd * dd + 2 * dd, dd).array();
+    gsrc.array() += (gh.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
+  } else {
+    // dst += S src H:  g_src += S (G_dst H).
+    Matrix s(dd, dd);
+    Matrix scratch;
+    symmetric_from(theta, module_offset(u.k) + u.i * dd * dd, dd, s);
+    detail::add_product(s, gh, gsrc, scratch);
+  }
+}
+
+void LaSympNet::params_unit(ConstParams theta, const Unit& u, const ForwardCache& cache,
+                            const Vector& h, const Vector& h2, const UnitRecords& in,
+                            ParamsRef grad) const {
+  const Index dd = d();
+  const Index bias = module_offset(u.k) + sublayers_ * dd * dd;
+  const bool poly = step_terms_ == 2;
+  switch (u.kind) {
+    case Unit::Kind::kBias:
+      // p += h b_p, q += h b_q:  db = G h.
+      grad.segment(bias, dd).noalias() += *in.g1 * h;
+      grad.segment(bias + dd, dd).noalias() += *in.g2 * h;
+      return;
+    case Unit::Kind::kActivation: {
+      // da = Σ_j h_j g_dst ⊙ σ; with step polynomials dc = Σ_j h_j² g_dst,j · (a ⊙ σ_j).
+      const Matrix& sig = cache.mats[u.slot];
+      const auto a = theta.segment(bias + 2 * dd, dd).array();
+      if (poly)
+        grad(act_coef(u.k)) +=
+            ((in.g1->array() * sig.array()).colwise() * a).colwise().sum().matrix().dot(h2);
+      grad.segment(bias + 2 * dd, dd).array() += (in.gh->array() * sig.array()).rowwise().sum();
+      return;
+    }
+    case Unit::Kind::kShear: {
+      // dS = (G_dst H) srcᵀ, dA = dS + dSᵀ; with step polynomials dc = Σ_j h_j² g_dst,j · (S
+      // src_j).
+      const Matrix& src = cache.mats[u.slot];
+      const Index off = module_offset(u.k) + u.i * dd * dd;
+      if (poly) {
+        Matrix s(dd, dd);
+        symmetric_from(theta, off, dd, s);
+        grad(shear_coef(u.k, u.i)) +=
+            (in.g1->array() * (s * src).array()).colwise().sum().matrix().dot(h2);
+      }
+      Matrix outer(dd, dd);
+      detail::core_product(*in.gh, src.transpose(), outer);
+      Eigen::Map<Matrix> ga(grad.data() + off, dd, dd);
+      ga += outer + outer.transpose();
+      return;
+    }
+  }
+}
+
+namespace {
+
+// The records of one unit in cache.records, from index r on (advanced past them).
+template <typename Unit>
+auto records_at(const Unit& u, bool poly, std::vector<Matrix>& recs, std::size_t& r) {
+  struct {
+    Matrix* gh = nullptr;
+    Matrix* g1 = nullptr;
+    Matrix* g2 = nullptr;
+  } out;
+  if (u.kind == Unit::Kind::kBias) {
+    out.g1 = &recs[r++];
+    out.g2 = &recs[r++];
+  } else {
+    out.gh = &recs[r++];
+    if (poly) out.g1 = &recs[r++];
+  }
+  return out;
+}
+
+}  // namespace
+
+void LaSympNet::backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                                 const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const {
+  require_batch_core("backward_columns");
+  std::size_t r = 0;
+  for (const Unit& u : backward_units(slot0)) {
+    const auto rec = records_at(u, step_terms_ == 2, cache.records, r);
+    sweep_unit(theta, u, cache, h, gq, gp, cols, {rec.gh, rec.g1, rec.g2, true});
+  }
+}
+
+void LaSympNet::backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                                const Vector& h, ParamsRef grad, Share share) const {
+  require_batch_core("backward_params");
+  const Vector h2 = step_terms_ == 2 ? Vector(h.array().square()) : Vector();
+  std::size_t r = 0;
+  // Shears are dealt to the shares in turn, and so, separately, are the cheap units.
+  Index shears = 0;
+  Index others = 0;
+  for (const Unit& u : backward_units(slot0)) {
+    const auto rec = records_at(u, step_terms_ == 2, cache.records, r);
+    const bool mine = share.owns(u.kind == Unit::Kind::kShear ? shears++ : others++);
+    if (mine) params_unit(theta, u, cache, h, h2, {rec.gh, rec.g1, rec.g2, true}, grad);
+  }
+}
+
+void LaSympNet::flow_backward_batch(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                                    const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
+  const Index n = gq.cols();
+  const Vector h2 = step_terms_ == 2 ? Vector(h.array().square()) : Vector();
+  Matrix gh(d(), n);
+  for (const Unit& u : backward_units(slot0)) {
+    UnitRecords live{&gh, &gp, &gq, false};
+    if (u.kind != Unit::Kind::kBias) live.g1 = u.kick() ? &gp : &gq;  // g_dst
+    sweep_unit(theta, u, cache, h, gq, gp, {0, n}, live);
+    params_unit(theta, u, cache, h, h2, live, grad);
+  }
+}
+
+}  // namespace csympnet

@@ -63,11 +63,11 @@ demo: build
 	@$(CLI) reproduce --suite quick --out results/quick
 
 # One table, measured in one run: ms per training epoch, csympnet vs PyTorch (float64, same
-# model, data and AdamW), FLOPs, FLOP rate against dgemm, peak memory (docs/benchmarks.md).
-# Needs python3-torch and libopenblas0-pthread (bench/bench_table.py says so if missing);
-# BENCH_ARGS passes options, e.g. BENCH_ARGS="--threads 2". The micro-benchmarks alone:
-# $(BUILD)/bin/csympnet_bench.
+# model, data and AdamW) on 1 and 2 threads each, FLOPs, FLOP rate against dgemm, peak memory
+# (docs/benchmarks.md). Installs python3-torch if missing. BENCH_ARGS passes options, e.g.
+# BENCH_ARGS="--threads 1 --presets s1,s2". The micro-benchmarks alone: $(BUILD)/bin/csympnet_bench.
 bench: build
+	@bash scripts/install-deps.sh --bench
 	@/usr/bin/python3 bench/bench_table.py --build $(BUILD) $(BENCH_ARGS)
 
 format:

@@ -12,8 +12,9 @@ the machine's dgemm rate measured in the same run (Eigen in csympnet_bench, Open
 torch, at the s2-100 product shape 100x100x400), and the peak resident memory of a training
 run (`csympnet run --preset P --epochs N`, getrusage of the child).
 
-Both sides get the same number of threads (--threads, default 1: csympnet's training loop is
-single-threaded, so PyTorch's intra-op pool and OpenBLAS get 1 too).
+Each row gives both sides the same number of threads (--threads, default 1,2: a row per preset
+and thread count). csympnet's threads are TrainOptions::threads (the epoch split over columns,
+docs/architecture.md); PyTorch's are its intra-op pool and OpenBLAS's.
 Needs Debian's python3-torch on a threaded OpenBLAS (libopenblas0-pthread); see --help.
 """
 
@@ -45,7 +46,9 @@ def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--build", default=os.path.join(ROOT, "build"), help="CMake build directory")
     ap.add_argument("--presets", default=",".join(PRESETS))
-    ap.add_argument("--threads", type=int, default=1, help="threads for PyTorch and OpenBLAS")
+    ap.add_argument("--threads", default="1,2",
+                    help="comma-separated thread counts, one row per preset and count (default "
+                    "1,2); each row gives both sides that many")
     ap.add_argument("--repetitions", type=int, default=5,
                     help="Google Benchmark repetitions per epoch benchmark (median reported)")
     ap.add_argument("--min-time", type=float, default=1.0,
@@ -84,8 +87,12 @@ def check_torch():
     return True, ""
 
 
-def run_micro(bench, presets, repetitions, min_time):
-    names = "|".join(f"epoch/{p}/csympnet" for p in presets)
+def epoch_benchmark(preset, threads):
+    return f"epoch/{preset}/csympnet" + (f"/threads:{threads}" if threads > 1 else "")
+
+
+def run_micro(bench, presets, thread_counts, repetitions, min_time):
+    names = "|".join(epoch_benchmark(p, t) for p in presets for t in thread_counts)
     filt = f"^({names}|dgemm/eigen/.*)$"
     with tempfile.NamedTemporaryFile(suffix=".json") as out:
         r = subprocess.run([bench, f"--benchmark_filter={filt}",
@@ -103,7 +110,7 @@ def run_micro(bench, presets, repetitions, min_time):
     for b in doc["benchmarks"]:
         if b.get("aggregate_name", "median") != "median":
             continue
-        name = b.get("run_name", b["name"])
+        name = b.get("run_name", b["name"]).removesuffix("/real_time")
         unit = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}[b["time_unit"]]
         results[name] = {"seconds": b["real_time"] * unit, "cpu_seconds": b["cpu_time"] * unit,
                          "flops": b.get("flop_per_epoch"), "rate": b.get("FLOPS"),
@@ -127,11 +134,11 @@ def run_torch(bench, presets, threads, min_time, workdir):
     return env, per_preset
 
 
-def peak_rss_mb(cli, preset, epochs, workdir):
-    out = os.path.join(workdir, "rss-" + preset)
+def peak_rss_mb(cli, preset, epochs, threads, workdir):
+    out = os.path.join(workdir, f"rss-{preset}-{threads}")
     proc = subprocess.Popen([cli, "run", "--preset", preset, "--model", "csympnet", "--epochs",
-                             str(epochs), "--out", out, "--force", "-q"],
-                            stdout=subprocess.DEVNULL)
+                             str(epochs), "--threads", str(threads), "--out", out, "--force",
+                             "-q"], stdout=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
@@ -147,6 +154,12 @@ def fmt_ms(seconds):
 def main():
     args = parse_args()
     presets = [p for p in args.presets.split(",") if p]
+    try:
+        thread_counts = [int(t) for t in args.threads.split(",") if t]
+    except ValueError:
+        raise SystemExit(f"bench_table: --threads {args.threads!r}: expected counts like 1,2")
+    if not thread_counts or min(thread_counts) < 1:
+        raise SystemExit(f"bench_table: --threads {args.threads!r}: expected counts >= 1")
     bench = os.path.join(args.build, "bin", "csympnet_bench")
     cli = os.path.join(args.build, "bin", "csympnet")
     for path in (bench, cli):
@@ -160,70 +173,81 @@ def main():
             sys.exit(2)
 
     load_before = load_average()
-    record = {"machine": cpu_model(), "cores": os.cpu_count(), "threads": args.threads,
+    record = {"machine": cpu_model(), "cores": os.cpu_count(), "threads": thread_counts,
               "load_before": load_before}
-    micro, context = run_micro(bench, presets, args.repetitions, args.min_time)
+    micro, context = run_micro(bench, presets, thread_counts, args.repetitions, args.min_time)
     record["micro"] = micro
     record["exact_product"] = context.get("exact_product", "?")
     workdir = tempfile.mkdtemp(prefix="csympnet-bench-")
+    torch_env, torch_runs, rss = {}, {}, {}
     try:
-        torch_env, torch_runs = ({}, {})
-        if use_torch:
-            torch_env, torch_runs = run_torch(bench, presets, args.threads, args.min_time, workdir)
-        record["torch"] = {"environment": torch_env, "presets": torch_runs}
-        rss = {}
-        if not args.no_rss:
-            for p in presets:
-                rss[p] = peak_rss_mb(cli, p, RSS_EPOCHS.get(p, 100), workdir)
-        record["peak_rss_mb"] = rss
+        for t in thread_counts:
+            if use_torch:
+                torch_env[t], torch_runs[t] = run_torch(bench, presets, t, args.min_time, workdir)
+            if not args.no_rss:
+                for p in presets:
+                    rss[(p, t)] = peak_rss_mb(cli, p, RSS_EPOCHS.get(p, 100), t, workdir)
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
+    record["torch"] = {str(t): {"environment": torch_env.get(t, {}),
+                                "presets": torch_runs.get(t, {})} for t in thread_counts}
+    record["peak_rss_mb"] = {f"{p}/{t}": v for (p, t), v in rss.items()}
     record["load_after"] = load_average()
 
+    # The machine's dgemm rate at each thread count: the fastest product it ran (Eigen in
+    # csympnet_bench runs on one thread; OpenBLAS through torch.mm on t).
     eigen_gemm = micro.get(f"dgemm/eigen/{REPRESENTATIVE_GEMM}", {}).get("rate") or 0.0
-    blas_gemm = torch_env.get("dgemm_gflops", {}).get(REPRESENTATIVE_GEMM, 0.0) * 1e9
-    machine_gemm = max(eigen_gemm, blas_gemm)
+    machine_gemm = {}
+    for t in thread_counts:
+        blas = torch_env.get(t, {}).get("dgemm_gflops", {})
+        blas_rate = max(blas.values(), default=0.0) * 1e9
+        machine_gemm[t] = max(blas_rate, eigen_gemm if t == 1 else 0.0)
+    record["machine_gemm"] = {str(t): r for t, r in machine_gemm.items()}
 
-    print(f"csympnet training epoch vs PyTorch {torch_env.get('torch', '(not run)')}, float64, "
-          f"full batch, AdamW")
-    print(f"machine: {record['machine']}, {record['cores']} cores; threads: csympnet 1, "
-          f"PyTorch+OpenBLAS {args.threads if use_torch else '-'}; "
-          f"csympnet products: {record['exact_product']}")
-    print(f"dgemm {REPRESENTATIVE_GEMM}: Eigen {eigen_gemm / 1e9:.1f} GFLOP/s, OpenBLAS "
-          f"{blas_gemm / 1e9:.1f} GFLOP/s -> machine rate {machine_gemm / 1e9:.1f} GFLOP/s")
+    torch_version = next((e.get("torch") for e in torch_env.values()), "(not run)")
+    print(f"csympnet training epoch vs PyTorch {torch_version}, float64, full batch, AdamW")
+    print(f"machine: {record['machine']}, {record['cores']} cores; csympnet products: "
+          f"{record['exact_product']}; each row gives csympnet and PyTorch+OpenBLAS its threads")
+    gemm_text = ", ".join(f"{t} thread{'s' if t > 1 else ''} {r / 1e9:.1f}"
+                          for t, r in machine_gemm.items())
+    print(f"dgemm (fastest of Eigen {REPRESENTATIVE_GEMM} on 1 thread and OpenBLAS "
+          f"{REPRESENTATIVE_GEMM} and 1000^3): {gemm_text} GFLOP/s")
     print(f"load average: {load_before} before, {record['load_after']} after")
-    header = ["preset", "params", "FLOP/epoch", "ours ms", "PyTorch ms", "ratio",
+    header = ["preset", "threads", "params", "FLOP/epoch", "ours ms", "PyTorch ms", "ratio",
               "goal", "ours GFLOP/s", "of dgemm", "x floor", "peak RSS MB"]
     rows = []
     for p in presets:
-        m = micro.get(f"epoch/{p}/csympnet")
-        if m is None:
-            continue
-        t = torch_runs.get(p)
-        ratio = t["seconds_per_epoch"] / m["seconds"] if t else None
-        rate = m["flops"] / m["seconds"]
-        frac = rate / machine_gemm if machine_gemm else None
-        goal = f">={GOALS[p]:g}x" if p in GOALS else ""
-        if p == "s2-100":
-            goal += f", <={FLOOR_FACTOR_GOAL:g}x floor"
-        rows.append([p, f"{m['params']:.0f}", f"{m['flops'] / 1e6:.3f} M", fmt_ms(m["seconds"]),
-                     fmt_ms(t["seconds_per_epoch"]) if t else "-",
-                     f"{ratio:.0f}x" if ratio and ratio >= 10 else f"{ratio:.2f}x" if ratio else "-",
-                     goal, f"{rate / 1e9:.2f}", f"{frac:.0%}" if frac else "-",
-                     f"{1 / frac:.2f}" if frac else "-",
-                     f"{rss[p]:.0f}" if p in rss else "-"])
+        for t in thread_counts:
+            m = micro.get(epoch_benchmark(p, t))
+            if m is None:
+                continue
+            tr = torch_runs.get(t, {}).get(p)
+            ratio = tr["seconds_per_epoch"] / m["seconds"] if tr else None
+            rate = m["flops"] / m["seconds"]
+            frac = rate / machine_gemm[t] if machine_gemm.get(t) else None
+            goal = f">={GOALS[p]:g}x" if p in GOALS else ""
+            if p == "s2-100":
+                goal += f", <={FLOOR_FACTOR_GOAL:g}x floor"
+            rows.append([p, str(t), f"{m['params']:.0f}", f"{m['flops'] / 1e6:.3f} M",
+                         fmt_ms(m["seconds"]), fmt_ms(tr["seconds_per_epoch"]) if tr else "-",
+                         f"{ratio:.0f}x" if ratio and ratio >= 10 else
+                         f"{ratio:.2f}x" if ratio else "-",
+                         goal, f"{rate / 1e9:.2f}", f"{frac:.0%}" if frac else "-",
+                         f"{1 / frac:.2f}" if frac else "-",
+                         f"{rss[(p, t)]:.0f}" if (p, t) in rss else "-"])
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     print("| " + " | ".join(h.ljust(w) for h, w in zip(header, widths)) + " |")
     print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
     for r in rows:
         print("| " + " | ".join(c.ljust(w) for c, w in zip(r, widths)) + " |")
     if use_torch:
-        variants = ", ".join(f"{p} {torch_runs[p]['adamw']}" for p in presets if p in torch_runs)
+        runs = [(t, p, x) for t, per in torch_runs.items() for p, x in per.items()]
+        variants = ", ".join(f"{p}/{t} {x['adamw']}" for t, p, x in runs)
         print(f"PyTorch: eager nn.Module + autograd, torch.optim.AdamW (the faster of its loop and "
               f"foreach implementations, timed: {variants}); median of timed batches")
-        worst = max(x["loss_rel_diff_max"] for x in torch_runs.values())
+        worst = max(x["loss_rel_diff_max"] for _, _, x in runs)
         print(f"same computation: PyTorch's losses over the first "
-              f"{next(iter(torch_runs.values()))['loss_epochs_checked']} epochs match csympnet's to "
+              f"{runs[0][2]['loss_epochs_checked']} epochs match csympnet's to "
               f"{worst:.1e} (relative) on every preset")
     if args.json:
         with open(args.json, "w") as f:

@@ -1,7 +1,16 @@
 #!/usr/bin/env bash
 # Installs what csympnet needs to build and test, from Debian 12 packages, and skips what is
 # already present. Safe to run any number of times.
+#   --bench   also what `make bench` needs: PyTorch for the side-by-side (on OpenBLAS).
 set -euo pipefail
+
+bench=0
+for arg in "$@"; do
+  case "$arg" in
+    --bench) bench=1 ;;
+    *) echo "install-deps: unknown option '$arg' (expected --bench)" >&2; exit 2 ;;
+  esac
+done
 
 packages=(
   build-essential cmake pkg-config
@@ -23,6 +32,9 @@ packages=(
   clang-14             # fuzz/: libFuzzer targets (make fuzz)
   libclang-rt-14-dev   # fuzz/: the libFuzzer and sanitizer runtimes for clang
 )
+if [ "$bench" -eq 1 ]; then
+  packages+=(python3-torch)  # bench/torch_peer.py; libopenblas0-pthread (above) is its BLAS
+fi
 
 missing=()
 for p in "${packages[@]}"; do

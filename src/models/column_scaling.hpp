@@ -1,43 +1,73 @@
 // Internal to src/models: the per-column scalings through which a sample's step h_j (or its
-// conformal factor a_j) enters the cores, one column at a time. Eigen's `.rowwise() * hᵀ`
-// broadcasts have no packet access and run element by element; per column, each is an
-// array times a scalar, which Eigen vectorises. Each element gets the same IEEE operations in
-// the same order as in the broadcast expression named beside each function.
+// conformal factor a_j) enters the cores. Each element gets the IEEE operations, in the
+// order, of the Eigen broadcast expression named beside each function; they are single
+// multiplies and adds, so the result does not depend on how elements are grouped into
+// registers. Why not the expressions: Eigen's `.rowwise() * hᵀ` broadcasts have no packet
+// access and run element by element, and per column (10 rows at d = 10) the loop overhead
+// outweighs the arithmetic; the AVX-512 kernels of column_scaling.cpp handle a column in one
+// or two registers. Blocks must be whole columns of a column-major matrix (outer stride =
+// rows); others take the per-column Eigen loop.
 #pragma once
 
 #include "csympnet/core/types.hpp"
 
 namespace csympnet::detail {
 
-// out = x.array().rowwise() * hᵀ   (h: x.cols() contiguous values)
+// Raw kernels on m x n column-major arrays with leading dimension m (a: m values, h: n
+// values); false when they do not run on this machine (nothing written).
+bool columns_times_simd(Index m, Index n, const double* x, const double* h, double* out);
+bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* a, const double* h,
+                               double* out, bool accumulate);
+
+template <typename M>
+bool whole_columns(const Eigen::MatrixBase<M>& x) {
+  return x.derived().innerStride() == 1 && x.derived().outerStride() == x.rows();
+}
+
+// out = x.array().rowwise() * hᵀ   (h: x.cols() contiguous values; out may be x itself)
 template <typename X, typename Out>
 void columns_times(const Eigen::MatrixBase<X>& x, const double* h,
                    const Eigen::MatrixBase<Out>& out_) {
   auto& out = const_cast<Eigen::MatrixBase<Out>&>(out_);  // Eigen's idiom for writable blocks
+  if (whole_columns(x) && whole_columns(out) &&
+      columns_times_simd(x.rows(), x.cols(), x.derived().data(), h, out.derived().data())) {
+    return;
+  }
   for (Index j = 0; j < x.cols(); ++j) out.col(j).array() = x.col(j).array() * h[j];
 }
 
 // x.array().rowwise() *= hᵀ
 template <typename X>
-void scale_columns(const Eigen::MatrixBase<X>& x_, const double* h) {
-  auto& x = const_cast<Eigen::MatrixBase<X>&>(x_);
-  for (Index j = 0; j < x.cols(); ++j) x.col(j).array() *= h[j];
+void scale_columns(const Eigen::MatrixBase<X>& x, const double* h) {
+  columns_times(x, h, x);
 }
 
-// out = (x.array().colwise() * a).rowwise() * hᵀ   (a: an array of x.rows() values)
-template <typename X, typename A, typename Out>
-void columns_times_scaled(const Eigen::MatrixBase<X>& x, const A& a, const double* h,
-                          const Eigen::MatrixBase<Out>& out_) {
+// out = (x.array().colwise() * a).rowwise() * hᵀ, or out += it with `accumulate`
+// (a: x.rows() contiguous values).
+template <typename X, typename Out>
+void columns_times_scaled(const Eigen::MatrixBase<X>& x, const double* a, const double* h,
+                          const Eigen::MatrixBase<Out>& out_, bool accumulate = false) {
   auto& out = const_cast<Eigen::MatrixBase<Out>&>(out_);
-  for (Index j = 0; j < x.cols(); ++j) out.col(j).array() = (x.col(j).array() * a) * h[j];
+  if (whole_columns(x) && whole_columns(out) &&
+      columns_times_scaled_simd(x.rows(), x.cols(), x.derived().data(), a, h, out.derived().data(),
+                                accumulate)) {
+    return;
+  }
+  const auto av = Eigen::Map<const Eigen::ArrayXd>(a, x.rows());
+  for (Index j = 0; j < x.cols(); ++j) {
+    if (accumulate) {
+      out.col(j).array() += (x.col(j).array() * av) * h[j];
+    } else {
+      out.col(j).array() = (x.col(j).array() * av) * h[j];
+    }
+  }
 }
 
 // out.array() += (x.array().colwise() * a).rowwise() * hᵀ
-template <typename X, typename A, typename Out>
-void add_columns_times_scaled(const Eigen::MatrixBase<X>& x, const A& a, const double* h,
-                              const Eigen::MatrixBase<Out>& out_) {
-  auto& out = const_cast<Eigen::MatrixBase<Out>&>(out_);
-  for (Index j = 0; j < x.cols(); ++j) out.col(j).array() += (x.col(j).array() * a) * h[j];
+template <typename X, typename Out>
+void add_columns_times_scaled(const Eigen::MatrixBase<X>& x, const double* a, const double* h,
+                              const Eigen::MatrixBase<Out>& out) {
+  columns_times_scaled(x, a, h, out, true);
 }
 
 }  // namespace csympnet::detail

@@ -91,10 +91,10 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
     if (cache != nullptr) {
       auto sig = cache->mats[slot + 1].middleCols(c0, n);
       sigmoid_to(u, sig);
-      detail::columns_times_scaled(sig, a, h.data() + c0, u);
+      detail::columns_times_scaled(sig, a.data(), h.data() + c0, u);
     } else {
       sigmoid_into(u, sig_local);
-      detail::columns_times_scaled(sig_local, a, h.data() + c0, u);
+      detail::columns_times_scaled(sig_local, a.data(), h.data() + c0, u);
     }
     detail::add_product(kmat.transpose(), u, dst, scratch);
   }

@@ -310,7 +310,9 @@ TEST(CoreColumns, SplitPassesEqualTheSerialPasses) {
     }
   }
   // Where the exact kernels run, most of these cases split (all but d < 8 and tiny ranges).
-  if (std::string(detail::exact_product_isa()) != "eigen") EXPECT_GE(compared, 120);
+  if (std::string(detail::exact_product_isa()) != "eigen") {
+    EXPECT_GE(compared, 120);
+  }
 }
 
 // The split must be taken where it can be, or the comparisons above say nothing about the
@@ -343,14 +345,20 @@ TEST(ColumnRanges, CoverTheBatchInAlignedNonEmptyBalancedRanges) {
       Index smallest = n, largest = 0;
       for (std::size_t i = 0; i < r.size(); ++i) {
         EXPECT_EQ(r[i].begin % kColumnAlign, 0);
-        if (i > 0) EXPECT_EQ(r[i].begin, r[i - 1].end);
-        if (n > 0) EXPECT_GE(r[i].size(), 1);
+        if (i > 0) {
+          EXPECT_EQ(r[i].begin, r[i - 1].end);
+        }
+        if (n > 0) {
+          EXPECT_GE(r[i].size(), 1);
+        }
         if (i + 1 < r.size()) {
           smallest = std::min(smallest, r[i].size());
           largest = std::max(largest, r[i].size());
         }
       }
-      if (r.size() > 2) EXPECT_LE(largest - smallest, kColumnAlign);
+      if (r.size() > 2) {
+        EXPECT_LE(largest - smallest, kColumnAlign);
+      }
       // As many ranges as there are aligned blocks to give, up to `parts`.
       const Index blocks = (n + kColumnAlign - 1) / kColumnAlign;
       EXPECT_EQ(static_cast<Index>(r.size()), std::max<Index>(1, std::min<Index>(parts, blocks)));

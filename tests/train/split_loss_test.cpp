@@ -69,7 +69,9 @@ TEST(SplitLoss, EqualsTheSerialLossAndGradientToTheBit) {
     }
   }
   // Every one of these splits where the exact kernels run; else the test said nothing.
-  if (kernels_run()) EXPECT_EQ(split, 18);
+  if (kernels_run()) {
+    EXPECT_EQ(split, 18);
+  }
 }
 
 TEST(SplitLoss, PlansSeriallyWhenNothingSplits) {

@@ -93,7 +93,7 @@ def epoch_benchmark(preset, threads):
 
 def run_micro(bench, presets, thread_counts, repetitions, min_time):
     names = "|".join(epoch_benchmark(p, t) for p in presets for t in thread_counts)
-    filt = f"^({names}|dgemm/eigen/.*)$"
+    filt = f"^({names}|dgemm/eigen/.*)(/real_time)?$"
     with tempfile.NamedTemporaryFile(suffix=".json") as out:
         r = subprocess.run([bench, f"--benchmark_filter={filt}",
                             f"--benchmark_repetitions={repetitions}",

@@ -22,16 +22,26 @@ enum class Epilogue {
 };
 
 // C = A B (or the epilogue's update of C), with A column-major m x k (leading dimension lda),
-// B(l, j) = b[l*bl + j*bj] (k x n) and C column-major m x n (leading dimension m); h (length n)
-// is read by kAddScaled only. Returns false, leaving C untouched, unless every entry is
-// bit-identical to Eigen's `P.noalias() = A * B` followed by the epilogue as an Eigen
-// expression.
+// B(l, j) = b[l*bl + j*bj] (k x n, stored by columns, bl = 1, or by rows, bj = 1) and C
+// column-major m x n (leading dimension m); h (length n) is read by kAddScaled only. Returns
+// false, leaving C untouched, unless every entry is bit-identical to Eigen's
+// `P.noalias() = A * B` followed by the epilogue as an Eigen expression. The columns of one
+// product may be computed as several calls on ranges split at multiples of 4 (b, c and h
+// advanced to the range's first column): the entries come out as from one call, provided every
+// call is taken (a range of one column, or one small enough for Eigen's lazy product, is not).
 bool exact_product(Index m, Index n, Index k, const double* a, Index lda, const double* b, Index bl,
                    Index bj, double* c, Epilogue mode = Epilogue::kStore,
                    const double* h = nullptr);
 
 // What the kernels run on this machine: "avx512", "avx" or "eigen" (Eigen itself).
 const char* exact_product_isa();
+
+// For tests: exact_product() through the named kernel ("avx512" or "avx") even where the other
+// would be chosen, without the once-per-process check. False when that kernel cannot run on
+// this machine or build, or the shape is not covered.
+bool exact_product_using(const char* isa, Index m, Index n, Index k, const double* a, Index lda,
+                         const double* b, Index bl, Index bj, double* c,
+                         Epilogue mode = Epilogue::kStore, const double* h = nullptr);
 
 // exact_product() on Eigen operands: A a plain column-major matrix or map, or the transpose
 // of one; B likewise; c the m x n destination. False when not covered.

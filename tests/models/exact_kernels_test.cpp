@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <string>
 #include <utility>
 
 #include "../src/models/exact_product.hpp"
@@ -101,6 +102,112 @@ TEST(ExactProduct, EpiloguesMatchEigenToTheBit) {
 TEST(ExactProduct, ReportsWhatRuns) {
   const std::string isa = detail::exact_product_isa();
   EXPECT_TRUE(isa == "avx512" || isa == "avx" || isa == "eigen") << isa;
+  __builtin_cpu_init();
+  if (isa != "eigen" && __builtin_cpu_supports("avx512f")) {
+    EXPECT_EQ(isa, "avx512");  // where the kernels are built, AVX-512 passes its self-check
+  }
+}
+
+// C = A B and the three epilogues through one kernel, raw operands: B stored by columns
+// (bl = 1, bj = k) or by rows (bt: B(l, j) = bt[l*n + j]).
+struct RawProduct {
+  const Matrix& a;
+  const Matrix& b;
+  const Matrix& bt;
+  const Vector& h;
+};
+
+bool run_raw(const char* isa, const RawProduct& p, bool by_rows, Index j0, Index n,
+             detail::Epilogue mode, Matrix& c) {
+  const Index m = p.a.rows(), k = p.a.cols(), ldb = p.bt.rows();
+  const double* b = by_rows ? p.bt.data() + j0 : p.b.data() + j0 * k;
+  double* cj = c.data() + j0 * m;
+  const Index bl = by_rows ? ldb : 1, bj = by_rows ? 1 : k;
+  if (isa == nullptr) {
+    return detail::exact_product(m, n, k, p.a.data(), m, b, bl, bj, cj, mode, p.h.data() + j0);
+  }
+  return detail::exact_product_using(isa, m, n, k, p.a.data(), m, b, bl, bj, cj, mode,
+                                     p.h.data() + j0);
+}
+
+// Every kernel the machine can run, forced (not only the one chosen), on shapes that reach each
+// of its tile kinds: 8- and 4-row blocks (m mod 8 = 0, 4), the two tail rows (m ≡ 2 mod 4, and
+// m = 2 alone), every column remainder of the 16-column panels, inner dimensions below 8, at
+// multiples of 8 and beyond the copy limit of the tail rows (128), both layouts of B.
+TEST(ExactProduct, EveryKernelAndTileMatchesEigenToTheBit) {
+  std::mt19937_64 gen(11);
+  std::uniform_real_distribution<double> step(0.05, 0.15);
+  int ran_avx512 = 0;
+  for (const char* isa : {"avx512", "avx"}) {
+    for (const Index m : {2, 6, 8, 10, 12, 14, 20, 26, 50, 100}) {
+      for (const Index k : {1, 5, 8, 10, 17, 130}) {
+        for (Index n = 2; n <= 36; n += (n < 20 ? 1 : 7)) {
+          SCOPED_TRACE(::testing::Message() << isa << " " << m << " x " << k << " x " << n);
+          const Matrix a = random_matrix(gen, m, k);
+          const Matrix b = random_matrix(gen, k, n);
+          const Matrix bt = b.transpose();
+          const Matrix d0 = random_matrix(gen, m, n);
+          Vector h(n);
+          for (Index j = 0; j < n; ++j) h(j) = step(gen);
+          const RawProduct p{a, b, bt, h};
+          for (int e = 0; e < 3; ++e) {
+            for (const bool by_rows : {false, true}) {
+              Matrix mine = d0;
+              if (!run_raw(isa, p, by_rows, 0, n, static_cast<detail::Epilogue>(e), mine)) break;
+              ran_avx512 += std::string(isa) == "avx512";
+              // The raw products claim Eigen's own `P = A * B` order (no lazy product here).
+              Matrix eigen_t(m, n);
+              eigen_t.noalias() = a * b;
+              Matrix want[3] = {eigen_t, d0 + eigen_t, d0};
+              want[2].array() += eigen_t.array().rowwise() * h.transpose().array();
+              EXPECT_TRUE(same_bits(want[e], mine)) << "epilogue " << e << (by_rows ? " Bᵀ" : "");
+            }
+          }
+        }
+      }
+    }
+  }
+  if (std::string(detail::exact_product_isa()) == "avx512") {
+    EXPECT_GT(ran_avx512, 0);
+  }
+}
+
+// A product split into column ranges at a multiple of 4 (as a caller running ranges on
+// separate threads does) gives the bits of the whole: an entry's arithmetic depends only on
+// its row and on whether its column lies before 4⌊n/4⌋.
+TEST(ExactProduct, ColumnRangesGiveTheBitsOfTheWhole) {
+  std::mt19937_64 gen(12);
+  std::uniform_real_distribution<double> step(0.05, 0.15);
+  const Shape cases[] = {{10, 10, 400}, {10, 400, 10},   {50, 10, 400},   {10, 50, 400},
+                         {50, 400, 10}, {100, 100, 400}, {100, 400, 100}, {14, 9, 39},
+                         {22, 130, 27}, {2, 30, 31}};
+  for (const Shape& s : cases) {
+    const Matrix a = random_matrix(gen, s.m, s.k);
+    const Matrix b = random_matrix(gen, s.k, s.n);
+    const Matrix bt = b.transpose();
+    const Matrix d0 = random_matrix(gen, s.m, s.n);
+    Vector h(s.n);
+    for (Index j = 0; j < s.n; ++j) h(j) = step(gen);
+    const RawProduct p{a, b, bt, h};
+    for (Index split = 4; split + 2 <= s.n; split += (s.n > 40 ? 36 : 4)) {
+      for (int e = 0; e < 3; ++e) {
+        for (const bool by_rows : {false, true}) {
+          SCOPED_TRACE(::testing::Message() << s.m << " x " << s.k << " x " << s.n << " split at "
+                                            << split << " epilogue " << e << " Bᵀ " << by_rows);
+          const auto mode = static_cast<detail::Epilogue>(e);
+          Matrix whole = d0, parts = d0;
+          const bool ran = run_raw(nullptr, p, by_rows, 0, s.n, mode, whole);
+          const bool ran1 = run_raw(nullptr, p, by_rows, 0, split, mode, parts);
+          const bool ran2 = run_raw(nullptr, p, by_rows, split, s.n - split, mode, parts);
+          EXPECT_EQ(ran, ran1);
+          EXPECT_EQ(ran, ran2);
+          if (ran && ran1 && ran2) {
+            EXPECT_TRUE(same_bits(whole, parts));
+          }
+        }
+      }
+    }
+  }
 }
 
 // sigmoid_into before its kernels: both quotients formed, then selected. (Eigen picks its

@@ -59,8 +59,9 @@ ThreadTeam::ThreadTeam(int threads) {
   const unsigned cores = std::thread::hardware_concurrency();
   spin_ = cores == 0 || static_cast<unsigned>(threads) <= cores;
   errors_.resize(static_cast<std::size_t>(threads));
+  next_part_.store(threads, std::memory_order_relaxed);  // nothing to claim yet
   workers_.reserve(static_cast<std::size_t>(threads - 1));
-  for (int i = 1; i < threads; ++i) workers_.emplace_back([this, i] { work(i); });
+  for (int i = 1; i < threads; ++i) workers_.emplace_back([this] { work(); });
 }
 
 ThreadTeam::~ThreadTeam() {
@@ -70,19 +71,36 @@ ThreadTeam::~ThreadTeam() {
   for (std::thread& t : workers_) t.join();
 }
 
+void ThreadTeam::run_parts() {
+  const int parts = size();
+  for (;;) {
+    // Acquire: a claim of the current job's counter sees its job_ (stored before the counter).
+    const int i = next_part_.fetch_add(1, std::memory_order_acq_rel);
+    if (i >= parts) return;
+    try {
+      (*job_)(i);
+    } catch (...) {
+      errors_[static_cast<std::size_t>(i)] = std::current_exception();
+    }
+    if (done_.fetch_add(1, std::memory_order_seq_cst) + 1 == parts &&
+        sleepers_.load(std::memory_order_seq_cst) > 0) {
+      done_.notify_all();
+    }
+  }
+}
+
 void ThreadTeam::run(const std::function<void(int)>& job) {
+  const int parts = size();
   for (std::exception_ptr& e : errors_) e = nullptr;
   job_ = &job;
-  pending_.store(size() - 1, std::memory_order_relaxed);
-  generation_.fetch_add(1, std::memory_order_seq_cst);  // publishes job_ and pending_
+  done_.store(0, std::memory_order_relaxed);
+  next_part_.store(0, std::memory_order_release);       // publishes job_ to claimers
+  generation_.fetch_add(1, std::memory_order_seq_cst);  // wakes the workers
   if (sleepers_.load(std::memory_order_seq_cst) > 0) generation_.notify_all();
-  try {
-    job(0);
-  } catch (...) {
-    errors_[0] = std::current_exception();
-  }
-  for (int left = pending_.load(std::memory_order_acquire); left != 0;) {
-    left = await_change(pending_, left, sleepers_, spin_);
+  run_parts();
+  // Parts claimed by workers may still be running.
+  for (int done = done_.load(std::memory_order_acquire); done != parts;) {
+    done = await_change(done_, done, sleepers_, spin_);
   }
   job_ = nullptr;
   for (const std::exception_ptr& e : errors_) {
@@ -90,18 +108,14 @@ void ThreadTeam::run(const std::function<void(int)>& job) {
   }
 }
 
-void ThreadTeam::work(int member) {
+void ThreadTeam::work() {
   std::uint64_t seen = 0;
   for (;;) {
     seen = await_change(generation_, seen, sleepers_, spin_);
     if (stop_.load(std::memory_order_relaxed)) return;
-    try {
-      (*job_)(member);
-    } catch (...) {
-      errors_[static_cast<std::size_t>(member)] = std::current_exception();
-    }
-    pending_.fetch_sub(1, std::memory_order_seq_cst);
-    if (sleepers_.load(std::memory_order_seq_cst) > 0) pending_.notify_all();
+    // Woken late, this may find the job done (nothing to claim) or even the next one begun,
+    // whose parts it then helps with: the counter and job_ it sees belong together.
+    run_parts();
   }
 }
 

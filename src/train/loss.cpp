@@ -43,15 +43,13 @@ double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pa
               " pairs, got " + std::to_string(pairs.size()));
   const ColumnSplitPasses& passes = *map.column_split();
   const auto& ranges = split.ranges;
-  auto in_range = [&ranges](int member) {
-    return static_cast<std::size_t>(member) < ranges.size();
-  };
-  // The serial loss's operations, elementwise ones on each member's columns, the sum alone.
+  auto in_range = [&ranges](int part) { return static_cast<std::size_t>(part) < ranges.size(); };
+  // The serial loss's operations, elementwise ones on each range's columns, the sum alone.
   passes.prepare(theta, pairs.h, *cache);
   Matrix residual(pairs.z0.rows(), pairs.size());
-  split.team->run([&](int member) {
-    if (!in_range(member)) return;
-    const Columns c = ranges[static_cast<std::size_t>(member)];
+  split.team->run([&](int part) {
+    if (!in_range(part)) return;
+    const Columns c = ranges[static_cast<std::size_t>(part)];
     passes.forward_columns(theta, pairs.z0, *cache, residual, c);
     residual.middleCols(c.begin, c.size()) -= pairs.z1.middleCols(c.begin, c.size());
   });
@@ -59,16 +57,14 @@ double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pa
   const double loss = residual.squaredNorm() / n;
   if (grad == nullptr) return loss;
   grad->setZero(map.n_params());
-  split.team->run([&](int member) {
-    if (!in_range(member)) return;
-    const Columns c = ranges[static_cast<std::size_t>(member)];
+  split.team->run([&](int part) {
+    if (!in_range(part)) return;
+    const Columns c = ranges[static_cast<std::size_t>(part)];
     residual.middleCols(c.begin, c.size()) *= 2.0 / n;  // dL/dΦ̂ = (2/N)(Φ̂ − z1)
     passes.backward_columns(theta, *cache, residual, c);
   });
-  const int members = split.team->size();
-  split.team->run([&](int member) {
-    passes.backward_params(theta, *cache, *grad, {member, members});
-  });
+  const int parts = split.team->size();
+  split.team->run([&](int part) { passes.backward_params(theta, *cache, *grad, {part, parts}); });
   passes.backward_finish(theta, *cache, *grad);
   return loss;
 }

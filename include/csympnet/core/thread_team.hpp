@@ -1,12 +1,18 @@
-// A small team of threads that runs one job at a time on every member, for work split into a
-// fixed number of parts (the column-split training epoch: column_split.hpp).
+// A small team of threads that runs one job at a time, split into as many parts as the team
+// has threads (the column-split training epoch: column_split.hpp).
 //
 // Why not a general pool: an epoch of the paper's presets takes 0.1 to 10 ms and meets the
 // team three times, so what matters is the cost of a meeting. Every wait (a worker's for the
-// next job, the caller's for the workers) spins for a while (half a millisecond), so
+// next job, the caller's for the last part) spins for a while (half a millisecond), so
 // back-to-back epochs never pay for a sleep and a wake-up, and then sleeps on the atomic it
 // waits for (a futex), woken only if someone sleeps. A team larger than the machine's core
 // count does not spin at all: a spinning thread would take the core its partner needs.
+//
+// Parts are claimed, not assigned: every thread, the caller first, takes the next unclaimed
+// part until none is left. On a busy machine, where a worker may not be scheduled for
+// milliseconds, the caller then does its part too, and the job runs as fast as one thread
+// would instead of waiting for the worker. What a part computes must therefore not depend on
+// which thread runs it.
 #pragma once
 
 #include <atomic>
@@ -20,7 +26,7 @@ namespace csympnet {
 
 class ThreadTeam {
  public:
-  // A team of `threads` members: the calling thread and threads − 1 workers. Throws Error
+  // A team of `threads` threads: the calling thread and threads − 1 workers. Throws Error
   // unless 1 <= threads <= kMaxThreads.
   explicit ThreadTeam(int threads);
   ~ThreadTeam();
@@ -29,21 +35,26 @@ class ThreadTeam {
 
   static constexpr int kMaxThreads = 256;
 
+  // Threads, and parts of every job.
   int size() const { return static_cast<int>(workers_.size()) + 1; }
 
-  // Runs job(i) for every member i in [0, size()), member 0 on the calling thread, and returns
-  // when all have returned. If jobs throw, the first member's exception (by index) is rethrown
-  // here after all have returned. Not reentrant: one run() at a time.
+  // Runs job(i) once for every part i in [0, size()), each on whichever of the team's threads
+  // claims it (the caller included), and returns when all have returned. If parts throw, the
+  // exception of the lowest such part is rethrown here after all have returned. Not
+  // reentrant: one run() at a time.
   void run(const std::function<void(int)>& job);
 
  private:
-  void work(int member);
+  void work();
+  // Claims and runs parts of the current job until none is left.
+  void run_parts();
 
   std::vector<std::thread> workers_;
-  std::vector<std::exception_ptr> errors_;
+  std::vector<std::exception_ptr> errors_;  // per part
   const std::function<void(int)>* job_ = nullptr;
   std::atomic<std::uint64_t> generation_{0};  // bumped once per job (and once to stop)
-  std::atomic<int> pending_{0};               // workers still running the current job
+  std::atomic<int> next_part_{0};             // the next part to claim
+  std::atomic<int> done_{0};                  // parts finished
   std::atomic<int> sleepers_{0};              // threads asleep (or about to be) in a wait
   std::atomic<bool> stop_{false};
   bool spin_ = true;  // false when the team outnumbers the cores

@@ -17,7 +17,7 @@ namespace csympnet {
 double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
                      Vector* grad = nullptr, ForwardCache* cache = nullptr);
 
-// How one_step_loss() runs on a team of threads: one column range of the batch per member,
+// How one_step_loss() runs on a team of threads: one column range of the batch per part,
 // through the model's column-split passes (column_split.hpp). Planned once per batch size,
 // since asking whether a model splits runs a few products.
 struct LossSplit {
@@ -27,7 +27,7 @@ struct LossSplit {
 };
 
 // The split for batches of n columns of `map` on `team`: active only when the team has more
-// than one member, the model has column-split passes and they accept the ranges.
+// than one thread, the model has column-split passes and they accept the ranges.
 LossSplit plan_loss_split(const OneStepMap& map, Index n, ThreadTeam* team);
 
 // one_step_loss() with `split`: the same value and gradient, to the bit, on split.team when

@@ -3,7 +3,6 @@
 // flow_backward() and the column-split passes (column_split.hpp) are made of the same steps,
 // so they agree to the bit: the split only changes where a unit's intermediates are kept
 // (records in the cache, filled range by range) and when its parameter step runs.
-#include <algorithm>
 #include <vector>
 
 #include "block_products.hpp"
@@ -16,22 +15,10 @@ namespace csympnet {
 
 namespace {
 
-// S = A + Aᵀ for the d x d block of θ at `offset`, each entry a(i, j) + a(j, i) as in the
-// expression `a + a.transpose()`, in tiles: the transposed reads of a whole column would touch
-// d cache lines each (d = 100: A is 80 KB, more than L1).
+// S = A + Aᵀ for the d x d block of θ at `offset`.
 void symmetric_from(ConstParams theta, Index offset, Index d, Matrix& s) {
-  constexpr Index kTile = 16;
-  const double* a = theta.data() + offset;
-  s.resize(d, d);
-  for (Index j0 = 0; j0 < d; j0 += kTile) {
-    const Index j1 = std::min(d, j0 + kTile);
-    for (Index i0 = 0; i0 < d; i0 += kTile) {
-      const Index i1 = std::min(d, i0 + kTile);
-      for (Index j = j0; j < j1; ++j) {
-        for (Index i = i0; i < i1; ++i) s(i, j) = a[i + j * d] + a[j + i * d];
-      }
-    }
-  }
+  const Eigen::Map<const Matrix> a(theta.data() + offset, d, d);
+  s = a + a.transpose();
 }
 
 }  // namespace

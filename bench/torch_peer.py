@@ -41,6 +41,8 @@ def parse_args():
     ap.add_argument("--dir", required=True, help="directory written by csympnet_bench --peer-export")
     ap.add_argument("--presets", default="s1,s2,s3,s2-100")
     ap.add_argument("--threads", type=int, default=1, help="torch and BLAS threads (default 1)")
+    ap.add_argument("--blas-threads", type=int, default=None,
+                    help="OpenBLAS threads when they differ from --threads")
     ap.add_argument("--min-time", type=float, default=2.0,
                     help="seconds of timed epochs per preset and AdamW variant (default 2)")
     ap.add_argument("--tol", type=float, default=1e-12,
@@ -54,8 +56,10 @@ def parse_args():
 
 
 ARGS = parse_args()
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[var] = str(ARGS.threads)
+BLAS_THREADS = ARGS.threads if ARGS.blas_threads is None else ARGS.blas_threads
+os.environ["OMP_NUM_THREADS"] = str(ARGS.threads)
+for var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[var] = str(BLAS_THREADS)
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
@@ -262,6 +266,8 @@ def blas_libraries():
 
 def main():
     info = {"kind": "environment", "torch": torch.__version__, "threads": torch.get_num_threads(),
+            "blas_threads": BLAS_THREADS,
+            "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "(default)"),
             "blas": blas_libraries(),
             "dgemm_gflops": time_dgemm(ARGS.dgemm) if ARGS.dgemm else {}}
     print(json.dumps(info), flush=True)

@@ -62,7 +62,33 @@ __attribute__((target("avx512f"))) void times_scaled_avx512(Index m, Index n, co
   }
 }
 
+// out(:, j) += h_j b
+__attribute__((target("avx512f"))) void outer_avx512(Index m, Index n, const double* b,
+                                                     const double* h, double* out) {
+  const Index m8 = m & ~Index{7};
+  const __mmask8 tail = tail_mask(m - m8);
+  for (Index j = 0; j < n; ++j, out += m) {
+    const __m512d hj = _mm512_set1_pd(h[j]);
+    Index i = 0;
+    for (; i < m8; i += 8) {
+      _mm512_storeu_pd(out + i, _mm512_add_pd(_mm512_loadu_pd(out + i),
+                                              _mm512_mul_pd(hj, _mm512_loadu_pd(b + i))));
+    }
+    if (tail != 0) {
+      const __m512d v = _mm512_add_pd(_mm512_maskz_loadu_pd(tail, out + i),
+                                      _mm512_mul_pd(hj, _mm512_maskz_loadu_pd(tail, b + i)));
+      _mm512_mask_storeu_pd(out + i, tail, v);
+    }
+  }
+}
+
 }  // namespace
+
+bool add_outer_simd(Index m, Index n, const double* b, const double* h, double* out) {
+  if (!avx512()) return false;
+  outer_avx512(m, n, b, h, out);
+  return true;
+}
 
 bool columns_times_simd(Index m, Index n, const double* x, const double* h, double* out) {
   if (!avx512()) return false;
@@ -82,6 +108,10 @@ bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* 
 }
 
 #else
+
+bool add_outer_simd(Index, Index, const double*, const double*, double*) {
+  return false;
+}
 
 bool columns_times_simd(Index, Index, const double*, const double*, double*) {
   return false;

@@ -9,6 +9,8 @@
 // rows); others take the per-column Eigen loop.
 #pragma once
 
+#include <cstring>
+
 #include "csympnet/core/types.hpp"
 
 namespace csympnet::detail {
@@ -18,10 +20,24 @@ namespace csympnet::detail {
 bool columns_times_simd(Index m, Index n, const double* x, const double* h, double* out);
 bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* a, const double* h,
                                double* out, bool accumulate);
+bool add_outer_simd(Index m, Index n, const double* b, const double* h, double* out);
 
 template <typename M>
 bool whole_columns(const Eigen::MatrixBase<M>& x) {
   return x.derived().innerStride() == 1 && x.derived().outerStride() == x.rows();
+}
+
+// out = x for blocks of whole columns: one run of memory each, copied by memcpy (glibc's
+// copies with the widest vectors; Eigen's loop, in the portable build, 16 bytes at a time).
+template <typename X, typename Out>
+void copy_columns(const Eigen::MatrixBase<X>& x, const Eigen::MatrixBase<Out>& out_) {
+  auto& out = const_cast<Eigen::MatrixBase<Out>&>(out_);
+  if (whole_columns(x) && whole_columns(out)) {
+    std::memcpy(out.derived().data(), x.derived().data(),
+                static_cast<std::size_t>(x.size()) * sizeof(double));
+  } else {
+    out = x;
+  }
 }
 
 // out = x.array().rowwise() * hᵀ   (h: x.cols() contiguous values; out may be x itself)
@@ -61,6 +77,18 @@ void columns_times_scaled(const Eigen::MatrixBase<X>& x, const double* a, const 
       out.col(j).array() = (x.col(j).array() * av) * h[j];
     }
   }
+}
+
+// out.noalias() += b * hᵀ (b: out.rows() values, h: out.cols()): Eigen's outer product adds
+// h_j b to column j, so each element is out + h_j b_i.
+template <typename Out>
+void add_outer(const double* b, const double* h, const Eigen::MatrixBase<Out>& out_) {
+  auto& out = const_cast<Eigen::MatrixBase<Out>&>(out_);
+  if (whole_columns(out) && add_outer_simd(out.rows(), out.cols(), b, h, out.derived().data())) {
+    return;
+  }
+  const auto bv = Eigen::Map<const Vector>(b, out.rows());
+  for (Index j = 0; j < out.cols(); ++j) out.col(j) += h[j] * bv;
 }
 
 // out.array() += (x.array().colwise() * a).rowwise() * hᵀ

@@ -84,7 +84,7 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
     const auto src = (kick ? q : p).middleCols(c0, n);
     auto dst = (kick ? p : q).middleCols(c0, n);
     const auto slot = slot0 + static_cast<std::size_t>(2 * k);
-    if (cache != nullptr) cache->mats[slot].middleCols(c0, n) = src;
+    if (cache != nullptr) detail::copy_columns(src, cache->mats[slot].middleCols(c0, n));
     detail::product_to(kmat, src, u, scratch);
     u.array().colwise() += b;
     // u then holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.

@@ -107,7 +107,6 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
   const Index dd = d();
   const Index c0 = cols.begin;
   const Index n = cols.size();
-  const auto hrow = h.segment(c0, n).transpose();
   Matrix s(dd, dd);
   Matrix scratch;
   Matrix sig_local;
@@ -119,13 +118,13 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
       const bool kick = i % 2 == 0;
       const auto src = (kick ? q : p).middleCols(c0, n);
       auto dst = (kick ? p : q).middleCols(c0, n);
-      if (cache != nullptr) cache->mats[slot++].middleCols(c0, n) = src;
+      if (cache != nullptr) detail::copy_columns(src, cache->mats[slot++].middleCols(c0, n));
       symmetric_from(theta, off, dd, s);
       const double* tau = unit_step_columns(theta, shear_coef(k, i), h, cols, tau_buf);
       detail::add_product_scaled(s, src, tau, dst, scratch);  // kick p += h S q / drift q += h S p
     }
-    p.middleCols(c0, n).noalias() += theta.segment(off, dd) * hrow;
-    q.middleCols(c0, n).noalias() += theta.segment(off + dd, dd) * hrow;
+    detail::add_outer(theta.data() + off, h.data() + c0, p.middleCols(c0, n));  // p += h b_p
+    detail::add_outer(theta.data() + off + dd, h.data() + c0, q.middleCols(c0, n));
     if (k + 1 < layers_) {
       const bool kick = k % 2 == 0;
       const auto src = (kick ? q : p).middleCols(c0, n);

@@ -45,6 +45,21 @@ TEST(ColumnScaling, EqualsTheBroadcastExpressions) {
       ref = start;
       ref.array() += (x.array().colwise() * a.array()).rowwise() * h.transpose().array();
       EXPECT_TRUE(same_bits(ref, mine));
+      mine = start;
+      detail::add_outer(a.data(), h.data(), mine);
+      ref = start;
+      ref.noalias() += a * h.transpose();
+      EXPECT_TRUE(same_bits(ref, mine));
+      mine = start;
+      detail::add_outer(a.data(), h.data() + 3, mine.middleCols(3, n));
+      ref = start;
+      ref.middleCols(3, n).noalias() += a * h.segment(3, n).transpose();
+      EXPECT_TRUE(same_bits(ref, mine));
+      mine = start;
+      detail::copy_columns(x.middleCols(1, n), mine.middleCols(2, n));
+      ref = start;
+      ref.middleCols(2, n) = x.middleCols(1, n);
+      EXPECT_TRUE(same_bits(ref, mine));
       // Blocks of columns, as the column-split passes use them; the columns around stay.
       mine = start;
       detail::add_columns_times_scaled(x.middleCols(2, n), a.data(), h.data() + 2,
@@ -69,6 +84,7 @@ TEST(ColumnScaling, KernelsRunWhereTheProductKernelsRunAvx512) {
   double out[3];
   EXPECT_TRUE(detail::columns_times_simd(3, 1, x, h, out));
   EXPECT_TRUE(detail::columns_times_scaled_simd(3, 1, x, x, h, out, true));
+  EXPECT_TRUE(detail::add_outer_simd(3, 1, x, h, out));
 }
 
 }  // namespace

@@ -1,15 +1,16 @@
 // Internal to src/models: the running sums Σ_j x_c,j over samples j = 0, 1, ... of many columns
 // c at once, each summed left to right from x_c,0 (the order of a sequential dot product, and of
-// Eigen's inner product of two 1 x N rows), eight columns per AVX-512 instruction.
+// Eigen's inner product of two 1 x N rows), four columns per 256-bit instruction.
 //
 // Why a transpose: the products x_c,j come from code that holds samples in SIMD lanes (one
 // register: one column, eight samples), while the sums need the columns in lanes (one register:
-// eight columns, one sample; the sums then advance one sample per add, in order). The columns'
-// rows are gathered in a small buffer and, whenever it fills, transposed by 8 x 8 tiles and
-// added. The buffer of kFlushColumns rows stays in the L1 cache, where a table of every column
-// would not (the s1 backward sweep has 114 columns: 73 KB).
+// four columns, one sample; the sums then advance one sample per add, in order). The columns'
+// rows are gathered in a small buffer and, whenever it fills, transposed by 4 x 4 tiles and
+// added, twelve sums of four columns at a time. The buffer of kFlushColumns rows (15 KB) stays in
+// the L1 cache, where a table of every column would not (the s1 backward sweep has 114 columns).
 //
-// Used by the AVX-512 kernels of la_scalar_sweep.cpp only: flush() needs AVX-512F.
+// Used by the AVX-512 backward sweep (la_scalar_backward.cpp) only: flush() needs AVX-512F and
+// VL (256-bit operations on 32 registers).
 #pragma once
 
 #include <memory>
@@ -19,14 +20,14 @@
 namespace csympnet::detail {
 
 // Samples per block: a row of the buffer.
-constexpr Index kColumnSumsBlock = 80;
+constexpr Index kColumnSumsBlock = 40;
 
 class ColumnSums {
  public:
-  static constexpr Index kFlushColumns = 24;  // three groups of 8 columns
+  static constexpr Index kFlushColumns = 48;  // twelve tiles of 4 columns
 
   // `columns` running sums, each starting at −0 (−0 + x = x for every x, so the first add
-  // gives x_c,0 itself).
+  // gives x_c,0 itself; the first block's adds start from the constant, not from memory).
   explicit ColumnSums(Index columns);
   ColumnSums(const ColumnSums&) = delete;
   ColumnSums& operator=(const ColumnSums&) = delete;
@@ -42,6 +43,7 @@ class ColumnSums {
   void end_block(Index cnt) {
     flush(cnt);
     first_ = 0;
+    fresh_ = false;
   }
   // The sums so far (after end_block()), column c at c.
   const double* sums() const { return sums_; }
@@ -55,6 +57,7 @@ class ColumnSums {
   std::unique_ptr<double[]> sums_heap_;  // more than 256 columns
   Index filled_ = 0;                     // rows of products_ in use
   Index first_ = 0;                      // the column of row 0
+  bool fresh_ = true;                    // in the first block: the sums are not yet stored
 };
 
 }  // namespace csympnet::detail

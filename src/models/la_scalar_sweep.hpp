@@ -7,9 +7,13 @@
 // the same order, eight samples per instruction, holding the whole row of q and p (or of their
 // gradients) in registers across units. The parameter gradients that the portable code sums
 // sequentially over the samples (the shears' 2 Σ_j g_j h_j src_j, the biases' and the
-// amplitudes') are summed in the same order, but eight sums per instruction: the sweep writes
-// the products, eight columns are transposed so that one register holds eight columns at one
-// sample, and the running sums advance one sample at a time.
+// amplitudes') are summed in the same order, but four sums per instruction: the sweep writes
+// the products, four columns are transposed so that one register holds four columns at one
+// sample, and the running sums advance one sample at a time (column_sums.hpp).
+//
+// Files: la_scalar_sweep.cpp (the forward sweep and la_scalar_simd_supported()),
+// la_scalar_backward.cpp (the backward sweep), la_scalar_block.hpp (what both share),
+// la_scalar_check.cpp (LaSympNet::scalar_simd_in_use(), the check against the portable code).
 #pragma once
 
 #include <cstddef>
@@ -30,7 +34,7 @@ struct LaScalarCore {
   Index coef0 = 0;
 };
 
-// True when the kernels run on this machine (AVX-512F and the portable SSE2 build, with
+// True when the kernels run on this machine (AVX-512F and VL and the portable SSE2 build, with
 // sigmoid_simd's kernel usable too). LaSympNet also checks them against its portable code once.
 bool la_scalar_simd_supported();
 

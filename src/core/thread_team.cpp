@@ -59,9 +59,10 @@ ThreadTeam::ThreadTeam(int threads) {
   const unsigned cores = std::thread::hardware_concurrency();
   spin_ = cores == 0 || static_cast<unsigned>(threads) <= cores;
   errors_.resize(static_cast<std::size_t>(threads));
-  next_part_.store(threads, std::memory_order_relaxed);  // nothing to claim yet
+  claims_ = std::vector<std::atomic<std::uint64_t>>(static_cast<std::size_t>(threads));
+  for (auto& c : claims_) c.store(0, std::memory_order_relaxed);  // job 0: none
   workers_.reserve(static_cast<std::size_t>(threads - 1));
-  for (int i = 1; i < threads; ++i) workers_.emplace_back([this] { work(); });
+  for (int i = 1; i < threads; ++i) workers_.emplace_back([this, i] { work(i); });
 }
 
 ThreadTeam::~ThreadTeam() {
@@ -71,12 +72,19 @@ ThreadTeam::~ThreadTeam() {
   for (std::thread& t : workers_) t.join();
 }
 
-void ThreadTeam::run_parts() {
+void ThreadTeam::run_parts(int first, std::uint64_t generation) {
   const int parts = size();
-  for (;;) {
-    // Acquire: a claim of the current job's counter sees its job_ (stored before the counter).
-    const int i = next_part_.fetch_add(1, std::memory_order_acq_rel);
-    if (i >= parts) return;
+  for (int k = 0; k < parts; ++k) {
+    const int i = (first + k) % parts;
+    // A part is claimed for job g by raising its stamp to g. A thread that woke late, for a job
+    // already done, finds every stamp at that job or later and claims nothing.
+    auto& claim = claims_[static_cast<std::size_t>(i)];
+    std::uint64_t stamp = claim.load(std::memory_order_relaxed);
+    bool mine = false;
+    while (stamp < generation && !mine) {
+      mine = claim.compare_exchange_weak(stamp, generation, std::memory_order_acq_rel);
+    }
+    if (!mine) continue;
     try {
       (*job_)(i);
     } catch (...) {
@@ -94,10 +102,10 @@ void ThreadTeam::run(const std::function<void(int)>& job) {
   for (std::exception_ptr& e : errors_) e = nullptr;
   job_ = &job;
   done_.store(0, std::memory_order_relaxed);
-  next_part_.store(0, std::memory_order_release);       // publishes job_ to claimers
-  generation_.fetch_add(1, std::memory_order_seq_cst);  // wakes the workers
+  // Publishes job_ (a worker reads it after seeing the new generation) and wakes the workers.
+  const std::uint64_t generation = generation_.fetch_add(1, std::memory_order_seq_cst) + 1;
   if (sleepers_.load(std::memory_order_seq_cst) > 0) generation_.notify_all();
-  run_parts();
+  run_parts(0, generation);
   // Parts claimed by workers may still be running.
   for (int done = done_.load(std::memory_order_acquire); done != parts;) {
     done = await_change(done_, done, sleepers_, spin_);
@@ -108,14 +116,14 @@ void ThreadTeam::run(const std::function<void(int)>& job) {
   }
 }
 
-void ThreadTeam::work() {
+void ThreadTeam::work(int thread) {
   std::uint64_t seen = 0;
   for (;;) {
     seen = await_change(generation_, seen, sleepers_, spin_);
     if (stop_.load(std::memory_order_relaxed)) return;
-    // Woken late, this may find the job done (nothing to claim) or even the next one begun,
-    // whose parts it then helps with: the counter and job_ it sees belong together.
-    run_parts();
+    // Woken late, this finds the job done and claims nothing; the next wait returns at once
+    // if the next job has begun.
+    run_parts(thread, seen);
   }
 }
 

@@ -8,11 +8,12 @@
 // waits for (a futex), woken only if someone sleeps. A team larger than the machine's core
 // count does not spin at all: a spinning thread would take the core its partner needs.
 //
-// Parts are claimed, not assigned: every thread, the caller first, takes the next unclaimed
-// part until none is left. On a busy machine, where a worker may not be scheduled for
-// milliseconds, the caller then does its part too, and the job runs as fast as one thread
-// would instead of waiting for the worker. What a part computes must therefore not depend on
-// which thread runs it.
+// Parts are claimed, not assigned: thread t first claims part t (so that, when every thread
+// is on time, a part runs where the same part of the previous job ran and its data are in
+// that core's cache), then any part still unclaimed. On a busy machine, where a worker may not
+// be scheduled for milliseconds, the caller then does the worker's part too, and the job runs
+// as fast as one thread would instead of waiting for the worker. What a part computes must
+// therefore not depend on which thread runs it.
 #pragma once
 
 #include <atomic>
@@ -45,17 +46,17 @@ class ThreadTeam {
   void run(const std::function<void(int)>& job);
 
  private:
-  void work();
-  // Claims and runs parts of the current job until none is left.
-  void run_parts();
+  void work(int thread);
+  // Claims and runs parts of job `generation`, part `first` first, until none is left.
+  void run_parts(int first, std::uint64_t generation);
 
   std::vector<std::thread> workers_;
   std::vector<std::exception_ptr> errors_;  // per part
   const std::function<void(int)>* job_ = nullptr;
-  std::atomic<std::uint64_t> generation_{0};  // bumped once per job (and once to stop)
-  std::atomic<int> next_part_{0};             // the next part to claim
-  std::atomic<int> done_{0};                  // parts finished
-  std::atomic<int> sleepers_{0};              // threads asleep (or about to be) in a wait
+  std::atomic<std::uint64_t> generation_{0};        // bumped once per job (and once to stop)
+  std::vector<std::atomic<std::uint64_t>> claims_;  // per part: the last job that claimed it
+  std::atomic<int> done_{0};                        // parts finished
+  std::atomic<int> sleepers_{0};                    // threads asleep (or about to be) in a wait
   std::atomic<bool> stop_{false};
   bool spin_ = true;  // false when the team outnumbers the cores
 };

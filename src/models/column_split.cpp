@@ -21,4 +21,15 @@ std::vector<Columns> column_ranges(Index n, int parts) {
   return ranges;
 }
 
+bool ranges_tile(Index n, const std::vector<Columns>& ranges) {
+  if (ranges.empty() || ranges.front().begin != 0 || ranges.back().end != n) return false;
+  for (std::size_t r = 0; r < ranges.size(); ++r) {
+    const Columns c = ranges[r];
+    if (c.begin % kColumnAlign != 0 || c.size() < 1 || (r > 0 && c.begin != ranges[r - 1].end)) {
+      return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace csympnet

@@ -66,7 +66,12 @@ bool exact_product(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase
   }
 }
 
-// out = a b, to the bit as product_into(a, b, out).
+// The cores' products: through the kernels where they cover the shape, else Eigen's product
+// (product_into), to the bit as the Eigen expression in each comment. A destination may be a
+// matrix, a map, or a block of whole columns of a matrix (the column-split passes write their
+// range of a batch in place).
+
+// out = a b into a matrix resized to fit, as product_into(a, b, out).
 template <typename ADerived, typename BDerived>
 void core_product(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<BDerived>& b,
                   Matrix& out) {
@@ -74,8 +79,18 @@ void core_product(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<
   if (!exact_product(a, b, out.data(), Epilogue::kStore, nullptr)) product_into(a, b, out);
 }
 
-// dst += a b, to the bit as `product_into(a, b, t); dst += t;`. dst is a column-major
-// a.rows() x b.cols() matrix or map with leading dimension a.rows().
+// out = a b into a destination of that shape, as `product_into(a, b, t); out = t;`.
+template <typename ADerived, typename BDerived, typename Dst>
+void core_product_to(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<BDerived>& b,
+                     Dst&& out, Matrix& scratch) {
+  if (out.outerStride() == a.rows() && exact_product(a, b, out.data(), Epilogue::kStore, nullptr)) {
+    return;
+  }
+  product_into(a, b, scratch);
+  out = scratch;
+}
+
+// dst += a b, as `product_into(a, b, t); dst += t;`.
 template <typename ADerived, typename BDerived, typename Dst>
 void core_product_add(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixBase<BDerived>& b,
                       Dst&& dst, Matrix& scratch) {
@@ -86,15 +101,21 @@ void core_product_add(const Eigen::MatrixBase<ADerived>& a, const Eigen::MatrixB
   dst += scratch;
 }
 
-// dst += (a b) h per column, to the bit as
-// `product_into(a, b, t); dst.array() += t.array().rowwise() * h.transpose().array();`.
-template <typename ADerived, typename BDerived>
+// dst += (a b) h per column (h: b.cols() contiguous steps), as
+// `product_into(a, b, t); dst.array() += t.array().rowwise() * hᵀ;`.
+template <typename ADerived, typename BDerived, typename Dst>
 void core_product_add_scaled(const Eigen::MatrixBase<ADerived>& a,
-                             const Eigen::MatrixBase<BDerived>& b, const Vector& h, Matrix& dst,
+                             const Eigen::MatrixBase<BDerived>& b, const double* h, Dst&& dst,
                              Matrix& scratch) {
-  if (exact_product(a, b, dst.data(), Epilogue::kAddScaled, h.data())) return;
+  if (dst.outerStride() == a.rows() && exact_product(a, b, dst.data(), Epilogue::kAddScaled, h)) {
+    return;
+  }
   product_into(a, b, scratch);
-  dst.array() += scratch.array().rowwise() * h.transpose().array();
+  dst.array() += scratch.array().rowwise() * Eigen::Map<const RowVector>(h, scratch.cols()).array();
 }
+
+// Whether the kernels compute a b for A m x k and B k x n, both column-major: then the
+// product's entries do not depend on how its columns are split into calls (at multiples of 4).
+bool exact_product_covers(Index m, Index k, Index n);
 
 }  // namespace csympnet::detail

@@ -1,9 +1,9 @@
 #include "csympnet/models/g_sympnet.hpp"
 
-#include "block_products.hpp"
 #include "column_scaling.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
+#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -50,19 +50,15 @@ void GSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool 
 }
 
 bool GSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const {
-  if (ranges.empty() || ranges.front().begin != 0 || ranges.back().end != n) return false;
+  if (!ranges_tile(n, ranges)) return false;
   // The sweeps' products with the columns as their n: K X and Kᵀ U.
   auto covered = [this](Index cols) {
     return detail::exact_product_covers(width_, d(), cols) &&
            detail::exact_product_covers(d(), width_, cols);
   };
   if (!covered(n)) return false;
-  for (std::size_t r = 0; r < ranges.size(); ++r) {
-    const Columns c = ranges[r];
-    if (c.begin % kColumnAlign != 0 || c.size() < 1 || (r > 0 && c.begin != ranges[r - 1].end) ||
-        !covered(c.size())) {
-      return false;
-    }
+  for (const Columns& c : ranges) {
+    if (!covered(c.size())) return false;
   }
   return true;
 }
@@ -85,7 +81,7 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
     auto dst = (kick ? p : q).middleCols(c0, n);
     const auto slot = slot0 + static_cast<std::size_t>(2 * k);
     if (cache != nullptr) detail::copy_columns(src, cache->mats[slot].middleCols(c0, n));
-    detail::product_to(kmat, src, u, scratch);
+    detail::core_product_to(kmat, src, u, scratch);
     u.array().colwise() += b;
     // u then holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
     if (cache != nullptr) {
@@ -96,7 +92,7 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
       sigmoid_into(u, sig_local);
       detail::columns_times_scaled(sig_local, a.data(), h.data() + c0, u);
     }
-    detail::add_product(kmat.transpose(), u, dst, scratch);
+    detail::core_product_add(kmat.transpose(), u, dst, scratch);
   }
 }
 
@@ -119,10 +115,10 @@ void GSympNet::sweep_module(ConstParams theta, Index k, const ForwardCache& cach
   auto ghc = gh.middleCols(c0, n);
   detail::columns_times(gdst, h.data() + c0, ghc);
   auto gyc = gy.middleCols(c0, n);
-  detail::product_to(kmat, ghc, gyc, scratch);
+  detail::core_product_to(kmat, ghc, gyc, scratch);
   auto guc = gu.middleCols(c0, n);
   guc = ((gyc.array() * sig.array() * (1.0 - sig.array())).colwise() * a).matrix();
-  detail::add_product(kmat.transpose(), guc, gsrc, scratch);
+  detail::core_product_add(kmat.transpose(), guc, gsrc, scratch);
 }
 
 void GSympNet::params_module(ConstParams theta, Index k, const ForwardCache& cache,

@@ -5,11 +5,11 @@
 // (records in the cache, filled range by range) and when its parameter step runs.
 #include <vector>
 
-#include "block_products.hpp"
 #include "column_scaling.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/activation.hpp"
 #include "csympnet/models/la_sympnet.hpp"
+#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -77,17 +77,11 @@ void LaSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool
 }
 
 bool LaSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const {
-  if (d() == 1 || ranges.empty() || ranges.front().begin != 0 || ranges.back().end != n) {
-    return false;
-  }
+  if (d() == 1 || !ranges_tile(n, ranges)) return false;
   // The sweeps' only products with the columns as their n: S X (forward) and S G (backward).
   if (!detail::exact_product_covers(d(), d(), n)) return false;
-  for (std::size_t r = 0; r < ranges.size(); ++r) {
-    const Columns c = ranges[r];
-    if (c.begin % kColumnAlign != 0 || c.size() < 1 || (r > 0 && c.begin != ranges[r - 1].end) ||
-        !detail::exact_product_covers(d(), d(), c.size())) {
-      return false;
-    }
+  for (const Columns& c : ranges) {
+    if (!detail::exact_product_covers(d(), d(), c.size())) return false;
   }
   return true;
 }
@@ -121,7 +115,8 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
       if (cache != nullptr) detail::copy_columns(src, cache->mats[slot++].middleCols(c0, n));
       symmetric_from(theta, off, dd, s);
       const double* tau = unit_step_columns(theta, shear_coef(k, i), h, cols, tau_buf);
-      detail::add_product_scaled(s, src, tau, dst, scratch);  // kick p += h S q / drift q += h S p
+      detail::core_product_add_scaled(s, src, tau, dst,
+                                      scratch);  // kick p += h S q / drift q += h S p
     }
     detail::add_outer(theta.data() + off, h.data() + c0, p.middleCols(c0, n));  // p += h b_p
     detail::add_outer(theta.data() + off + dd, h.data() + c0, q.middleCols(c0, n));
@@ -176,7 +171,7 @@ void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const ForwardCache&
     Matrix s(dd, dd);
     Matrix scratch;
     symmetric_from(theta, module_offset(u.k) + u.i * dd * dd, dd, s);
-    detail::add_product(s, gh, gsrc, scratch);
+    detail::core_product_add(s, gh, gsrc, scratch);
   }
 }
 

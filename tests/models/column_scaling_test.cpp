@@ -9,17 +9,11 @@
 #include <random>
 
 #include "../src/models/exact_product.hpp"
+#include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-Matrix random_matrix(std::mt19937_64& gen, Index rows, Index cols) {
-  std::normal_distribution<double> normal;
-  Matrix m(rows, cols);
-  for (Index i = 0; i < m.size(); ++i) m.data()[i] = normal(gen);
-  return m;
-}
 
 TEST(ColumnScaling, EqualsTheBroadcastExpressions) {
   std::mt19937_64 gen(4);

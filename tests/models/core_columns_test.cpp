@@ -15,6 +15,7 @@
 #include "csympnet/models/csympnet_id.hpp"
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
+#include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
@@ -60,7 +61,7 @@ void reference_la_flow(const LaSympNet& core, ConstParams theta, Matrix& q, Matr
       cache.push_back(src);
       symmetric(theta, off, dd, s);
       const Vector tau = step_of(l, theta, l.shear_coef(k, i), h);
-      detail::core_product_add_scaled(s, src, tau, dst, inc);
+      detail::core_product_add_scaled(s, src, tau.data(), dst, inc);
     }
     p.noalias() += theta.segment(off, dd) * h.transpose();
     q.noalias() += theta.segment(off + dd, dd) * h.transpose();
@@ -174,13 +175,6 @@ void reference_g_backward(const GSympNet& core, ConstParams theta, const std::ve
     detail::core_product_add(gy, src.transpose(), grad_k, gk);
     detail::core_product_add(kmat.transpose(), gy, gsrc, gsrc_inc);
   }
-}
-
-Matrix random_matrix(std::mt19937_64& gen, Index rows, Index cols, double scale) {
-  std::normal_distribution<double> normal;
-  Matrix m(rows, cols);
-  for (Index i = 0; i < m.size(); ++i) m.data()[i] = scale * normal(gen);
-  return m;
 }
 
 // θ large enough that the sweeps do real work (the documented init is 0.01).

@@ -14,17 +14,11 @@
 
 #include "../src/models/exact_product.hpp"
 #include "csympnet/models/activation.hpp"
+#include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-Matrix random_matrix(std::mt19937_64& gen, Index rows, Index cols) {
-  std::normal_distribution<double> normal;
-  Matrix m(rows, cols);
-  for (Index i = 0; i < m.size(); ++i) m.data()[i] = normal(gen);
-  return m;
-}
 
 struct Shape {
   Index m, k, n;
@@ -87,7 +81,7 @@ TEST(ExactProduct, EpiloguesMatchEigenToTheBit) {
     ref = d0;
     mine = d0;
     ref.array() += t.array().rowwise() * h.transpose().array();
-    detail::core_product_add_scaled(a, b, h, mine, scratch);
+    detail::core_product_add_scaled(a, b, h.data(), mine, scratch);
     EXPECT_TRUE(same_bits(ref, mine)) << "dst += (A B) H";
 
     ref = d0;

@@ -17,11 +17,13 @@
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/train/adamw.hpp"
+#include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet {
 namespace {
 
+using testing::random_pairs;
 using testing::same_bits;
 
 // The previous one_step_loss.
@@ -36,18 +38,6 @@ double reference_loss(const OneStepMap& map, ConstParams theta, const PairSet& p
     map.backward(theta, cache, (2.0 / n) * residual, *grad, nullptr);
   }
   return residual.squaredNorm() / n;
-}
-
-PairSet random_pairs(Index dim, Index n, std::mt19937_64& gen) {
-  std::normal_distribution<double> normal;
-  PairSet p;
-  p.z0.resize(dim, n);
-  p.z1.resize(dim, n);
-  p.h.resize(n);
-  for (Index i = 0; i < p.z0.size(); ++i) p.z0.data()[i] = normal(gen);
-  for (Index i = 0; i < p.z1.size(); ++i) p.z1.data()[i] = normal(gen);
-  for (Index j = 0; j < n; ++j) p.h(j) = 0.05 + 0.2 * std::abs(normal(gen));
-  return p;
 }
 
 void expect_same_as_reference(const OneStepMap& map, std::mt19937_64& gen) {

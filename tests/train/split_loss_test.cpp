@@ -12,23 +12,11 @@
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/train/loss.hpp"
+#include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
-
-PairSet random_pairs(Index dim, Index n, std::mt19937_64& gen) {
-  std::normal_distribution<double> normal;
-  std::uniform_real_distribution<double> step(0.05, 0.15);
-  PairSet p;
-  p.z0.resize(dim, n);
-  p.z1.resize(dim, n);
-  p.h.resize(n);
-  for (Index i = 0; i < p.z0.size(); ++i) p.z0.data()[i] = normal(gen);
-  for (Index i = 0; i < p.z1.size(); ++i) p.z1.data()[i] = normal(gen);
-  for (Index j = 0; j < n; ++j) p.h(j) = step(gen);
-  return p;
-}
 
 bool kernels_run() {
   return std::string(detail::exact_product_isa()) != "eigen";

@@ -41,6 +41,10 @@ inline constexpr Index kColumnAlign = 8;
 // but the last a multiple of kColumnAlign wide; fewer ranges when n is small (never empty ones).
 std::vector<Columns> column_ranges(Index n, int parts);
 
+// Whether `ranges` cut n columns the way the passes need: consecutive from 0 to n, none empty,
+// each starting at a multiple of kColumnAlign.
+bool ranges_tile(Index n, const std::vector<Columns>& ranges);
+
 struct ForwardCache;
 
 // The passes of one training step of a one-step map, in the order a caller runs them:

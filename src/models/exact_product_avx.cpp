@@ -14,16 +14,6 @@ namespace {
 #define CSYMPNET_AVX_INLINE __attribute__((target("avx"), always_inline)) inline
 #define CSYMPNET_AVX_OUTLINE __attribute__((target("avx"), noinline))
 
-CSYMPNET_AVX_INLINE void put256(double* p, __m256d v, Epilogue mode, const double* hs) {
-  if (mode == Epilogue::kStore) {
-    _mm256_storeu_pd(p, v);
-  } else if (mode == Epilogue::kAdd) {
-    _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), v));
-  } else {
-    _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), _mm256_mul_pd(v, _mm256_set1_pd(*hs))));
-  }
-}
-
 // Rows [0, 4R) times NC columns, one running sum per entry.
 template <int R, int NC>
 CSYMPNET_AVX_INLINE void tile256(Index k, const double* a, Index lda, const double* b, Index bl,

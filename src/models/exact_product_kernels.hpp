@@ -48,6 +48,19 @@ inline void put128(double* p, __m128d v, Epilogue mode, const double* hs) {
   }
 }
 
+// The same for four entries of a column, in a 256-bit register (AVX; the AVX-512 kernel's
+// 4-row blocks call it too).
+__attribute__((target("avx"), always_inline)) inline void put256(double* p, __m256d v,
+                                                                 Epilogue mode, const double* hs) {
+  if (mode == Epilogue::kStore) {
+    _mm256_storeu_pd(p, v);
+  } else if (mode == Epilogue::kAdd) {
+    _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), v));
+  } else {
+    _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), _mm256_mul_pd(v, _mm256_set1_pd(*hs))));
+  }
+}
+
 }  // namespace csympnet::detail
 
 #endif  // CSYMPNET_EXACT_SIMD

@@ -60,16 +60,6 @@ CSYMPNET_AVX512_INLINE void put512(double* p, __m512d v, Epilogue mode, const do
   }
 }
 
-CSYMPNET_AVX512_INLINE void put256(double* p, __m256d v, Epilogue mode, const double* hs) {
-  if (mode == Epilogue::kStore) {
-    _mm256_storeu_pd(p, v);
-  } else if (mode == Epilogue::kAdd) {
-    _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), v));
-  } else {
-    _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), _mm256_mul_pd(v, _mm256_set1_pd(*hs))));
-  }
-}
-
 // Writes the finished sums of tail rows m4 (s0) and m4 + 1 (s1) of 8 consecutive columns,
 // one row per register: v = 0 + s, then each column's pair (m4, m4 + 1) to the epilogue.
 CSYMPNET_AVX512_INLINE void put_rows8(__m512d s0, __m512d s1, double* ct, Index ldc, Epilogue mode,

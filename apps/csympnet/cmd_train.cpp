@@ -11,6 +11,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/experiments/fit.hpp"
+#include "csympnet/experiments/identify.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/model_file.hpp"
@@ -35,6 +36,13 @@ struct FitArgs {
   std::optional<long> refine_iterations, bootstrap;
   std::optional<std::string> refine_solver;
   int threads = 1;
+  // fit's identification recipe (experiments/identify.hpp); "classic" is the recipe of
+  // FitConfig (one-step loss, bootstrap), which `train` always uses.
+  std::string recipe = "identify";
+  long window = 0, lm_iterations = 0, blocks = 20;
+  std::string loss = "balanced";
+  bool no_normalize = false;
+  double level = 0.95;
 };
 
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
@@ -216,6 +224,98 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                       "; the best checkpoint (epoch " + std::to_string(r.training.best_epoch) +
                       ") and its report are in " + a.out);
 }
+// `fit` with the identification recipe.
+namespace fs = std::filesystem;
+void run_identify(const FitArgs& a, const CLI::App& cmd) {
+  for (const char* classic : {"--refine", "--refine-iterations", "--refine-solver", "--bootstrap",
+                              "--warm-start", "--val", "--beta-init", "--no-beta-decay",
+                              "--lr-schedule", "--val-every"})
+    if (cmd.count(classic) > 0)
+      throw CLI::ValidationError(classic, "belongs to --recipe classic; the default recipe "
+                                          "chooses it itself (docs/identification.md)");
+  prepare_output_dir(a.out, a.force);
+  const bool pairs_only = detect_csv_kind(a.data) != CsvKind::kTrajectories;
+  std::vector<Trajectory> trajs;
+  if (pairs_only) {
+    const PairSet p = read_pairs_csv(a.data);
+    for (Index j = 0; j < p.size(); ++j) {
+      Trajectory t;
+      t.t.resize(2);
+      t.t << 0.0, p.h(j);
+      t.z.resize(p.dim(), 2);
+      t.z.col(0) = p.z0.col(j);
+      t.z.col(1) = p.z1.col(j);
+      trajs.push_back(std::move(t));
+    }
+  } else {
+    trajs = read_trajectories_csv(a.data);
+  }
+  IdentifyConfig c;
+  if (!a.core.empty()) c.core = parse_core(a.core);
+  c.seed = a.seed;
+  c.window = a.window;
+  c.balanced = a.loss == "balanced";
+  c.normalize = !a.no_normalize;
+  c.epochs = a.epochs;
+  c.lr = a.lr;
+  c.lm_iterations = a.lm_iterations;
+  c.val_fraction = a.val_fraction;
+  c.target_blocks = a.blocks;
+  c.level = a.level;
+  c.threads = a.threads;
+  IdentifyHooks hooks;
+  hooks.should_stop = [] { return interrupted(); };
+  const bool talk = !a.quiet;
+  hooks.stage = [talk](const std::string& s) {
+    if (talk) std::fprintf(stderr, "fit: %s\n", s.c_str());
+  };
+  hooks.lm = [talk](long it, long budget, double val) {
+    if (talk) std::fprintf(stderr, "  LM iteration %ld / %ld, validation loss %.3e\n", it, budget, val);
+  };
+  IdentifyResult r;
+  {
+    ProgressLine progress(a.quiet);
+    hooks.adamw = progress.callback();
+    r = identify(trajs, pairs_only, c, hooks);
+  }
+  nlohmann::json report = identify_report(r);
+  report["data"]["file"] = a.data;
+  const fs::path out(a.out);
+  write_json_file((out / "report.json").string(), report);
+  write_json_file((out / "timings.json").string(),
+                  {{"train_seconds", r.training.seconds}});
+  save_model((out / "model.json").string(), r.model, r.theta,
+             {{"data", a.data}, {"seed", a.seed}, {"recipe", "identify"}});
+  if (r.identified) {
+    const SandwichInterval& s = *r.interval;
+    std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% interval, %s, %ld blocks)\n",
+                r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level,
+                s.method.c_str(), s.blocks);
+  } else {
+    std::printf("gamma_hat: not identified\n");
+  }
+  if (!a.quiet) {
+    std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
+                static_cast<long long>(r.model.dim() / 2),
+                static_cast<long long>(r.model.n_params()), r.config.window,
+                r.config.core.dump().c_str());
+    std::printf("%s\n", r.training.brief_report().c_str());
+    std::printf("LM: %ld iterations (%ld accepted), kept iterate %ld: %s\n", r.lm.iterations,
+                r.lm.accepted, r.lm_best_iteration, r.lm.message.c_str());
+    std::printf("train loss %.3e, validation loss %.3e, unexplained share of a window %.2e, "
+                "structure residual max %.2e\n",
+                r.quality.train_loss, r.quality.val_loss, r.quality.val_relative_residual,
+                r.quality.structure_residual_max);
+    std::printf("wrote %s/{report.json,model.json,timings.json}\n", a.out.c_str());
+  }
+  if (r.stopped)
+    throw Interrupted("stopped; the best parameters so far and their report are in " + a.out);
+  if (!r.identified) {
+    std::string why;
+    for (const auto& x : r.reasons) why += (why.empty() ? "" : "; ") + x;
+    throw NotIdentified(why + " (report: " + (out / "report.json").string() + ")");
+  }
+}
 }  // namespace
 
 void add_train(CLI::App& app) {
@@ -245,7 +345,33 @@ void add_fit(CLI::App& app) {
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
       ->check(CLI::ExistingFile);
   add_fit_options(*cmd, *a);
-  cmd->callback([a] { run_fit(*a, true); });
+  cmd->add_option("--recipe", a->recipe,
+                  "identify (default: windows, balanced residuals, LM, a block interval) or "
+                  "classic (one-step loss, --refine, --bootstrap)")
+      ->check(CLI::IsMember({"identify", "classic"}));
+  cmd->add_option("--window", a->window,
+                  "Steps per window of the loss (default 0: automatic, up to 4)")
+      ->check(CLI::Range(0L, 64L));
+  cmd->add_option("--loss", a->loss,
+                  "balanced (default: residuals in the middle of the map) or one-step")
+      ->check(CLI::IsMember({"balanced", "one-step"}));
+  cmd->add_flag("--no-normalize", a->no_normalize, "Fit in the data's own units and offsets");
+  cmd->add_option("--lm-iterations", a->lm_iterations,
+                  "Levenberg-Marquardt budget (default 0: scaled to the problem)")
+      ->check(CLI::Range(0L, 100000L));
+  cmd->add_option("--level", a->level, "Level of the interval for gamma (default 0.95)")
+      ->check(CLI::Range(0.5, 0.9999));
+  cmd->add_option("--blocks", a->blocks,
+                  "Segments a long trajectory is cut into, for validation and the interval "
+                  "(default 20)")
+      ->check(CLI::Range(3L, 10000L));
+  CLI::App* self = cmd;
+  cmd->callback([a, self] {
+    if (a->recipe == "identify" && a->model == "csympnet")
+      run_identify(*a, *self);
+    else
+      run_fit(*a, true);
+  });
 }
 
 }  // namespace csympnet::cli

@@ -21,4 +21,11 @@ class Interrupted : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Thrown by `fit` after it has written its report when the data do not identify γ; main()
+// prints it and exits with kNotIdentifiedExitCode.
+class NotIdentified : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+constexpr int kNotIdentifiedExitCode = 4;
 }  // namespace csympnet::cli

@@ -33,6 +33,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "csympnet: interrupted by %s: %s\n", csympnet::cli::interrupt_name(),
                  e.what());
     return csympnet::cli::interrupt_exit_code();
+  } catch (const csympnet::cli::NotIdentified& e) {
+    std::fprintf(stderr, "csympnet: not identified: %s\n", e.what());
+    return csympnet::cli::kNotIdentifiedExitCode;
   } catch (const csympnet::Error& e) {
     std::fprintf(stderr, "csympnet: error: %s\n", e.what());
     return 1;

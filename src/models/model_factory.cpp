@@ -8,6 +8,11 @@
 //                                                                  default 0.1, nonzero)
 //   {"type": "map", "d": D, "width": W}                            MapBaseline
 //
+//
+// Any of the map specs may carry "normalization": {"q_shift": [..], "q_scale": [..],
+// "p_scale": [..], "time_scale": T} (data/normalization.hpp): the model then works in the
+// user's units (NormalizedMap) around the same parameters.
+//
 // where CORE is {"type": "la", "layers": L, "sublayers": M} or {"type": "g", "layers": L,
 // "width": W} (a "d" inside CORE is allowed if it equals the outer d). Unknown keys are
 // rejected so that a misspelt option fails loudly instead of silently taking its default.
@@ -18,6 +23,7 @@
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/models/map_baseline.hpp"
+#include "csympnet/models/normalized_map.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/models/sympnet.hpp"
 #include "spec_reading.hpp"
@@ -64,6 +70,13 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
 std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
   const std::string where = "model spec";
   require_object(spec, where);
+  if (spec.contains("normalization")) {
+    nlohmann::json inner = spec;
+    inner.erase("normalization");
+    Normalization n;
+    from_json(spec.at("normalization"), n);
+    return std::make_unique<NormalizedMap>(make_one_step_map(inner), std::move(n));
+  }
   const std::string type = get_type(spec, where, kValidTypes);
   if (type == "la" || type == "g") return make_core(spec, get_count(spec, "d", where), where);
   if (type == "sympnet" || type == "csympnet") {

@@ -45,16 +45,30 @@ SingleThreaded::~SingleThreaded() {
   if (saved_ > 0 && openblas_set_num_threads != nullptr) openblas_set_num_threads(saved_);
 }
 
-void gram_from_transpose(const double* at, Index n, Index k, double* c) {
+namespace {
+void gram(const double* at, Index n, Index k, double* c, double beta) {
   const int ni = as_int(n, "n"), ki = as_int(k, "k"), lda = ni > 0 ? ni : 1;
-  const double one = 1.0, zero = 0.0;
-  dsyrk_("L", "N", &ni, &ki, &one, at, &lda, &zero, c, &lda, 1, 1);
+  const double one = 1.0;
+  dsyrk_("L", "N", &ni, &ki, &one, at, &lda, &beta, c, &lda, 1, 1);
 }
-
-void transpose_times(const double* at, Index n, Index k, const double* x, double* y) {
+void at_times(const double* at, Index n, Index k, const double* x, double* y, double beta) {
   const int ni = as_int(n, "n"), ki = as_int(k, "k"), lda = ni > 0 ? ni : 1, inc = 1;
-  const double one = 1.0, zero = 0.0;
-  dgemv_("N", &ni, &ki, &one, at, &lda, x, &inc, &zero, y, &inc, 1);
+  const double one = 1.0;
+  dgemv_("N", &ni, &ki, &one, at, &lda, x, &inc, &beta, y, &inc, 1);
+}
+}  // namespace
+
+void gram_from_transpose(const double* at, Index n, Index k, double* c) {
+  gram(at, n, k, c, 0.0);
+}
+void add_gram_from_transpose(const double* at, Index n, Index k, double* c) {
+  gram(at, n, k, c, 1.0);
+}
+void transpose_times(const double* at, Index n, Index k, const double* x, double* y) {
+  at_times(at, n, k, x, y, 0.0);
+}
+void add_transpose_times(const double* at, Index n, Index k, const double* x, double* y) {
+  at_times(at, n, k, x, y, 1.0);
 }
 
 void symmetric_times(const double* c, Index n, const double* x, double* y) {

@@ -27,9 +27,13 @@ class SingleThreaded {
 // C = Aᵀ A (lower triangle), with A given as its transpose At (n × k, column-major, leading
 // dimension n): that is a row-major k × n matrix, as residual_jacobian() writes it.
 void gram_from_transpose(const double* at, Index n, Index k, double* c);
+// C += Aᵀ A (lower triangle), At as above: accumulates a Gram matrix over row chunks of J.
+void add_gram_from_transpose(const double* at, Index n, Index k, double* c);
 
 // y = At x, At as above (n × k): the product Jᵀ r for a row-major J.
 void transpose_times(const double* at, Index n, Index k, const double* x, double* y);
+// y += At x.
+void add_transpose_times(const double* at, Index n, Index k, const double* x, double* y);
 
 // y = C x for symmetric C (n × n, lower triangle).
 void symmetric_times(const double* c, Index n, const double* x, double* y);

@@ -49,20 +49,34 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
   }
   double cost = 0.5 * r.squaredNorm();
   report.initial_cost = report.final_cost = cost;
-  RowMajorMatrix jac(m, n);
-  problem.jacobian(theta, jac);
-  if (!jac.allFinite()) {
+  RowMajorMatrix jac;
+  NormalEquations ne;
+  // J (or JᵀJ and Jᵀr directly) at theta; false when not finite.
+  auto linearise = [&]() {
+    if (problem.normal_equations) {
+      problem.normal_equations(theta, ne.a, ne.g);
+      return ne.a.allFinite() && ne.g.allFinite();
+    }
+    if (jac.rows() != m) jac.resize(m, n);
+    problem.jacobian(theta, jac);
+    if (!jac.allFinite()) return false;
+    ne.form(jac, r);
+    return true;
+  };
+  if (!linearise()) {
     report.message = "the Jacobian at the starting point is not finite";
     return report;
   }
-  NormalEquations ne;
-  ne.form(jac, r);
 
   Matrix lhs(n, n);
   Vector diag(n), step(n), a_step(n), trial(n);
   double mu = kInitialMu, nu = 2.0;
   report.message = "maximum number of iterations reached";
   while (report.iterations < settings.max_iterations) {
+    if (problem.should_stop && problem.should_stop()) {
+      report.message = "interrupted";
+      break;
+    }
     if (ne.g.lpNorm<Eigen::Infinity>() <= settings.gradient_tolerance) {
       report.message = "gradient tolerance reached";
       break;
@@ -100,12 +114,10 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
             report.message = "function tolerance reached";
             break;
           }
-          problem.jacobian(theta, jac);
-          if (!jac.allFinite()) {
+          if (!linearise()) {
             report.message = "the Jacobian became non-finite";
             break;
           }
-          ne.form(jac, r);
         }
       }
     }

@@ -30,6 +30,11 @@ struct LeastSquaresProblem {
   std::function<bool(ConstParams theta, Eigen::Ref<Vector> r)> residuals;
   // Writes J(θ) = ∂r/∂θ (n_residuals × n_params, row-major).
   std::function<void(ConstParams theta, Eigen::Ref<RowMajorMatrix> jac)> jacobian;
+  // Optional, instead of `jacobian`: writes JᵀJ (the lower triangle of a, n_params²) and Jᵀr
+  // at θ directly, for problems whose J is formed in chunks and never held whole.
+  std::function<void(ConstParams theta, Matrix& a, Vector& g)> normal_equations;
+  // Optional: polled once per iteration; true stops the solver (an interrupt).
+  std::function<bool()> should_stop;
 };
 
 struct LmSettings {

@@ -1,0 +1,94 @@
+// Identification on a user's own data: `csympnet fit` (docs/identification.md).
+//
+//   trajectories (or pairs), any units
+//     ─> normalise (data/normalization.hpp: q shift, per-dof scales with α_i β_i = c, τ)
+//     ─> blocks: whole trajectories, or segments of long ones; ~20% of the blocks validate
+//     ─> windows of m steps inside each block (train/window_loss.hpp)
+//     ─> warm start γ₀, AdamW on the balanced window loss, Levenberg–Marquardt on the same
+//        residuals (normal equations formed in chunks), best validation kept
+//     ─> interval: cluster-robust sandwich over the training blocks (train/gamma_sandwich.hpp)
+//     ─> verdict: identified, or not and why
+//     ─> the model in the user's units (NormalizedMap), exactly conformally symplectic.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/data/dataset.hpp"
+#include "csympnet/data/normalization.hpp"
+#include "csympnet/models/model.hpp"
+#include "csympnet/train/gamma_sandwich.hpp"
+#include "csympnet/train/gamma_warm_start.hpp"
+#include "csympnet/train/levenberg_marquardt.hpp"
+#include "csympnet/train/trainer.hpp"
+
+namespace csympnet {
+
+struct IdentifyConfig {
+  nlohmann::json core;           // null: by dimension, with step polynomials when steps vary
+  std::uint64_t seed = 42;       // blocks held out, initialisation
+  long window = 0;               // steps per window; 0: automatic (1 for pairs, else ≤ 4)
+  bool balanced = true;          // balanced residuals (false: the plain one-step residuals)
+  bool normalize = true;         // remove units and offsets first
+  long epochs = 0;               // AdamW budget; 0: scaled to the data
+  double lr = 1e-3;
+  long lm_iterations = 0;        // LM budget; 0: scaled to the work per iteration
+  double val_fraction = 0.2;     // share of blocks held out
+  long target_blocks = 20;       // a long trajectory is cut into about this many segments
+  double level = 0.95;           // interval level
+  int threads = 1;
+  void validate() const;
+};
+void to_json(nlohmann::json& j, const IdentifyConfig& c);
+
+// What the fit did at each stage; `stage` is called as each begins ("warm start", "AdamW",
+// "LM", "interval"), `should_stop` is polled by every long stage (an interrupt).
+struct IdentifyHooks {
+  ProgressCallback adamw;
+  std::function<void(const std::string& stage)> stage;
+  std::function<void(long iteration, long budget, double cost)> lm;
+  std::function<bool()> should_stop;
+};
+
+struct IdentifyQuality {
+  double train_loss = 0.0;             // window loss (normalised units) on training windows
+  double val_loss = 0.0;               // ... on validation windows
+  double val_relative_residual = 0.0;  // ‖Φ̂ᵐ(z0) − zm‖ / ‖zm − z0‖ on validation windows
+  double structure_residual_max = 0.0; // self residual of DΦ̂ (user units) at validation starts
+};
+void to_json(nlohmann::json& j, const IdentifyQuality& q);
+
+struct IdentifyResult {
+  Model model;  // in the user's units: carries the normalisation
+  Vector theta;
+  Normalization normalization;
+  double gamma = 0.0;  // γ̂ in the user's time units
+  std::optional<SandwichInterval> interval;  // in the user's time units
+  bool identified = false;
+  std::vector<std::string> reasons;  // why not, when not
+  std::optional<GammaWarmStart> warm_start;
+  std::string warm_start_note;
+  TrainSummary training;
+  LmReport lm;
+  long lm_best_iteration = 0;
+  IdentifyQuality quality;
+  IdentifyConfig config;  // with every automatic choice resolved
+  nlohmann::json choices;  // what was chosen automatically, and why
+  nlohmann::json data;     // a summary of the data: d, trajectories, samples, steps, blocks
+  bool stopped = false;    // a stage was interrupted
+};
+
+// `trajs`: the user's trajectories (a pairs file: one two-point trajectory per pair).
+// `pairs_only`: the data are independent pairs (windows of one step, each pair a block).
+IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
+                        const IdentifyConfig& config, const IdentifyHooks& hooks = {});
+
+// The report of an identification (report.json of `csympnet fit`).
+nlohmann::json identify_report(const IdentifyResult& r);
+
+}  // namespace csympnet

@@ -1,0 +1,60 @@
+// An interval for γ̂ from one linearisation at the fit, for any model size
+// (docs/derivations.md, "The interval for γ̂").
+//
+// With A = JᵀJ and the block scores s_b = Σ_{i∈b} J_iᵀ r_i of the (scaled) training residuals at
+// θ̂ (window_normal_equations), a perturbation of the data moves θ̂ by −A⁻¹ Σ_b s_b, so γ̂ moves
+// by −Σ_b uᵀ s_b with u = A⁻¹ ∇γ̂. The blocks (whole trajectories or segments of one) are
+// treated as independent and everything inside a block as arbitrarily dependent, so serial
+// correlation, noise of any kind and a misfit that varies from block to block all enter
+// through the scores themselves (a cluster-robust "sandwich" variance):
+//
+//   var(γ̂) = B/(B − 1) Σ_b (uᵀ s_b − mean)²,
+//
+// and the interval is γ̂ ± t_{B−1} · √var. A is rank-deficient for an over-parametrised core,
+// so u solves (A + μ D) u = ∇γ̂ with D = diag A and a small μ; the interval is computed at μ
+// and at 100 μ, and if they disagree by more than a factor 2 the damping rate is not
+// separated from the core's parameters by these data (`stable` false). The remaining Newton
+// step uᵀ g (the optimiser's unfinished work) and the rounding of the data are added in
+// quadrature, so the interval never has zero width.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/core/types.hpp"
+
+namespace csympnet {
+
+struct SandwichInterval {
+  double gamma = 0.0;       // γ̂
+  double low = 0.0;
+  double high = 0.0;
+  double level = 0.95;
+  double std_error = 0.0;   // the total standard error (all components)
+  double sandwich = 0.0;    // √ of the block variance alone
+  double model_based = 0.0; // the classical σ̂ √(u_β): residual variance, no blocks
+  double optimisation = 0.0;  // |uᵀ g|: how far the unfinished Newton step would move γ̂
+  double rounding = 0.0;    // the data's rounding, propagated
+  double dof = 0.0;         // degrees of freedom of the t quantile
+  double quantile = 0.0;    // t_{dof}((1 + level)/2)
+  long blocks = 0;
+  double regularisation_ratio = 1.0;  // std error at 100 μ over that at μ
+  bool stable = true;
+  std::string method;
+};
+void to_json(nlohmann::json& j, const SandwichInterval& s);
+
+// a: A (lower triangle, P × P); g: Jᵀr; scores: P × B; gamma_index: the damping parameter and
+// gamma_sign = dγ̂/dβ there; n_residuals and cost = ½‖r‖² (scaled like A) for the model-based
+// error; data_scale: the rms of the data, in the units of the residuals, for the rounding term.
+SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matrix& scores,
+                                   Index gamma_index, double gamma, double gamma_sign,
+                                   Index n_residuals, double cost, double residual_scale,
+                                   double data_scale, double level);
+
+// Quantiles: the standard normal's and Student's t with dof degrees of freedom (dof ≥ 1).
+double normal_quantile(double p);
+double student_t_quantile(double p, double dof);
+
+}  // namespace csympnet

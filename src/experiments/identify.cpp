@@ -1,0 +1,426 @@
+#include "csympnet/experiments/identify.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/core/rng.hpp"
+#include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/models/normalized_map.hpp"
+#include "csympnet/train/window_loss.hpp"
+
+namespace csympnet {
+
+void IdentifyConfig::validate() const {
+  require(window >= 0 && window <= 64, "--window must be in [0, 64] (0: automatic), got " +
+                                           std::to_string(window));
+  require(epochs >= 0, "--epochs must be >= 0 (0: automatic)");
+  require(lm_iterations >= 0, "--lm-iterations must be >= 0 (0: automatic)");
+  require(std::isfinite(lr) && lr > 0.0 && lr <= 10.0, "--lr must be in (0, 10]");
+  require(std::isfinite(val_fraction) && val_fraction > 0.0 && val_fraction < 1.0,
+          "--val-fraction must be in (0, 1)");
+  require(target_blocks >= 3 && target_blocks <= 10000, "--blocks must be in [3, 10000]");
+  require(std::isfinite(level) && level >= 0.5 && level < 1.0, "--level must be in [0.5, 1)");
+  require(threads >= 1, "--threads must be >= 1");
+}
+
+void to_json(nlohmann::json& j, const IdentifyConfig& c) {
+  j = {{"core", c.core},         {"seed", c.seed},
+       {"window", c.window},     {"balanced", c.balanced},
+       {"normalize", c.normalize}, {"epochs", c.epochs},
+       {"lr", c.lr},             {"lm_iterations", c.lm_iterations},
+       {"val_fraction", c.val_fraction}, {"target_blocks", c.target_blocks},
+       {"level", c.level}};
+}
+
+void to_json(nlohmann::json& j, const IdentifyQuality& q) {
+  j = {{"train_loss", q.train_loss},
+       {"val_loss", q.val_loss},
+       {"val_relative_residual", q.val_relative_residual},
+       {"structure_residual_max", q.structure_residual_max}};
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.precision(4);
+  s << v;
+  return s.str();
+}
+
+// Piece [a, b] (point indices, inclusive) of a trajectory.
+Trajectory piece(const Trajectory& t, Index a, Index b) {
+  Trajectory s;
+  s.t = t.t.segment(a, b - a + 1);
+  s.z = t.z.middleCols(a, b - a + 1);
+  return s;
+}
+
+// The resampling blocks: trajectories as they are when there are enough of them, else each
+// cut into contiguous segments of at least `min_steps` steps (neighbours share an end point,
+// so no step is lost).
+std::vector<Trajectory> make_blocks(const std::vector<Trajectory>& trajs, long target,
+                                    Index min_steps) {
+  if (static_cast<long>(trajs.size()) >= target) return trajs;
+  const auto per = static_cast<Index>((target + static_cast<long>(trajs.size()) - 1) /
+                                      static_cast<long>(trajs.size()));
+  std::vector<Trajectory> out;
+  for (const Trajectory& t : trajs) {
+    const Index steps = t.steps();
+    const Index pieces = std::clamp<Index>(steps / std::max<Index>(1, min_steps), 1, per);
+    for (Index k = 0; k < pieces; ++k) {
+      const Index a = steps * k / pieces, b = steps * (k + 1) / pieces;
+      out.push_back(piece(t, a, b));
+    }
+  }
+  return out;
+}
+
+nlohmann::json default_core(Index d, bool varying_steps) {
+  nlohmann::json core;
+  if (d == 1) core = {{"type", "la"}, {"layers", 5}, {"sublayers", 20}};
+  else if (d <= 20) core = {{"type", "la"}, {"layers", 4}, {"sublayers", 10}};
+  else core = {{"type", "la"}, {"layers", 4}, {"sublayers", 4}};
+  if (varying_steps) core["step_terms"] = 2;
+  return core;
+}
+
+PairSet pairs_of(const WindowSet& w) {
+  // The first step of every window, as a pair set, for the closed-form warm start: only
+  // meaningful for one-step windows, so it is built from them.
+  PairSet p;
+  p.z0 = w.z0;
+  p.z1 = w.zm;
+  p.h = w.h.row(0).transpose();
+  return p;
+}
+
+}  // namespace
+
+IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
+                        const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  config.validate();
+  require(!trajs.empty(), "fit: no data");
+  for (std::size_t k = 0; k < trajs.size(); ++k)
+    trajs[k].validate("fit: trajectory " + std::to_string(k));
+  const Index d = trajs.front().z.rows() / 2;
+  IdentifyResult r;
+  r.config = config;
+  auto stage = [&](const char* name) {
+    if (hooks.stage) hooks.stage(name);
+  };
+  auto stop = [&] { return hooks.should_stop && hooks.should_stop(); };
+
+  // The data as given.
+  std::vector<double> steps;
+  Index samples = 0;
+  for (const Trajectory& t : trajs) {
+    require(t.z.rows() == 2 * d, "fit: trajectories differ in dimension");
+    samples += t.z.cols();
+    for (Index k = 0; k < t.steps(); ++k) steps.push_back(t.t(k + 1) - t.t(k));
+  }
+  require(!steps.empty(), "fit: the data have no step (every trajectory has a single point)");
+  for (double h : steps)
+    require(std::isfinite(h) && h >= std::numeric_limits<double>::min(),
+            "fit: a step of " + fmt(h) + " is below the smallest normal double; rescale time");
+  std::vector<double> sorted = steps;
+  std::sort(sorted.begin(), sorted.end());
+  const double h_min = sorted.front(), h_max = sorted.back();
+  const bool varying = h_max > h_min * (1.0 + 1e-6);
+  r.data = {{"d", d},
+            {"trajectories", pairs_only ? 0 : static_cast<long>(trajs.size())},
+            {"pairs_file", pairs_only},
+            {"samples", samples},
+            {"steps", static_cast<long>(steps.size())},
+            {"h_min", h_min},
+            {"h_max", h_max},
+            {"h_median", sorted[sorted.size() / 2]}};
+
+  // 1. Units and offsets.
+  r.normalization = config.normalize ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
+                                                   : fit_normalization(trajs))
+                                     : identity_normalization(d);
+  const std::vector<Trajectory> nt = normalize(r.normalization, trajs);
+
+  // 2. Window length and blocks.
+  Index m = config.window > 0 ? config.window : (pairs_only ? 1 : 4);
+  std::vector<Trajectory> blocks;
+  if (pairs_only) {
+    require(config.window <= 1, "--window " + std::to_string(config.window) +
+                                    " needs trajectories; a pairs file gives one-step windows");
+    m = 1;
+    blocks = nt;
+  } else {
+    // Shortest trajectories decide an automatic window: a window must fit in most blocks.
+    if (config.window == 0) {
+      std::vector<Index> lens;
+      for (const Trajectory& t : nt) lens.push_back(t.steps());
+      std::sort(lens.begin(), lens.end());
+      const Index short_len = lens[lens.size() / 4];
+      m = std::clamp<Index>(short_len / 2, 1, 4);
+    }
+    blocks = make_blocks(nt, config.target_blocks, std::max<Index>(4 * m, 8));
+  }
+  const Index n_blocks = static_cast<Index>(blocks.size());
+  require(n_blocks >= 3, "fit: need at least 3 blocks to validate and to estimate an interval; "
+                         "the data give " + std::to_string(n_blocks) +
+                         " (give more trajectories, or a longer one)");
+  Index n_val = static_cast<Index>(std::llround(config.val_fraction * static_cast<double>(n_blocks)));
+  n_val = std::clamp<Index>(n_val, 1, n_blocks - 2);
+  std::vector<Index> order(static_cast<std::size_t>(n_blocks));
+  std::iota(order.begin(), order.end(), Index{0});
+  Rng split_rng(config.seed, "validation-blocks");
+  for (Index i = n_blocks - 1; i > 0; --i) {
+    const auto j = static_cast<Index>(split_rng.next_u64() % static_cast<std::uint64_t>(i + 1));
+    std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
+  }
+  std::vector<Index> val_ids(order.begin(), order.begin() + n_val);
+  std::vector<Index> train_ids(order.begin() + n_val, order.end());
+  std::sort(val_ids.begin(), val_ids.end());
+  std::sort(train_ids.begin(), train_ids.end());
+  std::vector<Trajectory> train_blocks, val_blocks;
+  for (Index i : train_ids) train_blocks.push_back(blocks[static_cast<std::size_t>(i)]);
+  for (Index i : val_ids) val_blocks.push_back(blocks[static_cast<std::size_t>(i)]);
+  const WindowSet train = windows_from_trajectories(train_blocks, m);  // blocks 0 … B_t − 1
+  WindowSet val;
+  try {
+    val = windows_from_trajectories(val_blocks, m);
+  } catch (const Error&) {
+    val = windows_from_trajectories(val_blocks, 1);
+  }
+
+  // 3. Core and model.
+  IdentifyConfig& c = r.config;
+  c.window = m;
+  if (c.core.is_null()) c.core = default_core(d, varying);
+  r.choices["core"] = c.core;
+  r.choices["core_reason"] =
+      config.core.is_null()
+          ? std::string("by dimension") + (varying ? "; step polynomials because the steps vary"
+                                                   : "")
+          : "given";
+  r.choices["window"] = m;
+  r.choices["blocks"] = {{"total", n_blocks},
+                         {"train", static_cast<long>(train_ids.size())},
+                         {"validation", n_val},
+                         {"kind", pairs_only ? "pairs"
+                                  : (static_cast<long>(nt.size()) >= config.target_blocks
+                                         ? "trajectories"
+                                         : "segments of trajectories")}};
+
+  stage("warm start");
+  nlohmann::json spec = {{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}};
+  {
+    const WindowSet one = m == 1 ? train : windows_from_trajectories(train_blocks, 1);
+    try {
+      r.warm_start = gamma_warm_start(pairs_of(one));
+      spec["beta_init"] = std::max(std::abs(r.warm_start->gamma), 1e-6);
+    } catch (const Error& e) {
+      r.warm_start_note = e.what();
+    }
+  }
+  Model inner = make_model(spec);
+  const Index n_params = inner.n_params();
+  r.theta.resize(n_params);
+  Rng init_rng(config.seed, "init");
+  inner.init_params(init_rng, r.theta);
+  const OneStepMap& map = *inner.map;
+  const bool bal = config.balanced;
+
+  // 4. AdamW on the window loss.
+  const double work = static_cast<double>(train.size()) * static_cast<double>(m);
+  if (c.epochs == 0) c.epochs = std::clamp<long>(std::lround(5e6 / work), 2000, 50000);
+  r.choices["epochs"] = c.epochs;
+  stage("AdamW");
+  {
+    Objective o;
+    o.n_params = n_params;
+    o.damping_index = map.damping_param_index();
+    o.damping_rate = [&map](const Vector& th) { return map.damping_rate(th); };
+    o.train_loss = [&map, &train, bal](const Vector& th, Vector& grad) {
+      return window_loss(map, th, train, bal, &grad);
+    };
+    o.val_loss = [&map, &val, bal](const Vector& th) { return window_loss(map, th, val, bal); };
+    TrainOptions t;
+    t.epochs = c.epochs;
+    t.adamw.lr = c.lr;
+    t.adamw.decay_damping = false;  // no pull of γ̂ towards 0
+    t.lr_schedule = "cosine";
+    t.threads = c.threads;
+    ProgressCallback cb = [&](const TrainProgress& p) {
+      if (stop()) return false;
+      return hooks.adamw ? hooks.adamw(p) : true;
+    };
+    r.training = train_parameters(o, r.theta, t, cb);
+  }
+  if (stop()) r.stopped = true;
+
+  // 5. Levenberg–Marquardt on the same residuals, best validation kept.
+  const double scale = 1.0 / std::sqrt(static_cast<double>(train.size()));
+  const Index dim = 2 * d;
+  const double per_iteration = static_cast<double>(train.size() * dim) *
+                               (10.0 * static_cast<double>(m * n_params) +
+                                static_cast<double>(n_params) * static_cast<double>(n_params));
+  const bool lm_fits = n_params <= 6000;
+  if (c.lm_iterations == 0)
+    c.lm_iterations = lm_fits ? std::clamp<long>(std::lround(2e11 / per_iteration), 5, 300) : 0;
+  r.choices["lm_iterations"] = c.lm_iterations;
+  if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
+  if (!r.stopped && r.training.stop_reason != "diverged" && c.lm_iterations > 0) {
+    stage("LM");
+    LeastSquaresProblem prob;
+    prob.n_residuals = train.size() * dim;
+    prob.n_params = n_params;
+    prob.residuals = [&](ConstParams th, Eigen::Ref<Vector> res) {
+      res = scale * window_residuals(map, th, train, bal);
+      return true;
+    };
+    prob.normal_equations = [&](ConstParams th, Matrix& a, Vector& g) {
+      NormalEquations ne = window_normal_equations(map, th, train, bal, scale);
+      a = std::move(ne.a);
+      g = std::move(ne.g);
+    };
+    prob.should_stop = stop;
+    LmSettings ls;
+    ls.max_iterations = c.lm_iterations;
+    Vector th = r.theta, best = r.theta;
+    double best_val = window_loss(map, r.theta, val, bal);
+    r.lm = levenberg_marquardt(prob, th, ls, [&](long it) {
+      const double v = window_loss(map, th, val, bal);
+      if (std::isfinite(v) && v < best_val) {
+        best_val = v;
+        best = th;
+        r.lm_best_iteration = it;
+      }
+      if (hooks.lm) hooks.lm(it, c.lm_iterations, v);
+    });
+    r.theta = best;
+    if (r.lm.message == "interrupted") r.stopped = true;
+  }
+
+  // 6. γ̂ and its interval, in the user's time units.
+  const double tau = r.normalization.time_scale;
+  const double gamma_n = map.damping_rate(r.theta).value_or(0.0);
+  r.gamma = gamma_n / tau;
+  if (!r.stopped && lm_fits && r.training.stop_reason != "diverged") {
+    stage("interval");
+    const NormalEquations ne = window_normal_equations(map, r.theta, train, bal, scale, true);
+    const Index bi = *map.damping_param_index();
+    const double beta = r.theta(bi);
+    double data_scale = 0.0;
+    for (const Trajectory& t : nt) data_scale = std::max(data_scale, t.z.cwiseAbs().maxCoeff());
+    SandwichInterval s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n,
+                                           beta >= 0.0 ? 1.0 : -1.0, train.size() * dim,
+                                           ne.cost, scale, data_scale, c.level);
+    for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
+                      &s.optimisation, &s.rounding})
+      *v /= tau;
+    r.interval = s;
+  }
+
+  // 7. Quality, in normalised units (where every coordinate counts alike).
+  r.quality.train_loss = window_loss(map, r.theta, train, bal);
+  r.quality.val_loss = window_loss(map, r.theta, val, bal);
+  {
+    Matrix z = val.z0;
+    Vector h(val.size());
+    for (Index k = 0; k < val.m; ++k) {
+      h = val.h.row(k).transpose();
+      z = map.apply(r.theta, z, h);
+    }
+    r.quality.val_relative_residual = (z - val.zm).norm() / (val.zm - val.z0).norm();
+    const Index n_check = std::min<Index>(val.size(), 50);
+    const double g = gamma_n;
+    for (Index j = 0; j < n_check; ++j) {
+      const Index i = j * val.size() / n_check;
+      const Matrix jac = map.jacobian(r.theta, val.z0.col(i), val.h(0, i));
+      const double own = std::exp(-g * val.h(0, i));
+      r.quality.structure_residual_max =
+          std::max(r.quality.structure_residual_max, structure_at(jac, own, own).self_residual);
+    }
+  }
+
+  // 8. The verdict.
+  auto reason = [&](const std::string& s) { r.reasons.push_back(s); };
+  if (r.training.stop_reason == "diverged")
+    reason("training diverged (non-finite loss or gradient)");
+  if (!std::isfinite(r.gamma)) reason("gamma_hat is not finite");
+  if (!lm_fits) reason("the model has more than 6000 parameters: no interval can be formed");
+  if (r.interval) {
+    const SandwichInterval& s = *r.interval;
+    if (!std::isfinite(s.low) || !std::isfinite(s.high))
+      reason("the interval is not finite");
+    else if (s.low <= 0.0)
+      reason("the " + fmt(100.0 * c.level) + "% interval [" + fmt(s.low) + ", " + fmt(s.high) +
+             "] reaches 0: these data do not tell the damping rate from no damping");
+    if (!s.stable)
+      reason("the interval changes " + fmt(s.regularisation_ratio) +
+             "-fold with the regularisation of the Gauss-Newton matrix: the data do not "
+             "separate the damping from the core's parameters");
+  }
+  if (gamma_n * h_max / tau < 1e-13)
+    reason("e^(-gamma h) rounds to 1 at every step: the damping is invisible in double "
+           "precision");
+  if (r.quality.val_relative_residual > 0.9)
+    reason("the model explains less than 10% of the motion over a window on held-out data "
+           "(unexplained share " + fmt(r.quality.val_relative_residual) + ")");
+  if (r.quality.val_loss > 10.0 * r.quality.train_loss && r.quality.val_loss > 1e-20)
+    reason("the validation loss is " + fmt(r.quality.val_loss / r.quality.train_loss) +
+           " times the training loss: the model does not generalise to held-out data");
+  r.identified = r.reasons.empty() && !r.stopped;
+
+  // 9. The model in the user's units.
+  nlohmann::json user_spec = inner.hyperparams();
+  user_spec["normalization"] = r.normalization;
+  r.model = make_model(user_spec);
+  return r;
+}
+
+nlohmann::json identify_report(const IdentifyResult& r) {
+  nlohmann::json j = {
+      {"model", "csympnet"},
+      {"identified", r.identified},
+      {"not_identified_reason",
+       r.identified ? nlohmann::json(nullptr)
+                    : nlohmann::json([&] {
+                        std::string s;
+                        for (const auto& x : r.reasons) s += (s.empty() ? "" : "; ") + x;
+                        return r.stopped && s.empty() ? std::string("interrupted") : s;
+                      }())},
+      {"reasons", r.reasons},
+      {"gamma_hat", r.gamma},
+      {"gamma_ci_low", r.interval ? nlohmann::json(r.interval->low) : nlohmann::json(nullptr)},
+      {"gamma_ci_high", r.interval ? nlohmann::json(r.interval->high) : nlohmann::json(nullptr)},
+      {"gamma_ci_level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
+      {"gamma_ci_method", r.interval ? nlohmann::json(r.interval->method) : nlohmann::json(nullptr)},
+      {"interval", r.interval ? nlohmann::json(*r.interval) : nlohmann::json(nullptr)},
+      {"data", r.data},
+      {"normalization", r.normalization},
+      {"choices", r.choices},
+      {"config", r.config},
+      {"params", r.model.n_params()},
+      {"warm_start", r.warm_start ? nlohmann::json({{"gamma_normalised", r.warm_start->gamma},
+                                                    {"method", r.warm_start->method}})
+                                  : nlohmann::json(r.warm_start_note)},
+      {"training", r.training},
+      {"lm",
+       {{"iterations", r.lm.iterations},
+        {"accepted", r.lm.accepted},
+        {"best_iteration", r.lm_best_iteration},
+        {"initial_cost", r.lm.initial_cost},
+        {"final_cost", r.lm.final_cost},
+        {"message", r.lm.message}}},
+      {"quality", r.quality},
+      {"stopped", r.stopped},
+      {"architecture", r.model.hyperparams()}};
+  return j;
+}
+
+}  // namespace csympnet

@@ -166,7 +166,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       const Index short_len = lens[lens.size() / 4];
       m = std::clamp<Index>(short_len / 2, 1, 4);
     }
-    blocks = make_blocks(nt, config.target_blocks, std::max<Index>(4 * m, 8));
+    blocks = make_blocks(nt, config.target_blocks, std::max<Index>(2 * m, 6));
   }
   const Index n_blocks = static_cast<Index>(blocks.size());
   require(n_blocks >= 3, "fit: need at least 3 blocks to validate and to estimate an interval; "

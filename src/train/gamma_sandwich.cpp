@@ -129,11 +129,11 @@ SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matri
   s.optimisation = std::abs(u.dot(g));
   s.rounding = 16.0 * std::numeric_limits<double>::epsilon() * data_scale * residual_scale *
                std::sqrt(u_beta);
-  // Few blocks estimate a variance poorly: below 10, never less than the model-based error.
-  double main = s.sandwich;
-  if (s.blocks < 10) main = std::max(main, s.model_based);
-  s.method = s.blocks >= 10 ? "cluster-robust sandwich over blocks"
-                            : "max(cluster-robust sandwich, model-based Gauss-Newton)";
+  // The model-based error assumes independent residuals; overlapping windows make them
+  // correlated (negatively at lag m), so it is reported but not used. Few blocks estimate the
+  // variance poorly, which the t quantile with B − 1 degrees of freedom accounts for.
+  const double main = s.sandwich;
+  s.method = "cluster-robust sandwich over blocks";
   s.std_error = std::sqrt(main * main + s.optimisation * s.optimisation + s.rounding * s.rounding);
   s.dof = std::max(1.0, static_cast<double>(s.blocks - 1));
   s.quantile = student_t_quantile(0.5 * (1.0 + level), s.dof);

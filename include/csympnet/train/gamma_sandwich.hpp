@@ -33,7 +33,7 @@ struct SandwichInterval {
   double level = 0.95;
   double std_error = 0.0;   // the total standard error (all components)
   double sandwich = 0.0;    // √ of the block variance alone
-  double model_based = 0.0; // the classical σ̂ √(u_β): residual variance, no blocks
+  double model_based = 0.0; // the classical σ̂ √(u_β) (independent residuals): reported only
   double optimisation = 0.0;  // |uᵀ g|: how far the unfinished Newton step would move γ̂
   double rounding = 0.0;    // the data's rounding, propagated
   double dof = 0.0;         // degrees of freedom of the t quantile

@@ -48,7 +48,8 @@ def main():
             run([a.csympnet, "generate", "--preset", a.preset, "--n", str(a.n), "--sigma",
                  str(sigma), "--seed", str(seed), "--gamma", str(a.gamma), "--out", data,
                  "--force"])
-            fit = [a.csympnet, "fit", data, "-q", "--force", "--seed", str(seed), "--warm-start",
+            fit = [a.csympnet, "fit", data, "-q", "--force", "--seed", str(seed), "--recipe", "classic",
+                   "--warm-start",
                    "--refine", "auto", "--bootstrap", str(a.bootstrap), "--out",
                    os.path.join(a.out, tag)]
             if a.epochs > 0:

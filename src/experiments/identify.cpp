@@ -41,6 +41,7 @@ void to_json(nlohmann::json& j, const IdentifyQuality& q) {
   j = {{"train_loss", q.train_loss},
        {"val_loss", q.val_loss},
        {"val_relative_residual", q.val_relative_residual},
+       {"null_ratio", q.null_ratio},
        {"structure_residual_max", q.structure_residual_max}};
 }
 
@@ -336,6 +337,15 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       z = map.apply(r.theta, z, h);
     }
     r.quality.val_relative_residual = (z - val.zm).norm() / (val.zm - val.z0).norm();
+    // The null model: a pure contraction towards a fixed point, zm ≈ c z0 + b (c scalar),
+    // fitted on the training windows. A map that predicts held-out windows hardly better has
+    // learned no dynamics, whatever γ̂ it reports (pure noise fits as strong damping).
+    const Vector m0 = train.z0.rowwise().mean(), mm = train.zm.rowwise().mean();
+    const Matrix d0 = train.z0.colwise() - m0, dm = train.zm.colwise() - mm;
+    const double cc = d0.squaredNorm() > 0.0 ? (d0.cwiseProduct(dm)).sum() / d0.squaredNorm() : 0.0;
+    const Matrix null_pred = (cc * val.z0).colwise() + (mm - cc * m0);
+    const double null_sq = (null_pred - val.zm).squaredNorm();
+    r.quality.null_ratio = null_sq > 0.0 ? (z - val.zm).squaredNorm() / null_sq : 0.0;
     const Index n_check = std::min<Index>(val.size(), 50);
     const double g = gamma_n;
     for (Index j = 0; j < n_check; ++j) {
@@ -371,6 +381,11 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   if (r.quality.val_relative_residual > 0.9)
     reason("the model explains less than 10% of the motion over a window on held-out data "
            "(unexplained share " + fmt(r.quality.val_relative_residual) + ")");
+  if (r.quality.null_ratio > 0.5)
+    reason("on held-out data the model predicts only " +
+           fmt(100.0 * (1.0 - r.quality.null_ratio)) +
+           "% better than a pure contraction towards a fixed point: it has learned no dynamics "
+           "to tell damping from");
   if (r.quality.val_loss > 10.0 * r.quality.train_loss && r.quality.val_loss > 1e-20)
     reason("the validation loss is " + fmt(r.quality.val_loss / r.quality.train_loss) +
            " times the training loss: the model does not generalise to held-out data");
@@ -409,7 +424,11 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"warm_start", r.warm_start ? nlohmann::json({{"gamma_normalised", r.warm_start->gamma},
                                                     {"method", r.warm_start->method}})
                                   : nlohmann::json(r.warm_start_note)},
-      {"training", r.training},
+      {"training", [&] {
+         nlohmann::json t = r.training;
+         t.erase("seconds");  // wall times go to timings.json: the report is the same run to run
+         return t;
+       }()},
       {"lm",
        {{"iterations", r.lm.iterations},
         {"accepted", r.lm.accepted},

@@ -194,7 +194,8 @@ TEST_F(Cli, FitReadsIrregularTrajectoriesAndPrintsGamma) {
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out.rfind("gamma_hat = ", 0), 0u) << r.out;
   const auto rep = nlohmann::json::parse(slurp(dir_ / "fit" / "report.json"));
-  EXPECT_EQ(rep["pairs_train"].get<int>() + rep["pairs_val"].get<int>(), 59);
+  EXPECT_EQ(rep["data"]["steps"].get<int>(), 59);
+  EXPECT_TRUE(rep["identified"].is_boolean());
   EXPECT_TRUE(fs::exists(dir_ / "fit" / "model.json"));
 }
 

@@ -63,7 +63,8 @@ TEST(FitCli, PrintsAndWritesTheInterval) {
   const fs::path stdout_file = dir.path() / "stdout.txt";
   ASSERT_EQ(
       shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " + out.string() +
-            " --epochs 300 --warm-start --refine auto --refine-iterations 5 --bootstrap 10 -q > " +
+            " --recipe classic --epochs 300 --warm-start --refine auto --refine-iterations 5 "
+            "--bootstrap 10 -q > " +
             stdout_file.string() + " 2>&1"),
       0)
       << slurp(stdout_file);
@@ -85,8 +86,8 @@ TEST(FitCli, PrintsAndWritesTheInterval) {
   EXPECT_TRUE(timings.contains("bootstrap_seconds"));
 }
 
-TEST(FitCli, DefaultsAreTheIdentificationRecipe) {
-  // `fit` with no identification options: warm start, LM (s1-sized), a 100-replicate
+TEST(FitCli, ClassicRecipeDefaults) {
+  // `fit --recipe classic` with no other options: warm start, LM (s1-sized), a 100-replicate
   // interval. `train` on the same data keeps the paper's recipe.
   testing::TempDir dir;
   const fs::path data = dir.path() / "traj.csv";
@@ -94,7 +95,8 @@ TEST(FitCli, DefaultsAreTheIdentificationRecipe) {
   const fs::path stdout_file = dir.path() / "stdout.txt";
   const std::string cli = CSYMPNET_CLI_PATH;
   ASSERT_EQ(shell(cli + " fit " + data.string() + " --out " + (dir.path() / "fit").string() +
-                  " --epochs 200 --refine-iterations 5 -q > " + stdout_file.string() + " 2>&1"),
+                  " --recipe classic --epochs 200 --refine-iterations 5 -q > " + stdout_file.string() +
+                  " 2>&1"),
             0)
       << slurp(stdout_file);
   EXPECT_NE(slurp(stdout_file).find(" ± "), std::string::npos) << slurp(stdout_file);
@@ -117,7 +119,7 @@ TEST(FitCli, DefaultsAreTheIdentificationRecipe) {
   // Above 1000 parameters the default takes no interval, and says so; --no-warm-start and
   // --refine none switch the rest off.
   ASSERT_EQ(shell(cli + " fit " + data.string() + " --out " + (dir.path() / "big").string() +
-                  " --core la:3:400 --epochs 20 --refine none --no-warm-start -q > " +
+                  " --recipe classic --core la:3:400 --epochs 20 --refine none --no-warm-start -q > " +
                   stdout_file.string() + " 2>&1"),
             0)
       << slurp(stdout_file);
@@ -143,6 +145,77 @@ TEST(FitCli, CoverageScriptSmoke) {
   ASSERT_EQ(records.size(), 1u);
   EXPECT_LT(records[0]["low"].get<double>(), records[0]["high"].get<double>());
   EXPECT_NE(slurp(dir.path() / "table.md").find("| s1 | 0.01 | 1 |"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+TEST(FitCli, IdentifyRecipeWritesAVerdictAndAnInterval) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "traj.csv", out = dir.path() / "fit";
+  write_trajectories_csv(data.string(), oscillator_trajectories());
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  ASSERT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                  out.string() + " --epochs 300 --lm-iterations 30 -q > " +
+                  stdout_file.string() + " 2>&1"),
+            0)
+      << slurp(stdout_file);
+  const std::string printed = slurp(stdout_file);
+  EXPECT_EQ(printed.rfind("gamma_hat = ", 0), 0u) << printed;
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(rep["identified"], true);
+  EXPECT_TRUE(rep["not_identified_reason"].is_null());
+  const double g = rep["gamma_hat"].get<double>();
+  EXPECT_LT(rep["gamma_ci_low"].get<double>(), g);
+  EXPECT_GT(rep["gamma_ci_high"].get<double>(), g);
+  EXPECT_EQ(rep["gamma_ci_method"], "cluster-robust sandwich over blocks");
+  // Steps vary: the core gets step polynomials, and the choice is recorded with its reason.
+  EXPECT_EQ(rep["choices"]["core"]["step_terms"], 2);
+  EXPECT_NE(rep["choices"]["core_reason"].get<std::string>().find("steps vary"),
+            std::string::npos);
+  EXPECT_EQ(rep["choices"]["blocks"]["kind"], "segments of trajectories");
+  EXPECT_LT(rep["quality"]["structure_residual_max"].get<double>(), 1e-12);
+  EXPECT_TRUE(rep["normalization"]["time_scale"].is_number());
+  EXPECT_FALSE(rep["training"].contains("seconds"));
+  EXPECT_TRUE(fs::exists(out / "timings.json"));
+  // The saved model carries its units: rollout reads it in the file's units.
+  const auto model = nlohmann::json::parse(slurp(out / "model.json"));
+  EXPECT_TRUE(model.dump().find("normalization") != std::string::npos);
+}
+
+TEST(FitCli, NotIdentifiedIsADistinctExitWithTheReasonInTheReport) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "noise.csv", out = dir.path() / "fit";
+  std::vector<Trajectory> noise(1);
+  Rng rng(5, "noise-cli");
+  noise[0].z = rng.normal_matrix(2, 120, 1.0);
+  noise[0].t = Vector::LinSpaced(120, 0.0, 11.9);
+  write_trajectories_csv(data.string(), noise);
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  const int code = shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                         out.string() + " --epochs 200 --lm-iterations 10 -q > " +
+                         stdout_file.string() + " 2>&1");
+  EXPECT_EQ(code, 4) << slurp(stdout_file);
+  const std::string printed = slurp(stdout_file);
+  EXPECT_NE(printed.find("gamma_hat: not identified"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("csympnet: not identified: "), std::string::npos) << printed;
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(rep["identified"], false);
+  EXPECT_FALSE(rep["not_identified_reason"].get<std::string>().empty());
+}
+
+TEST(FitCli, ClassicOptionsNeedTheClassicRecipe) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "traj.csv";
+  write_trajectories_csv(data.string(), oscillator_trajectories());
+  const fs::path err = dir.path() / "err.txt";
+  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                  (dir.path() / "o").string() + " --bootstrap 10 -q > " + err.string() + " 2>&1"),
+            2);
+  EXPECT_NE(slurp(err).find("--recipe classic"), std::string::npos) << slurp(err);
 }
 
 }  // namespace

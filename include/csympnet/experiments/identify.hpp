@@ -59,7 +59,9 @@ struct IdentifyQuality {
   double train_loss = 0.0;             // window loss (normalised units) on training windows
   double val_loss = 0.0;               // ... on validation windows
   double val_relative_residual = 0.0;  // ‖Φ̂ᵐ(z0) − zm‖ / ‖zm − z0‖ on validation windows
-  double structure_residual_max = 0.0; // self residual of DΦ̂ (user units) at validation starts
+  // Held-out squared error of the model over that of the best pure contraction zm ≈ c z0 + b.
+  double null_ratio = 0.0;
+  double structure_residual_max = 0.0; // self residual of DΦ̂ at validation starts
 };
 void to_json(nlohmann::json& j, const IdentifyQuality& q);
 

@@ -12,7 +12,12 @@ library and CLI: same models, same files, same bits.
     >>> model.rollout([0.5, -0.2], 0.2, steps=50)           # (51, 2)
     >>> model.save("model.json")                            # `csympnet evaluate --model ...`
 
-Main entry points: fit, fit_trajectories, run, load, Model, generate, systems, System,
+Identification on your own data, in any units (what `csympnet fit` runs):
+
+    >>> result = csympnet.identify(z, t)                    # z (M, 2d), t (M,)
+    >>> result.gamma, result.interval, result.identified
+
+Main entry points: identify, fit, fit_trajectories, run, load, Model, generate, systems, System,
 read_csv, write_csv; figures in csympnet.plot (NumPy + matplotlib only). See docs/python.md.
 """
 
@@ -20,6 +25,7 @@ from . import _core
 from ._core import Error
 from ._data import Pairs, System, Trajectory, generate, model_types, read_csv, systems, write_csv
 from ._fit import RunResult, fit, fit_trajectories, run
+from ._identify import Identification, NotIdentifiedWarning, identify
 from ._model import Model, from_json, load
 
 __version__ = _core.__version__
@@ -29,6 +35,7 @@ ValueError). The message names the argument, file or line and what was expected.
 Error.__module__ = "csympnet"
 
 __all__ = [
-    "Error", "Model", "Pairs", "RunResult", "System", "Trajectory", "fit", "fit_trajectories",
-    "from_json", "generate", "load", "model_types", "read_csv", "run", "systems", "write_csv",
+    "Error", "Identification", "Model", "NotIdentifiedWarning", "Pairs", "RunResult", "System",
+    "Trajectory", "fit", "fit_trajectories", "from_json", "generate", "identify", "load",
+    "model_types", "read_csv", "run", "systems", "write_csv",
 ]

@@ -11,6 +11,7 @@
 
 #include "convert.hpp"
 #include "csympnet/experiments/fit.hpp"
+#include "csympnet/experiments/identify.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "model_binding.hpp"
 
@@ -205,9 +206,65 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
                         trajectories_to(r.data.test.trajectories));
 }
 
+// identify() (what `csympnet fit` runs): returns the model and the report as JSON text.
+py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
+                                const std::string& config_json, const py::object& progress) {
+  const std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
+  const nlohmann::json cj = parse_json(config_json, "config");
+  IdentifyConfig c;
+  if (cj.contains("core")) c.core = cj.at("core");
+  c.seed = cj.value("seed", c.seed);
+  c.window = cj.value("window", c.window);
+  c.balanced = cj.value("balanced", c.balanced);
+  c.normalize = cj.value("normalize", c.normalize);
+  c.epochs = cj.value("epochs", c.epochs);
+  c.lr = cj.value("lr", c.lr);
+  c.lm_iterations = cj.value("lm_iterations", c.lm_iterations);
+  c.val_fraction = cj.value("val_fraction", c.val_fraction);
+  c.target_blocks = cj.value("blocks", c.target_blocks);
+  c.level = cj.value("level", c.level);
+  c.threads = cj.value("threads", c.threads);
+  PythonProgress watch(progress);
+  IdentifyHooks hooks;
+  hooks.adamw = watch.callback();
+  // LM and the interval poll for Ctrl-C through the same watcher (with no training progress).
+  bool interrupted = false;
+  hooks.should_stop = [&interrupted] {
+    py::gil_scoped_acquire gil;
+    if (PyErr_CheckSignals() != 0) {
+      PyErr_Clear();
+      interrupted = true;
+    }
+    return interrupted;
+  };
+  IdentifyResult r;
+  {
+    py::gil_scoped_release nogil;
+    r = identify(data, pairs_only, c, hooks);
+  }
+  watch.rethrow_if_stopped();
+  if (interrupted || r.stopped) {
+    PyErr_SetNone(PyExc_KeyboardInterrupt);
+    throw py::error_already_set();
+  }
+  const nlohmann::json report = identify_report(r);
+  auto out = std::make_unique<PyModel>();
+  out->training = r.training;
+  if (r.interval) out->gamma_interval = std::pair{r.interval->low, r.interval->high};
+  out->meta = {{"source", "python identify"}, {"seed", r.config.seed}, {"recipe", "identify"}};
+  if (out->gamma_interval)
+    out->meta["gamma_interval"] = {out->gamma_interval->first, out->gamma_interval->second};
+  out->model = std::move(r.model);
+  out->theta = std::move(r.theta);
+  return py::make_tuple(std::move(out), report.dump());
+}
+
 }  // namespace
 
 void bind_fit(py::module_& m) {
+  m.def("identify", &identify_trajectories, py::arg("trajectories"), py::arg("pairs_only"),
+        py::arg("config_json"), py::arg("progress"),
+        "identify() of experiments/identify.hpp (wrapped by csympnet.identify).");
   m.def(
       "fit_pairs",
       [](const DArray& z0, const DArray& z1, const DArray& h, const std::optional<py::tuple>& val,

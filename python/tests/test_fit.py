@@ -35,7 +35,8 @@ def test_gamma_interval_is_none_or_brackets_gamma(s1_model):
 def test_fit_equals_cli_fit_bit_for_bit(tmp_path, run_cli, s1_pairs):
     path = tmp_path / "pairs.csv"
     csympnet.write_csv(path, s1_pairs)
-    run_cli("fit", path, "--epochs", EPOCHS, "--seed", 7, "--out", tmp_path / "out", "-q")
+    run_cli("fit", path, "--recipe", "classic", "--epochs", EPOCHS, "--seed", 7,
+            "--out", tmp_path / "out", "-q")
     cli_model = csympnet.load(tmp_path / "out" / "model.json")
     py_model = csympnet.fit(*s1_pairs, epochs=EPOCHS, seed=7)
     assert np.array_equal(py_model.params, cli_model.params)
@@ -154,7 +155,7 @@ def test_fit_trajectories_equals_cli_fit_of_the_csv(tmp_path, run_cli):
     trajs = _trajectories()
     path = tmp_path / "traj.csv"
     csympnet.write_csv(path, trajs)
-    run_cli("fit", path, "--epochs", 100, "--out", tmp_path / "out", "-q")
+    run_cli("fit", path, "--recipe", "classic", "--epochs", 100, "--out", tmp_path / "out", "-q")
     cli_model = csympnet.load(tmp_path / "out" / "model.json")
     t = [tr.t for tr in trajs]
     z = [tr.z for tr in trajs]
@@ -167,7 +168,7 @@ def test_identification_options_equal_cli_fit_bit_for_bit(tmp_path, run_cli):
     trajs = _trajectories(n=6, steps=12)
     path = tmp_path / "traj.csv"
     csympnet.write_csv(path, trajs)
-    run_cli("fit", path, "--epochs", 200, "--warm-start", "--refine", "lm",
+    run_cli("fit", path, "--recipe", "classic", "--epochs", 200, "--warm-start", "--refine", "lm",
             "--refine-iterations", 20, "--bootstrap", 10, "--core", "la:3:4:h2",
             "--out", tmp_path / "out", "-q")
     cli_model = csympnet.load(tmp_path / "out" / "model.json")

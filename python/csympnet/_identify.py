@@ -1,0 +1,133 @@
+"""Identification on one's own data: what `csympnet fit` runs (docs/identification.md)."""
+
+import json
+import warnings
+
+import numpy as np
+
+from . import _checks, _core
+from ._fit import _core_spec, _progress, _split_by_label
+from ._data import trajectory_list
+from ._model import Model
+
+MAX_THREADS = 1024
+
+
+class NotIdentifiedWarning(UserWarning):
+    """The data do not identify γ; `Identification.reasons` says why."""
+
+
+class Identification:
+    """The result of `identify`: the model (in the data's own units), γ̂, its interval and
+    the verdict.
+
+    Attributes:
+      model       Model (exactly conformally symplectic in the data's units)
+      gamma       γ̂ in the data's time units
+      interval    (low, high), or None when none could be formed
+      level       the interval's level
+      identified  False when the data do not identify γ (then `reasons` says why and
+                  `gamma` must not be read as a measurement)
+      reasons     list of str
+      report      the full report (dict), the same as `csympnet fit` writes
+    """
+
+    def __init__(self, model, report):
+        self.model = model
+        self.report = report
+        self.gamma = report["gamma_hat"]
+        low, high = report["gamma_ci_low"], report["gamma_ci_high"]
+        self.interval = None if low is None else (low, high)
+        self.level = report["gamma_ci_level"]
+        self.identified = bool(report["identified"])
+        self.reasons = list(report["reasons"])
+
+    def __repr__(self):
+        if not self.identified:
+            return f"Identification(not identified: {'; '.join(self.reasons) or 'interrupted'})"
+        low, high = self.interval
+        return (f"Identification(gamma={self.gamma:.6g}, {100 * self.level:g}% interval "
+                f"[{low:.6g}, {high:.6g}])")
+
+
+def _trajectories(t, z, traj):
+    if isinstance(t, (list, tuple)) and isinstance(z, (list, tuple)):
+        if traj is not None:
+            raise ValueError("traj: not used when t and z are lists of trajectories")
+        if len(t) != len(z):
+            raise ValueError(f"t, z: {len(t)} time arrays but {len(z)} state arrays")
+        return list(zip(t, z))
+    if np.ndim(z) == 3:
+        if traj is not None:
+            raise ValueError("traj: not used when z holds K trajectories as (K, M, 2d)")
+        za = np.asarray(z)
+        ta = np.broadcast_to(np.asarray(t), za.shape[:2]) if np.ndim(t) == 1 else np.asarray(t)
+        if ta.shape != za.shape[:2]:
+            raise ValueError(f"t: expected shape (M,) or {za.shape[:2]} for z of shape {za.shape}")
+        return list(zip(ta, za))
+    zs, _ = _checks.states("z", z, allow_single=False)
+    ts = _checks.vector("t", t, length=zs.shape[0])
+    return [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
+
+
+def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
+             loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
+             val_fraction=0.2, blocks=20, level=0.95, threads=1, progress=None):
+    """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
+
+    Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
+    (z (M, 2d), t (M,)), `identify(z, t, traj)` for rows labelled by trajectory, or lists of
+    arrays, or z (K, M, 2d); `identify(pairs=(z0, z1, h))` for independent pairs.
+
+    The data are normalised (q shift, per-dof scales that keep the structure, time scale),
+    whole trajectories or segments of a long one are held out, windows of `window` steps
+    (0: automatic) are fitted with balanced residuals (`loss="one-step"` for the paper's),
+    then Levenberg–Marquardt; the interval is a cluster-robust sandwich over blocks. When the
+    data do not identify γ this warns (NotIdentifiedWarning) and returns identified=False.
+    Ctrl-C raises KeyboardInterrupt within about a second.
+
+    Returns an Identification.
+    """
+    if pairs is not None:
+        if z is not None or t is not None or traj is not None:
+            raise ValueError("pairs: give either pairs=(z0, z1, h) or trajectories (z, t), not both")
+        if not isinstance(pairs, (tuple, list)) or len(pairs) != 3:
+            raise ValueError("pairs: expected a (z0, z1, h) triple")
+        z0, _ = _checks.states("pairs z0", pairs[0], allow_single=False)
+        z1, _ = _checks.states("pairs z1", pairs[1], allow_single=False)
+        if z1.shape != z0.shape:
+            raise ValueError(f"pairs z1: expected shape {z0.shape}, got {z1.shape}")
+        h = _checks.vector("pairs h", pairs[2], length=z0.shape[0])
+        trajs = [(np.array([0.0, hj]), np.stack([a, b])) for a, b, hj in zip(z0, z1, h)]
+        pairs_only = True
+    else:
+        if t is None:
+            raise ValueError("t: the sample times are needed with trajectories (identify(z, t))")
+        trajs = _trajectories(t, z, traj)
+        pairs_only = False
+    checked = trajectory_list(trajs, "trajectories")
+    _checks.choice("loss", loss, ("balanced", "one-step"))
+    if not isinstance(normalize, (bool, np.bool_)):
+        raise TypeError(f"normalize: expected True or False, got {type(normalize).__name__}")
+    config = {
+        "seed": _checks.integer("seed", seed, minimum=0),
+        "window": _checks.integer("window", window, minimum=0, maximum=64),
+        "balanced": loss == "balanced",
+        "normalize": bool(normalize),
+        "epochs": _checks.integer("epochs", epochs, minimum=0),
+        "lr": _checks.real("lr", lr, positive=True),
+        "lm_iterations": _checks.integer("lm_iterations", lm_iterations, minimum=0),
+        "val_fraction": _checks.real("val_fraction", val_fraction, positive=True),
+        "blocks": _checks.integer("blocks", blocks, minimum=3, maximum=10000),
+        "level": _checks.real("level", level, positive=True),
+        "threads": _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS),
+    }
+    if core is not None:
+        config["core"] = json.loads(_core_spec(core))
+    core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
+                                             _progress(progress))
+    result = Identification(Model(core_model), json.loads(report_text))
+    if not result.identified:
+        warnings.warn("csympnet.identify: not identified: " + "; ".join(result.reasons),
+                      NotIdentifiedWarning, stacklevel=2)
+    return result

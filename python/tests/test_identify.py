@@ -1,0 +1,92 @@
+"""csympnet.identify: the same recipe and bits as `csympnet fit`, the verdict as a warning,
+argument checks."""
+
+import json
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+
+import csympnet
+
+
+def damped_oscillator(n=160, gamma=0.1, sigma=0.0, seed=0, scale=(1.0, 1.0)):
+    """One trajectory of q'' + γ q' + q = 0 at irregular steps (exact flow)."""
+    rng = np.random.default_rng(seed)
+    w = np.sqrt(1.0 - gamma * gamma / 4.0)
+    t = np.cumsum(np.r_[0.0, rng.uniform(0.06, 0.14, n - 1)])
+    e = np.exp(-gamma * t / 2.0)
+    q = e * np.cos(w * t)
+    p = e * (-gamma / 2.0 * np.cos(w * t) - w * np.sin(w * t))
+    z = np.stack([q, p], axis=1)
+    z += sigma * z.std(axis=0) * rng.standard_normal(z.shape)
+    return t, z * np.asarray(scale)
+
+
+SMALL = dict(epochs=400, lm_iterations=20, core="la:3:6")
+
+
+def test_identifies_gamma_with_an_interval():
+    t, z = damped_oscillator(sigma=1e-3)
+    r = csympnet.identify(z, t, **SMALL)
+    assert r.identified, r.reasons
+    low, high = r.interval
+    assert low < r.gamma < high
+    assert abs(r.gamma - 0.1) < 0.02
+    assert r.report["choices"]["core"]["type"] == "la"
+    assert "Identification(gamma=" in repr(r)
+    # The model works in the data's units and is exactly conformally symplectic there.
+    s = r.model.structure(z[3], 0.1)
+    assert s["structure_residual"] < 1e-12
+
+
+def test_units_do_not_change_the_answer():
+    t, z = damped_oscillator(sigma=1e-3)
+    ref = csympnet.identify(z, t, **SMALL)
+    scaled = csympnet.identify(z * np.array([57.3, 1e3]) + np.array([30.0, 0.0]), t * 60.0, **SMALL)
+    width = ref.interval[1] - ref.interval[0]
+    assert abs(scaled.gamma * 60.0 - ref.gamma) < 1e-5 * width
+
+
+def test_same_bits_as_the_cli(tmp_path, cli):
+    t, z = damped_oscillator(sigma=1e-2, seed=3)
+    path = tmp_path / "traj.csv"
+    csympnet.write_csv(str(path), [csympnet.Trajectory(t, z)])
+    out = tmp_path / "fit"
+    code = subprocess.run([cli, "fit", str(path), "--out", str(out), "-q", "--epochs", "400",
+                           "--lm-iterations", "20", "--core", "la:3:6"],
+                          capture_output=True, text=True).returncode
+    assert code in (0, 4)
+    rep = json.loads((out / "report.json").read_text())
+    r = csympnet.identify(z, t, **SMALL)
+    assert r.gamma == rep["gamma_hat"]
+    assert r.interval[0] == rep["gamma_ci_low"]
+
+
+def test_not_identified_warns_and_says_why():
+    rng = np.random.default_rng(1)
+    z = rng.standard_normal((150, 2))
+    t = np.arange(150) * 0.1
+    with pytest.warns(csympnet.NotIdentifiedWarning, match="not identified"):
+        r = csympnet.identify(z, t, **SMALL)
+    assert not r.identified
+    assert r.reasons
+    assert "not identified" in repr(r)
+
+
+def test_pairs_and_checks():
+    t, z = damped_oscillator(n=120)
+    pairs = (z[:-1], z[1:], np.diff(t))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", csympnet.NotIdentifiedWarning)
+        r = csympnet.identify(pairs=pairs, **SMALL)
+    assert r.report["data"]["pairs_file"] is True
+    with pytest.raises(ValueError, match="t: the sample times"):
+        csympnet.identify(z)
+    with pytest.raises(ValueError, match="loss"):
+        csympnet.identify(z, t, loss="l1")
+    with pytest.raises(ValueError, match="not both"):
+        csympnet.identify(z, t, pairs=pairs)
+    with pytest.raises(ValueError):
+        csympnet.identify(z, t, level=1.5)

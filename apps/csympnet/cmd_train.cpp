@@ -40,7 +40,7 @@ struct FitArgs {
   // FitConfig (one-step loss, bootstrap), which `train` always uses.
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;
-  std::string loss = "balanced";
+  std::string loss = "balanced", dof_scales = "auto";
   bool no_normalize = false;
   double level = 0.95;
 };
@@ -256,6 +256,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   c.window = a.window;
   c.balanced = a.loss == "balanced";
   c.normalize = !a.no_normalize;
+  c.dof_scales = a.dof_scales;
   c.epochs = a.epochs;
   c.lr = a.lr;
   c.lm_iterations = a.lm_iterations;
@@ -356,6 +357,10 @@ void add_fit(CLI::App& app) {
                   "balanced (default: residuals in the middle of the map) or one-step")
       ->check(CLI::IsMember({"balanced", "one-step"}));
   cmd->add_flag("--no-normalize", a->no_normalize, "Fit in the data's own units and offsets");
+  cmd->add_option("--dof-scales", a->dof_scales,
+                  "Per-dof momentum scales as parameters, for velocities instead of momenta: "
+                  "auto (default: learned when d > 1), learned or fixed")
+      ->check(CLI::IsMember({"auto", "learned", "fixed"}));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
       ->check(CLI::Range(0L, 100000L));

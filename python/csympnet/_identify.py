@@ -72,7 +72,8 @@ def _trajectories(t, z, traj):
 
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
-             val_fraction=0.2, blocks=20, level=0.95, threads=1, progress=None):
+             val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
+             progress=None):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
@@ -82,7 +83,8 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     The data are normalised (q shift, per-dof scales that keep the structure, time scale),
     whole trajectories or segments of a long one are held out, windows of `window` steps
     (0: automatic) are fitted with balanced residuals (`loss="one-step"` for the paper's),
-    then Levenberg–Marquardt; the interval is a cluster-robust sandwich over blocks. When the
+    then Levenberg–Marquardt; with d > 1 the momenta's per-dof scales are learned too
+    (`dof_scales`), so velocities work as well as momenta; the interval is a cluster-robust sandwich over blocks. When the
     data do not identify γ this warns (NotIdentifiedWarning) and returns identified=False.
     Ctrl-C raises KeyboardInterrupt within about a second.
 
@@ -107,6 +109,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")
     _checks.choice("loss", loss, ("balanced", "one-step"))
+    _checks.choice("dof_scales", dof_scales, ("auto", "learned", "fixed"))
     if not isinstance(normalize, (bool, np.bool_)):
         raise TypeError(f"normalize: expected True or False, got {type(normalize).__name__}")
     config = {
@@ -121,6 +124,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         "blocks": _checks.integer("blocks", blocks, minimum=3, maximum=10000),
         "level": _checks.real("level", level, positive=True),
         "threads": _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS),
+        "dof_scales": dof_scales,
     }
     if core is not None:
         config["core"] = json.loads(_core_spec(core))

@@ -224,6 +224,7 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   c.target_blocks = cj.value("blocks", c.target_blocks);
   c.level = cj.value("level", c.level);
   c.threads = cj.value("threads", c.threads);
+  c.dof_scales = cj.value("dof_scales", c.dof_scales);
   PythonProgress watch(progress);
   IdentifyHooks hooks;
   hooks.adamw = watch.callback();

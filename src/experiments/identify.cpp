@@ -10,6 +10,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/train/window_loss.hpp"
 
@@ -26,6 +27,8 @@ void IdentifyConfig::validate() const {
   require(target_blocks >= 3 && target_blocks <= 10000, "--blocks must be in [3, 10000]");
   require(std::isfinite(level) && level >= 0.5 && level < 1.0, "--level must be in [0.5, 1)");
   require(threads >= 1, "--threads must be >= 1");
+  require(dof_scales == "auto" || dof_scales == "learned" || dof_scales == "fixed",
+          "--dof-scales must be auto, learned or fixed, got '" + dof_scales + "'");
 }
 
 void to_json(nlohmann::json& j, const IdentifyConfig& c) {
@@ -34,7 +37,7 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"normalize", c.normalize}, {"epochs", c.epochs},
        {"lr", c.lr},             {"lm_iterations", c.lm_iterations},
        {"val_fraction", c.val_fraction}, {"target_blocks", c.target_blocks},
-       {"level", c.level}};
+       {"level", c.level}, {"dof_scales", c.dof_scales}};
 }
 
 void to_json(nlohmann::json& j, const IdentifyQuality& q) {
@@ -218,6 +221,14 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   stage("warm start");
   nlohmann::json spec = {{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}};
+  if (c.dof_scales == "auto") c.dof_scales = d > 1 ? "learned" : "fixed";
+  if (c.dof_scales == "learned" && d > 1) spec["dof_scales"] = "learned";
+  r.choices["dof_scales"] = c.dof_scales;
+  if (c.dof_scales == "learned")
+    r.choices["dof_scales_reason"] =
+        config.dof_scales == "auto"
+            ? "d > 1: momenta's per-dof units (velocities, masses) are learned, not assumed"
+            : "given";
   {
     const WindowSet one = m == 1 ? train : windows_from_trajectories(train_blocks, 1);
     try {
@@ -350,7 +361,14 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     const double g = gamma_n;
     for (Index j = 0; j < n_check; ++j) {
       const Index i = j * val.size() / n_check;
-      const Matrix jac = map.jacobian(r.theta, val.z0.col(i), val.h(0, i));
+      Matrix jac = map.jacobian(r.theta, val.z0.col(i), val.h(0, i));
+      // With learned dof scales the map is conformally symplectic for Dᵀ J D: D DΦ D⁻¹ is the
+      // Jacobian of the unscaled map, to be checked against J.
+      if (const auto* scaled = dynamic_cast<const DofScaledMap*>(&map)) {
+        Vector diag = Vector::Ones(2 * d);
+        diag.tail(d) = scaled->scales(r.theta);
+        jac = diag.asDiagonal() * jac * diag.cwiseInverse().asDiagonal();
+      }
       const double own = std::exp(-g * val.h(0, i));
       r.quality.structure_residual_max =
           std::max(r.quality.structure_residual_max, structure_at(jac, own, own).self_residual);

@@ -11,7 +11,8 @@
 //
 // Any of the map specs may carry "normalization": {"q_shift": [..], "q_scale": [..],
 // "p_scale": [..], "time_scale": T} (data/normalization.hpp): the model then works in the
-// user's units (NormalizedMap) around the same parameters.
+// user's units (NormalizedMap) around the same parameters, and "dof_scales": "learned" (data
+// with velocities: DofScaledMap, d − 1 parameters after the others).
 //
 // where CORE is {"type": "la", "layers": L, "sublayers": M} or {"type": "g", "layers": L,
 // "width": W} (a "d" inside CORE is allowed if it equals the outer d). Unknown keys are
@@ -20,6 +21,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/csympnet_id.hpp"
+#include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/models/map_baseline.hpp"
@@ -76,6 +78,13 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     Normalization n;
     from_json(spec.at("normalization"), n);
     return std::make_unique<NormalizedMap>(make_one_step_map(inner), std::move(n));
+  }
+  if (spec.contains("dof_scales")) {
+    require(spec.at("dof_scales") == "learned",
+            where + ".dof_scales: expected \"learned\" (per-dof momentum scales as parameters)");
+    nlohmann::json inner = spec;
+    inner.erase("dof_scales");
+    return std::make_unique<DofScaledMap>(make_one_step_map(inner));
   }
   const std::string type = get_type(spec, where, kValidTypes);
   if (type == "la" || type == "g") return make_core(spec, get_count(spec, "d", where), where);

@@ -2,6 +2,7 @@
 // (models/normalized_map.hpp): exact structure at random parameters and random units, the
 // derivatives against central differences, and the model-file round trip.
 #include "csympnet/models/normalized_map.hpp"
+#include "csympnet/models/dof_scaled_map.hpp"
 
 #include <gtest/gtest.h>
 
@@ -162,6 +163,82 @@ TEST(Normalization, KeepsTheProductOfScalesEqualAndRefusesFlatCoordinates) {
   Normalization bad = n;
   bad.p_scale(1) *= 1.001;
   EXPECT_THROW(bad.validate(), Error);
+}
+
+}  // namespace
+}  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+const char* kScaledSpecs[] = {
+    R"({"type":"csympnet","d":2,"core":{"type":"la","layers":2,"sublayers":3},"dof_scales":"learned"})",
+    R"({"type":"csympnet","d":3,"core":{"type":"g","layers":3,"width":5},"dof_scales":"learned"})"};
+
+// θ with the learned log-scales ν drawn too (the wrapped map's init leaves them at 0).
+Vector random_scaled_theta(const OneStepMap& map, Rng& rng) {
+  Vector theta = testing::random_theta(map, rng, 0.3, rng.uniform(0.1, 1.5));
+  const Index d = map.dim() / 2;
+  theta.tail(d - 1) = rng.uniform_vector(d - 1, -1.5, 1.5);
+  return theta;
+}
+
+TEST(DofScaledMap, DerivativesMatchFiniteDifferences) {
+  for (const char* s : kScaledSpecs) {
+    const auto map = make_one_step_map(nlohmann::json::parse(s));
+    Rng rng(36, s);
+    for (int rep = 0; rep < 3; ++rep) {
+      const Vector theta = random_scaled_theta(*map, rng);
+      const Matrix z = rng.normal_matrix(map->dim(), 3, 1.0);
+      const Vector h = rng.uniform_vector(3, 0.05, 0.2);
+      const auto check = testing::check_one_step_map(*map, theta, z, h, rng);
+      EXPECT_TRUE(check.ok()) << s << "\n" << check.report();
+    }
+  }
+}
+
+TEST(DofScaledMap, IsConformallySymplecticForTheLearnedForm) {
+  // DΦᵀ (Dᵀ J D) DΦ = e^{−γh} Dᵀ J D with D = diag(1, μ), at random parameters and scales.
+  for (const char* s : kScaledSpecs) {
+    const auto map = make_one_step_map(nlohmann::json::parse(s));
+    const auto& scaled = dynamic_cast<const DofScaledMap&>(*map);
+    Rng rng(37, s);
+    double worst = 0.0;
+    for (int rep = 0; rep < 30; ++rep) {
+      const Vector theta = random_scaled_theta(*map, rng);
+      const Index d = map->dim() / 2;
+      Vector diag = Vector::Ones(2 * d);
+      diag.tail(d) = scaled.scales(theta);
+      const Matrix form = diag.asDiagonal() * canonical_j(d) * diag.asDiagonal();
+      const Vector z = rng.normal_matrix(2 * d, 1, 1.0);
+      const double h = rng.uniform(0.05, 0.2);
+      const Matrix jac = map->jacobian(theta, z, h);
+      const double lambda = std::exp(-*map->damping_rate(theta) * h);
+      worst = std::max(worst, (jac.transpose() * form * jac - lambda * form).norm() /
+                                  std::max(1.0, jac.squaredNorm() * form.norm()));
+    }
+    EXPECT_LE(worst, 1e-14) << s;
+  }
+}
+
+TEST(DofScaledMap, StartsAsTheWrappedMapAndRoundTrips) {
+  const nlohmann::json spec = nlohmann::json::parse(kScaledSpecs[0]);
+  const auto map = make_one_step_map(spec);
+  nlohmann::json plain = spec;
+  plain.erase("dof_scales");
+  const auto inner = make_one_step_map(plain);
+  EXPECT_EQ(map->n_params(), inner->n_params() + 1);
+  Rng a(38, "init"), b(38, "init");
+  Vector ta(map->n_params()), tb(inner->n_params());
+  map->init_params(a, ta);
+  inner->init_params(b, tb);
+  EXPECT_EQ(ta.head(inner->n_params()), tb);
+  EXPECT_EQ(ta(inner->n_params()), 0.0);
+  Rng rng(39, "apply");
+  const Matrix z = rng.normal_matrix(4, 5, 1.0);
+  const Vector h = rng.uniform_vector(5, 0.05, 0.2);
+  EXPECT_EQ(map->apply(ta, z, h), inner->apply(tb, z, h));
+  EXPECT_EQ(make_one_step_map(map->hyperparams())->hyperparams(), map->hyperparams());
 }
 
 }  // namespace

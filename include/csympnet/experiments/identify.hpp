@@ -35,6 +35,9 @@ struct IdentifyConfig {
   long window = 0;               // steps per window; 0: automatic (1 for pairs, else ≤ 4)
   bool balanced = true;          // balanced residuals (false: the plain one-step residuals)
   bool normalize = true;         // remove units and offsets first
+  // Per-dof momentum scales as parameters (models/dof_scaled_map.hpp), for velocities or
+  // per-dof units of p: "auto" (learned when d > 1), "learned" or "fixed".
+  std::string dof_scales = "auto";
   long epochs = 0;               // AdamW budget; 0: scaled to the data
   double lr = 1e-3;
   long lm_iterations = 0;        // LM budget; 0: scaled to the work per iteration

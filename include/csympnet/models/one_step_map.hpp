@@ -29,6 +29,8 @@ struct ForwardCache {
   // kept here so that the epochs of a training run reuse the storage.
   mutable std::vector<Matrix> records;
   mutable std::vector<Vector> record_vecs;
+  // What a wrapping map (DofScaledMap) keeps of its own; the wrapped map never touches it.
+  std::vector<Matrix> outer;
 };
 
 class OneStepMap {

@@ -256,8 +256,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     o.n_params = n_params;
     o.damping_index = map.damping_param_index();
     o.damping_rate = [&map](const Vector& th) { return map.damping_rate(th); };
-    o.train_loss = [&map, &train, bal](const Vector& th, Vector& grad) {
-      return window_loss(map, th, train, bal, &grad);
+    auto caches = std::make_shared<std::vector<ForwardCache>>();
+    o.train_loss = [&map, &train, bal, caches](const Vector& th, Vector& grad) {
+      return window_loss(map, th, train, bal, &grad, caches.get());
     };
     o.val_loss = [&map, &val, bal](const Vector& th) { return window_loss(map, th, val, bal); };
     TrainOptions t;

@@ -137,11 +137,14 @@ Matrix roll(const OneStepMap& map, ConstParams theta, const WindowSet& w, Index 
 }  // namespace
 
 double window_loss(const OneStepMap& map, ConstParams theta, const WindowSet& w, bool balanced,
-                   Vector* grad) {
+                   Vector* grad, std::vector<ForwardCache>* kept) {
   check(map, theta, w);
   const Balance bal = balance_of(map, theta, balanced);
   const Index n = w.size(), d = w.dim() / 2;
-  std::vector<ForwardCache> caches(grad != nullptr ? static_cast<std::size_t>(w.m) : 0);
+  std::vector<ForwardCache> local;
+  std::vector<ForwardCache>& caches = kept != nullptr ? *kept : local;
+  if (grad != nullptr && caches.size() != static_cast<std::size_t>(w.m))
+    caches.resize(static_cast<std::size_t>(w.m));
   Matrix r = roll(map, theta, w, 0, n, grad != nullptr ? &caches : nullptr) - w.zm;
   const Vector span = w.span();
   double loss = 0.0, beta_term = 0.0;

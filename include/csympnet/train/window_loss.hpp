@@ -50,9 +50,10 @@ WindowSet windows_from_pairs(const PairSet& pairs, const std::vector<Index>& blo
 // The windows `idx`, in that order.
 WindowSet select_windows(const WindowSet& w, const std::vector<Index>& idx);
 
-// L(θ); when grad is not null it is overwritten with dL/dθ.
+// L(θ); when grad is not null it is overwritten with dL/dθ. `caches` (m of them, resized here)
+// may be kept across calls so that a training loop does not reallocate every epoch.
 double window_loss(const OneStepMap& map, ConstParams theta, const WindowSet& w, bool balanced,
-                   Vector* grad = nullptr);
+                   Vector* grad = nullptr, std::vector<ForwardCache>* caches = nullptr);
 
 // The residuals r (sample-major, N·2d, not divided by √N).
 Vector window_residuals(const OneStepMap& map, ConstParams theta, const WindowSet& w,

@@ -234,17 +234,19 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       throw CLI::ValidationError(classic, "belongs to --recipe classic; the default recipe "
                                           "chooses it itself (docs/identification.md)");
   prepare_output_dir(a.out, a.force);
+  // The training reader first: it refuses, at their line, values too large to train on and
+  // files whose trajectories give no pairs, which the plain readers accept.
+  const PairSet checked = read_any_as_pairs(a.data);
   const bool pairs_only = detect_csv_kind(a.data) != CsvKind::kTrajectories;
   std::vector<Trajectory> trajs;
   if (pairs_only) {
-    const PairSet p = read_pairs_csv(a.data);
-    for (Index j = 0; j < p.size(); ++j) {
+    for (Index j = 0; j < checked.size(); ++j) {
       Trajectory t;
       t.t.resize(2);
-      t.t << 0.0, p.h(j);
-      t.z.resize(p.dim(), 2);
-      t.z.col(0) = p.z0.col(j);
-      t.z.col(1) = p.z1.col(j);
+      t.t << 0.0, checked.h(j);
+      t.z.resize(checked.dim(), 2);
+      t.z.col(0) = checked.z0.col(j);
+      t.z.col(1) = checked.z1.col(j);
       trajs.push_back(std::move(t));
     }
   } else {
@@ -277,7 +279,11 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   {
     ProgressLine progress(a.quiet);
     hooks.adamw = progress.callback();
-    r = identify(trajs, pairs_only, c, hooks);
+    try {
+      r = identify(trajs, pairs_only, c, hooks);
+    } catch (const Error& e) {
+      throw Error(a.data + ": " + e.what());  // what the data lack: name the file
+    }
   }
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;

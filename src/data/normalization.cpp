@@ -123,9 +123,9 @@ Normalization from_states(const Matrix& z, const std::vector<double>& steps) {
     sp(i) = std::sqrt((z.row(d + i).array() - mp).square().sum() / m);
     const std::string dof = std::to_string(i + 1);
     require(sq(i) > 0.0 && std::isfinite(sq(i)),
-            "normalization: q" + dof + " does not vary in the data; every coordinate must");
+            "normalization: q" + dof + " does not vary in the data; expected every coordinate to vary");
     require(sp(i) > 0.0 && std::isfinite(sp(i)),
-            "normalization: p" + dof + " does not vary in the data; every coordinate must");
+            "normalization: p" + dof + " does not vary in the data; expected every coordinate to vary");
   }
   // c = geometric mean of σ_q σ_p, in logs (no overflow for spreads of 1e±150).
   double log_c = 0.0;

@@ -50,7 +50,7 @@ void to_json(nlohmann::json& j, const IdentifyQuality& q) {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+constexpr long kLmPatience = 100;
 
 std::string fmt(double v) {
   std::ostringstream s;
@@ -278,13 +278,18 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // 5. Levenberg–Marquardt on the same residuals, best validation kept.
   const double scale = 1.0 / std::sqrt(static_cast<double>(train.size()));
   const Index dim = 2 * d;
-  const double per_iteration = static_cast<double>(train.size() * dim) *
-                               (10.0 * static_cast<double>(m * n_params) +
-                                static_cast<double>(n_params) * static_cast<double>(n_params));
+  // The LM budget by work: an estimate of one iteration's seconds (reverse passes for J, the
+  // Gram matrix, the factorisation), so that LM takes about 25 s at most on one core; a
+  // patience of 100 iterations without a better validation loss ends it sooner.
+  const double rows = static_cast<double>(train.size() * dim);
+  const double p_d = static_cast<double>(n_params);
+  const double iteration_seconds = 15e-9 * rows * static_cast<double>(m) * p_d +
+                                   rows * p_d * p_d / 3e10 + p_d * p_d * p_d / 3e10;
   const bool lm_fits = n_params <= 6000;
   if (c.lm_iterations == 0)
-    c.lm_iterations = lm_fits ? std::clamp<long>(std::lround(2e11 / per_iteration), 5, 300) : 0;
+    c.lm_iterations = lm_fits ? std::clamp<long>(std::lround(25.0 / iteration_seconds), 5, 3000) : 0;
   r.choices["lm_iterations"] = c.lm_iterations;
+  r.choices["lm_patience"] = kLmPatience;
   if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
   if (!r.stopped && r.training.stop_reason != "diverged" && c.lm_iterations > 0) {
     stage("LM");
@@ -300,7 +305,13 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       a = std::move(ne.a);
       g = std::move(ne.g);
     };
-    prob.should_stop = stop;
+    long polls = 0;  // one per iteration
+    bool impatient = false;
+    prob.should_stop = [&] {
+      if (stop()) return true;
+      impatient = ++polls - r.lm_best_iteration > kLmPatience;
+      return impatient;
+    };
     LmSettings ls;
     ls.max_iterations = c.lm_iterations;
     Vector th = r.theta, best = r.theta;
@@ -315,7 +326,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       if (hooks.lm) hooks.lm(it, c.lm_iterations, v);
     });
     r.theta = best;
-    if (r.lm.message == "interrupted") r.stopped = true;
+    if (stop()) r.stopped = true;
+    if (impatient)
+      r.lm.message = "no better validation loss in " + std::to_string(kLmPatience) + " iterations";
   }
 
   // 6. γ̂ and its interval, in the user's time units.

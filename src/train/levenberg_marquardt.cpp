@@ -74,7 +74,7 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
   report.message = "maximum number of iterations reached";
   while (report.iterations < settings.max_iterations) {
     if (problem.should_stop && problem.should_stop()) {
-      report.message = "interrupted";
+      report.message = "stopped by the caller";
       break;
     }
     if (ne.g.lpNorm<Eigen::Infinity>() <= settings.gradient_tolerance) {

@@ -33,7 +33,8 @@ struct LeastSquaresProblem {
   // Optional, instead of `jacobian`: writes JᵀJ (the lower triangle of a, n_params²) and Jᵀr
   // at θ directly, for problems whose J is formed in chunks and never held whole.
   std::function<void(ConstParams theta, Matrix& a, Vector& g)> normal_equations;
-  // Optional: polled once per iteration; true stops the solver (an interrupt).
+  // Optional: polled once per iteration; true stops the solver (an interrupt, or the caller's
+  // own stopping rule), with the message "stopped by the caller".
   std::function<bool()> should_stop;
 };
 

@@ -1,0 +1,43 @@
+#!/bin/sh
+# Smoke test of experiments/identification_benchmark.py: four small cases, peers only (no
+# csympnet binary needed). Passes when the script exits 0 and DIR/results.json parses and
+# holds 4 cases, each with a sindy and an oracle result.
+# Usage: tests/experiments/identification_benchmark_smoke.sh   (PYTHON overrides /usr/bin/python3)
+set -u
+here=$(cd "$(dirname "$0")" && pwd)
+repo=$(cd "$here/../.." && pwd)
+py=${PYTHON:-/usr/bin/python3}
+tmp=$(mktemp -d "${TMPDIR:-/tmp}/idbench-smoke.XXXXXX") || exit 1
+trap 'rm -rf "$tmp"' EXIT INT TERM
+
+"$py" "$repo/experiments/identification_benchmark.py" --quick --only-peers --cases 4 \
+  --out "$tmp/out" >"$tmp/log" 2>&1
+rc=$?
+if [ "$rc" -ne 0 ]; then
+  cat "$tmp/log"
+  echo "FAIL: identification_benchmark.py exited $rc"
+  exit 1
+fi
+"$py" - "$tmp/out/results.json" <<'PYEOF'
+import json
+import sys
+
+with open(sys.argv[1]) as f:
+    r = json.load(f)
+cases = r["cases"]
+assert len(cases) == 4, f"expected 4 cases, got {len(cases)}"
+for c in cases:
+    for m in ("sindy", "oracle"):
+        assert m in c["methods"], f"{c['id']}: no {m} result"
+    assert c["methods"]["csympnet"]["status"] == "skipped", c["id"]
+    assert c["gamma_true"] > 0, c["id"]
+print("identification benchmark smoke: 4 cases, oracle relative errors",
+      ", ".join(f"{c['methods']['oracle'].get('rel_err', float('nan')):.1e}" for c in cases))
+PYEOF
+rc=$?
+if [ "$rc" -ne 0 ]; then
+  echo "FAIL: results.json check"
+  exit 1
+fi
+[ -s "$tmp/out/summary.md" ] || { echo "FAIL: no summary.md"; exit 1; }
+echo "PASS"

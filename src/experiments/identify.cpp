@@ -192,17 +192,23 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   std::vector<Trajectory> train_blocks, val_blocks;
   for (Index i : train_ids) train_blocks.push_back(blocks[static_cast<std::size_t>(i)]);
   for (Index i : val_ids) val_blocks.push_back(blocks[static_cast<std::size_t>(i)]);
-  const WindowSet train = windows_from_trajectories(train_blocks, m);  // blocks 0 … B_t − 1
-  WindowSet val;
-  try {
-    val = windows_from_trajectories(val_blocks, m);
-  } catch (const Error&) {
-    val = windows_from_trajectories(val_blocks, 1);
-  }
+  // An automatic window starts at one step and grows to m_long only if the one-step residuals
+  // show that noise, not misfit, dominates (below): windows fight noise but compound misfit.
+  const bool adaptive = config.window == 0 && !pairs_only && m > 1;
+  const Index m_long = m;
+  if (adaptive) m = 1;
+  auto windows_of = [](const std::vector<Trajectory>& b, Index len) {
+    try {
+      return windows_from_trajectories(b, len);
+    } catch (const Error&) {
+      return windows_from_trajectories(b, 1);  // blocks all shorter than the window
+    }
+  };
+  WindowSet train = windows_from_trajectories(train_blocks, m);  // blocks 0 … B_t − 1
+  WindowSet val = windows_of(val_blocks, m);
 
   // 3. Core and model.
   IdentifyConfig& c = r.config;
-  c.window = m;
   if (c.core.is_null()) c.core = default_core(d, varying);
   r.choices["core"] = c.core;
   r.choices["core_reason"] =
@@ -210,7 +216,6 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
           ? std::string("by dimension") + (varying ? "; step polynomials because the steps vary"
                                                    : "")
           : "given";
-  r.choices["window"] = m;
   r.choices["blocks"] = {{"total", n_blocks},
                          {"train", static_cast<long>(train_ids.size())},
                          {"validation", n_val},
@@ -230,7 +235,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
             ? "d > 1: momenta's per-dof units (velocities, masses) are learned, not assumed"
             : "given";
   {
-    const WindowSet one = m == 1 ? train : windows_from_trajectories(train_blocks, 1);
+    const WindowSet one = windows_from_trajectories(train_blocks, 1);
     try {
       r.warm_start = gamma_warm_start(pairs_of(one));
       spec["beta_init"] = std::max(std::abs(r.warm_start->gamma), 1e-6);
@@ -247,8 +252,11 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   const bool bal = config.balanced;
 
   // 4. AdamW on the window loss.
-  const double work = static_cast<double>(train.size()) * static_cast<double>(m);
-  if (c.epochs == 0) c.epochs = std::clamp<long>(std::lround(5e6 / work), 2000, 50000);
+  // The AdamW budget by an estimate of an epoch's seconds (about 4 ns per sample, step and
+  // parameter on one core), about 15 s in all, between 300 and 50,000 epochs.
+  const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) *
+                               static_cast<double>(m) * static_cast<double>(n_params);
+  if (c.epochs == 0) c.epochs = std::clamp<long>(std::lround(15.0 / epoch_seconds), 300, 50000);
   r.choices["epochs"] = c.epochs;
   stage("AdamW");
   {
@@ -276,60 +284,108 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   if (stop()) r.stopped = true;
 
   // 5. Levenberg–Marquardt on the same residuals, best validation kept.
-  const double scale = 1.0 / std::sqrt(static_cast<double>(train.size()));
   const Index dim = 2 * d;
+  const bool lm_fits = n_params <= 6000;
+  if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
+  r.choices["lm_patience"] = kLmPatience;
   // The LM budget by work: an estimate of one iteration's seconds (reverse passes for J, the
   // Gram matrix, the factorisation), so that LM takes about 25 s at most on one core; a
   // patience of 100 iterations without a better validation loss ends it sooner.
-  const double rows = static_cast<double>(train.size() * dim);
-  const double p_d = static_cast<double>(n_params);
-  const double iteration_seconds = 15e-9 * rows * static_cast<double>(m) * p_d +
-                                   rows * p_d * p_d / 3e10 + p_d * p_d * p_d / 3e10;
-  const bool lm_fits = n_params <= 6000;
-  if (c.lm_iterations == 0)
-    c.lm_iterations = lm_fits ? std::clamp<long>(std::lround(25.0 / iteration_seconds), 5, 3000) : 0;
-  r.choices["lm_iterations"] = c.lm_iterations;
-  r.choices["lm_patience"] = kLmPatience;
-  if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
-  if (!r.stopped && r.training.stop_reason != "diverged" && c.lm_iterations > 0) {
+  auto lm_budget = [&]() -> long {
+    if (config.lm_iterations > 0) return config.lm_iterations;
+    if (!lm_fits) return 0;
+    const double rows = static_cast<double>(train.size() * dim);
+    const double p_d = static_cast<double>(n_params);
+    const double seconds = 15e-9 * rows * static_cast<double>(m) * p_d +
+                           rows * p_d * p_d / 3e10 + p_d * p_d * p_d / 3e10;
+    return std::clamp<long>(std::lround(25.0 / seconds), 5, 3000);
+  };
+  auto run_lm = [&](long budget) {
+    if (r.stopped || r.training.stop_reason == "diverged" || budget <= 0) return;
     stage("LM");
+    const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
     LeastSquaresProblem prob;
     prob.n_residuals = train.size() * dim;
     prob.n_params = n_params;
     prob.residuals = [&](ConstParams th, Eigen::Ref<Vector> res) {
-      res = scale * window_residuals(map, th, train, bal);
+      res = sc * window_residuals(map, th, train, bal);
       return true;
     };
     prob.normal_equations = [&](ConstParams th, Matrix& a, Vector& g) {
-      NormalEquations ne = window_normal_equations(map, th, train, bal, scale);
+      NormalEquations ne = window_normal_equations(map, th, train, bal, sc);
       a = std::move(ne.a);
       g = std::move(ne.g);
     };
-    long polls = 0;  // one per iteration
+    long polls = 0, best_it = 0;  // one poll per iteration
     bool impatient = false;
     prob.should_stop = [&] {
       if (stop()) return true;
-      impatient = ++polls - r.lm_best_iteration > kLmPatience;
+      impatient = ++polls - best_it > kLmPatience;
       return impatient;
     };
     LmSettings ls;
-    ls.max_iterations = c.lm_iterations;
+    ls.max_iterations = budget;
     Vector th = r.theta, best = r.theta;
     double best_val = window_loss(map, r.theta, val, bal);
-    r.lm = levenberg_marquardt(prob, th, ls, [&](long it) {
+    LmReport rep = levenberg_marquardt(prob, th, ls, [&](long it) {
       const double v = window_loss(map, th, val, bal);
       if (std::isfinite(v) && v < best_val) {
         best_val = v;
         best = th;
-        r.lm_best_iteration = it;
+        best_it = it;
       }
-      if (hooks.lm) hooks.lm(it, c.lm_iterations, v);
+      if (hooks.lm) hooks.lm(it, budget, v);
     });
     r.theta = best;
     if (stop()) r.stopped = true;
     if (impatient)
-      r.lm.message = "no better validation loss in " + std::to_string(kLmPatience) + " iterations";
+      rep.message = "no better validation loss in " + std::to_string(kLmPatience) + " iterations";
+    r.lm = rep;
+    r.lm_best_iteration = best_it;
+  };
+  c.lm_iterations = lm_budget();
+  r.choices["lm_iterations"] = c.lm_iterations;
+  run_lm(c.lm_iterations);
+
+  // 5b. Longer windows when noise dominates. Along a trajectory, one-step residuals of pure
+  // measurement noise, D e_k − e_{k+1}, correlate at about −1/2 with their successors; a
+  // misfit is smooth in the state and correlates positively. So a negative lag-one
+  // correlation says noise dominates, and windows of m_long steps (which divide its bias and
+  // variance) are worth their compounding of misfit; LM continues from the one-step fit.
+  if (adaptive && !r.stopped) {
+    const Vector res = window_residuals(map, r.theta, train, bal);
+    double num = 0.0, den = 0.0;
+    for (Index i = 0; i < train.size(); ++i) {
+      const auto ri = res.segment(i * dim, dim);
+      den += ri.squaredNorm();
+      if (i + 1 < train.size() && train.block[static_cast<std::size_t>(i)] ==
+                                      train.block[static_cast<std::size_t>(i + 1)])
+        num += ri.dot(res.segment((i + 1) * dim, dim));
+    }
+    const double rho = den > 0.0 ? num / den : 0.0;
+    r.choices["one_step_residual_lag1_correlation"] = rho;
+    if (rho < 0.0) {
+      m = m_long;
+      train = windows_from_trajectories(train_blocks, m);
+      val = windows_of(val_blocks, m);
+      r.choices["window_reason"] = "one-step residuals correlate negatively along trajectories "
+                                   "(noise dominates misfit): windows of " +
+                                   std::to_string(m) + " steps";
+      const long stage_b = lm_budget();
+      r.choices["lm_iterations_windows"] = stage_b;
+      run_lm(stage_b);
+    } else {
+      r.choices["window_reason"] = "one-step residuals correlate positively along trajectories "
+                                   "(misfit dominates noise): one-step windows";
+    }
+  } else {
+    r.choices["window_reason"] = config.window > 0 ? "given"
+                                 : pairs_only      ? "pairs: one step"
+                                                   : "trajectories too short for longer windows";
   }
+  c.window = m;
+  r.choices["window"] = m;
+  const double scale = 1.0 / std::sqrt(static_cast<double>(train.size()));
 
   // 6. γ̂ and its interval, in the user's time units.
   const double tau = r.normalization.time_scale;

@@ -144,3 +144,38 @@ TEST(Identify, IntervalCoversAtAboutItsLevel) {
 
 }  // namespace
 }  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+TEST(Identify, WindowsGrowOnlyWhenNoiseDominatesMisfit) {
+  IdentifyConfig c;
+  c.epochs = 800;
+  c.lm_iterations = 20;
+  c.core = {{"type", "la"}, {"layers", 3}, {"sublayers", 6}};
+  const IdentifyResult noisy = identify(chain_data(1, 0.1, 1, 200, 5e-2, 7), false, c);
+  EXPECT_EQ(noisy.config.window, 4);
+  EXPECT_LT(noisy.choices["one_step_residual_lag1_correlation"].get<double>(), -0.2);
+  // A pendulum-like misfit on clean data: the smooth residuals keep one-step windows.
+  std::vector<Trajectory> clean(1);
+  clean[0].t = Vector::LinSpaced(200, 0.0, 19.9);
+  clean[0].z.resize(2, 200);
+  Vector z(2);
+  z << 2.5, 0.0;
+  for (Index k = 0; k < 200; ++k) {
+    clean[0].z.col(k) = z;
+    for (int s = 0; s < 100; ++s) {  // symplectic Euler with friction, fine steps
+      z(1) += 1e-3 * (-std::sin(z(0)) - 0.1 * z(1));
+      z(0) += 1e-3 * z(1);
+    }
+  }
+  const IdentifyResult smooth = identify(clean, false, c);
+  EXPECT_EQ(smooth.config.window, 1);
+  EXPECT_GT(smooth.choices["one_step_residual_lag1_correlation"].get<double>(), 0.0);
+  // A given window is used as given.
+  c.window = 2;
+  EXPECT_EQ(identify(clean, false, c).config.window, 2);
+}
+
+}  // namespace
+}  // namespace csympnet

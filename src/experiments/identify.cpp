@@ -468,7 +468,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   if (r.interval && std::isfinite(r.interval->high) && r.interval->high * h_max < 1e-13)
     reason("even the interval's upper end gives e^(-gamma h) = 1 to 13 digits at every step: "
            "damping that weak is invisible in these data");
-  if (r.quality.val_relative_residual > 0.9)
+  if ((train.zm - train.z0).norm() == 0.0)
+    reason("the states do not change over any step: there is no motion to learn from");
+  else if (r.quality.val_relative_residual > 0.9)
     reason("the model explains less than 10% of the motion over a window on held-out data "
            "(unexplained share " + fmt(r.quality.val_relative_residual) + ")");
   if (r.quality.null_ratio > 0.5)

@@ -1,5 +1,7 @@
 // `train` and `fit`: learn a one-step map from a user's CSV (pairs or trajectories).
+#include <chrono>
 #include <cstdio>
+#include <unistd.h>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -270,10 +272,18 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   hooks.should_stop = [] { return interrupted(); };
   const bool talk = !a.quiet;
   hooks.stage = [talk](const std::string& s) {
-    if (talk) std::fprintf(stderr, "fit: %s\n", s.c_str());
+    if (talk) std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
   };
-  hooks.lm = [talk](long it, long budget, double val) {
-    if (talk) std::fprintf(stderr, "  LM iteration %ld / %ld, validation loss %.3e\n", it, budget, val);
+  // LM: one line a second at most (on a terminal, redrawn in place), and the last one.
+  auto last = std::make_shared<std::chrono::steady_clock::time_point>();
+  const bool tty = isatty(STDERR_FILENO) == 1;
+  hooks.lm = [talk, last, tty](long it, long budget, double val) {
+    if (!talk) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (it < budget && now - *last < std::chrono::seconds(1)) return;
+    *last = now;
+    std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "",
+                 it, budget, val, tty ? "" : "\n");
   };
   IdentifyResult r;
   {

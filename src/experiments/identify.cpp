@@ -300,9 +300,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                            rows * p_d * p_d / 3e10 + p_d * p_d * p_d / 3e10;
     return std::clamp<long>(std::lround(25.0 / seconds), 5, 3000);
   };
-  auto run_lm = [&](long budget) {
+  auto run_lm = [&](long budget, const char* label) {
     if (r.stopped || r.training.stop_reason == "diverged" || budget <= 0) return;
-    stage("LM");
+    stage(label);
     const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
     LeastSquaresProblem prob;
     prob.n_residuals = train.size() * dim;
@@ -345,7 +345,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   };
   c.lm_iterations = lm_budget();
   r.choices["lm_iterations"] = c.lm_iterations;
-  run_lm(c.lm_iterations);
+  run_lm(c.lm_iterations, "LM");
 
   // 5b. Longer windows when noise dominates. Along a trajectory, one-step residuals of pure
   // measurement noise, D e_k − e_{k+1}, correlate at about −1/2 with their successors; a
@@ -373,7 +373,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                                    std::to_string(m) + " steps";
       const long stage_b = lm_budget();
       r.choices["lm_iterations_windows"] = stage_b;
-      run_lm(stage_b);
+      run_lm(stage_b, "LM on longer windows (noise dominates)");
     } else {
       r.choices["window_reason"] = "one-step residuals correlate positively along trajectories "
                                    "(misfit dominates noise): one-step windows";

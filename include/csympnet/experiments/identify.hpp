@@ -50,7 +50,8 @@ struct IdentifyConfig {
 void to_json(nlohmann::json& j, const IdentifyConfig& c);
 
 // What the fit did at each stage; `stage` is called as each begins ("warm start", "AdamW",
-// "LM", "interval"), `should_stop` is polled by every long stage (an interrupt).
+// "LM", "LM on longer windows …", "interval"), `lm` after each accepted LM step, and
+// `should_stop` is polled by AdamW (each validation) and LM (each iteration): an interrupt.
 struct IdentifyHooks {
   ProgressCallback adamw;
   std::function<void(const std::string& stage)> stage;

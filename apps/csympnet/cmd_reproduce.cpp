@@ -1,6 +1,13 @@
 // `reproduce`: run experiment suites (experiments/*.json), cache every run, write the
 // summary, the tables and the figures.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <vector>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -90,8 +97,10 @@ std::string python_interpreter() {
   return "/usr/bin/python3";
 }
 
-// The figures come from experiments/figures.py (matplotlib); without it the tables stand.
-void draw_figures(const Args& a) {
+// The figures come from experiments/figures.py (matplotlib). The script is started with an
+// argument vector (posix_spawn), never through a shell, so no character of --out can run as a
+// command. Returns whether figures were drawn; a script that fails is an error.
+bool draw_figures(const Args& a) {
   const char* env = std::getenv("CSYMPNET_FIGURES_SCRIPT");
   const std::string script = env && *env ? env : CSYMPNET_FIGURES_SCRIPT;
   const std::string py = python_interpreter();
@@ -99,13 +108,33 @@ void draw_figures(const Args& a) {
   if (!fs::exists(script, ec) || !fs::exists(py, ec)) {
     std::fprintf(stderr, "reproduce: figures skipped (%s or %s not found)\n", script.c_str(),
                  py.c_str());
-    return;
+    return false;
   }
-  const std::string cmd =
-      "'" + py + "' '" + script + "' '" + a.out + "'" + (a.quiet ? " >/dev/null" : "");
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0)
-    std::fprintf(stderr, "reproduce: figure script failed (exit %d): %s\n", rc, cmd.c_str());
+  std::vector<std::string> args = {py, script, a.out};
+  std::vector<char*> argv;
+  for (std::string& s : args) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  if (a.quiet) posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  const int err = posix_spawn(&pid, py.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  require(err == 0, "reproduce: could not start " + py + " " + script + ": " +
+                        std::strerror(err) + "; rerun with --no-figures to skip the figures");
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    require(errno == EINTR, std::string("reproduce: waiting for the figure script: ") +
+                                std::strerror(errno));
+  }
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return true;
+  if (interrupted()) throw Interrupted("the figure script was stopped; the tables are in " + a.out);
+  const std::string how = WIFEXITED(status)
+                              ? "exit " + std::to_string(WEXITSTATUS(status))
+                              : "signal " + std::to_string(WTERMSIG(status));
+  throw Error("reproduce: the figure script " + script + " failed (" + how +
+              "); the runs, summary and tables are written in " + a.out +
+              "; rerun with --no-figures to skip the figures");
 }
 
 void print_table_overview(const json& summary, const std::vector<SuiteSpec>& suites) {
@@ -220,10 +249,11 @@ void reproduce(const Args& a) {
     write_text_atomic((tables / (s.name + ".csv")).string(), f.csv);
     write_text_atomic((tables / (s.name + ".tex")).string(), f.latex);
   }
-  if (!a.no_figures) draw_figures(a);
+  const bool figures = !a.no_figures && draw_figures(a);
   if (!a.quiet) {
     print_table_overview(summary, suites);
-    std::printf("wrote %s/{summary.json,timings.json,tables/,figures/}\n", a.out.c_str());
+    std::printf("wrote %s/{summary.json,timings.json,tables/%s}\n", a.out.c_str(),
+                figures ? ",figures/" : "");
   }
   if (st.failed > 0)
     throw Error(std::to_string(st.failed) + " run(s) failed; see \"error\" in " + runs_dir +

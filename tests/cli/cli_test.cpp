@@ -82,7 +82,8 @@ class Cli : public ::testing::Test {
   fs::path dir_;
 };
 
-// PROTOCOL.md, "Models and their parameter counts": the whole table, 8 models x 5 presets.
+// docs/protocol.md, "Models and their parameter counts": the whole table, 8 models x 5
+// presets.
 TEST_F(Cli, DescribeReportsTheProtocolParameterCounts) {
   const std::array<const char*, 8> models{"csympnet", "sympnet", "map",  "ode",
                                           "dhnn",     "dhnn2",   "phnn", "phnn2"};
@@ -342,6 +343,53 @@ TEST_F(Cli, InterruptSavesTheBestCheckpointAndExitsWithTheSignalCode) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto summary = nlohmann::json::parse(slurp(dir_ / "rep" / "summary.json"));
   EXPECT_EQ(summary["slow"]["s1"]["csympnet"][0]["seeds"].size(), 3u);
+}
+
+}  // namespace
+
+namespace {
+
+// One argument quoted for /bin/sh (the test's own command lines go through a shell).
+std::string sh_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// `reproduce` starts its figure script with an argument vector: an --out full of shell syntax
+// reaches the script as one argument and runs nothing; a failing script fails the command.
+TEST_F(Cli, ReproduceFigureStepRunsNoShellAndFailsLoudly) {
+  const fs::path suites = dir_ / "suites";
+  fs::create_directories(suites);
+  std::ofstream(suites / "tiny.json")
+      << R"({"name": "tiny", "kind": "table", "columns": ["params"], "presets": ["s1"],
+             "models": ["csympnet"], "seeds": [42], "epochs": {"*": {"*": 5}}})";
+  // A stand-in figure script: records the argument it got, in the directory it names.
+  const fs::path script = write("figures.py",
+                                "import sys, pathlib\n"
+                                "pathlib.Path(sys.argv[1], 'figure-arg.txt').write_text(sys.argv[1])\n");
+  const fs::path failing = write("failing.py", "import sys\nsys.exit(3)\n");
+  const fs::path injected = dir_ / "INJECTED";
+  const std::string hostile = (dir_ / "x';touch ").string() + injected.string() + ";'bob's run";
+  const std::string common = "reproduce --suites-dir " + sh_quote(suites.string()) +
+                             " --suite tiny -q --out " + sh_quote(hostile);
+  Result r = run("--version >/dev/null; CSYMPNET_FIGURES_SCRIPT=" + sh_quote(script.string()) +
+                 " " + std::string(CSYMPNET_CLI_PATH) + " " + common);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(injected)) << "a shell ran part of --out";
+  EXPECT_EQ(slurp(fs::path(hostile) / "figure-arg.txt"), hostile);
+
+  r = run("--version >/dev/null; CSYMPNET_FIGURES_SCRIPT=" + sh_quote(failing.string()) +
+          " " + std::string(CSYMPNET_CLI_PATH) + " " + common);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("figure script"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("exit 3"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--no-figures"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(injected));
+
+  // --no-figures does not claim figures.
+  r = run(common + " --no-figures --force");
+  ASSERT_EQ(r.code, 0) << r.err;
 }
 
 }  // namespace

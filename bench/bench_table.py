@@ -2,7 +2,7 @@
 """`make bench`: csympnet's training speed beside PyTorch's, as one table measured in one run.
 
 For each preset (s1, s2, s3, s2-100), one full-batch CSympNet-ID epoch (forward, backward,
-AdamW, the PROTOCOL settings) is timed
+AdamW with the settings of docs/protocol.md, "Training") is timed
   * in csympnet: Google Benchmark `epoch/P/csympnet` of build/bin/csympnet_bench (median of
     --repetitions runs, wall time);
   * in PyTorch: bench/torch_peer.py, the same model, data, initial θ and optimiser in float64,

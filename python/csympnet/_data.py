@@ -24,7 +24,7 @@ def _preset_info(name):
 #: The paper's presets, by name ("s1", "s2", "s3", "s2-100", "s3-100"): each a dict with the
 #: system ("kind", "d", "gamma", "omega", "k", "alpha"), data sizes ("n_train", "n_val",
 #: "n_test"), training steps ("train_steps": {"h_min", "h_max"}), "h_test", "horizon", the
-#: symplectic "core" and the default training recipe (PROTOCOL.md).
+#: symplectic "core" and the default training recipe (docs/protocol.md, "Presets").
 systems = {name: _preset_info(name) for name in _core.preset_names()}
 
 
@@ -131,7 +131,7 @@ def generate(preset="s1", split="train", *, seed=None, n=None, sigma=0.0, h=None
         `Trajectory` (t (n+1,), z (n+1, 2d)) on the uniform grid of step h_test.
     seed: training seed for train/val (default 42); data seed for test (default 0).
     n: number of pairs or trajectories (default: the preset's).
-    sigma: relative observation noise on train/val pairs (PROTOCOL.md, "Noise").
+    sigma: relative observation noise on train/val pairs (docs/protocol.md, "Noise").
     h: step of the pairs, a number or a range (h_min, h_max) drawn uniformly per pair
         (default: the preset's).
     reference: "splitting" (default), "expm" (linear kinds) or "rk".

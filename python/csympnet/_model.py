@@ -9,7 +9,8 @@ from . import _checks, _core
 from ._data import System, Trajectory, systems, trajectory_list
 
 # Test sets generated when diagnostics() gets no trajectories: the presets' common values
-# (PROTOCOL.md: 10 trajectories on [0, 10] with h_test = 0.2, data seed 0).
+# (docs/protocol.md, "Test trajectories": 10 trajectories on [0, 10] with h_test = 0.2, data
+# seed 0).
 _DEFAULT_N_TEST = 10
 _DEFAULT_H_TEST = 0.2
 _DEFAULT_HORIZON = 10.0
@@ -148,7 +149,7 @@ class Model:
     def diagnostics(self, system=None, tests=None, *, preset=None, h_test=None, test_seed=0,
                     n_test=None, horizon=None, per_point=True):
         """The paper's diagnostics against reference test trajectories, as `csympnet evaluate`
-        computes them (PROTOCOL.md, "Metrics").
+        computes them (docs/protocol.md, "Metrics").
 
         system: the true system, a csympnet.System or a dict of its fields; with `preset`, a
             dict of fields that replace the preset's. Default: the preset's, else the one the

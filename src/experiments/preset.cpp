@@ -114,8 +114,8 @@ std::string describe_recipe(const TrainOptions& t) {
 }
 
 int baseline_width(int d) {
-  // PROTOCOL.md: 32 for d = 1, 64 for d = 10, 256 for d = 100; other dimensions take the
-  // width of the nearest of those presets' classes.
+  // docs/protocol.md, "Baselines": 32 for d = 1, 64 for d = 10, 256 for d = 100; other
+  // dimensions take the width of the nearest of those presets' classes.
   if (d <= 2) return 32;
   if (d <= 20) return 64;
   return 256;

@@ -68,7 +68,8 @@ RunData generate_run_data(const RunConfig& c) {
   d.train = generate_pairs(sys, c.preset.n_train, c.preset.train_steps, train_rng, c.reference);
   d.val = generate_pairs(sys, c.preset.n_val, c.preset.train_steps, val_rng, c.reference);
   if (c.sigma > 0.0) {
-    // Noise scales depend on the system and seed only, not on N_train (PROTOCOL.md).
+    // Noise scales depend on the system and seed only, not on N_train (docs/protocol.md,
+    // "Noise").
     Rng scale_rng(c.seed, "noise-scales");
     const NoiseScales scales = noise_scales(sys, c.preset.train_steps, scale_rng, c.reference);
     Rng noise_rng(c.seed, "noise");

@@ -1,4 +1,5 @@
-// Data generation per PROTOCOL.md "Data": draw order, determinism, noise, bounded test sets.
+// Data generation per docs/protocol.md ("Data generation", "Noise", "Test trajectories"):
+// draw order, determinism, noise, bounded test sets.
 #include "csympnet/data/generate.hpp"
 
 #include <cmath>
@@ -165,7 +166,8 @@ TEST(Generate, TestSetShapeAndNoRedrawsForLinearSystems) {
 }
 
 TEST(Generate, CubicRedrawFractionMatchesProtocol) {
-  // PROTOCOL.md expects about 6% of s3 starts (d = 10) to leave ‖z‖_∞ ≤ 10 on [0, 10].
+  // docs/protocol.md, "Test trajectories": about 6% of s3 starts (d = 10) leave ‖z‖_∞ ≤ 10
+  // on [0, 10].
   // 500 kept trajectories give ~535 candidates, so the binomial std of the fraction is ~0.011;
   // [0.035, 0.10] is a ±2.5σ band around 6.5% (measured over 10690 candidates: 6.45%).
   const System sys = make("cubic", 10, 0.005);

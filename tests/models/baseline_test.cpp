@@ -198,7 +198,7 @@ TEST(MapBaselineTest, IncrementAndStepInput) {
 
 struct CountRow {
   const char* type;
-  Index counts[3];  // d = 1, 10, 100 with widths 32, 64, 256 (PROTOCOL.md)
+  Index counts[3];  // d = 1, 10, 100 with widths 32, 64, 256 (docs/protocol.md, "Baselines")
 };
 
 TEST(ParameterCounts, MatchThePaperForEveryModelAndDimension) {

@@ -1,4 +1,4 @@
-// Synthetic data as fixed by PROTOCOL.md ("Data").
+// Synthetic data as fixed by docs/protocol.md ("Data generation", "Noise", "Test trajectories").
 #pragma once
 
 #include <vector>
@@ -31,7 +31,7 @@ PairSet generate_pairs(const System& sys, Index n, const StepSpec& steps, Rng& r
                        const ReferenceOptions& ref = {}, double box = 1.0);
 
 // Component-wise std (population, divide by m) of m clean snapshot pairs drawn like the
-// data: s0 from the starts, s1 from the ends (PROTOCOL.md: m = 1000).
+// data: s0 from the starts, s1 from the ends (docs/protocol.md, "Noise": m = 1000).
 struct NoiseScales {
   Vector s0;
   Vector s1;

@@ -1,4 +1,5 @@
-// Evaluation of a learned map against reference test trajectories (PROTOCOL.md, "Metrics").
+// Evaluation of a learned map against reference test trajectories (docs/protocol.md,
+// "Metrics").
 //
 //   L2 rollout error  E = ( Σ_m Σ_{n≥1} ‖z_m(t_n) − ẑ_m(t_n)‖² h_n )^{1/2}
 //   R(z)    = ‖DΦ̂ᵀ J DΦ̂ − λ* J‖_F,         λ* = exp(−γ h_test)

@@ -1,4 +1,5 @@
-// The paper's benchmark presets (PROTOCOL.md): system, data sizes, steps and architectures.
+// The paper's benchmark presets (docs/protocol.md, "Presets"): system, data sizes, steps and
+// architectures.
 #pragma once
 
 #include <string>
@@ -31,7 +32,7 @@ std::vector<std::string> preset_names();
 // Throws Error listing the valid names.
 Preset preset_by_name(const std::string& name);
 
-// The paper's recipe (PROTOCOL.md "Training"): AdamW lr 1e-3, weight decay 5e-4 on every
+// The paper's recipe (docs/protocol.md, "Training"): AdamW lr 1e-3, weight decay 5e-4 on every
 // parameter, constant rate, with the given epoch budget.
 TrainOptions paper_recipe(long epochs);
 // Names the recipe a TrainOptions amounts to: "paper" or "paper+<changes>".

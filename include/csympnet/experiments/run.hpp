@@ -23,12 +23,12 @@ struct RunConfig {
   Preset preset;                   // system, data sizes, architecture, default budget
   std::string model = "csympnet";  // one of model_types()
   std::uint64_t seed = 42;         // training seed: training/validation data and init
-  std::uint64_t test_seed = 0;     // data seed of the test trajectories (PROTOCOL: 0)
+  std::uint64_t test_seed = 0;     // data seed of the test trajectories (docs/protocol.md, "Seeds")
   double sigma = 0.0;              // relative observation noise on training/validation pairs
   TrainOptions train;              // epochs default to the preset's budget
   ReferenceOptions reference;      // reference solver for all data
   double beta_init = 0.1;          // CSympNet-ID, DHNN2, pHNN2: initial β (γ̂ = |β|), ≠ 0
-  OdeOptions ode;                  // rollout of the vector-field models (PROTOCOL.md)
+  OdeOptions ode;                  // vector-field rollout (docs/protocol.md, "Losses and rollout")
   // Second stage after AdamW for map models (default none: the paper's recipe). Written to
   // the config only when on, so the cache keys of existing runs do not change.
   RefineOptions refine;

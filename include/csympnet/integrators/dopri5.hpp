@@ -11,8 +11,8 @@
 namespace csympnet {
 
 struct OdeOptions {
-  double rtol = 1e-7;        // relative tolerance (PROTOCOL.md)
-  double atol = 1e-9;        // absolute tolerance (PROTOCOL.md)
+  double rtol = 1e-7;        // relative tolerance (docs/protocol.md, "Losses and rollout")
+  double atol = 1e-9;        // absolute tolerance (docs/protocol.md, "Losses and rollout")
   long max_steps = 1000000;  // accepted + rejected steps per call before giving up with Error
   void validate() const;
 };

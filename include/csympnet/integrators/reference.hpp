@@ -1,7 +1,8 @@
 // Reference solvers for the damped flow Φ_h of a System.
 //
-//   Splitting (default, PROTOCOL.md): n = ceil(h / h_ref) steps of δ = h / n of
-//     S_a ∘ SV_δ ∘ S_a, a = exp(−γδ/2), SV = kick δ/2, drift δ, kick δ/2.
+//   Splitting (default; docs/protocol.md, "Reference solutions"): n = ceil(h / h_ref) steps
+//     of δ = h / n of S_a ∘ SV_δ ∘ S_a,
+//     a = exp(−γδ/2), SV = kick δ/2, drift δ, kick δ/2.
 //   Expm: z(h) = exp(hA) z0, exact for linear systems (oscillator, chain).
 //   Rk: adaptive Runge–Kutta (Boost.Odeint, tight tolerances) for any system.
 #pragma once

@@ -1,4 +1,4 @@
-// MapBaseline (PROTOCOL.md, "Baselines"): an unstructured one-step map
+// MapBaseline (docs/protocol.md, "Baselines"): an unstructured one-step map
 //
 //   Φ̂_h(z) = z + MLP([z; h]),   MLP: (q, p, h) → w → w → 2d  (tanh hidden, linear output),
 //

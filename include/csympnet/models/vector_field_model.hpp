@@ -2,7 +2,7 @@
 // induced by integrating f (integrators/dopri5.hpp). Trained on the midpoint loss
 //   L(θ) = (1/N) Σ_i ‖(z1_i − z0_i)/h_i − f_θ((z0_i + z1_i)/2)‖²  (train/midpoint_loss.hpp).
 //
-// Models (PROTOCOL.md, "Baselines"): "ode" (MLP field), "dhnn" (J_θ∇H + ∇D), "dhnn2"
+// Models (docs/protocol.md, "Baselines"): "ode" (MLP field), "dhnn" (J_θ∇H + ∇D), "dhnn2"
 // (J_θ∇H + (0, −γ̂p)), "phnn" ((J_θ − LLᵀ)∇H), "phnn2" ((J_θ − γ̂ diag(0, I))∇H).
 #pragma once
 

@@ -1,4 +1,4 @@
-// The vector-field baselines of the paper (PROTOCOL.md, "Baselines"); built by
+// The vector-field baselines of the paper (docs/protocol.md, "Baselines"); built by
 // make_vector_field_model(). With n = 2d, w the width, H and D scalar MLPs n → w → w → 1:
 //
 //   "ode"    f = MLP(z), an MLP n → w → w → n

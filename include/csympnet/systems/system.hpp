@@ -1,7 +1,7 @@
 // Linearly damped separable Hamiltonian systems  dq/dt = ∂H/∂p,  dp/dt = -∂H/∂q - γ p,
 // with H(q, p) = ½‖p‖² + V(q).  State z = (q, p), q first.
 //
-// Kinds (PROTOCOL.md, "Systems"):
+// Kinds (docs/protocol.md, "Systems"):
 //   "oscillator"  V = ½ω²‖q‖²                                   (s1 with d = 1)
 //   "chain"       V = (k/2) Σ_{i<d} (q_{i+1} − q_i)², free ends  (s2, s2-100)
 //   "cubic"       V = ½ω²‖q‖² + α (Σ q_i)³                      (s3, s3-100)

@@ -1,5 +1,5 @@
 // The training objective of a model on its data: the one-step loss for map models, the
-// midpoint loss for vector-field models (PROTOCOL.md, "Losses and rollout").
+// midpoint loss for vector-field models (docs/protocol.md, "Losses and rollout").
 #pragma once
 
 #include <memory>

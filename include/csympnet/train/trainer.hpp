@@ -17,7 +17,7 @@ namespace csympnet {
 struct TrainOptions {
   long epochs = 20000;  // epoch budget (one full-batch AdamW step per epoch)
   long val_every = 10;  // evaluate the validation loss every this many epochs (and at the end)
-  AdamWOptions adamw;   // optimiser settings (PROTOCOL.md defaults)
+  AdamWOptions adamw;   // optimiser settings (defaults: docs/protocol.md, "Training")
   // Learning-rate schedule: "constant" (the paper's recipe) or "cosine", which anneals the
   // rate from adamw.lr to lr_final_fraction·adamw.lr over the budget (a switchable
   // improvement: it removes the late oscillation of a constant rate; docs/training.md).

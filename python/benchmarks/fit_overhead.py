@@ -38,7 +38,8 @@ def main():
         for r in range(args.repeats):
             out = tmp / f"cli{r}"
             t0 = time.perf_counter()
-            subprocess.run([args.cli, "fit", str(tmp / "s1.csv"), "--epochs", str(args.epochs),
+            subprocess.run([args.cli, "fit", str(tmp / "s1.csv"), "--recipe", "classic",
+                            "--epochs", str(args.epochs),
                             "--out", str(out), "-q"], check=True, capture_output=True)
             cli_wall.append(time.perf_counter() - t0)
             cli_train.append(json.loads((out / "report.json").read_text())["train_seconds"])

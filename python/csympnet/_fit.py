@@ -76,8 +76,10 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=True,
         refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, threads=1,
         progress=None, meta=None, _groups=None):
-    """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs: what `csympnet fit` does, with the
-    same defaults, so the same pairs and options give the same parameters to the bit.
+    """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs with the classic recipe: what
+    `csympnet fit --recipe classic` does, with the same defaults, so the same pairs and options
+    give the same parameters to the bit. For identification on your own data (any units, an
+    interval for every model size, a verdict) use `csympnet.identify`.
 
     z0, z1: states (N, 2d), N ≥ 2, rows (q1..qd, p1..pd); h: steps (N,) or one step for all.
     model: "csympnet" (CSympNet-ID, identifies γ̂) or "sympnet" (symplectic, no damping).
@@ -198,7 +200,7 @@ def _split_by_label(t, z, traj):
 def fit_trajectories(t, z, traj=None, model="csympnet", **options):
     """Fits from whole trajectories: consecutive states of each trajectory become pairs at
     whatever steps they have (h = t[n] − t[n−1]); no pair spans two trajectories. The same
-    pairs as `csympnet fit` makes from a trajectories CSV, in the same order.
+    pairs as `csympnet fit --recipe classic` makes from a trajectories CSV, in the same order.
 
     Accepted forms:
       - t (M,), z (M, 2d): one trajectory;

@@ -300,7 +300,9 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   const fs::path out(a.out);
   write_json_file((out / "report.json").string(), report);
   write_json_file((out / "timings.json").string(),
-                  {{"train_seconds", r.training.seconds}});
+                  {{"train_seconds", r.training.seconds},
+                   {"lm_seconds", r.lm_seconds},
+                   {"interval_seconds", r.interval_seconds}});
   save_model((out / "model.json").string(), r.model, r.theta,
              {{"data", a.data}, {"seed", a.seed}, {"recipe", "identify"}});
   if (r.identified) {

@@ -52,6 +52,10 @@ namespace {
 
 constexpr long kLmPatience = 100;
 
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 std::string fmt(double v) {
   std::ostringstream s;
   s.precision(4);
@@ -87,11 +91,18 @@ std::vector<Trajectory> make_blocks(const std::vector<Trajectory>& trajs, long t
   return out;
 }
 
+// LA(5, 20) for d = 1; for d > 1 LA(4, m) with m ≤ 10 sublayers, fewer when d is large, so
+// that the linear sublayers hold at most about 2,400 parameters: LM's normal matrix and the
+// interval need P × P doubles and a Cholesky factorisation per iteration.
 nlohmann::json default_core(Index d, bool varying_steps) {
   nlohmann::json core;
-  if (d == 1) core = {{"type", "la"}, {"layers", 5}, {"sublayers", 20}};
-  else if (d <= 20) core = {{"type", "la"}, {"layers", 4}, {"sublayers", 10}};
-  else core = {{"type", "la"}, {"layers", 4}, {"sublayers", 4}};
+  if (d == 1) {
+    core = {{"type", "la"}, {"layers", 5}, {"sublayers", 20}};
+  } else {
+    const Index per_sublayer = 4 * d * (d + 1) / 2;
+    const Index m = std::clamp<Index>(2400 / per_sublayer, 2, 10);
+    core = {{"type", "la"}, {"layers", 4}, {"sublayers", m}};
+  }
   if (varying_steps) core["step_terms"] = 2;
   return core;
 }
@@ -253,10 +264,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   // 4. AdamW on the window loss.
   // The AdamW budget by an estimate of an epoch's seconds (about 4 ns per sample, step and
-  // parameter on one core), about 15 s in all, between 300 and 50,000 epochs.
+  // parameter on one core), about 10 s in all, between 300 and 50,000 epochs.
   const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) *
                                static_cast<double>(m) * static_cast<double>(n_params);
-  if (c.epochs == 0) c.epochs = std::clamp<long>(std::lround(15.0 / epoch_seconds), 300, 50000);
+  if (c.epochs == 0) c.epochs = std::clamp<long>(std::lround(10.0 / epoch_seconds), 300, 50000);
   r.choices["epochs"] = c.epochs;
   stage("AdamW");
   {
@@ -288,17 +299,18 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   const bool lm_fits = n_params <= 6000;
   if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
   r.choices["lm_patience"] = kLmPatience;
-  // The LM budget by work: an estimate of one iteration's seconds (reverse passes for J, the
-  // Gram matrix, the factorisation), so that LM takes about 25 s at most on one core; a
-  // patience of 100 iterations without a better validation loss ends it sooner.
-  auto lm_budget = [&]() -> long {
+  // The LM budget by work: an estimate of one iteration's seconds on one core (a reverse pass
+  // per row of J and step, about 5 µs + 30 ns per parameter, measured on d = 1 and d = 2; the
+  // Gram matrix; the factorisation), so that LM takes about `target` seconds; a patience of
+  // 100 iterations without a better validation loss ends it sooner.
+  auto lm_budget = [&](double target) -> long {
     if (config.lm_iterations > 0) return config.lm_iterations;
     if (!lm_fits) return 0;
     const double rows = static_cast<double>(train.size() * dim);
     const double p_d = static_cast<double>(n_params);
-    const double seconds = 15e-9 * rows * static_cast<double>(m) * p_d +
+    const double seconds = rows * static_cast<double>(m) * (5e-6 + 30e-9 * p_d) +
                            rows * p_d * p_d / 3e10 + p_d * p_d * p_d / 3e10;
-    return std::clamp<long>(std::lround(25.0 / seconds), 5, 3000);
+    return std::clamp<long>(std::lround(target / seconds), 5, 3000);
   };
   auto run_lm = [&](long budget, const char* label) {
     if (r.stopped || r.training.stop_reason == "diverged" || budget <= 0) return;
@@ -323,6 +335,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       impatient = ++polls - best_it > kLmPatience;
       return impatient;
     };
+    const auto t0 = std::chrono::steady_clock::now();
     LmSettings ls;
     ls.max_iterations = budget;
     Vector th = r.theta, best = r.theta;
@@ -342,8 +355,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       rep.message = "no better validation loss in " + std::to_string(kLmPatience) + " iterations";
     r.lm = rep;
     r.lm_best_iteration = best_it;
+    r.lm_seconds += seconds_since(t0);
   };
-  c.lm_iterations = lm_budget();
+  c.lm_iterations = lm_budget(25.0);
   r.choices["lm_iterations"] = c.lm_iterations;
   run_lm(c.lm_iterations, "LM");
 
@@ -371,7 +385,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       r.choices["window_reason"] = "one-step residuals correlate negatively along trajectories "
                                    "(noise dominates misfit): windows of " +
                                    std::to_string(m) + " steps";
-      const long stage_b = lm_budget();
+      const long stage_b = lm_budget(15.0);
       r.choices["lm_iterations_windows"] = stage_b;
       run_lm(stage_b, "LM on longer windows (noise dominates)");
     } else {
@@ -393,6 +407,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   r.gamma = gamma_n / tau;
   if (!r.stopped && lm_fits && r.training.stop_reason != "diverged") {
     stage("interval");
+    const auto t_interval = std::chrono::steady_clock::now();
     const NormalEquations ne = window_normal_equations(map, r.theta, train, bal, scale, true);
     const Index bi = *map.damping_param_index();
     const double beta = r.theta(bi);
@@ -405,6 +420,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                       &s.optimisation, &s.rounding})
       *v /= tau;
     r.interval = s;
+    r.interval_seconds = seconds_since(t_interval);
   }
 
   // 7. Quality, in normalised units (where every coordinate counts alike).

@@ -87,6 +87,9 @@ struct IdentifyResult {
   nlohmann::json choices;  // what was chosen automatically, and why
   nlohmann::json data;     // a summary of the data: d, trajectories, samples, steps, blocks
   bool stopped = false;    // a stage was interrupted
+  // Wall times (not in the report, which stays the same run to run).
+  double lm_seconds = 0.0;
+  double interval_seconds = 0.0;
 };
 
 // `trajs`: the user's trajectories (a pairs file: one two-point trajectory per pair).

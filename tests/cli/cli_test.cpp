@@ -166,6 +166,11 @@ TEST_F(Cli, SavedModelRollsOutAndEvaluates) {
   r = run("rollout --model " + model + " --z0 0.5 --h 0.2 --steps 3");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("--z0"), std::string::npos) << r.err;
+  // A step far outside the training range overflows: an error naming the step, no nan rows.
+  r = run("rollout --model " + model + " --z0 0.5,-0.25 --h 1e300 --steps 3");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_EQ(r.out.find("nan"), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("not finite after step"), std::string::npos) << r.err;
   r = run("evaluate --model " + model + " --preset s1");
   ASSERT_EQ(r.code, 0) << r.err;
   // Same model, same test set: evaluate agrees with the run's own report bit for bit.

@@ -197,6 +197,28 @@ def _split_by_label(t, z, traj):
     return out
 
 
+def _as_trajectories(t, z, traj):
+    """The accepted trajectory forms (see fit_trajectories) as a list of (t, z) pairs."""
+    if isinstance(t, (list, tuple)) and isinstance(z, (list, tuple)):
+        if traj is not None:
+            raise ValueError("traj: not used when t and z are lists of trajectories")
+        if len(t) != len(z):
+            raise ValueError(f"t, z: {len(t)} time arrays but {len(z)} state arrays")
+        return list(zip(t, z))
+    elif np.ndim(z) == 3:
+        if traj is not None:
+            raise ValueError("traj: not used when z holds K trajectories as (K, M, 2d)")
+        za = np.asarray(z)
+        ta = np.broadcast_to(np.asarray(t), za.shape[:2]) if np.ndim(t) == 1 else np.asarray(t)
+        if ta.shape != za.shape[:2]:
+            raise ValueError(f"t: expected shape (M,) or {za.shape[:2]} for z of shape {za.shape}")
+        return list(zip(ta, za))
+    else:
+        zs, _ = _checks.states("z", z, allow_single=False)
+        ts = _checks.vector("t", t, length=zs.shape[0])
+        return [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
+
+
 def fit_trajectories(t, z, traj=None, model="csympnet", **options):
     """Fits from whole trajectories: consecutive states of each trajectory become pairs at
     whatever steps they have (h = t[n] − t[n−1]); no pair spans two trajectories. The same
@@ -210,24 +232,7 @@ def fit_trajectories(t, z, traj=None, model="csympnet", **options):
 
     options: those of `csympnet.fit` (epochs, core, seed, validation, ...).
     """
-    if isinstance(t, (list, tuple)) and isinstance(z, (list, tuple)):
-        if traj is not None:
-            raise ValueError("traj: not used when t and z are lists of trajectories")
-        if len(t) != len(z):
-            raise ValueError(f"t, z: {len(t)} time arrays but {len(z)} state arrays")
-        trajs = list(zip(t, z))
-    elif np.ndim(z) == 3:
-        if traj is not None:
-            raise ValueError("traj: not used when z holds K trajectories as (K, M, 2d)")
-        za = np.asarray(z)
-        ta = np.broadcast_to(np.asarray(t), za.shape[:2]) if np.ndim(t) == 1 else np.asarray(t)
-        if ta.shape != za.shape[:2]:
-            raise ValueError(f"t: expected shape (M,) or {za.shape[:2]} for z of shape {za.shape}")
-        trajs = list(zip(ta, za))
-    else:
-        zs, _ = _checks.states("z", z, allow_single=False)
-        ts = _checks.vector("t", t, length=zs.shape[0])
-        trajs = [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
+    trajs = _as_trajectories(t, z, traj)
     checked = trajectory_list(trajs, "trajectories")
     if sum(len(tr.t) - 1 for tr in checked) < 1:
         raise ValueError("t, z: the trajectories give no pairs; expected at least one with 2 rows")

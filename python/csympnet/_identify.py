@@ -6,7 +6,7 @@ import warnings
 import numpy as np
 
 from . import _checks, _core
-from ._fit import _core_spec, _progress, _split_by_label
+from ._fit import _as_trajectories, _core_spec, _progress
 from ._data import trajectory_list
 from ._model import Model
 
@@ -50,26 +50,6 @@ class Identification:
                 f"[{low:.6g}, {high:.6g}])")
 
 
-def _trajectories(t, z, traj):
-    if isinstance(t, (list, tuple)) and isinstance(z, (list, tuple)):
-        if traj is not None:
-            raise ValueError("traj: not used when t and z are lists of trajectories")
-        if len(t) != len(z):
-            raise ValueError(f"t, z: {len(t)} time arrays but {len(z)} state arrays")
-        return list(zip(t, z))
-    if np.ndim(z) == 3:
-        if traj is not None:
-            raise ValueError("traj: not used when z holds K trajectories as (K, M, 2d)")
-        za = np.asarray(z)
-        ta = np.broadcast_to(np.asarray(t), za.shape[:2]) if np.ndim(t) == 1 else np.asarray(t)
-        if ta.shape != za.shape[:2]:
-            raise ValueError(f"t: expected shape (M,) or {za.shape[:2]} for z of shape {za.shape}")
-        return list(zip(ta, za))
-    zs, _ = _checks.states("z", z, allow_single=False)
-    ts = _checks.vector("t", t, length=zs.shape[0])
-    return [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
-
-
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
@@ -105,7 +85,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     else:
         if t is None:
             raise ValueError("t: the sample times are needed with trajectories (identify(z, t))")
-        trajs = _trajectories(t, z, traj)
+        trajs = _as_trajectories(t, z, traj)
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")
     _checks.choice("loss", loss, ("balanced", "one-step"))

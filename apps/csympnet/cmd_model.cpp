@@ -150,9 +150,10 @@ void add_rollout(CLI::App& app) {
     for (Index n = 0; n < states.cols(); ++n)
       if (!states.col(n).allFinite())
         throw Error("rollout: the state is not finite after step " + std::to_string(n) +
-                    " (t = " + std::to_string(static_cast<double>(n) * *h) + "); expected a "
-                    "finite state: the model cannot be iterated at --h " + std::to_string(*h) +
-                    " from this --z0 (try a smaller step)");
+                    " (t = " + std::to_string(static_cast<double>(n) * *h) +
+                    "); expected a "
+                    "finite state: the model cannot be iterated at --h " +
+                    std::to_string(*h) + " from this --z0 (try a smaller step)");
     const Index d = saved.model.dim() / 2;
     std::string line = "t";
     for (Index i = 1; i <= d; ++i) line += ",q" + std::to_string(i);

@@ -6,17 +6,17 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <cstring>
-#include <vector>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <set>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
@@ -120,18 +120,17 @@ bool draw_figures(const Args& a) {
   pid_t pid = 0;
   const int err = posix_spawn(&pid, py.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  require(err == 0, "reproduce: could not start " + py + " " + script + ": " +
-                        std::strerror(err) + "; rerun with --no-figures to skip the figures");
+  require(err == 0, "reproduce: could not start " + py + " " + script + ": " + std::strerror(err) +
+                        "; rerun with --no-figures to skip the figures");
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
-    require(errno == EINTR, std::string("reproduce: waiting for the figure script: ") +
-                                std::strerror(errno));
+    require(errno == EINTR,
+            std::string("reproduce: waiting for the figure script: ") + std::strerror(errno));
   }
   if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return true;
   if (interrupted()) throw Interrupted("the figure script was stopped; the tables are in " + a.out);
-  const std::string how = WIFEXITED(status)
-                              ? "exit " + std::to_string(WEXITSTATUS(status))
-                              : "signal " + std::to_string(WTERMSIG(status));
+  const std::string how = WIFEXITED(status) ? "exit " + std::to_string(WEXITSTATUS(status))
+                                            : "signal " + std::to_string(WTERMSIG(status));
   throw Error("reproduce: the figure script " + script + " failed (" + how +
               "); the runs, summary and tables are written in " + a.out +
               "; rerun with --no-figures to skip the figures");

@@ -1,7 +1,7 @@
 // `train` and `fit`: learn a one-step map from a user's CSV (pairs or trajectories).
+#include <unistd.h>
 #include <chrono>
 #include <cstdio>
-#include <unistd.h>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -229,12 +229,13 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
-  for (const char* classic : {"--refine", "--refine-iterations", "--refine-solver", "--bootstrap",
-                              "--warm-start", "--val", "--beta-init", "--no-beta-decay",
-                              "--lr-schedule", "--val-every"})
+  for (const char* classic :
+       {"--refine", "--refine-iterations", "--refine-solver", "--bootstrap", "--warm-start",
+        "--val", "--beta-init", "--no-beta-decay", "--lr-schedule", "--val-every"})
     if (cmd.count(classic) > 0)
-      throw CLI::ValidationError(classic, "belongs to --recipe classic; the default recipe "
-                                          "chooses it itself (docs/identification.md)");
+      throw CLI::ValidationError(classic,
+                                 "belongs to --recipe classic; the default recipe "
+                                 "chooses it itself (docs/identification.md)");
   prepare_output_dir(a.out, a.force);
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
@@ -272,7 +273,8 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   hooks.should_stop = [] { return interrupted(); };
   const bool talk = !a.quiet;
   hooks.stage = [talk](const std::string& s) {
-    if (talk) std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
+    if (talk)
+      std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
   };
   // LM: one line a second at most (on a terminal, redrawn in place), and the last one.
   auto last = std::make_shared<std::chrono::steady_clock::time_point>();
@@ -282,8 +284,8 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     const auto now = std::chrono::steady_clock::now();
     if (it < budget && now - *last < std::chrono::seconds(1)) return;
     *last = now;
-    std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "",
-                 it, budget, val, tty ? "" : "\n");
+    std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "", it,
+                 budget, val, tty ? "" : "\n");
   };
   IdentifyResult r;
   {
@@ -299,17 +301,16 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   report["data"]["file"] = a.data;
   const fs::path out(a.out);
   write_json_file((out / "report.json").string(), report);
-  write_json_file((out / "timings.json").string(),
-                  {{"train_seconds", r.training.seconds},
-                   {"lm_seconds", r.lm_seconds},
-                   {"interval_seconds", r.interval_seconds}});
+  write_json_file((out / "timings.json").string(), {{"train_seconds", r.training.seconds},
+                                                    {"lm_seconds", r.lm_seconds},
+                                                    {"interval_seconds", r.interval_seconds}});
   save_model((out / "model.json").string(), r.model, r.theta,
              {{"data", a.data}, {"seed", a.seed}, {"recipe", "identify"}});
   if (r.identified) {
     const SandwichInterval& s = *r.interval;
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% interval, %s, %ld blocks)\n",
-                r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level,
-                s.method.c_str(), s.blocks);
+                r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level, s.method.c_str(),
+                s.blocks);
   } else {
     std::printf("gamma_hat: not identified\n");
   }
@@ -321,10 +322,11 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     std::printf("%s\n", r.training.brief_report().c_str());
     std::printf("LM: %ld iterations (%ld accepted), kept iterate %ld: %s\n", r.lm.iterations,
                 r.lm.accepted, r.lm_best_iteration, r.lm.message.c_str());
-    std::printf("train loss %.3e, validation loss %.3e, unexplained share of a window %.2e, "
-                "structure residual max %.2e\n",
-                r.quality.train_loss, r.quality.val_loss, r.quality.val_relative_residual,
-                r.quality.structure_residual_max);
+    std::printf(
+        "train loss %.3e, validation loss %.3e, unexplained share of a window %.2e, "
+        "structure residual max %.2e\n",
+        r.quality.train_loss, r.quality.val_loss, r.quality.val_relative_residual,
+        r.quality.structure_residual_max);
     std::printf("wrote %s/{report.json,model.json,timings.json}\n", a.out.c_str());
   }
   if (r.stopped)

@@ -22,7 +22,8 @@ void Normalization::validate(const std::string& where) const {
   for (Index i = 1; i < n; ++i)
     require(std::abs(q_scale(i) * p_scale(i) - c) <= 1e-12 * c,
             where + ": q_scale[i] * p_scale[i] must be the same for every i (entry " +
-                std::to_string(i + 1) + " differs), or the map would not stay conformally "
+                std::to_string(i + 1) +
+                " differs), or the map would not stay conformally "
                 "symplectic");
 }
 
@@ -122,10 +123,12 @@ Normalization from_states(const Matrix& z, const std::vector<double>& steps) {
     // The spread of p about its mean; p itself is not shifted (the damping pulls p to 0).
     sp(i) = std::sqrt((z.row(d + i).array() - mp).square().sum() / m);
     const std::string dof = std::to_string(i + 1);
-    require(sq(i) > 0.0 && std::isfinite(sq(i)),
-            "normalization: q" + dof + " does not vary in the data; expected every coordinate to vary");
-    require(sp(i) > 0.0 && std::isfinite(sp(i)),
-            "normalization: p" + dof + " does not vary in the data; expected every coordinate to vary");
+    require(
+        sq(i) > 0.0 && std::isfinite(sq(i)),
+        "normalization: q" + dof + " does not vary in the data; expected every coordinate to vary");
+    require(
+        sp(i) > 0.0 && std::isfinite(sp(i)),
+        "normalization: p" + dof + " does not vary in the data; expected every coordinate to vary");
   }
   // c = geometric mean of σ_q σ_p, in logs (no overflow for spreads of 1e±150).
   double log_c = 0.0;

@@ -17,8 +17,8 @@
 namespace csympnet {
 
 void IdentifyConfig::validate() const {
-  require(window >= 0 && window <= 64, "--window must be in [0, 64] (0: automatic), got " +
-                                           std::to_string(window));
+  require(window >= 0 && window <= 64,
+          "--window must be in [0, 64] (0: automatic), got " + std::to_string(window));
   require(epochs >= 0, "--epochs must be >= 0 (0: automatic)");
   require(lm_iterations >= 0, "--lm-iterations must be >= 0 (0: automatic)");
   require(std::isfinite(lr) && lr > 0.0 && lr <= 10.0, "--lr must be in (0, 10]");
@@ -32,12 +32,18 @@ void IdentifyConfig::validate() const {
 }
 
 void to_json(nlohmann::json& j, const IdentifyConfig& c) {
-  j = {{"core", c.core},         {"seed", c.seed},
-       {"window", c.window},     {"balanced", c.balanced},
-       {"normalize", c.normalize}, {"epochs", c.epochs},
-       {"lr", c.lr},             {"lm_iterations", c.lm_iterations},
-       {"val_fraction", c.val_fraction}, {"target_blocks", c.target_blocks},
-       {"level", c.level}, {"dof_scales", c.dof_scales}};
+  j = {{"core", c.core},
+       {"seed", c.seed},
+       {"window", c.window},
+       {"balanced", c.balanced},
+       {"normalize", c.normalize},
+       {"epochs", c.epochs},
+       {"lr", c.lr},
+       {"lm_iterations", c.lm_iterations},
+       {"val_fraction", c.val_fraction},
+       {"target_blocks", c.target_blocks},
+       {"level", c.level},
+       {"dof_scales", c.dof_scales}};
 }
 
 void to_json(nlohmann::json& j, const IdentifyQuality& q) {
@@ -159,9 +165,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
             {"h_median", sorted[sorted.size() / 2]}};
 
   // 1. Units and offsets.
-  r.normalization = config.normalize ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
-                                                   : fit_normalization(trajs))
-                                     : identity_normalization(d);
+  r.normalization = config.normalize
+                        ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
+                                      : fit_normalization(trajs))
+                        : identity_normalization(d);
   const std::vector<Trajectory> nt = normalize(r.normalization, trajs);
 
   // 2. Window length and blocks.
@@ -184,10 +191,12 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     blocks = make_blocks(nt, config.target_blocks, std::max<Index>(2 * m, 6));
   }
   const Index n_blocks = static_cast<Index>(blocks.size());
-  require(n_blocks >= 3, "fit: need at least 3 blocks to validate and to estimate an interval; "
-                         "the data give " + std::to_string(n_blocks) +
-                         " (give more trajectories, or a longer one)");
-  Index n_val = static_cast<Index>(std::llround(config.val_fraction * static_cast<double>(n_blocks)));
+  require(n_blocks >= 3,
+          "fit: need at least 3 blocks to validate and to estimate an interval; "
+          "the data give " +
+              std::to_string(n_blocks) + " (give more trajectories, or a longer one)");
+  Index n_val =
+      static_cast<Index>(std::llround(config.val_fraction * static_cast<double>(n_blocks)));
   n_val = std::clamp<Index>(n_val, 1, n_blocks - 2);
   std::vector<Index> order(static_cast<std::size_t>(n_blocks));
   std::iota(order.begin(), order.end(), Index{0});
@@ -222,18 +231,17 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   IdentifyConfig& c = r.config;
   if (c.core.is_null()) c.core = default_core(d, varying);
   r.choices["core"] = c.core;
-  r.choices["core_reason"] =
-      config.core.is_null()
-          ? std::string("by dimension") + (varying ? "; step polynomials because the steps vary"
-                                                   : "")
-          : "given";
+  r.choices["core_reason"] = config.core.is_null()
+                                 ? std::string("by dimension") +
+                                       (varying ? "; step polynomials because the steps vary" : "")
+                                 : "given";
   r.choices["blocks"] = {{"total", n_blocks},
                          {"train", static_cast<long>(train_ids.size())},
                          {"validation", n_val},
                          {"kind", pairs_only ? "pairs"
-                                  : (static_cast<long>(nt.size()) >= config.target_blocks
-                                         ? "trajectories"
-                                         : "segments of trajectories")}};
+                                             : (static_cast<long>(nt.size()) >= config.target_blocks
+                                                    ? "trajectories"
+                                                    : "segments of trajectories")}};
 
   stage("warm start");
   nlohmann::json spec = {{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}};
@@ -265,8 +273,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // 4. AdamW on the window loss.
   // The AdamW budget by an estimate of an epoch's seconds (about 4 ns per sample, step and
   // parameter on one core), about 10 s in all, between 300 and 50,000 epochs.
-  const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) *
-                               static_cast<double>(m) * static_cast<double>(n_params);
+  const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) * static_cast<double>(m) *
+                               static_cast<double>(n_params);
   if (c.epochs == 0) c.epochs = std::clamp<long>(std::lround(10.0 / epoch_seconds), 300, 50000);
   r.choices["epochs"] = c.epochs;
   stage("AdamW");
@@ -372,8 +380,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     for (Index i = 0; i < train.size(); ++i) {
       const auto ri = res.segment(i * dim, dim);
       den += ri.squaredNorm();
-      if (i + 1 < train.size() && train.block[static_cast<std::size_t>(i)] ==
-                                      train.block[static_cast<std::size_t>(i + 1)])
+      if (i + 1 < train.size() &&
+          train.block[static_cast<std::size_t>(i)] == train.block[static_cast<std::size_t>(i + 1)])
         num += ri.dot(res.segment((i + 1) * dim, dim));
     }
     const double rho = den > 0.0 ? num / den : 0.0;
@@ -382,15 +390,17 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       m = m_long;
       train = windows_from_trajectories(train_blocks, m);
       val = windows_of(val_blocks, m);
-      r.choices["window_reason"] = "one-step residuals correlate negatively along trajectories "
-                                   "(noise dominates misfit): windows of " +
-                                   std::to_string(m) + " steps";
+      r.choices["window_reason"] =
+          "one-step residuals correlate negatively along trajectories "
+          "(noise dominates misfit): windows of " +
+          std::to_string(m) + " steps";
       const long stage_b = lm_budget(15.0);
       r.choices["lm_iterations_windows"] = stage_b;
       run_lm(stage_b, "LM on longer windows (noise dominates)");
     } else {
-      r.choices["window_reason"] = "one-step residuals correlate positively along trajectories "
-                                   "(misfit dominates noise): one-step windows";
+      r.choices["window_reason"] =
+          "one-step residuals correlate positively along trajectories "
+          "(misfit dominates noise): one-step windows";
     }
   } else {
     r.choices["window_reason"] = config.window > 0 ? "given"
@@ -413,9 +423,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     const double beta = r.theta(bi);
     double data_scale = 0.0;
     for (const Trajectory& t : nt) data_scale = std::max(data_scale, t.z.cwiseAbs().maxCoeff());
-    SandwichInterval s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n,
-                                           beta >= 0.0 ? 1.0 : -1.0, train.size() * dim,
-                                           ne.cost, scale, data_scale, c.level);
+    SandwichInterval s =
+        sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, beta >= 0.0 ? 1.0 : -1.0,
+                          train.size() * dim, ne.cost, scale, data_scale, c.level);
     for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
                       &s.optimisation, &s.rounding})
       *v /= tau;
@@ -482,16 +492,18 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // Not the estimate itself (a fit can collapse to γ̂ ≈ 0): the largest rate the interval
   // allows, over the longest step.
   if (r.interval && std::isfinite(r.interval->high) && r.interval->high * h_max < 1e-13)
-    reason("even the interval's upper end gives e^(-gamma h) = 1 to 13 digits at every step: "
-           "damping that weak is invisible in these data");
+    reason(
+        "even the interval's upper end gives e^(-gamma h) = 1 to 13 digits at every step: "
+        "damping that weak is invisible in these data");
   if ((train.zm - train.z0).norm() == 0.0)
     reason("the states do not change over any step: there is no motion to learn from");
   else if (r.quality.val_relative_residual > 0.9)
-    reason("the model explains less than 10% of the motion over a window on held-out data "
-           "(unexplained share " + fmt(r.quality.val_relative_residual) + ")");
+    reason(
+        "the model explains less than 10% of the motion over a window on held-out data "
+        "(unexplained share " +
+        fmt(r.quality.val_relative_residual) + ")");
   if (r.quality.null_ratio > 0.5)
-    reason("on held-out data the model predicts only " +
-           fmt(100.0 * (1.0 - r.quality.null_ratio)) +
+    reason("on held-out data the model predicts only " + fmt(100.0 * (1.0 - r.quality.null_ratio)) +
            "% better than a pure contraction towards a fixed point: it has learned no dynamics "
            "to tell damping from");
   if (r.quality.val_loss > 10.0 * r.quality.train_loss && r.quality.val_loss > 1e-20)

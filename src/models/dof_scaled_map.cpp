@@ -54,8 +54,8 @@ void DofScaledMap::backward(ConstParams theta, const ForwardCache& cache, const 
   inner_->backward(theta.head(pin), cache, up, grad.head(pin), &dzs);
   // z'_p = μ z_p: ∂/∂ν_i of z'_p,i = z'_p,i.
   for (Index i = 1; i < d_; ++i)
-    grad(pin + i - 1) += dzs.row(d_ + i).dot(cache.outer[0].row(i)) -
-                         dZout.row(d_ + i).dot(cache.outer[1].row(i));
+    grad(pin + i - 1) +=
+        dzs.row(d_ + i).dot(cache.outer[0].row(i)) - dZout.row(d_ + i).dot(cache.outer[1].row(i));
   if (dZin != nullptr) {
     *dZin = dzs;
     dZin->bottomRows(d_) = mu.asDiagonal() * dzs.bottomRows(d_);

@@ -29,7 +29,9 @@ void to_json(nlohmann::json& j, const SandwichInterval& s) {
 namespace {
 
 // The standard normal CDF.
-double normal_cdf(double x) { return 0.5 * std::erfc(-x / std::sqrt(2.0)); }
+double normal_cdf(double x) {
+  return 0.5 * std::erfc(-x / std::sqrt(2.0));
+}
 
 // Student's t CDF for x ≥ 0 by composite Simpson on its density (x ≤ 1e3 here).
 double t_cdf_positive(double x, double dof) {

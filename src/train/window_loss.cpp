@@ -128,8 +128,8 @@ Matrix roll(const OneStepMap& map, ConstParams theta, const WindowSet& w, Index 
   Vector h(count);
   for (Index k = 0; k < w.m; ++k) {
     h = w.h.row(k).segment(first, count).transpose();
-    z = map.forward(theta, z, h, caches != nullptr ? &(*caches)[static_cast<std::size_t>(k)]
-                                                   : nullptr);
+    z = map.forward(theta, z, h,
+                    caches != nullptr ? &(*caches)[static_cast<std::size_t>(k)] : nullptr);
   }
   return z;
 }

@@ -370,9 +370,10 @@ TEST_F(Cli, ReproduceFigureStepRunsNoShellAndFailsLoudly) {
       << R"({"name": "tiny", "kind": "table", "columns": ["params"], "presets": ["s1"],
              "models": ["csympnet"], "seeds": [42], "epochs": {"*": {"*": 5}}})";
   // A stand-in figure script: records the argument it got, in the directory it names.
-  const fs::path script = write("figures.py",
-                                "import sys, pathlib\n"
-                                "pathlib.Path(sys.argv[1], 'figure-arg.txt').write_text(sys.argv[1])\n");
+  const fs::path script =
+      write("figures.py",
+            "import sys, pathlib\n"
+            "pathlib.Path(sys.argv[1], 'figure-arg.txt').write_text(sys.argv[1])\n");
   const fs::path failing = write("failing.py", "import sys\nsys.exit(3)\n");
   const fs::path injected = dir_ / "INJECTED";
   const std::string hostile = (dir_ / "x';touch ").string() + injected.string() + ";'bob's run";
@@ -384,8 +385,8 @@ TEST_F(Cli, ReproduceFigureStepRunsNoShellAndFailsLoudly) {
   EXPECT_FALSE(fs::exists(injected)) << "a shell ran part of --out";
   EXPECT_EQ(slurp(fs::path(hostile) / "figure-arg.txt"), hostile);
 
-  r = run("--version >/dev/null; CSYMPNET_FIGURES_SCRIPT=" + sh_quote(failing.string()) +
-          " " + std::string(CSYMPNET_CLI_PATH) + " " + common);
+  r = run("--version >/dev/null; CSYMPNET_FIGURES_SCRIPT=" + sh_quote(failing.string()) + " " +
+          std::string(CSYMPNET_CLI_PATH) + " " + common);
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_NE(r.err.find("figure script"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("exit 3"), std::string::npos) << r.err;

@@ -95,8 +95,8 @@ TEST(FitCli, ClassicRecipeDefaults) {
   const fs::path stdout_file = dir.path() / "stdout.txt";
   const std::string cli = CSYMPNET_CLI_PATH;
   ASSERT_EQ(shell(cli + " fit " + data.string() + " --out " + (dir.path() / "fit").string() +
-                  " --recipe classic --epochs 200 --refine-iterations 5 -q > " + stdout_file.string() +
-                  " 2>&1"),
+                  " --recipe classic --epochs 200 --refine-iterations 5 -q > " +
+                  stdout_file.string() + " 2>&1"),
             0)
       << slurp(stdout_file);
   EXPECT_NE(slurp(stdout_file).find(" ± "), std::string::npos) << slurp(stdout_file);
@@ -118,10 +118,11 @@ TEST(FitCli, ClassicRecipeDefaults) {
 
   // Above 1000 parameters the default takes no interval, and says so; --no-warm-start and
   // --refine none switch the rest off.
-  ASSERT_EQ(shell(cli + " fit " + data.string() + " --out " + (dir.path() / "big").string() +
-                  " --recipe classic --core la:3:400 --epochs 20 --refine none --no-warm-start -q > " +
-                  stdout_file.string() + " 2>&1"),
-            0)
+  ASSERT_EQ(
+      shell(cli + " fit " + data.string() + " --out " + (dir.path() / "big").string() +
+            " --recipe classic --core la:3:400 --epochs 20 --refine none --no-warm-start -q > " +
+            stdout_file.string() + " 2>&1"),
+      0)
       << slurp(stdout_file);
   const std::string printed = slurp(stdout_file);
   EXPECT_NE(printed.find("no interval by default for 1209 parameters"), std::string::npos)
@@ -158,10 +159,10 @@ TEST(FitCli, IdentifyRecipeWritesAVerdictAndAnInterval) {
   const fs::path data = dir.path() / "traj.csv", out = dir.path() / "fit";
   write_trajectories_csv(data.string(), oscillator_trajectories());
   const fs::path stdout_file = dir.path() / "stdout.txt";
-  ASSERT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                  out.string() + " --epochs 300 --lm-iterations 30 -q > " +
-                  stdout_file.string() + " 2>&1"),
-            0)
+  ASSERT_EQ(
+      shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " + out.string() +
+            " --epochs 300 --lm-iterations 30 -q > " + stdout_file.string() + " 2>&1"),
+      0)
       << slurp(stdout_file);
   const std::string printed = slurp(stdout_file);
   EXPECT_EQ(printed.rfind("gamma_hat = ", 0), 0u) << printed;
@@ -174,8 +175,7 @@ TEST(FitCli, IdentifyRecipeWritesAVerdictAndAnInterval) {
   EXPECT_EQ(rep["gamma_ci_method"], "cluster-robust sandwich over blocks");
   // Steps vary: the core gets step polynomials, and the choice is recorded with its reason.
   EXPECT_EQ(rep["choices"]["core"]["step_terms"], 2);
-  EXPECT_NE(rep["choices"]["core_reason"].get<std::string>().find("steps vary"),
-            std::string::npos);
+  EXPECT_NE(rep["choices"]["core_reason"].get<std::string>().find("steps vary"), std::string::npos);
   EXPECT_EQ(rep["choices"]["blocks"]["kind"], "segments of trajectories");
   EXPECT_LT(rep["quality"]["structure_residual_max"].get<double>(), 1e-12);
   EXPECT_TRUE(rep["normalization"]["time_scale"].is_number());
@@ -195,9 +195,9 @@ TEST(FitCli, NotIdentifiedIsADistinctExitWithTheReasonInTheReport) {
   noise[0].t = Vector::LinSpaced(120, 0.0, 11.9);
   write_trajectories_csv(data.string(), noise);
   const fs::path stdout_file = dir.path() / "stdout.txt";
-  const int code = shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                         out.string() + " --epochs 200 --lm-iterations 10 -q > " +
-                         stdout_file.string() + " 2>&1");
+  const int code =
+      shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " + out.string() +
+            " --epochs 200 --lm-iterations 10 -q > " + stdout_file.string() + " 2>&1");
   EXPECT_EQ(code, 4) << slurp(stdout_file);
   const std::string printed = slurp(stdout_file);
   EXPECT_NE(printed.find("gamma_hat: not identified"), std::string::npos) << printed;

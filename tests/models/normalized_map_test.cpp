@@ -57,8 +57,8 @@ TEST(NormalizedMap, IsExactlyConformallySymplecticInTheUsersUnits) {
       EXPECT_LE((jac.transpose() * jj * jac - lambda * jj).norm(),
                 1e-13 * std::max(1.0, jac.squaredNorm()))
           << s;
-      EXPECT_NEAR(*map->damping_rate(theta), std::abs(theta(*map->damping_param_index())) /
-                                                 n.time_scale,
+      EXPECT_NEAR(*map->damping_rate(theta),
+                  std::abs(theta(*map->damping_param_index())) / n.time_scale,
                   1e-15 * *map->damping_rate(theta));
     }
   }

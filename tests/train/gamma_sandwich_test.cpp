@@ -61,9 +61,9 @@ TEST(Sandwich, CoversAtItsLevelUnderBlockCorrelation) {
     a = x.transpose() * x;
     g = x.transpose() * r;
     for (std::size_t i = 0; i < xs.size(); ++i) scores.col(bs[i]) += x.row(i).transpose() * r(i);
-    const SandwichInterval s = sandwich_interval(
-        a, g, scores, 1, theta(1), 1.0, static_cast<Index>(xs.size()), 0.5 * r.squaredNorm(),
-        1.0, 1.0, 0.95);
+    const SandwichInterval s =
+        sandwich_interval(a, g, scores, 1, theta(1), 1.0, static_cast<Index>(xs.size()),
+                          0.5 * r.squaredNorm(), 1.0, 1.0, 0.95);
     covered += s.low <= slope && slope <= s.high;
     const double half_model = s.quantile * s.model_based;
     covered_model += std::abs(theta(1) - slope) <= half_model;

@@ -77,8 +77,7 @@ TEST_P(WindowLossTest, JacobianRowsMatchFiniteDifferencesAndTheGradient) {
   // dL/dθ = (2/N) Jᵀ r, the batched reverse pass being an independent path.
   Vector grad;
   window_loss(*map, theta, w, c.balanced, &grad);
-  const Vector from_jac =
-      (2.0 / static_cast<double>(w.size())) * jac(theta).transpose() * r(theta);
+  const Vector from_jac = (2.0 / static_cast<double>(w.size())) * jac(theta).transpose() * r(theta);
   EXPECT_LE((grad - from_jac).norm(), 1e-12 * (1.0 + grad.norm()));
 }
 
@@ -117,10 +116,14 @@ INSTANTIATE_TEST_SUITE_P(
     Maps, WindowLossTest,
     ::testing::Values(
         Case{R"({"type":"csympnet","d":1,"core":{"type":"la","layers":3,"sublayers":4}})", 1, true},
-        Case{R"({"type":"csympnet","d":1,"core":{"type":"la","layers":3,"sublayers":4,"step_terms":2}})", 3, true},
+        Case{
+            R"({"type":"csympnet","d":1,"core":{"type":"la","layers":3,"sublayers":4,"step_terms":2}})",
+            3, true},
         Case{R"({"type":"csympnet","d":2,"core":{"type":"g","layers":3,"width":5}})", 2, true},
-        Case{R"({"type":"csympnet","d":2,"core":{"type":"la","layers":2,"sublayers":3}})", 4, false},
-        Case{R"({"type":"sympnet","d":1,"core":{"type":"la","layers":2,"sublayers":3}})", 2, true}));
+        Case{R"({"type":"csympnet","d":2,"core":{"type":"la","layers":2,"sublayers":3}})", 4,
+             false},
+        Case{R"({"type":"sympnet","d":1,"core":{"type":"la","layers":2,"sublayers":3}})", 2,
+             true}));
 
 TEST(WindowLoss, OneStepUnbalancedIsTheOneStepLoss) {
   const auto map = make_one_step_map(nlohmann::json::parse(
@@ -143,8 +146,8 @@ TEST(WindowLoss, BalancedResidualIsTheMismatchInTheMiddleOfTheMap) {
   // For one step of CSympNet-ID, W r = S_a⁻¹(Φ̂(z0) − z1) = Ψ(S_a z0) − S_a⁻¹ z1.
   const auto map = make_one_step_map(nlohmann::json::parse(
       R"({"type":"csympnet","d":1,"core":{"type":"la","layers":2,"sublayers":3}})"));
-  const auto core = make_one_step_map(
-      nlohmann::json::parse(R"({"type":"la","d":1,"layers":2,"sublayers":3})"));
+  const auto core =
+      make_one_step_map(nlohmann::json::parse(R"({"type":"la","d":1,"layers":2,"sublayers":3})"));
   Rng rng(25, "middle");
   const Vector theta = random_theta(*map, rng, 0.3, -0.8);
   PairSet p;

@@ -29,7 +29,7 @@ struct Normalization {
   // Throws Error (prefixed by `where`) unless all scales are positive and finite, the shifts
   // finite, and α_i β_i equal to within 1e-12 relative for every i.
   void validate(const std::string& where = "normalization") const;
-  Matrix to_normal(const Matrix& z) const;    // 2d × N, user units → normalised
+  Matrix to_normal(const Matrix& z) const;     // 2d × N, user units → normalised
   Matrix from_normal(const Matrix& zn) const;  // the inverse
   // The diagonal of N⁻¹ (α then β), 2d: user-unit change per normalised unit.
   Vector unit() const;

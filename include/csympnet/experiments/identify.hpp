@@ -30,20 +30,20 @@
 namespace csympnet {
 
 struct IdentifyConfig {
-  nlohmann::json core;           // null: by dimension, with step polynomials when steps vary
-  std::uint64_t seed = 42;       // blocks held out, initialisation
-  long window = 0;               // steps per window; 0: automatic (1 for pairs, else ≤ 4)
-  bool balanced = true;          // balanced residuals (false: the plain one-step residuals)
-  bool normalize = true;         // remove units and offsets first
+  nlohmann::json core;      // null: by dimension, with step polynomials when steps vary
+  std::uint64_t seed = 42;  // blocks held out, initialisation
+  long window = 0;          // steps per window; 0: automatic (1 for pairs, else ≤ 4)
+  bool balanced = true;     // balanced residuals (false: the plain one-step residuals)
+  bool normalize = true;    // remove units and offsets first
   // Per-dof momentum scales as parameters (models/dof_scaled_map.hpp), for velocities or
   // per-dof units of p: "auto" (learned when d > 1), "learned" or "fixed".
   std::string dof_scales = "auto";
-  long epochs = 0;               // AdamW budget; 0: scaled to the data
+  long epochs = 0;  // AdamW budget; 0: scaled to the data
   double lr = 1e-3;
-  long lm_iterations = 0;        // LM budget; 0: scaled to the work per iteration
-  double val_fraction = 0.2;     // share of blocks held out
-  long target_blocks = 20;       // a long trajectory is cut into about this many segments
-  double level = 0.95;           // interval level
+  long lm_iterations = 0;     // LM budget; 0: scaled to the work per iteration
+  double val_fraction = 0.2;  // share of blocks held out
+  long target_blocks = 20;    // a long trajectory is cut into about this many segments
+  double level = 0.95;        // interval level
   int threads = 1;
   void validate() const;
 };
@@ -65,7 +65,7 @@ struct IdentifyQuality {
   double val_relative_residual = 0.0;  // ‖Φ̂ᵐ(z0) − zm‖ / ‖zm − z0‖ on validation windows
   // Held-out squared error of the model over that of the best pure contraction zm ≈ c z0 + b.
   double null_ratio = 0.0;
-  double structure_residual_max = 0.0; // self residual of DΦ̂ at validation starts
+  double structure_residual_max = 0.0;  // self residual of DΦ̂ at validation starts
 };
 void to_json(nlohmann::json& j, const IdentifyQuality& q);
 
@@ -73,7 +73,7 @@ struct IdentifyResult {
   Model model;  // in the user's units: carries the normalisation
   Vector theta;
   Normalization normalization;
-  double gamma = 0.0;  // γ̂ in the user's time units
+  double gamma = 0.0;                        // γ̂ in the user's time units
   std::optional<SandwichInterval> interval;  // in the user's time units
   bool identified = false;
   std::vector<std::string> reasons;  // why not, when not
@@ -83,7 +83,7 @@ struct IdentifyResult {
   LmReport lm;
   long lm_best_iteration = 0;
   IdentifyQuality quality;
-  IdentifyConfig config;  // with every automatic choice resolved
+  IdentifyConfig config;   // with every automatic choice resolved
   nlohmann::json choices;  // what was chosen automatically, and why
   nlohmann::json data;     // a summary of the data: d, trajectories, samples, steps, blocks
   bool stopped = false;    // a stage was interrupted

@@ -27,17 +27,17 @@
 namespace csympnet {
 
 struct SandwichInterval {
-  double gamma = 0.0;       // γ̂
+  double gamma = 0.0;  // γ̂
   double low = 0.0;
   double high = 0.0;
   double level = 0.95;
-  double std_error = 0.0;   // the total standard error (all components)
-  double sandwich = 0.0;    // √ of the block variance alone
-  double model_based = 0.0; // the classical σ̂ √(u_β) (independent residuals): reported only
+  double std_error = 0.0;     // the total standard error (all components)
+  double sandwich = 0.0;      // √ of the block variance alone
+  double model_based = 0.0;   // the classical σ̂ √(u_β) (independent residuals): reported only
   double optimisation = 0.0;  // |uᵀ g|: how far the unfinished Newton step would move γ̂
-  double rounding = 0.0;    // the data's rounding, propagated
-  double dof = 0.0;         // degrees of freedom of the t quantile
-  double quantile = 0.0;    // t_{dof}((1 + level)/2)
+  double rounding = 0.0;      // the data's rounding, propagated
+  double dof = 0.0;           // degrees of freedom of the t quantile
+  double quantile = 0.0;      // t_{dof}((1 + level)/2)
   long blocks = 0;
   double regularisation_ratio = 1.0;  // std error at 100 μ over that at μ
   bool stable = true;

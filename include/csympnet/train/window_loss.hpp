@@ -27,11 +27,11 @@
 namespace csympnet {
 
 struct WindowSet {
-  Index m = 1;                // steps per window
-  Matrix z0;                  // 2d × N observed start states
-  Matrix zm;                  // 2d × N observed end states, m steps later
-  Matrix h;                   // m × N: row k holds step k of every window
-  std::vector<Index> block;   // resampling block of each window (a trajectory or a segment)
+  Index m = 1;               // steps per window
+  Matrix z0;                 // 2d × N observed start states
+  Matrix zm;                 // 2d × N observed end states, m steps later
+  Matrix h;                  // m × N: row k holds step k of every window
+  std::vector<Index> block;  // resampling block of each window (a trajectory or a segment)
   Index size() const { return z0.cols(); }
   Index dim() const { return z0.rows(); }
   // Total time H_i of each window.
@@ -71,8 +71,8 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
 // score s_b = Σ_{i ∈ b} J_iᵀ r_i (columns of `scores`, blocks numbered as in w.block, which
 // must then be 0 … B − 1). All with r and J scaled by `scale` (1/√N makes ½‖r‖² = L/2).
 struct NormalEquations {
-  Matrix a;       // P × P, lower triangle
-  Vector g;       // P
+  Matrix a;  // P × P, lower triangle
+  Vector g;  // P
   double cost = 0.0;
   Matrix scores;  // P × B when asked for, else empty
 };

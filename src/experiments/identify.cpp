@@ -114,8 +114,7 @@ nlohmann::json default_core(Index d, bool varying_steps) {
 }
 
 PairSet pairs_of(const WindowSet& w) {
-  // The first step of every window, as a pair set, for the closed-form warm start: only
-  // meaningful for one-step windows, so it is built from them.
+  // One-step windows as a pair set, for the closed-form warm start.
   PairSet p;
   p.z0 = w.z0;
   p.z1 = w.zm;

@@ -23,7 +23,17 @@ void to_json(nlohmann::json& j, const SandwichInterval& s) {
        {"blocks", s.blocks},
        {"regularisation_ratio", s.regularisation_ratio},
        {"stable", s.stable},
+       {"heldout_inflation", s.heldout_inflation},
        {"method", s.method}};
+}
+
+void inflate_interval(SandwichInterval& s, double factor) {
+  require(std::isfinite(factor) && factor >= 1.0,
+          "inflate_interval: factor must be finite and >= 1, got " + std::to_string(factor));
+  s.std_error *= factor;
+  s.low = s.gamma - factor * (s.gamma - s.low);
+  s.high = s.gamma + factor * (s.high - s.gamma);
+  s.heldout_inflation *= factor;
 }
 
 namespace {

@@ -224,7 +224,8 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
 
 NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta,
                                         const WindowSet& w, bool balanced, double scale,
-                                        bool with_scores) {
+                                        bool with_scores,
+                                        const std::function<bool()>& should_stop) {
   check(map, theta, w);
   const Index dim = w.dim(), p = map.n_params(), n = w.size();
   NormalEquations ne;
@@ -245,6 +246,10 @@ NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta
   RowMajorMatrix jac;
   Vector r;
   for (Index first = 0; first < n; first += chunk) {
+    if (should_stop && should_stop()) {
+      ne.stopped = true;
+      break;
+    }
     const Index count = std::min(chunk, n - first);
     jac.resize(count * dim, p);
     r.resize(count * dim);

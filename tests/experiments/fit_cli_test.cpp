@@ -173,8 +173,17 @@ TEST(FitCli, IdentifyRecipeWritesAVerdictAndAnInterval) {
   EXPECT_LT(rep["gamma_ci_low"].get<double>(), g);
   EXPECT_GT(rep["gamma_ci_high"].get<double>(), g);
   EXPECT_EQ(rep["gamma_ci_method"], "cluster-robust sandwich over blocks");
-  // Steps vary: the core gets step polynomials, and the choice is recorded with its reason.
-  EXPECT_EQ(rep["choices"]["core"]["step_terms"], 2);
+  // Two candidate cores, the lower validation loss chosen; steps vary, so the LA candidate
+  // has step polynomials. Every choice is recorded with its reason.
+  const auto& cands = rep["choices"]["core_candidates"];
+  ASSERT_EQ(cands.size(), 2u);
+  EXPECT_EQ(cands[0]["core"]["type"], "la");
+  EXPECT_EQ(cands[0]["core"]["step_terms"], 2);
+  EXPECT_EQ(cands[1]["core"]["type"], "g");
+  const std::size_t win =
+      cands[1]["val_loss"].get<double>() < cands[0]["val_loss"].get<double>() ? 1 : 0;
+  EXPECT_EQ(rep["choices"]["core"], cands[win]["core"]);
+  EXPECT_EQ(rep["architecture"]["core"], cands[win]["core"]);
   EXPECT_NE(rep["choices"]["core_reason"].get<std::string>().find("steps vary"), std::string::npos);
   EXPECT_EQ(rep["choices"]["blocks"]["kind"], "segments of trajectories");
   EXPECT_LT(rep["quality"]["structure_residual_max"].get<double>(), 1e-12);

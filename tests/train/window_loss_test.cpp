@@ -112,6 +112,40 @@ TEST_P(WindowLossTest, ChunkedNormalEquationsMatchTheExplicitJacobian) {
   EXPECT_LE((ne.scores.col(0) - first).norm(), 1e-11 * (1.0 + first.norm()));
 }
 
+// An interrupt polled per chunk: the sums stop after the chunks already taken, marked
+// stopped; never polled again once it fired; a poll that never fires changes nothing.
+TEST_P(WindowLossTest, NormalEquationsStopBetweenChunksWhenAsked) {
+  const Case c = GetParam();
+  const auto map = make_one_step_map(nlohmann::json::parse(c.spec));
+  Rng rng(29, c.spec);
+  const Vector theta = random_theta(*map, rng, 0.3, 0.5);
+  const WindowSet w = windows_from_trajectories(random_trajectories(map->dim(), 5, 90, rng), c.m);
+  const NormalEquations full = window_normal_equations(*map, theta, w, c.balanced, 1.0);
+  int polls = 0;
+  const NormalEquations never =
+      window_normal_equations(*map, theta, w, c.balanced, 1.0, false, [&] {
+        ++polls;
+        return false;
+      });
+  EXPECT_FALSE(never.stopped);
+  EXPECT_GE(polls, 1);
+  EXPECT_EQ(never.cost, full.cost);
+  EXPECT_TRUE(never.g == full.g);
+  int after = 0;
+  const NormalEquations first_chunk =
+      window_normal_equations(*map, theta, w, c.balanced, 1.0, false, [&] { return ++after > 1; });
+  EXPECT_TRUE(first_chunk.stopped);
+  EXPECT_EQ(after, 2);
+  if (polls > 1) {
+    EXPECT_LT(first_chunk.cost, full.cost);  // only the first chunk summed
+  }
+  const NormalEquations none =
+      window_normal_equations(*map, theta, w, c.balanced, 1.0, false, [] { return true; });
+  EXPECT_TRUE(none.stopped);
+  EXPECT_EQ(none.cost, 0.0);
+  EXPECT_EQ(none.g.norm(), 0.0);
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Maps, WindowLossTest,
     ::testing::Values(

@@ -4,9 +4,11 @@
 //     ─> normalise (data/normalization.hpp: q shift, per-dof scales with α_i β_i = c, τ)
 //     ─> blocks: whole trajectories, or segments of long ones; ~20% of the blocks validate
 //     ─> windows of m steps inside each block (train/window_loss.hpp)
-//     ─> warm start γ₀, AdamW on the balanced window loss, Levenberg–Marquardt on the same
-//        residuals (normal equations formed in chunks), best validation kept
-//     ─> interval: cluster-robust sandwich over the training blocks (train/gamma_sandwich.hpp)
+//     ─> warm start γ₀; for each candidate core (LA, G): AdamW on the balanced window loss,
+//        Levenberg–Marquardt on the same residuals (normal equations formed in chunks), best
+//        validation kept; the lowest validation loss wins and continues LM
+//     ─> interval: cluster-robust sandwich over the training blocks (train/gamma_sandwich.hpp),
+//        inflated by the held-out over training loss when above 1
 //     ─> verdict: identified, or not and why
 //     ─> the model in the user's units (NormalizedMap), exactly conformally symplectic.
 #pragma once
@@ -30,7 +32,9 @@
 namespace csympnet {
 
 struct IdentifyConfig {
-  nlohmann::json core;      // null: by dimension, with step polynomials when steps vary
+  // null: chosen by validation loss between an LA core (by dimension, with step polynomials
+  // when steps vary) and a G core (docs/identification.md); else the core used.
+  nlohmann::json core;
   std::uint64_t seed = 42;  // blocks held out, initialisation
   long window = 0;          // steps per window; 0: automatic (1 for pairs, else ≤ 4)
   bool balanced = true;     // balanced residuals (false: the plain one-step residuals)
@@ -40,7 +44,9 @@ struct IdentifyConfig {
   std::string dof_scales = "auto";
   long epochs = 0;  // AdamW budget; 0: scaled to the data
   double lr = 1e-3;
-  long lm_iterations = 0;     // LM budget; 0: scaled to the work per iteration
+  // LM budget (per candidate core); 0: scaled to the work per iteration, and the chosen core
+  // continues with a further share.
+  long lm_iterations = 0;
   double val_fraction = 0.2;  // share of blocks held out
   long target_blocks = 20;    // a long trajectory is cut into about this many segments
   double level = 0.95;        // interval level
@@ -87,7 +93,8 @@ struct IdentifyResult {
   nlohmann::json choices;  // what was chosen automatically, and why
   nlohmann::json data;     // a summary of the data: d, trajectories, samples, steps, blocks
   bool stopped = false;    // a stage was interrupted
-  // Wall times (not in the report, which stays the same run to run).
+  // Wall times (not in the report, which stays the same run to run), over every candidate.
+  double adamw_seconds = 0.0;
   double lm_seconds = 0.0;
   double interval_seconds = 0.0;
 };

@@ -41,6 +41,7 @@ struct SandwichInterval {
   long blocks = 0;
   double regularisation_ratio = 1.0;  // std error at 100 μ over that at μ
   bool stable = true;
+  double heldout_inflation = 1.0;  // factor applied to the standard error (inflate_interval)
   std::string method;
 };
 void to_json(nlohmann::json& j, const SandwichInterval& s);
@@ -52,6 +53,10 @@ SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matri
                                    Index gamma_index, double gamma, double gamma_sign,
                                    Index n_residuals, double cost, double residual_scale,
                                    double data_scale, double level);
+
+// Scales the standard error and the half-widths by `factor` (≥ 1), keeping the centre, and
+// records it: the held-out inflation of identify() (training residuals understate the error).
+void inflate_interval(SandwichInterval& s, double factor);
 
 // Quantiles: the standard normal's and Student's t with dof degrees of freedom (dof ≥ 1).
 double normal_quantile(double p);

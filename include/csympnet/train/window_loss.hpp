@@ -17,6 +17,8 @@
 // upwards (errors in variables); windows divide what remains by about m.
 #pragma once
 
+#include <functional>
+
 #include <vector>
 
 #include "csympnet/core/types.hpp"
@@ -70,14 +72,18 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
 // never held whole: A = JᵀJ (lower triangle), g = Jᵀr, cost ½‖r‖², and, per block b, the
 // score s_b = Σ_{i ∈ b} J_iᵀ r_i (columns of `scores`, blocks numbered as in w.block, which
 // must then be 0 … B − 1). All with r and J scaled by `scale` (1/√N makes ½‖r‖² = L/2).
+// `should_stop`, when given, is polled before each chunk (a few ms to a second of work): on
+// true the sums stop there, incomplete, with `stopped` set.
 struct NormalEquations {
   Matrix a;  // P × P, lower triangle
   Vector g;  // P
   double cost = 0.0;
   Matrix scores;  // P × B when asked for, else empty
+  bool stopped = false;
 };
 NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta,
                                         const WindowSet& w, bool balanced, double scale,
-                                        bool with_scores = false);
+                                        bool with_scores = false,
+                                        const std::function<bool()>& should_stop = {});
 
 }  // namespace csympnet

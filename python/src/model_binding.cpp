@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <pybind11/stl.h>
 
@@ -139,30 +141,56 @@ std::unique_ptr<PyModel> from_saved(SavedModel saved) {
   return out;
 }
 
+// An instance made by Model.__new__ has no C++ object behind it: pybind11 hands out raw,
+// unconstructed storage for it (to be placement-constructed by an __init__ this class does not
+// have). So every method takes `self` as a handle and checks that it is a Model whose holder was
+// constructed: Python gets an exception, never a crash.
+const PyModel& live(py::handle self) {
+  if (!py::isinstance<PyModel>(self))
+    throw py::type_error("expected a csympnet._core.Model");
+  auto* inst = reinterpret_cast<py::detail::instance*>(self.ptr());
+  auto vh = inst->get_value_and_holder(py::detail::get_type_info(typeid(PyModel)));
+  if (!vh.holder_constructed())
+    throw std::runtime_error(
+        "Model: this object was never constructed; models come from csympnet.fit, "
+        "csympnet.identify or csympnet.load");
+  return *vh.value_ptr<PyModel>();
+}
+
+template <typename R, typename... Args>
+auto guarded(R (*f)(const PyModel&, Args...)) {
+  return [f](py::handle p, Args... args) { return f(live(p), std::forward<Args>(args)...); };
+}
+
 }  // namespace
 
 void bind_model(py::module_& m) {
   py::class_<PyModel>(m, "Model", "A trained model (wrapped by csympnet.Model).")
-      .def_property_readonly("type", [](const PyModel& s) { return s.model.type(); })
-      .def_property_readonly("dim", [](const PyModel& s) { return s.model.dim(); })
-      .def_property_readonly("n_params", [](const PyModel& s) { return s.model.n_params(); })
-      .def_property_readonly("is_map", [](const PyModel& s) { return s.model.is_map(); })
+      .def_property_readonly("type", [](py::handle p) { return live(p).model.type(); })
+      .def_property_readonly("dim", [](py::handle p) { return live(p).model.dim(); })
+      .def_property_readonly("n_params", [](py::handle p) { return live(p).model.n_params(); })
+      .def_property_readonly("is_map", [](py::handle p) { return live(p).model.is_map(); })
       .def_property_readonly("gamma",
-                             [](const PyModel& s) { return s.model.damping_rate(s.theta); })
-      .def_property_readonly("gamma_interval", [](const PyModel& s) { return s.gamma_interval; })
-      .def_property_readonly("params", [](const PyModel& s) { return vector_to(s.theta); })
+                             [](py::handle p) {
+                               const PyModel& s = live(p);
+                               return s.model.damping_rate(s.theta);
+                             })
+      .def_property_readonly("gamma_interval", [](py::handle p) { return live(p).gamma_interval; })
+      .def_property_readonly("params", [](py::handle p) { return vector_to(live(p).theta); })
       .def_property_readonly("hyperparams_json",
-                             [](const PyModel& s) { return s.model.hyperparams().dump(); })
-      .def_property_readonly("meta_json", [](const PyModel& s) { return s.meta.dump(); })
-      .def_property_readonly("training_json", [](const PyModel& s) { return s.training.dump(); })
-      .def("predict", &predict, py::arg("z"), py::arg("h"), py::arg("batched"))
-      .def("rollout", &rollout_states, py::arg("z0"), py::arg("hs"))
-      .def("jacobian", &jacobians, py::arg("z"), py::arg("h"))
-      .def("structure", &structure, py::arg("z"), py::arg("h"), py::arg("gamma_true"))
-      .def("evaluate", &evaluate_model, py::arg("system_json"), py::arg("tests"), py::arg("h_test"))
+                             [](py::handle p) { return live(p).model.hyperparams().dump(); })
+      .def_property_readonly("meta_json", [](py::handle p) { return live(p).meta.dump(); })
+      .def_property_readonly("training_json", [](py::handle p) { return live(p).training.dump(); })
+      .def("predict", guarded(&predict), py::arg("z"), py::arg("h"), py::arg("batched"))
+      .def("rollout", guarded(&rollout_states), py::arg("z0"), py::arg("hs"))
+      .def("jacobian", guarded(&jacobians), py::arg("z"), py::arg("h"))
+      .def("structure", guarded(&structure), py::arg("z"), py::arg("h"), py::arg("gamma_true"))
+      .def("evaluate", guarded(&evaluate_model), py::arg("system_json"), py::arg("tests"),
+           py::arg("h_test"))
       .def(
           "save",
-          [](const PyModel& s, const std::string& path, const std::string& meta_json) {
+          [](py::handle p, const std::string& path, const std::string& meta_json) {
+            const PyModel& s = live(p);
             const nlohmann::json meta = parse_json(meta_json, "meta");
             require(meta.is_object(), "meta: expected a JSON object");
             py::gil_scoped_release nogil;
@@ -171,7 +199,8 @@ void bind_model(py::module_& m) {
           py::arg("path"), py::arg("meta_json"))
       .def(
           "to_json",
-          [](const PyModel& s, const std::string& meta_json) {
+          [](py::handle p, const std::string& meta_json) {
+            const PyModel& s = live(p);
             return model_to_json(s.model, s.theta, parse_json(meta_json, "meta")).dump(1);
           },
           py::arg("meta_json"));

@@ -92,3 +92,26 @@ def test_data_functions_reject():
     for call, exc, message in cases:
         with pytest.raises(exc, match=message):
             call()
+
+
+def test_an_unconstructed_core_model_raises_instead_of_crashing():
+    # Model.__new__ without a constructor leaves no C++ object behind the Python one; every
+    # attribute and method must raise, and the interpreter must survive (a crash here kills
+    # the whole test run).
+    core = csympnet._core
+    m = core.Model.__new__(core.Model)
+    for name in ["type", "dim", "n_params", "is_map", "gamma", "gamma_interval", "params",
+                 "hyperparams_json", "meta_json", "training_json"]:
+        with pytest.raises(RuntimeError, match="never constructed"):
+            getattr(m, name)
+    calls = [("predict", ([[0.0, 0.0]], [0.1], True)), ("rollout", ([0.0, 0.0], [0.1])),
+             ("jacobian", ([0.0, 0.0], 0.1)), ("structure", ([0.0, 0.0], 0.1, 0.1)),
+             ("save", ("unused.json", "{}")), ("to_json", ("{}",)),
+             ("evaluate", ("{}", [], 0.1))]
+    for name, args in calls:
+        with pytest.raises(RuntimeError, match="never constructed"):
+            getattr(m, name)(*args)
+    # An unbound method called on something that is not a Model.
+    with pytest.raises(TypeError, match="expected a csympnet._core.Model"):
+        core.Model.type.fget(42)
+    del m

@@ -95,11 +95,18 @@ def test_bad_model_files(tmp_path):
     bad.write_text("{not json")
     with pytest.raises(csympnet.Error, match="bad.json: not valid JSON"):
         csympnet.load(bad)
-    bad.write_text(json.dumps({"format": "csympnet-model", "version": 1,
+    bad.write_text(json.dumps({"format": "csympnet-model", "version": 2,
                                "model": {"type": "csympnet", "d": 1,
                                          "core": {"type": "la", "layers": 1, "sublayers": 1}},
                                "params": [0.0]}))
     with pytest.raises(csympnet.Error, match="architecture needs"):
+        csympnet.load(bad)
+    # A downgrade to version 1, which had no checksum, is refused: edited parameters could
+    # otherwise pass as a genuine old file.
+    doc = json.loads(bad.read_text())
+    doc["version"] = 1
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(csympnet.Error, match="version 1 .no checksum. is no longer read"):
         csympnet.load(bad)
     with pytest.raises(csympnet.Error, match="no such file"):
         csympnet.load(tmp_path / "missing.json")

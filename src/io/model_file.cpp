@@ -88,9 +88,16 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
           where + ": missing integer \"version\"; expected \"version\": " +
               std::to_string(kModelFormatVersion));
   const auto version = doc["version"].get<std::int64_t>();
-  require(version == 1 || version == kModelFormatVersion,
+  // Version 1 predates the checksum: reading it would let anyone edit a file's parameters and
+  // relabel it "version": 1 to pass. Every version read carries a checksum.
+  require(version != 1,
+          where + ": model format version 1 (no checksum) is no longer read: it cannot be told "
+                  "from a file whose checksum was removed; expected version " +
+              std::to_string(kModelFormatVersion) +
+              " (fit or train the model again with this csympnet)");
+  require(version == kModelFormatVersion,
           where + ": model format version " + std::to_string(version) +
-              " is not supported (expected 1 or " + std::to_string(kModelFormatVersion) +
+              " is not supported (expected " + std::to_string(kModelFormatVersion) +
               "; a newer csympnet wrote it?)");
   require(
       doc.contains("model"),
@@ -132,9 +139,9 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
                                              v.dump() + " is not finite; expected finite numbers");
   }
   out.meta = doc.value("meta", nlohmann::json::object());
-  if (version >= 2) {  // version 1 files predate the checksum
+  {
     require(doc.contains("checksum") && doc["checksum"].is_string(),
-            where + ": missing string \"checksum\"; expected one from format version 2 on");
+            where + ": missing string \"checksum\"; every model file carries one");
     const std::string expected = doc["checksum"].get<std::string>();
     const std::string actual = checksum_of(doc["model"], out.meta, out.theta);
     require(expected == actual, where + ": checksum mismatch (the file says " + expected +

@@ -79,14 +79,26 @@ TEST(ModelFile, AnyChangeToParametersArchitectureOrMetaIsRefused) {
   EXPECT_NE(expect_refused(doc).find("\"checksum\""), std::string::npos);
 }
 
-TEST(ModelFile, VersionOneFilesWithoutChecksumStillLoad) {
+// A downgrade to version 1 (which had no checksum), with or without the checksum and with
+// edited parameters, is refused: otherwise the checksum could be bypassed by relabelling.
+TEST(ModelFile, DowngradesAndUnknownVersionsAreRefused) {
   const Fixture f = make("ode");
-  json doc = model_to_json(f.model, f.theta);
+  const json good = model_to_json(f.model, f.theta);
+  json doc = good;
   doc["version"] = 1;
+  EXPECT_NE(expect_refused(doc).find("version 1 (no checksum) is no longer read"),
+            std::string::npos);
+  doc["params"][0] = doc["params"][0].get<double>() + 1.0;
+  EXPECT_NE(expect_refused(doc).find("version 1"), std::string::npos);
   doc.erase("checksum");
-  EXPECT_EQ(model_from_json(doc, "m.json").theta, f.theta);
-  doc["version"] = 3;
-  EXPECT_NE(expect_refused(doc).find("version 3 is not supported"), std::string::npos);
+  EXPECT_NE(expect_refused(doc).find("version 1"), std::string::npos);
+  for (const int v : {0, 3, -2}) {
+    doc = good;
+    doc["version"] = v;
+    EXPECT_NE(expect_refused(doc).find("version " + std::to_string(v) + " is not supported"),
+              std::string::npos);
+  }
+  EXPECT_EQ(model_from_json(good, "m.json").theta, f.theta);
 }
 
 TEST(ModelFile, TruncatedOrGarbageFilesAreRefusedWithTheirPath) {

@@ -1,4 +1,5 @@
 // `evaluate` (diagnostics of a saved model) and `rollout` (iterate a saved model).
+#include <optional>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -67,7 +68,8 @@ void add_evaluate(CLI::App& app) {
   cmd->add_flag("--force", a->force, "Allow writing into a non-empty output directory");
   a->system.add_to(*cmd);
   cmd->callback([a] {
-    if (!a->out.empty()) prepare_output_dir(a->out, a->force);
+    std::optional<OutputDir> out_dir;
+    if (!a->out.empty()) out_dir.emplace(a->out, a->force);
     const SavedModel saved = load_model(a->model);
     RunConfig c = default_run_config(a->preset.empty() ? "s1" : a->preset, "csympnet");
     if (a->preset.empty()) {

@@ -1,5 +1,6 @@
 // `reproduce`: run experiment suites (experiments/*.json), cache every run, write the
 // summary, the tables and the figures.
+#include <optional>
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -76,10 +77,10 @@ std::string default_suites_dir() {
 }
 
 // A reproduction directory may be resumed; any other non-empty directory needs --force.
-void prepare_reproduce_dir(const std::string& out, bool force) {
+OutputDir prepare_reproduce_dir(const std::string& out, bool force) {
   std::error_code ec;
-  if (fs::exists(fs::path(out) / kMarker, ec)) return;
-  prepare_output_dir(out, force);
+  if (fs::exists(fs::path(out) / kMarker, ec)) return OutputDir(out, /*force=*/true);
+  return OutputDir(out, force);
 }
 
 std::string clock(double seconds) {
@@ -168,8 +169,9 @@ void reproduce(const Args& a) {
     for (auto& r : expand_suite(suites.back()))
       if (seen.insert(r.key).second) runs.push_back(std::move(r));
   }
+  std::optional<OutputDir> out_dir;  // held by rank 0 for the whole reproduction
   if (rank.rank == 0) {
-    prepare_reproduce_dir(a.out, a.force);
+    out_dir.emplace(prepare_reproduce_dir(a.out, a.force));
     json marker = {{"format", "csympnet-reproduce"}, {"suites", json::array()}};
     for (const auto& s : suites) marker["suites"].push_back(s.name);
     write_json_file((fs::path(a.out) / kMarker).string(), marker);

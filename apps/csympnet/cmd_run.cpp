@@ -131,7 +131,7 @@ void add_run(CLI::App& app) {
   cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
   args->system.add_to(*cmd);
   cmd->callback([args] {
-    prepare_output_dir(args->out, args->force);
+    const OutputDir out_dir = prepare_output_dir(args->out, args->force);
     RunConfig c = default_run_config(args->preset, args->model);
     args->system.apply(c.preset);
     if (!args->core.empty()) c.preset.core = parse_core(args->core);

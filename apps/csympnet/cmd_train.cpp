@@ -109,7 +109,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                                "needs --refine lm: --refine auto (fit's default) chooses the "
                                "solver by the model's size");
   }
-  prepare_output_dir(a.out, a.force);
+  const OutputDir out_dir = prepare_output_dir(a.out, a.force);
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
@@ -237,7 +237,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       throw CLI::ValidationError(classic,
                                  "belongs to --recipe classic; the default recipe "
                                  "chooses it itself (docs/identification.md)");
-  prepare_output_dir(a.out, a.force);
+  const OutputDir out_dir = prepare_output_dir(a.out, a.force);
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
   const PairSet checked = read_any_as_pairs(a.data);

@@ -1,6 +1,8 @@
 #include "csympnet/io/files.hpp"
 
 #include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -105,27 +107,133 @@ void write_text_atomic(const std::string& path, const std::string& content) {
   }
 }
 
-void prepare_output_dir(const std::string& dir, bool force) {
+bool is_atomic_write_temp(const std::string& name) {
+  // "." NAME ".tmp." PID "." COUNTER "." TICKS, the three numbers all digits.
+  if (name.size() < 2 || name[0] != '.') return false;
+  const std::size_t at = name.rfind(".tmp.");
+  if (at == std::string::npos || at < 2) return false;
+  int fields = 0;
+  std::size_t digits = 0;
+  for (std::size_t i = at + 5; i <= name.size(); ++i) {
+    if (i == name.size() || name[i] == '.') {
+      if (digits == 0) return false;
+      ++fields;
+      digits = 0;
+    } else if (name[i] >= '0' && name[i] <= '9') {
+      ++digits;
+    } else {
+      return false;
+    }
+  }
+  return fields == 3;
+}
+
+namespace {
+
+std::string read_lock_owner(int fd) {
+  char buf[32] = {};
+  const ssize_t n = ::pread(fd, buf, sizeof buf - 1, 0);
+  std::string s = n > 0 ? std::string(buf, static_cast<std::size_t>(n)) : std::string();
+  while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+  return s.empty() ? "unknown" : s;
+}
+
+}  // namespace
+
+OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
   std::error_code ec;
   const fs::file_status st = fs::status(dir, ec);
-  if (fs::exists(st)) {
-    if (!fs::is_directory(st))
-      throw Error("output directory '" + dir +
-                  "' exists but is not a directory; expected a directory or a new path");
-    const bool empty = fs::is_empty(dir, ec);
+  if (fs::exists(st) && !fs::is_directory(st))
+    throw Error("output directory '" + dir +
+                "' exists but is not a directory; expected a directory or a new path");
+  if (!fs::exists(st)) {
+    created_ = fs::create_directories(dir, ec);
     if (ec)
-      throw Error("cannot inspect output directory '" + dir + "': " + ec.message() +
-                  "; expected a readable directory");
-    if (!empty && !force)
-      throw Error("output directory '" + dir +
-                  "' is not empty and writing there would overwrite its contents; expected an "
-                  "empty or new directory, or pass --force to write anyway");
-    return;
+      throw Error("cannot create output directory '" + dir + "': " + ec.message() +
+                  "; expected a path where directories can be created");
   }
-  fs::create_directories(dir, ec);
-  if (ec)
-    throw Error("cannot create output directory '" + dir + "': " + ec.message() +
-                "; expected a path where directories can be created");
+  const fs::path lock = fs::path(dir) / kOutputLockName;
+  // Lock, then check that the name still refers to the file locked: a writer that finishes
+  // unlinks its lock file, and a lock on an unlinked file protects nothing.
+  for (int attempt = 0;; ++attempt) {
+    fd_ = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+    if (fd_ < 0) {
+      const std::string why = std::strerror(errno);
+      release();
+      throw Error("cannot create the lock file '" + lock.string() + "': " + why +
+                  "; expected a writable output directory");
+    }
+    if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+      const std::string owner = read_lock_owner(fd_);
+      ::close(fd_);
+      fd_ = -1;
+      created_ = false;  // the other writer's directory now
+      throw Error("output directory '" + dir + "' is being written by another csympnet (pid " +
+                  owner + "); expected a directory no other run is writing to");
+    }
+    struct stat held {}, named {};
+    if (::fstat(fd_, &held) == 0 && ::stat(lock.c_str(), &named) == 0 &&
+        held.st_ino == named.st_ino && held.st_dev == named.st_dev)
+      break;
+    ::close(fd_);
+    fd_ = -1;
+    if (attempt >= 100) {
+      release();
+      throw Error("cannot lock output directory '" + dir +
+                  "': its lock file keeps changing; expected one writer at a time");
+    }
+  }
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, pid.data(), pid.size(), 0) < 0) {
+    // The pid is only a courtesy for the message of a refused second writer.
+  }
+  // What is there besides our lock and a killed writer's temporaries (removed)?
+  bool empty = true;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name == kOutputLockName) continue;
+    if (is_atomic_write_temp(name) && it->is_regular_file(ec)) {
+      std::error_code ignored;
+      fs::remove(it->path(), ignored);
+      continue;
+    }
+    empty = false;
+  }
+  if (ec) {
+    const std::string why = ec.message();
+    release();
+    throw Error("cannot inspect output directory '" + dir + "': " + why +
+                "; expected a readable directory");
+  }
+  if (!empty && !force) {
+    release();
+    throw Error("output directory '" + dir +
+                "' is not empty and writing there would overwrite its contents; expected an "
+                "empty or new directory, or pass --force to write anyway");
+  }
+}
+
+OutputDir::OutputDir(OutputDir&& other) noexcept
+    : dir_(std::move(other.dir_)), fd_(other.fd_), created_(other.created_) {
+  other.fd_ = -1;
+  other.created_ = false;
+}
+
+OutputDir::~OutputDir() { release(); }
+
+void OutputDir::release() noexcept {
+  std::error_code ec;
+  if (fd_ >= 0) {
+    fs::remove(fs::path(dir_) / kOutputLockName, ec);  // unlink while still holding the lock
+    ::close(fd_);
+    fd_ = -1;
+  }
+  if (created_ && fs::is_empty(dir_, ec) && !ec) fs::remove(dir_, ec);
+  created_ = false;
+}
+
+OutputDir prepare_output_dir(const std::string& dir, bool force) {
+  return OutputDir(dir, force);
 }
 
 }  // namespace csympnet

@@ -155,6 +155,47 @@ TEST_F(Cli, RefusesToOverwriteANonEmptyOutputDirectory) {
   EXPECT_EQ(slurp(note), "mine");  // --force writes our files, it never deletes the user's
 }
 
+// Two writers into one output directory: while the first runs, a second (even with --force)
+// is refused with the first one's pid and creates nothing; the first's result is whole, and
+// its lock file is gone when it ends (here by SIGTERM, which keeps the best checkpoint).
+TEST_F(Cli, ASecondWriterIntoTheSameDirectoryIsRefused) {
+  const fs::path out = dir_ / "shared";
+  const fs::path second_err = dir_ / "second.txt";
+  const std::string first = std::string(CSYMPNET_CLI_PATH) +
+                            " run --preset s2 --model csympnet --epochs 1000000 -q --out " +
+                            out.string();
+  const std::string second = std::string(CSYMPNET_CLI_PATH) +
+                             " run --preset s1 --epochs 5 -q --force --out " + out.string();
+  const std::string lock = (out / ".csympnet.lock").string();
+  const std::string cmd = first + " >/dev/null 2>&1 </dev/null & pid=$!; i=0; while [ ! -e '" +
+                          lock + "' ] && [ $i -lt 1200 ]; do sleep 0.05; i=$((i+1)); done; " +
+                          second + " >/dev/null 2>" + second_err.string() +
+                          " </dev/null; code=$?; kill -TERM $pid; wait $pid; exit $code";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  const std::string err = slurp(second_err);
+  EXPECT_NE(err.find("is being written by another csympnet (pid "), std::string::npos) << err;
+  const auto report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["preset"], "s2");  // the first writer's, whole
+  EXPECT_TRUE(fs::exists(out / "model.json"));
+  EXPECT_FALSE(fs::exists(out / ".csympnet.lock"));
+}
+
+// A run that fails leaves no empty output directory behind; one into an existing directory
+// leaves it as it was.
+TEST_F(Cli, AFailedRunLeavesNoEmptyOutputDirectory) {
+  const fs::path bad = write("bad.csv", "t,q1,p1\n0,1,oops\n");
+  Result r = run("fit " + bad.string() + " -q --out " + (dir_ / "new").string());
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "new"));
+  fs::create_directories(dir_ / "mine");
+  r = run("fit " + bad.string() + " -q --out " + (dir_ / "mine").string());
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(fs::is_directory(dir_ / "mine"));
+  EXPECT_TRUE(fs::is_empty(dir_ / "mine"));
+}
+
 TEST_F(Cli, SavedModelRollsOutAndEvaluates) {
   const fs::path out = dir_ / "m";
   ASSERT_EQ(run("run --preset s1 --epochs 50 --quiet --out " + out.string()).code, 0);

@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <optional>
+
 #include <filesystem>
 
 #include "../data/temp_dir.hpp"
@@ -58,21 +62,40 @@ TEST(WriteTextAtomic, FailureNamesPathAndLeavesNothingBehind) {
   EXPECT_TRUE(fs::is_directory(dir.file("taken")));
 }
 
-TEST(PrepareOutputDir, CreatesMissingAndAcceptsEmpty) {
+TEST(PrepareOutputDir, CreatesMissingAcceptsEmptyAndRemovesWhatItCreatedIfLeftEmpty) {
   TempDir dir;
   const std::string nested = dir.file("a/b/c");
-  prepare_output_dir(nested, false);
+  {
+    const OutputDir held = prepare_output_dir(nested, false);
+    EXPECT_TRUE(fs::is_directory(nested));
+    EXPECT_TRUE(fs::exists(fs::path(nested) / kOutputLockName));
+  }
+  // Created here and nothing written: a failed run leaves no empty directory behind.
+  EXPECT_FALSE(fs::exists(nested));
+  EXPECT_TRUE(fs::is_directory(dir.file("a/b")));
+  // An existing empty directory is accepted, kept, and left without the lock file.
+  fs::create_directories(nested);
+  { const OutputDir held = prepare_output_dir(nested, false); }
   EXPECT_TRUE(fs::is_directory(nested));
-  EXPECT_NO_THROW(prepare_output_dir(nested, false));  // exists but empty
+  EXPECT_TRUE(fs::is_empty(nested));
+  // What a run wrote keeps a directory it created.
+  {
+    const OutputDir held = prepare_output_dir(dir.file("new"), false);
+    write_text_atomic(dir.file("new/result.json"), "{}");
+  }
+  EXPECT_EQ(read_text_file(dir.file("new/result.json")), "{}");
+  EXPECT_EQ(entries(dir.file("new")), 1u);
 }
 
 TEST(PrepareOutputDir, RefusesNonEmptyWithoutForce) {
   TempDir dir;
   const std::string out = dir.file("run");
-  prepare_output_dir(out, false);
-  write_text_atomic(out + "/result.json", "{}");
+  {
+    const OutputDir held = prepare_output_dir(out, false);
+    write_text_atomic(out + "/result.json", "{}");
+  }
   try {
-    prepare_output_dir(out, false);
+    const OutputDir held = prepare_output_dir(out, false);
     FAIL();
   } catch (const Error& e) {
     const std::string msg = e.what();
@@ -80,8 +103,57 @@ TEST(PrepareOutputDir, RefusesNonEmptyWithoutForce) {
     EXPECT_NE(msg.find("overwrite"), std::string::npos) << msg;
     EXPECT_NE(msg.find("--force"), std::string::npos) << msg;
   }
-  EXPECT_NO_THROW(prepare_output_dir(out, true));
+  EXPECT_NO_THROW({ const OutputDir held = prepare_output_dir(out, true); });
   EXPECT_EQ(read_text_file(out + "/result.json"), "{}");  // force does not delete anything
+  // A user's hidden file counts: it is theirs.
+  const std::string other = dir.file("other");
+  fs::create_directories(other);
+  write_text_atomic(other + "/.notes", "mine");
+  EXPECT_THROW({ const OutputDir held = prepare_output_dir(other, false); }, Error);
+}
+
+// Two writers into one directory: the second is refused with the first one's pid, even with
+// --force, and the directory is free again once the first lets go. (flock conflicts between
+// two open file descriptions in one process as between processes.)
+TEST(PrepareOutputDir, OneWriterAtATime) {
+  TempDir dir;
+  const std::string out = dir.file("shared");
+  std::optional<OutputDir> first(prepare_output_dir(out, false));
+  for (const bool force : {false, true}) {
+    try {
+      const OutputDir second = prepare_output_dir(out, force);
+      FAIL() << "a second writer was let in";
+    } catch (const Error& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("being written by another csympnet (pid " + std::to_string(::getpid())),
+                std::string::npos)
+          << msg;
+      EXPECT_NE(msg.find(out), std::string::npos) << msg;
+    }
+  }
+  EXPECT_TRUE(fs::is_directory(out));  // the refused writer did not remove the first's directory
+  write_text_atomic(out + "/result.json", "{}");
+  first.reset();
+  EXPECT_FALSE(fs::exists(fs::path(out) / kOutputLockName));
+  EXPECT_NO_THROW({ const OutputDir again = prepare_output_dir(out, true); });
+}
+
+// Temporary files a killed writer left do not make a directory "not empty" (ls shows
+// nothing), and are removed; only names of write_text_atomic's exact pattern count as such.
+TEST(PrepareOutputDir, StaleTemporariesAreRemovedNotCounted) {
+  EXPECT_TRUE(is_atomic_write_temp(".report.json.tmp.123.0.456789"));
+  EXPECT_TRUE(is_atomic_write_temp(".a.tmp.1.2.3"));
+  for (const char* name : {"report.json", ".report.json", ".report.json.tmp.", ".x.tmp.1.2",
+                           ".x.tmp.1.2.3.4", ".x.tmp.1.a.3", ".x.tmp.1..3", "x.tmp.1.2.3",
+                           ".tmp.1.2.3"})
+    EXPECT_FALSE(is_atomic_write_temp(name)) << name;
+  TempDir dir;
+  const std::string out = dir.file("killed");
+  fs::create_directories(out);
+  write_text_atomic(out + "/.report.json.tmp.4242.0.99", "half");
+  write_text_atomic(out + "/.model.json.tmp.4242.1.100", "half");
+  { const OutputDir held = prepare_output_dir(out, false); }
+  EXPECT_TRUE(fs::is_empty(out));
 }
 
 TEST(PrepareOutputDir, RefusesAFile) {

@@ -14,9 +14,42 @@ std::string read_text_file(const std::string& path);
 // never a half-written file. On failure the temporary is removed and Error names the path.
 void write_text_atomic(const std::string& path, const std::string& content);
 
-// Makes `dir` (and missing parents) ready to receive results. An existing non-empty
-// directory is refused unless `force`, so a run never silently overwrites an earlier one;
-// an existing non-directory at `dir` is always refused.
-void prepare_output_dir(const std::string& dir, bool force);
+// An output directory held by one writer for as long as this object lives.
+//  - Created with missing parents if absent; an existing non-directory is refused.
+//  - Exclusive: a lock file (`.csympnet.lock`, flock) is held, so a second csympnet writing
+//    into the same directory at the same time is refused with the first one's pid, instead
+//    of both "succeeding" and one result being lost. The kernel drops the lock when a
+//    process dies, so a crash never leaves the directory locked.
+//  - An existing directory with anything in it is refused unless `force`, so a run never
+//    silently overwrites an earlier one. The lock file and the temporary files a killed
+//    writer left (".NAME.tmp.PID.N.T", see write_text_atomic) do not count; the latter are
+//    removed.
+//  - On release the lock file is removed, and a directory this object created is removed if
+//    nothing was written into it (a failed run leaves no empty directory behind).
+class [[nodiscard]] OutputDir {
+ public:
+  OutputDir(const std::string& dir, bool force);
+  ~OutputDir();
+  OutputDir(OutputDir&& other) noexcept;
+  OutputDir(const OutputDir&) = delete;
+  OutputDir& operator=(const OutputDir&) = delete;
+  OutputDir& operator=(OutputDir&&) = delete;
+  const std::string& path() const { return dir_; }
+
+ private:
+  void release() noexcept;
+  std::string dir_;
+  int fd_ = -1;
+  bool created_ = false;
+};
+
+// The usual way to take an output directory (see OutputDir).
+OutputDir prepare_output_dir(const std::string& dir, bool force);
+
+// The name of the lock file OutputDir keeps in a directory it holds.
+inline constexpr const char* kOutputLockName = ".csympnet.lock";
+
+// True for the name of a temporary file write_text_atomic makes (".NAME.tmp.PID.N.T").
+bool is_atomic_write_temp(const std::string& filename);
 
 }  // namespace csympnet

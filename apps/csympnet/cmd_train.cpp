@@ -113,10 +113,11 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
-  const PairSet data = read_any_as_pairs(a.data);
+  const CsvInput input = read_csv_input(a.data);  // once: a pipe or "-" works too
+  const PairSet data = parse_any_as_pairs(input.text, input.name);
   std::vector<Index> groups;
-  if (detect_csv_kind(a.data) == CsvKind::kTrajectories) {
-    const std::vector<Trajectory> trajs = read_trajectories_csv(a.data);
+  if (input.kind == CsvKind::kTrajectories) {
+    const std::vector<Trajectory> trajs = parse_trajectories_csv(input.text, input.name);
     for (std::size_t k = 0; k < trajs.size(); ++k)
       groups.insert(groups.end(), static_cast<std::size_t>(trajs[k].steps()),
                     static_cast<Index>(k));
@@ -240,8 +241,9 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   const OutputDir out_dir = prepare_output_dir(a.out, a.force);
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
-  const PairSet checked = read_any_as_pairs(a.data);
-  const bool pairs_only = detect_csv_kind(a.data) != CsvKind::kTrajectories;
+  const CsvInput input = read_csv_input(a.data);  // once: a pipe or "-" works too
+  const PairSet checked = parse_any_as_pairs(input.text, input.name);
+  const bool pairs_only = input.kind != CsvKind::kTrajectories;
   std::vector<Trajectory> trajs;
   if (pairs_only) {
     for (Index j = 0; j < checked.size(); ++j) {
@@ -254,7 +256,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       trajs.push_back(std::move(t));
     }
   } else {
-    trajs = read_trajectories_csv(a.data);
+    trajs = parse_trajectories_csv(input.text, input.name);
   }
   IdentifyConfig c;
   if (!a.core.empty()) c.core = parse_core(a.core);
@@ -340,12 +342,16 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
 }
 }  // namespace
 
+// An existing file, or "-" for standard input (read once: pipes and FIFOs work).
+const CLI::Validator kInputFile(
+    [](std::string& s) { return s == "-" ? std::string() : CLI::ExistingFile(s); }, "FILE|-");
+
 void add_train(CLI::App& app) {
   auto a = std::make_shared<FitArgs>();
   CLI::App* cmd = app.add_subcommand("train", "Train a model on pairs (or trajectories) CSV");
-  cmd->add_option("--data", a->data, "Training CSV (pairs or trajectories)")
+  cmd->add_option("--data", a->data, "Training CSV (pairs or trajectories); - for stdin")
       ->required()
-      ->check(CLI::ExistingFile);
+      ->check(kInputFile);
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of --data)")
       ->check(CLI::ExistingFile);
   add_fit_options(*cmd, *a);
@@ -361,9 +367,9 @@ void add_fit(CLI::App& app) {
   a->bootstrap_default = defaults.bootstrap.replicates;
   CLI::App* cmd = app.add_subcommand(
       "fit", "Fit CSympNet-ID to your own pairs or trajectories and print gamma_hat");
-  cmd->add_option("data", a->data, "CSV of pairs or trajectories")
+  cmd->add_option("data", a->data, "CSV of pairs or trajectories; - for standard input")
       ->required()
-      ->check(CLI::ExistingFile);
+      ->check(kInputFile);
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
       ->check(CLI::ExistingFile);
   add_fit_options(*cmd, *a);

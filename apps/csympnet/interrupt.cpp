@@ -1,5 +1,7 @@
 #include "interrupt.hpp"
 
+#include <signal.h>
+
 #include <csignal>
 
 namespace csympnet::cli {
@@ -9,13 +11,19 @@ volatile std::sig_atomic_t g_signal = 0;
 
 extern "C" void on_signal(int sig) {
   g_signal = sig;
-  std::signal(sig, SIG_DFL);  // a second signal terminates at once
 }
 }  // namespace
 
+// SA_RESETHAND: a second signal terminates at once. No SA_RESTART: a blocking call (opening a
+// FIFO no one writes to, reading a pipe) returns EINTR instead of waiting on, so every stage
+// stops promptly; main() reports what failed after a signal as the interruption it is.
 void install_interrupt_handlers() {
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESETHAND;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
 }
 
 bool interrupted() {

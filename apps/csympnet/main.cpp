@@ -37,6 +37,13 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "csympnet: not identified: %s\n", e.what());
     return csympnet::cli::kNotIdentifiedExitCode;
   } catch (const csympnet::Error& e) {
+    // After a signal, a failure is its consequence (a read cut short by EINTR): say so, and
+    // exit with the signal's code.
+    if (csympnet::cli::interrupted()) {
+      std::fprintf(stderr, "csympnet: interrupted by %s: %s\n", csympnet::cli::interrupt_name(),
+                   e.what());
+      return csympnet::cli::interrupt_exit_code();
+    }
     std::fprintf(stderr, "csympnet: error: %s\n", e.what());
     return 1;
   } catch (const std::exception& e) {

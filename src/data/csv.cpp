@@ -298,6 +298,14 @@ CsvKind detect_csv_kind(const std::string& path) {
   return parse_header(csv_detail::load_csv_text(path)).kind;
 }
 
+CsvInput read_csv_input(const std::string& path) {
+  CsvInput in;
+  in.name = path == "-" ? std::string("standard input") : path;
+  in.text = read_text_file(path);
+  in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;
+  return in;
+}
+
 PairSet read_pairs_csv(const std::string& path) {
   return read_pairs(csv_detail::load_csv_text(path));
 }

@@ -21,22 +21,48 @@ namespace csympnet {
 
 namespace fs = std::filesystem;
 
-std::string read_text_file(const std::string& path) {
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (!fs::exists(st))
-    throw Error("cannot read '" + path + "': no such file; expected an existing readable file");
-  if (fs::is_directory(st))
-    throw Error("cannot read '" + path + "': it is a directory; expected a regular file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    throw Error("cannot read '" + path + "': " + std::strerror(errno) +
-                "; expected a readable file");
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  // An empty file makes operator<< set failbit without any real error, so only badbit counts.
-  if (in.bad()) throw Error("cannot read '" + path + "': read error; expected a readable file");
-  return std::move(buf).str();
+std::string read_text_file(const std::string& path, std::size_t max_bytes) {
+  const bool is_stdin = path == "-";
+  const std::string name = is_stdin ? std::string("standard input ('-')") : "'" + path + "'";
+  int fd = 0;
+  if (!is_stdin) {
+    std::error_code ec;
+    const fs::file_status st = fs::status(path, ec);
+    if (!fs::exists(st))
+      throw Error("cannot read " + name + ": no such file; expected an existing readable file");
+    if (fs::is_directory(st))
+      throw Error("cannot read " + name + ": it is a directory; expected a regular file");
+    // A FIFO's open waits for a writer; a signal (the CLI's handlers do not restart calls)
+    // ends the wait with EINTR.
+    fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+      throw Error("cannot read " + name + ": " + std::strerror(errno) +
+                  "; expected a readable file");
+  }
+  std::string out;
+  char buf[1 << 16];
+  std::string failure;
+  while (true) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0) {
+      failure = std::strerror(errno);  // EINTR included: a signal stops the read
+      break;
+    }
+    if (n == 0) break;
+    if (out.size() + static_cast<std::size_t>(n) > max_bytes) {
+      failure = "it holds more than " + std::to_string(max_bytes) +
+                " bytes, the most an input may hold";
+      break;
+    }
+    out.append(buf, static_cast<std::size_t>(n));
+    // A text input never holds a NUL byte: stop at the first one (the callers report it by
+    // line), instead of reading a device like /dev/zero up to the size bound.
+    if (std::memchr(buf, '\0', static_cast<std::size_t>(n)) != nullptr) break;
+  }
+  if (!is_stdin) ::close(fd);
+  if (!failure.empty())
+    throw Error("cannot read " + name + ": " + failure + "; expected a readable file");
+  return out;
 }
 
 namespace {

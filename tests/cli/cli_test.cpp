@@ -1,5 +1,6 @@
 // End-to-end tests of the csympnet binary: exit codes, messages, files, determinism.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <array>
 #include <cstdio>
@@ -194,6 +195,38 @@ TEST_F(Cli, AFailedRunLeavesNoEmptyOutputDirectory) {
   EXPECT_EQ(r.code, 1) << r.err;
   EXPECT_TRUE(fs::is_directory(dir_ / "mine"));
   EXPECT_TRUE(fs::is_empty(dir_ / "mine"));
+}
+
+// Inputs are read once: standard input ("-") and a pipe work; /dev/zero is refused at its
+// first NUL byte instead of being read into memory; a FIFO nobody writes to does not hang the
+// command past a SIGINT, which exits 130 and leaves no output directory.
+TEST_F(Cli, InputsAreReadOnceFromStdinPipesAndFifos) {
+  const std::string cli = CSYMPNET_CLI_PATH;
+  ASSERT_EQ(run("generate --preset s1 --split train --out " + (dir_ / "s1.csv").string()).code, 0);
+  const std::string small = " -q --epochs 200 --lm-iterations 3 --core la:2:2 --out ";
+  const std::string piped = "cat " + (dir_ / "s1.csv").string() + " | " + cli + " fit -" + small +
+                            (dir_ / "stdin").string() + " >/dev/null 2>&1";
+  EXPECT_EQ(std::system(piped.c_str()), 0);
+  const auto rep = nlohmann::json::parse(slurp(dir_ / "stdin" / "report.json"));
+  EXPECT_EQ(rep["data"]["file"], "-");
+  EXPECT_EQ(rep["identified"], true);
+
+  Result r = run("fit /dev/zero -q --out " + (dir_ / "zero").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("NUL byte"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "zero"));
+
+  const fs::path fifo = dir_ / "fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const fs::path err = dir_ / "fifo_err.txt";
+  const std::string cmd = cli + " fit " + fifo.string() + " -q --out " +
+                          (dir_ / "never").string() + " 2>" + err.string() +
+                          " & pid=$!; sleep 0.3; kill -INT $pid; wait $pid";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << slurp(err);
+  EXPECT_NE(slurp(err).find("interrupted by SIGINT"), std::string::npos) << slurp(err);
+  EXPECT_FALSE(fs::exists(dir_ / "never"));
 }
 
 TEST_F(Cli, SavedModelRollsOutAndEvaluates) {

@@ -62,6 +62,26 @@ TEST(WriteTextAtomic, FailureNamesPathAndLeavesNothingBehind) {
   EXPECT_TRUE(fs::is_directory(dir.file("taken")));
 }
 
+TEST(ReadTextFile, RefusesWhatExceedsTheBoundAndStopsAtANul) {
+  TempDir dir;
+  const std::string big = dir.write("big.csv", std::string(1000, 'x'));
+  EXPECT_EQ(read_text_file(big, 1000).size(), 1000u);
+  try {
+    (void)read_text_file(big, 999);
+    FAIL();
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(big), std::string::npos) << msg;
+    EXPECT_NE(msg.find("more than 999 bytes"), std::string::npos) << msg;
+  }
+  // /dev/zero is endless: the read stops at the first chunk, which holds NUL bytes.
+  const std::string zeros = read_text_file("/dev/zero");
+  EXPECT_GT(zeros.size(), 0u);
+  EXPECT_LE(zeros.size(), std::size_t{1} << 16);
+  EXPECT_THROW((void)read_text_file(dir.file("missing")), Error);
+  EXPECT_THROW((void)read_text_file(dir.path().string()), Error);
+}
+
 TEST(PrepareOutputDir, CreatesMissingAcceptsEmptyAndRemovesWhatItCreatedIfLeftEmpty) {
   TempDir dir;
   const std::string nested = dir.file("a/b/c");

@@ -31,6 +31,15 @@ PairSet parse_pairs_csv(std::string text, const std::string& name);
 std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name);
 PairSet parse_any_as_pairs(std::string text, const std::string& name);
 
+// An input read once, so that a pipe, a FIFO or "-" (standard input) works: its name for
+// messages ("standard input" for "-"), its bytes and its kind (from the header line).
+struct CsvInput {
+  std::string name;
+  std::string text;
+  CsvKind kind = CsvKind::kPairs;
+};
+CsvInput read_csv_input(const std::string& path);
+
 // Values are written with 17 significant digits, so they read back bit-identical.
 void write_pairs_csv(const std::string& path, const PairSet& pairs);
 void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs);

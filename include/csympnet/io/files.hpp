@@ -1,13 +1,21 @@
 // Small file utilities: whole-file reads, crash-safe writes, and output-directory checks.
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 namespace csympnet {
 
-// Returns the bytes of the file unchanged. Throws Error naming the path if it does not
-// exist, is a directory, or cannot be read.
-std::string read_text_file(const std::string& path);
+// The most bytes an input file may hold (1 GiB): far above any data set this tool trains on,
+// far below what would exhaust memory once parsed.
+inline constexpr std::size_t kMaxInputBytes = std::size_t{1} << 30;
+
+// Returns the bytes of the file unchanged, read once (so a pipe or FIFO works); "-" reads
+// standard input. Throws Error naming the path if it does not exist, is a directory, cannot be
+// read (a signal interrupting the read included), or holds more than `max_bytes`. Reading
+// stops after the first chunk holding a NUL byte: text never has one, and the callers' own
+// checks then name its line.
+std::string read_text_file(const std::string& path, std::size_t max_bytes = kMaxInputBytes);
 
 // Writes `content` to a temporary file in the target's directory, flushes it to disk (fsync)
 // and renames it over `path`, so readers see either the old file or the complete new one,

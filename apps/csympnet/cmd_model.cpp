@@ -1,9 +1,9 @@
 // `evaluate` (diagnostics of a saved model) and `rollout` (iterate a saved model).
-#include <optional>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 

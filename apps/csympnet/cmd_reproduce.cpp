@@ -1,6 +1,5 @@
 // `reproduce`: run experiment suites (experiments/*.json), cache every run, write the
 // summary, the tables and the figures.
-#include <optional>
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -14,6 +13,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <thread>
@@ -77,9 +77,23 @@ std::string default_suites_dir() {
 }
 
 // A reproduction directory may be resumed; any other non-empty directory needs --force.
-OutputDir prepare_reproduce_dir(const std::string& out, bool force) {
+// The marker is trusted by its content, not by its name: a user's own reproduce.json (or
+// a damaged one) does not make a directory resumable, so its summary.json and timings.json
+// are never overwritten without --force.
+bool is_reproduce_marker(const fs::path& path) {
   std::error_code ec;
-  if (fs::exists(fs::path(out) / kMarker, ec)) return OutputDir(out, /*force=*/true);
+  if (!fs::is_regular_file(path, ec)) return false;
+  try {
+    const json m = json::parse(read_text_file(path.string(), 1 << 20));
+    return m.is_object() && m.value("format", "") == "csympnet-reproduce" &&
+           m.contains("suites") && m["suites"].is_array();
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+OutputDir prepare_reproduce_dir(const std::string& out, bool force) {
+  if (is_reproduce_marker(fs::path(out) / kMarker)) return OutputDir(out, /*force=*/true);
   return OutputDir(out, force);
 }
 

@@ -229,6 +229,19 @@ TEST_F(Cli, InputsAreReadOnceFromStdinPipesAndFifos) {
   EXPECT_FALSE(fs::exists(dir_ / "never"));
 }
 
+// A reproduce.json is trusted by its content: a user's own file of that name does not make
+// the directory resumable, so nothing of theirs is overwritten without --force.
+TEST_F(Cli, ReproduceTrustsItsMarkerByContentNotName) {
+  fs::create_directories(dir_ / "mine");
+  const fs::path marker = write("mine/reproduce.json", R"({"my": "notes"})");
+  const fs::path summary = write("mine/summary.json", R"({"my": "summary"})");
+  const Result r = run("reproduce --suite quick --no-figures -q --out " + (dir_ / "mine").string());
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("--force"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp(marker), R"({"my": "notes"})");
+  EXPECT_EQ(slurp(summary), R"({"my": "summary"})");
+}
+
 TEST_F(Cli, SavedModelRollsOutAndEvaluates) {
   const fs::path out = dir_ / "m";
   ASSERT_EQ(run("run --preset s1 --epochs 50 --quiet --out " + out.string()).code, 0);

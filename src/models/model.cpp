@@ -46,6 +46,15 @@ Model make_model(const nlohmann::json& spec) {
     m.field = make_vector_field_model(spec);
   else
     m.map = make_one_step_map(spec);
+  // Refused here, before any parameter vector is allocated: a size accepted by every option
+  // check must not end in std::bad_alloc later (a parameter vector, its AdamW moments and
+  // gradients take several copies).
+  const Index n = m.n_params();
+  require(n >= 0 && n <= kMaxModelParams,
+          "the model would have " + std::to_string(n) + " parameters, more than the " +
+              std::to_string(kMaxModelParams) +
+              " this tool holds in memory; expected smaller sizes (the core's layers, "
+              "sublayers or width, the hidden widths, or d)");
   return m;
 }
 

@@ -33,7 +33,11 @@ struct Model {
 std::vector<std::string> model_types();
 bool is_vector_field_type(const std::string& type);
 
-// Dispatches on spec["type"] to make_one_step_map or make_vector_field_model.
+// The most parameters a model may have: 5e7 (400 MB per copy of θ; training holds several).
+inline constexpr Index kMaxModelParams = 50'000'000;
+
+// Dispatches on spec["type"] to make_one_step_map or make_vector_field_model; refuses a
+// model with more than kMaxModelParams parameters.
 Model make_model(const nlohmann::json& spec);
 
 }  // namespace csympnet

@@ -85,8 +85,8 @@ bool is_reproduce_marker(const fs::path& path) {
   if (!fs::is_regular_file(path, ec)) return false;
   try {
     const json m = json::parse(read_text_file(path.string(), 1 << 20));
-    return m.is_object() && m.value("format", "") == "csympnet-reproduce" &&
-           m.contains("suites") && m["suites"].is_array();
+    return m.is_object() && m.value("format", "") == "csympnet-reproduce" && m.contains("suites") &&
+           m["suites"].is_array();
   } catch (const std::exception&) {
     return false;
   }

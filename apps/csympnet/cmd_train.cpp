@@ -50,7 +50,8 @@ struct FitArgs {
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
       ->check(CLI::IsMember({"csympnet", "sympnet"}));
-  cmd.add_option("--core", a.core, "Symplectic core: la:L:m or g:L:w (default: fit chooses by validation between "
+  cmd.add_option("--core", a.core,
+                 "Symplectic core: la:L:m or g:L:w (default: fit chooses by validation between "
                  "an LA and a G core; train takes one by dimension)")
       ->check(kCoreSpec);
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")

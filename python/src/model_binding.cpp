@@ -146,8 +146,7 @@ std::unique_ptr<PyModel> from_saved(SavedModel saved) {
 // have). So every method takes `self` as a handle and checks that it is a Model whose holder was
 // constructed: Python gets an exception, never a crash.
 const PyModel& live(py::handle self) {
-  if (!py::isinstance<PyModel>(self))
-    throw py::type_error("expected a csympnet._core.Model");
+  if (!py::isinstance<PyModel>(self)) throw py::type_error("expected a csympnet._core.Model");
   auto* inst = reinterpret_cast<py::detail::instance*>(self.ptr());
   auto vh = inst->get_value_and_holder(py::detail::get_type_info(typeid(PyModel)));
   if (!vh.holder_constructed())

@@ -265,8 +265,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // LM) on a share of the budget; the lower validation loss wins and continues LM.
   IdentifyConfig& c = r.config;
   const bool choose = c.core.is_null();
-  std::vector<nlohmann::json> cores = choose ? default_cores(d, varying)
-                                             : std::vector<nlohmann::json>{c.core};
+  std::vector<nlohmann::json> cores =
+      choose ? default_cores(d, varying) : std::vector<nlohmann::json>{c.core};
   r.choices["blocks"] = {{"total", n_blocks},
                          {"train", static_cast<long>(train_ids.size())},
                          {"validation", n_val},
@@ -297,7 +297,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   for (std::size_t k = 0; k < cores.size(); ++k) {
     Candidate& x = cand[k];
     x.core = cores[k];
-    nlohmann::json spec = {{"type", "csympnet"}, {"d", d}, {"core", x.core}, {"beta_init", beta_init}};
+    nlohmann::json spec = {
+        {"type", "csympnet"}, {"d", d}, {"core", x.core}, {"beta_init", beta_init}};
     if (c.dof_scales == "learned" && d > 1) spec["dof_scales"] = "learned";
     x.inner = make_model(spec);
     x.theta.resize(x.inner.n_params());
@@ -313,8 +314,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // 50,000 epochs.
   auto epochs_for = [&](const Candidate& x) -> long {
     if (config.epochs > 0) return config.epochs;
-    const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) *
-                                 static_cast<double>(m) *
+    const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) * static_cast<double>(m) *
                                  static_cast<double>(x.inner.n_params());
     return std::clamp<long>(std::lround(10.0 * share / epoch_seconds), 300, 50000);
   };
@@ -417,10 +417,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   std::size_t win = 0;
   for (std::size_t k = 0; k < cand.size(); ++k) {
     Candidate& x = cand[k];
-    const std::string of = cand.size() > 1 ? " (core " + std::to_string(k + 1) + " of " +
-                                                 std::to_string(cand.size()) + ", " +
-                                                 core_name(x.core) + ")"
-                                           : "";
+    const std::string of = cand.size() > 1
+                               ? " (core " + std::to_string(k + 1) + " of " +
+                                     std::to_string(cand.size()) + ", " + core_name(x.core) + ")"
+                               : "";
     run_adamw(x, "AdamW" + of);
     const long budget = lm_budget(x, cand.size() > 1 ? 10.0 : 25.0);
     run_lm(x, budget, "LM" + of);
@@ -439,8 +439,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   r.choices["core"] = best.core;
   if (choose) {
     r.choices["core_candidates"] = tried;
-    std::string why = "lowest validation loss of " + std::to_string(cand.size()) +
-                      " candidates (" + core_name(best.core) + ")";
+    std::string why = "lowest validation loss of " + std::to_string(cand.size()) + " candidates (" +
+                      core_name(best.core) + ")";
     if (varying) why += "; the LA candidate has step polynomials because the steps vary";
     r.choices["core_reason"] = why;
   } else {
@@ -541,8 +541,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   if (!r.stopped && lm_fits && r.training.stop_reason != "diverged") {
     stage("interval");
     const auto t_interval = std::chrono::steady_clock::now();
-    const NormalEquations ne =
-        window_normal_equations(map, r.theta, train, bal, scale, true, stop);
+    const NormalEquations ne = window_normal_equations(map, r.theta, train, bal, scale, true, stop);
     if (ne.stopped) {
       r.stopped = true;  // interrupted: no interval
     } else {

@@ -50,8 +50,8 @@ std::string read_text_file(const std::string& path, std::size_t max_bytes) {
     }
     if (n == 0) break;
     if (out.size() + static_cast<std::size_t>(n) > max_bytes) {
-      failure = "it holds more than " + std::to_string(max_bytes) +
-                " bytes, the most an input may hold";
+      failure =
+          "it holds more than " + std::to_string(max_bytes) + " bytes, the most an input may hold";
       break;
     }
     out.append(buf, static_cast<std::size_t>(n));
@@ -197,7 +197,8 @@ OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
       throw Error("output directory '" + dir + "' is being written by another csympnet (pid " +
                   owner + "); expected a directory no other run is writing to");
     }
-    struct stat held {}, named {};
+    struct stat held {
+    }, named{};
     if (::fstat(fd_, &held) == 0 && ::stat(lock.c_str(), &named) == 0 &&
         held.st_ino == named.st_ino && held.st_dev == named.st_dev)
       break;
@@ -245,7 +246,9 @@ OutputDir::OutputDir(OutputDir&& other) noexcept
   other.created_ = false;
 }
 
-OutputDir::~OutputDir() { release(); }
+OutputDir::~OutputDir() {
+  release();
+}
 
 void OutputDir::release() noexcept {
   std::error_code ec;

@@ -91,8 +91,9 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
   // Version 1 predates the checksum: reading it would let anyone edit a file's parameters and
   // relabel it "version": 1 to pass. Every version read carries a checksum.
   require(version != 1,
-          where + ": model format version 1 (no checksum) is no longer read: it cannot be told "
-                  "from a file whose checksum was removed; expected version " +
+          where +
+              ": model format version 1 (no checksum) is no longer read: it cannot be told "
+              "from a file whose checksum was removed; expected version " +
               std::to_string(kModelFormatVersion) +
               " (fit or train the model again with this csympnet)");
   require(version == kModelFormatVersion,
@@ -140,8 +141,9 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
   }
   out.meta = doc.value("meta", nlohmann::json::object());
   {
-    require(doc.contains("checksum") && doc["checksum"].is_string(),
-            where + ": missing string \"checksum\"; every model file carries one");
+    require(
+        doc.contains("checksum") && doc["checksum"].is_string(),
+        where + ": missing string \"checksum\"; expected the checksum every model file carries");
     const std::string expected = doc["checksum"].get<std::string>();
     const std::string actual = checksum_of(doc["model"], out.meta, out.theta);
     require(expected == actual, where + ": checksum mismatch (the file says " + expected +

@@ -219,9 +219,8 @@ TEST_F(Cli, InputsAreReadOnceFromStdinPipesAndFifos) {
   const fs::path fifo = dir_ / "fifo";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   const fs::path err = dir_ / "fifo_err.txt";
-  const std::string cmd = cli + " fit " + fifo.string() + " -q --out " +
-                          (dir_ / "never").string() + " 2>" + err.string() +
-                          " & pid=$!; sleep 0.3; kill -INT $pid; wait $pid";
+  const std::string cmd = cli + " fit " + fifo.string() + " -q --out " + (dir_ / "never").string() +
+                          " 2>" + err.string() + " & pid=$!; sleep 0.3; kill -INT $pid; wait $pid";
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 130) << slurp(err);

@@ -142,7 +142,6 @@ TEST(Identify, IntervalCoversAtAboutItsLevel) {
   EXPECT_GE(identified, 55);
 }
 
-
 }  // namespace
 }  // namespace csympnet
 
@@ -177,7 +176,6 @@ TEST(Identify, WindowsGrowOnlyWhenNoiseDominatesMisfit) {
   c.window = 2;
   EXPECT_EQ(identify(clean, false, c).config.window, 2);
 }
-
 
 // The core is chosen by validation loss between an LA and a G candidate; the winner is the
 // one reported and saved, on a linear oscillator and a large-amplitude pendulum. On the linear
@@ -229,7 +227,6 @@ TEST(Identify, ChoosesTheCoreByValidationLoss) {
   EXPECT_EQ(given.choices["core_reason"], "given");
   EXPECT_EQ(given.config.core, c.core);
 }
-
 
 }  // namespace
 }  // namespace csympnet

@@ -163,9 +163,9 @@ TEST(PrepareOutputDir, OneWriterAtATime) {
 TEST(PrepareOutputDir, StaleTemporariesAreRemovedNotCounted) {
   EXPECT_TRUE(is_atomic_write_temp(".report.json.tmp.123.0.456789"));
   EXPECT_TRUE(is_atomic_write_temp(".a.tmp.1.2.3"));
-  for (const char* name : {"report.json", ".report.json", ".report.json.tmp.", ".x.tmp.1.2",
-                           ".x.tmp.1.2.3.4", ".x.tmp.1.a.3", ".x.tmp.1..3", "x.tmp.1.2.3",
-                           ".tmp.1.2.3"})
+  for (const char* name :
+       {"report.json", ".report.json", ".report.json.tmp.", ".x.tmp.1.2", ".x.tmp.1.2.3.4",
+        ".x.tmp.1.a.3", ".x.tmp.1..3", "x.tmp.1.2.3", ".tmp.1.2.3"})
     EXPECT_FALSE(is_atomic_write_temp(name)) << name;
   TempDir dir;
   const std::string out = dir.file("killed");

@@ -6,6 +6,7 @@
 #include "csympnet/models/csympnet_id.hpp"
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
+#include "csympnet/models/model.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "support/model_fixtures.hpp"
 
@@ -88,6 +89,28 @@ TEST(ModelFactory, HyperparamsRoundTripAndBitIdenticalForward) {
     const Matrix b = rebuilt->apply(theta, z, h);
     EXPECT_EQ(a, b) << spec.dump();  // exact equality: same code, same inputs
   }
+}
+
+// Sizes every option check accepts must not end in std::bad_alloc: a model beyond
+// kMaxModelParams is refused with its count before any parameter vector exists; the largest
+// allowed one is built.
+TEST(ModelFactory, RefusesModelsTooLargeToHoldBeforeAllocating) {
+  for (const char* spec :
+       {R"({"type":"csympnet","d":1,"core":{"type":"la","layers":100000,"sublayers":100000}})",
+        R"({"type":"sympnet","d":4000,"core":{"type":"la","layers":10,"sublayers":10}})",
+        R"({"type":"csympnet","d":2,"core":{"type":"g","layers":100000,"width":100000}})"}) {
+    try {
+      (void)make_model(nlohmann::json::parse(spec));
+      ADD_FAILURE() << "accepted " << spec;
+    } catch (const Error& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("parameters, more than the 50000000"), std::string::npos) << msg;
+    }
+  }
+  // G(L, w) with d = 2 has 4 L w parameters: 50,000,000 exactly is allowed.
+  const Model largest = make_model(nlohmann::json::parse(
+      R"({"type":"sympnet","d":2,"core":{"type":"g","layers":12500,"width":1000}})"));
+  EXPECT_EQ(largest.n_params(), kMaxModelParams);
 }
 
 TEST(ModelFactory, DefaultBetaInitIsWrittenOut) {

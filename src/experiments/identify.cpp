@@ -98,9 +98,9 @@ std::vector<Trajectory> make_blocks(const std::vector<Trajectory>& trajs, long t
 }
 
 // The candidate cores, chosen between by validation loss (section 3 of identify()).
-//  - LA(5, 20) for d = 1; for d > 1 LA(4, m) with m ≤ 10 sublayers, fewer when d is large, so
-//    that the linear sublayers hold at most about 2,400 parameters (LM's normal matrix and the
-//    interval need P × P doubles and a Cholesky factorisation per iteration). With step
+//  - LA(5, 20) for d = 1; for d > 1 LA(4, m) with m ≤ 10 sublayers, fewer from d = 8 on, so
+//    that a sublayer sweep holds about 1,200 parameters: an LM iteration forms JᵀJ, rows × P²
+//    flops (seconds at d = 10 with 2,000 samples and P = 4,000), and factorises it. With step
 //    polynomials when the steps vary. Exact for linear systems; its activation modules act
 //    coordinate by coordinate, so a coupled or strongly nonlinear force is approximated
 //    coarsely.
@@ -114,7 +114,7 @@ std::vector<nlohmann::json> default_cores(Index d, bool varying_steps) {
     la = {{"type", "la"}, {"layers", 5}, {"sublayers", 20}};
   } else {
     const Index per_sublayer = 4 * d * (d + 1) / 2;
-    const Index m = std::clamp<Index>(2400 / per_sublayer, 2, 10);
+    const Index m = std::clamp<Index>(1200 / per_sublayer, 2, 10);
     la = {{"type", "la"}, {"layers", 4}, {"sublayers", m}};
   }
   if (varying_steps) la["step_terms"] = 2;
@@ -422,7 +422,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                                      std::to_string(cand.size()) + ", " + core_name(x.core) + ")"
                                : "";
     run_adamw(x, "AdamW" + of);
-    const long budget = lm_budget(x, cand.size() > 1 ? 10.0 : 25.0);
+    // With several candidates each gets at least 2 iterations (a large core's iteration can
+    // take seconds); the winner continues below.
+    const long budget = cand.size() > 1 ? lm_budget(x, 10.0, 2) : lm_budget(x, 25.0);
     run_lm(x, budget, "LM" + of);
     x.val_loss = window_loss(*x.inner.map, x.theta, val, bal);
     if (!std::isfinite(x.val_loss)) x.val_loss = std::numeric_limits<double>::infinity();
@@ -448,7 +450,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   }
   c.epochs = epochs_for(best);
   r.choices["epochs"] = c.epochs;
-  long lm_total = lm_budget(best, cand.size() > 1 ? 10.0 : 25.0);
+  long lm_total = cand.size() > 1 ? lm_budget(best, 10.0, 2) : lm_budget(best, 25.0);
   // The winner continues where its LM stopped, with the rest of the one-step budget.
   const long more = cand.size() > 1 && config.lm_iterations == 0 && best.lm.iterations > 0 &&
                             best.lm.message.rfind("no better", 0) != 0 && !stopped

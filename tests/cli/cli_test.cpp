@@ -241,6 +241,34 @@ TEST_F(Cli, ReproduceTrustsItsMarkerByContentNotName) {
   EXPECT_EQ(slurp(summary), R"({"my": "summary"})");
 }
 
+// `fit` stops within a second of SIGINT in every stage it reaches on a d = 10 fit of 1,990
+// samples (AdamW, then LM iterations of several seconds whose normal equations poll the
+// signal per chunk), exits 130, and keeps the best parameters so far with their report.
+TEST_F(Cli, FitStopsWithinASecondOfSigintInEveryStage) {
+  const fs::path data = dir_ / "d10.csv";
+  ASSERT_EQ(
+      run("generate --preset s2 --split test --n 39 --out " + data.string()).code, 0);
+  for (const double delay : {0.3, 1.5, 4.0, 7.0}) {
+    const fs::path out = dir_ / ("int" + std::to_string(static_cast<int>(delay * 10)));
+    const fs::path ms = dir_ / "latency_ms.txt";
+    const std::string cmd = std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() +
+                            " -q --out " + out.string() + " >/dev/null 2>&1 & pid=$!; sleep " +
+                            std::to_string(delay) +
+                            "; t0=$(date +%s%N); kill -INT $pid; wait $pid; code=$?; "
+                            "echo $(( ($(date +%s%N) - t0) / 1000000 )) > " +
+                            ms.string() + "; exit $code";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 130) << "signalled after " << delay << " s";
+    const long latency = std::stol(slurp(ms));
+    EXPECT_LT(latency, 1000) << "signalled after " << delay << " s";
+    const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+    EXPECT_EQ(rep["stopped"], true);
+    EXPECT_EQ(rep["identified"], false);
+    EXPECT_TRUE(fs::exists(out / "model.json"));
+  }
+}
+
 TEST_F(Cli, SavedModelRollsOutAndEvaluates) {
   const fs::path out = dir_ / "m";
   ASSERT_EQ(run("run --preset s1 --epochs 50 --quiet --out " + out.string()).code, 0);

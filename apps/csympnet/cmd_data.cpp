@@ -32,11 +32,12 @@ void add_generate(CLI::App& app) {
       ->check(CLI::IsMember(preset_names()));
   cmd->add_option("--split", a->split, "train, val (pairs CSV) or test (trajectories CSV)")
       ->check(CLI::IsMember({"train", "val", "test"}));
-  // NonNegativeNumber: CLI11 would wrap "-1" into 2^64 - 1 for an unsigned seed.
+  // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd->add_option("--seed", a->seed,
                   "Seed (train/val: training seed, default 42; test: data seed, default 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kSeed);
   cmd->add_option("--n", a->n, "Number of pairs or trajectories (default: the preset's)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
   cmd->add_option("--sigma", a->sigma, "Relative observation noise (train/val only)")
       ->check(kFiniteNumber)

@@ -142,6 +142,7 @@ void add_rollout(CLI::App& app) {
   cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(CLI::PositiveNumber);
   cmd->add_option("--steps", *steps, "Number of steps")
       ->required()
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
   cmd->callback([=] {
     const SavedModel saved = load_model(*model);

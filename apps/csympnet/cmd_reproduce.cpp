@@ -26,6 +26,7 @@
 #include "csympnet/experiments/summary.hpp"
 #include "csympnet/io/files.hpp"
 #include "interrupt.hpp"
+#include "system_options.hpp"
 
 #ifndef CSYMPNET_SUITES_DIR
 #define CSYMPNET_SUITES_DIR "experiments"
@@ -286,7 +287,9 @@ void add_reproduce(CLI::App& app) {
                   "quick (Tables 2-4), full (everything) or NAME[,NAME] from --suites-dir");
   cmd->add_option("--out", a->out, "Output directory (an earlier reproduction is resumed)")
       ->required();
-  cmd->add_option("--jobs", a->jobs, "Threads (default: all cores)")->check(CLI::Range(1, 1024));
+  cmd->add_option("--jobs", a->jobs, "Threads (default: all cores)")
+      ->check(kWholeNumber)
+      ->check(CLI::Range(1, 1024));
   cmd->add_option("--suites-dir", a->suites_dir, "Directory of suite files")
       ->check(CLI::ExistingDirectory);
   cmd->add_flag("--no-figures", a->no_figures, "Skip the matplotlib figures");

@@ -83,10 +83,11 @@ void add_run(CLI::App& app) {
       "run", "Generate a preset's data, train a model, evaluate it, write DIR/report.json");
   add_preset_option(*cmd, args->preset);
   cmd->add_option("--model", args->model, "Model to train")->check(CLI::IsMember(model_types()));
-  // NonNegativeNumber: CLI11 would wrap "-1" into 2^64 - 1 for an unsigned seed.
+  // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kSeed);
   cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(0L, 100000000L));
   cmd->add_option("--recipe", args->recipe,
                   "Training recipe: default (cosine-annealed rate) or paper (constant rate)")
@@ -97,6 +98,7 @@ void add_run(CLI::App& app) {
   cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
       ->check(CLI::IsMember({"constant", "cosine"}));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
   cmd->add_option("--sigma", args->sigma, "Relative observation noise (default 0)")
       ->check(kFiniteNumber)
@@ -114,6 +116,7 @@ void add_run(CLI::App& app) {
       ->check(CLI::IsMember({"none", "lm", "lbfgs"}));
   cmd->add_option("--refine-iterations", args->refine_iterations,
                   "Iterations of the second stage (default 300)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
   cmd->add_option("--refine-solver", args->refine_solver,
                   "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "

@@ -55,6 +55,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "an LA and a G core; train takes one by dimension)")
       ->check(kCoreSpec);
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
   cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")
       ->check(kFiniteNumber)
@@ -62,10 +63,11 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
       ->check(CLI::IsMember({"constant", "cosine"}));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
-  // NonNegativeNumber: CLI11 would wrap "-1" into 2^64 - 1 for an unsigned seed.
+  // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd.add_option("--seed", a.seed, "Seed of the validation split and the init (default 42)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kSeed);
   cmd.add_option("--val-fraction", a.val_fraction,
                  "Held-out share when no --val is given (default 0.2)")
       ->check(kFiniteNumber)
@@ -85,6 +87,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(CLI::IsMember({"auto", "none", "lm", "lbfgs"}));
   cmd.add_option("--refine-iterations", a.refine_iterations,
                  "Iterations of the second stage (default 300)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(1L, 100000000L));
   cmd.add_option("--refine-solver", a.refine_solver,
                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
@@ -96,6 +99,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  std::string("Bootstrap replicates for an interval of gamma_hat (0: none; >= 10) "
                              "(default: ") +
                      (a.bootstrap_default < 0 ? "100 up to 1000 parameters, else none)" : "0)"))
+      ->check(kWholeNumber)
       ->check(CLI::Range(0L, 1000000L));
   add_threads_option(cmd, a.threads);
   cmd.add_option("--out", a.out, "Output directory")->required();
@@ -380,6 +384,7 @@ void add_fit(CLI::App& app) {
       ->check(CLI::IsMember({"identify", "classic"}));
   cmd->add_option("--window", a->window,
                   "Steps per window of the loss (default 0: automatic, up to 4)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(0L, 64L));
   cmd->add_option("--loss", a->loss,
                   "balanced (default: residuals in the middle of the map) or one-step")
@@ -391,12 +396,14 @@ void add_fit(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "learned", "fixed"}));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(0L, 100000L));
   cmd->add_option("--level", a->level, "Level of the interval for gamma (default 0.95)")
       ->check(CLI::Range(0.5, 0.9999));
   cmd->add_option("--blocks", a->blocks,
                   "Segments a long trajectory is cut into, for validation and the interval "
                   "(default 20)")
+      ->check(kWholeNumber)
       ->check(CLI::Range(3L, 10000L));
   CLI::App* self = cmd;
   cmd->callback([a, self] {

@@ -151,6 +151,11 @@ TEST_F(OptionRanges, RunTrainAndFit) {
       {"--model nosuch", "--model", 2},
       {"--seed x", "--seed", 2},
       {"--seed -1", "--seed", 2},
+      // Said in words, not clamped: 2^64 was once accepted as 2^64 - 1.
+      {"--seed 18446744073709551616", "'18446744073709551616' is above 18446744073709551615", 2},
+      {"--seed -1", "'-1' is negative; expected a seed from 0", 2},
+      {"--epochs abc", "'abc' is not a whole number", 2},
+      {"--epochs 2.5", "'2.5' is not a whole number", 2},
       {"--threads 0", "--threads", 2},
       {"--threads -2", "--threads", 2},
       {"--threads 257", "--threads", 2},

@@ -158,7 +158,7 @@ void add_run(CLI::App& app) {
       ProgressLine progress(args->quiet);
       r = run_experiment(c, progress.callback());
     }
-    write_run_outputs(args->out, r);
+    out_dir.commit(run_output_files(r));
     const auto& rep = r.report;
     if (!args->quiet) print_run_summary(*args, r);
     if (rep["stop_reason"] == "diverged")

@@ -189,14 +189,17 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
       {"config", r.config},
       {"architecture", r.model.hyperparams()}};
   if (gamma && !r.interval_note.empty()) report["gamma_ci_note"] = r.interval_note;
-  write_json_file((std::filesystem::path(a.out) / "report.json").string(), report);
-  // Wall times apart from the report, which stays bit-identical run to run.
-  write_json_file((std::filesystem::path(a.out) / "timings.json").string(),
-                  {{"train_seconds", r.training.seconds},
-                   {"refine_seconds", r.refine.seconds},
-                   {"bootstrap_seconds", r.interval ? r.interval->seconds : 0.0}});
-  save_model((std::filesystem::path(a.out) / "model.json").string(), r.model, r.theta,
-             {{"data", a.data}, {"seed", a.seed}, {"train", r.config.train}});
+  // One set: the report, the wall times (apart, so the report stays bit-identical run to
+  // run) and the model, committed together.
+  out_dir.commit(
+      {{"report.json", json_file_text(report)},
+       {"timings.json",
+        json_file_text({{"train_seconds", r.training.seconds},
+                        {"refine_seconds", r.refine.seconds},
+                        {"bootstrap_seconds", r.interval ? r.interval->seconds : 0.0}})},
+       {"model.json",
+        model_file_text(r.model, r.theta,
+                        {{"data", a.data}, {"seed", a.seed}, {"train", r.config.train}})}});
   if (gamma && r.interval)
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% %s)\n", *gamma,
                 0.5 * (r.interval->high - r.interval->low), r.interval->low, r.interval->high,
@@ -307,13 +310,13 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
-  const fs::path out(a.out);
-  write_json_file((out / "report.json").string(), report);
-  write_json_file((out / "timings.json").string(), {{"train_seconds", r.adamw_seconds},
-                                                    {"lm_seconds", r.lm_seconds},
-                                                    {"interval_seconds", r.interval_seconds}});
-  save_model((out / "model.json").string(), r.model, r.theta,
-             {{"data", a.data}, {"seed", a.seed}, {"recipe", "identify"}});
+  out_dir.commit({{"report.json", json_file_text(report)},
+                  {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
+                                                   {"lm_seconds", r.lm_seconds},
+                                                   {"interval_seconds", r.interval_seconds}})},
+                  {"model.json",
+                   model_file_text(r.model, r.theta,
+                                   {{"data", a.data}, {"seed", a.seed}, {"recipe", "identify"}})}});
   if (r.identified) {
     const SandwichInterval& s = *r.interval;
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% interval, %s, %ld blocks)\n",
@@ -342,7 +345,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (!r.identified) {
     std::string why;
     for (const auto& x : r.reasons) why += (why.empty() ? "" : "; ") + x;
-    throw NotIdentified(why + " (report: " + (out / "report.json").string() + ")");
+    throw NotIdentified(why + " (report: " + (fs::path(a.out) / "report.json").string() + ")");
   }
 }
 }  // namespace

@@ -9,18 +9,22 @@
 
 namespace csympnet {
 
-void write_json_file(const std::string& path, const nlohmann::json& doc) {
-  write_text_atomic(path, doc.dump(2) + "\n");
+std::string json_file_text(const nlohmann::json& doc) {
+  return doc.dump(2) + "\n";
 }
 
-void write_run_outputs(const std::string& dir, const RunResult& r) {
-  const std::filesystem::path base(dir);
-  write_json_file((base / "report.json").string(), r.report);
+void write_json_file(const std::string& path, const nlohmann::json& doc) {
+  write_text_atomic(path, json_file_text(doc));
+}
+
+OutputFiles run_output_files(const RunResult& r) {
+  OutputFiles files;
+  files.emplace_back("report.json", json_file_text(r.report));
   nlohmann::json meta = {{"system", r.report["config"]["preset"]["system"]},
                          {"preset", r.report["preset"]},
                          {"seed", r.report["seed"]},
                          {"train", r.report["config"]["train"]}};
-  save_model((base / "model.json").string(), r.model, r.theta, meta);
+  files.emplace_back("model.json", model_file_text(r.model, r.theta, meta));
 
   const auto& tests = r.data.test.trajectories;
   std::vector<Trajectory> predicted;
@@ -35,9 +39,10 @@ void write_run_outputs(const std::string& dir, const RunResult& r) {
       energy += buf;
     }
   }
-  write_trajectories_csv((base / "rollout.csv").string(), predicted);
-  write_trajectories_csv((base / "reference.csv").string(), tests);
-  write_text_atomic((base / "energy.csv").string(), energy);
+  files.emplace_back("rollout.csv", trajectories_csv_text(predicted));
+  files.emplace_back("reference.csv", trajectories_csv_text(tests));
+  files.emplace_back("energy.csv", std::move(energy));
+  return files;
 }
 
 }  // namespace csympnet

@@ -94,18 +94,16 @@ bool write_all(int fd, const std::string& content) {
 
 }  // namespace
 
-void write_text_atomic(const std::string& path, const std::string& content) {
-  const fs::path target(path);
+namespace {
+
+// The content in a fresh temporary beside `target`, flushed to disk (fsync before any rename:
+// otherwise a crash could leave the new name pointing at empty data). Returns its path; on
+// failure nothing is left behind and Error names `target`.
+fs::path write_synced_temp(const fs::path& target, const std::string& content) {
+  const std::string path = target.string();
   if (target.filename().empty())
     throw Error("cannot write '" + path + "': expected a file name, not a directory path");
   const fs::path tmp = temp_name_for(target);
-  auto fail = [&](const std::string& why) {
-    std::error_code ignored;
-    fs::remove(tmp, ignored);
-    throw Error("cannot write '" + path + "': " + why +
-                "; expected a writable location in an existing directory");
-  };
-
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) {
     // Nothing was created, so there is nothing to remove; report without touching tmp.
@@ -114,23 +112,107 @@ void write_text_atomic(const std::string& path, const std::string& content) {
   }
   const bool written = write_all(fd, content);
   const int write_errno = errno;
-  // fsync before rename: otherwise a crash could leave the new name pointing at empty data.
   const bool synced = written && ::fsync(fd) == 0;
   const bool closed = ::close(fd) == 0;
-  if (!written) fail(std::strerror(write_errno));
-  if (!synced || !closed) fail(std::string("flush failed: ") + std::strerror(errno));
+  if (!written || !synced || !closed) {
+    const std::string why = !written ? std::strerror(write_errno)
+                                     : std::string("flush failed: ") + std::strerror(errno);
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw Error("cannot write '" + path + "': " + why +
+                "; expected a writable location in an existing directory");
+  }
+  return tmp;
+}
 
-  std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) fail("rename failed: " + ec.message());
-
-  // Best effort: persist the directory entry too. Failure here does not undo the write.
-  const fs::path dir = target.parent_path().empty() ? fs::path(".") : target.parent_path();
-  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+// Best effort: persist the directory's entries too. Failure here does not undo a write.
+void sync_directory(const fs::path& dir) {
+  const fs::path d = dir.empty() ? fs::path(".") : dir;
+  const int dfd = ::open(d.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     (void)::fsync(dfd);
     ::close(dfd);
   }
+}
+
+constexpr const char* kCommitJournal = ".csympnet.commit";
+
+// Completes a commit a killed writer left: every temporary the journal names that still
+// exists is renamed over its target, then the journal goes. Each journal line is
+// "TEMP<TAB>TARGET", names inside `dir`.
+void roll_forward(const fs::path& dir) {
+  const fs::path journal = dir / kCommitJournal;
+  std::error_code ec;
+  if (!fs::exists(journal, ec)) return;
+  std::istringstream lines(read_text_file(journal.string(), 1 << 20));
+  for (std::string line; std::getline(lines, line);) {
+    const std::size_t tab = line.find('\t');
+    if (tab == std::string::npos) continue;
+    const std::string tmp = line.substr(0, tab), target = line.substr(tab + 1);
+    // Only names this process could have written: no path separators, our temp pattern.
+    if (tmp.find('/') != std::string::npos || target.find('/') != std::string::npos ||
+        target.empty() || !is_atomic_write_temp(tmp))
+      continue;
+    if (fs::exists(dir / tmp, ec)) fs::rename(dir / tmp, dir / target, ec);
+  }
+  sync_directory(dir);
+  fs::remove(journal, ec);
+  sync_directory(dir);
+}
+
+}  // namespace
+
+void write_text_atomic(const std::string& path, const std::string& content) {
+  const fs::path target(path);
+  const fs::path tmp = write_synced_temp(target, content);
+  std::error_code ec;
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    throw Error("cannot write '" + path + "': rename failed: " + ec.message() +
+                "; expected a writable location in an existing directory");
+  }
+  sync_directory(target.parent_path());
+}
+
+void OutputDir::commit(const OutputFiles& files) const {
+  require(fd_ >= 0, "OutputDir::commit: the directory is not held");
+  const fs::path dir(dir_);
+  std::vector<fs::path> temps;
+  auto discard = [&] {
+    std::error_code ignored;
+    for (const fs::path& t : temps) fs::remove(t, ignored);
+  };
+  // 1. Every new file complete on disk, under a temporary name: a failure here (a full disk)
+  //    leaves the old set untouched.
+  std::string journal;
+  try {
+    for (const auto& [name, content] : files) {
+      require(!name.empty() && name.find('/') == std::string::npos,
+              "OutputDir::commit: '" + name + "' is not a plain file name");
+      temps.push_back(write_synced_temp(dir / name, content));
+      journal += temps.back().filename().string() + "\t" + name + "\n";
+    }
+    // 2. The journal: from here on the new set is decided; a crash is rolled forward by the
+    //    next csympnet that takes this directory.
+    write_text_atomic((dir / kCommitJournal).string(), journal);
+  } catch (...) {
+    discard();
+    throw;
+  }
+  // 3. The renames, then the journal goes.
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    std::error_code ec;
+    fs::rename(temps[k], dir / files[k].first, ec);
+    if (ec)
+      throw Error("cannot write '" + (dir / files[k].first).string() + "': rename failed: " +
+                  ec.message() + "; the next csympnet command on this directory completes the set");
+  }
+  sync_directory(dir);
+  std::error_code ec;
+  fs::remove(dir / kCommitJournal, ec);
+  sync_directory(dir);
 }
 
 bool is_atomic_write_temp(const std::string& name) {
@@ -214,6 +296,9 @@ OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
   if (::ftruncate(fd_, 0) != 0 || ::pwrite(fd_, pid.data(), pid.size(), 0) < 0) {
     // The pid is only a courtesy for the message of a refused second writer.
   }
+  // A commit a killed writer left half done is completed first (its temporaries are in the
+  // journal), then what is there besides our lock and stale temporaries (removed)?
+  roll_forward(fs::path(dir));
   // What is there besides our lock and a killed writer's temporaries (removed)?
   bool empty = true;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {

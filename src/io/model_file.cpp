@@ -154,9 +154,13 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
   return out;
 }
 
+std::string model_file_text(const Model& model, const Vector& theta, const nlohmann::json& meta) {
+  return model_to_json(model, theta, meta).dump(1) + "\n";
+}
+
 void save_model(const std::string& path, const Model& model, const Vector& theta,
                 const nlohmann::json& meta) {
-  write_text_atomic(path, model_to_json(model, theta, meta).dump(1) + "\n");
+  write_text_atomic(path, model_file_text(model, theta, meta));
 }
 
 SavedModel model_from_text(const std::string& text, const std::string& where) {

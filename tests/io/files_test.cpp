@@ -2,10 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <optional>
 
+#include <csignal>
 #include <filesystem>
 
 #include "../data/temp_dir.hpp"
@@ -174,6 +177,77 @@ TEST(PrepareOutputDir, StaleTemporariesAreRemovedNotCounted) {
   write_text_atomic(out + "/.model.json.tmp.4242.1.100", "half");
   { const OutputDir held = prepare_output_dir(out, false); }
   EXPECT_TRUE(fs::is_empty(out));
+}
+
+// A set of files is committed as one: all written, replacing an old set whole.
+TEST(OutputDirCommit, WritesTheSetAndReplacesAnOldOneWhole) {
+  TempDir dir;
+  const std::string out = dir.file("run");
+  {
+    const OutputDir held = prepare_output_dir(out, false);
+    held.commit({{"report.json", "old report"}, {"model.json", "old model"}});
+  }
+  {
+    const OutputDir held = prepare_output_dir(out, true);
+    held.commit({{"report.json", "new report"}, {"model.json", "new model"}});
+  }
+  EXPECT_EQ(read_text_file(out + "/report.json"), "new report");
+  EXPECT_EQ(read_text_file(out + "/model.json"), "new model");
+  EXPECT_EQ(entries(out), 2u);  // no journal, no temporary, no lock left
+}
+
+// A full disk while the new set is written (injected: a file-size limit in a child process,
+// so the second file's write fails with EFBIG) leaves the old set whole and no temporaries.
+TEST(OutputDirCommit, AFailedWriteLeavesTheOldSetWhole) {
+  TempDir dir;
+  const std::string out = dir.file("run");
+  {
+    const OutputDir held = prepare_output_dir(out, false);
+    held.commit({{"report.json", "old report"}, {"model.json", "old model"}});
+  }
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);  // a write past the limit then fails with EFBIG
+    const rlimit lim{4096, 4096};
+    ::setrlimit(RLIMIT_FSIZE, &lim);
+    try {
+      const OutputDir held(out, true);
+      held.commit({{"report.json", "new report"}, {"model.json", std::string(100000, 'm')}});
+      ::_exit(0);
+    } catch (const Error& e) {
+      ::_exit(std::string(e.what()).find("model.json") != std::string::npos ? 7 : 8);
+    }
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 7);  // refused, naming the file that could not be written
+  EXPECT_EQ(read_text_file(out + "/report.json"), "old report");
+  EXPECT_EQ(read_text_file(out + "/model.json"), "old model");
+  EXPECT_EQ(entries(out), 2u);
+}
+
+// Killed between the renames: the journal names the temporaries still to rename, and the
+// next command that takes the directory completes the new set before anything else.
+TEST(OutputDirCommit, AKilledCommitIsRolledForward) {
+  TempDir dir;
+  const std::string out = dir.file("run");
+  fs::create_directories(out);
+  write_text_atomic(out + "/report.json", "new report");  // renamed before the kill
+  write_text_atomic(out + "/model.json", "old model");
+  write_text_atomic(out + "/.model.json.tmp.77.1.5", "new model");
+  // A journal line outside the directory or not of the temp pattern is ignored.
+  write_text_atomic(out + "/.csympnet.commit",
+                    ".report.json.tmp.77.0.4\treport.json\n.model.json.tmp.77.1.5\tmodel.json\n"
+                    "../escape\tx\n.x.tmp.1.2.3\t../../outside\n");
+  {
+    const OutputDir held = prepare_output_dir(out, true);
+    EXPECT_EQ(read_text_file(out + "/report.json"), "new report");
+    EXPECT_EQ(read_text_file(out + "/model.json"), "new model");
+  }
+  EXPECT_EQ(entries(out), 2u);
+  EXPECT_FALSE(fs::exists(dir.file("outside")));
 }
 
 TEST(PrepareOutputDir, RefusesAFile) {

@@ -10,10 +10,15 @@
 #include <string>
 
 #include "csympnet/experiments/run.hpp"
+#include "csympnet/io/files.hpp"
 
 namespace csympnet {
 
-void write_run_outputs(const std::string& dir, const RunResult& result);
+// The files above, to be committed as one set (OutputDir::commit).
+OutputFiles run_output_files(const RunResult& result);
+
+// A JSON document as these files hold it: pretty-printed, with a final newline.
+std::string json_file_text(const nlohmann::json& doc);
 
 // Writes a JSON document atomically, pretty-printed.
 void write_json_file(const std::string& path, const nlohmann::json& doc);

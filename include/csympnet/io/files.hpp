@@ -3,6 +3,8 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace csympnet {
 
@@ -22,12 +24,16 @@ std::string read_text_file(const std::string& path, std::size_t max_bytes = kMax
 // never a half-written file. On failure the temporary is removed and Error names the path.
 void write_text_atomic(const std::string& path, const std::string& content);
 
+// Files to write together: plain names in one directory, and their contents.
+using OutputFiles = std::vector<std::pair<std::string, std::string>>;
+
 // An output directory held by one writer for as long as this object lives.
 //  - Created with missing parents if absent; an existing non-directory is refused.
 //  - Exclusive: a lock file (`.csympnet.lock`, flock) is held, so a second csympnet writing
 //    into the same directory at the same time is refused with the first one's pid, instead
 //    of both "succeeding" and one result being lost. The kernel drops the lock when a
 //    process dies, so a crash never leaves the directory locked.
+//  - A commit (below) that a killed writer left half done is completed on taking it.
 //  - An existing directory with anything in it is refused unless `force`, so a run never
 //    silently overwrites an earlier one. The lock file and the temporary files a killed
 //    writer left (".NAME.tmp.PID.N.T", see write_text_atomic) do not count; the latter are
@@ -43,6 +49,14 @@ class [[nodiscard]] OutputDir {
   OutputDir& operator=(const OutputDir&) = delete;
   OutputDir& operator=(OutputDir&&) = delete;
   const std::string& path() const { return dir_; }
+
+  // Writes a set of files (plain names in this directory → contents) as one change: every
+  // file is first written complete and flushed under a temporary name (a full disk or any
+  // failure leaves the old set as it was), then a journal naming them is written, then each
+  // is renamed over its target and the journal removed. A process killed between the renames
+  // leaves the journal; the next csympnet that takes the directory completes the renames
+  // before anything else, so the directory holds the old complete set or the new one.
+  void commit(const OutputFiles& files) const;
 
  private:
   void release() noexcept;

@@ -29,6 +29,9 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where =
 // Parses the text of a model file; `where` (the path) prefixes every message.
 SavedModel model_from_text(const std::string& text, const std::string& where);
 
+// The text of a model file, as save_model writes it (for a set committed with others).
+std::string model_file_text(const Model& model, const Vector& theta,
+                            const nlohmann::json& meta = nlohmann::json::object());
 // Atomic write (temporary file, then rename).
 void save_model(const std::string& path, const Model& model, const Vector& theta,
                 const nlohmann::json& meta = nlohmann::json::object());

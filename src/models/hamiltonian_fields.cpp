@@ -42,6 +42,20 @@ double abs_derivative(double beta) {
 
 }  // namespace
 
+namespace {
+// These fields hold dense 2d × 2d matrices (J and the structure matrices): refuse a d whose
+// matrix would not fit in memory before allocating it, instead of std::bad_alloc.
+constexpr Index kMaxDenseD = 4096;  // 2d × 2d doubles: 537 MB
+Index checked_dense_dim(Index d) {
+  require(d >= 1 && d <= kMaxDenseD,
+          "d = " + std::to_string(d) +
+              " is too large for a Hamiltonian vector-field model, which holds dense 2d x 2d "
+              "matrices; expected d <= " +
+              std::to_string(kMaxDenseD));
+  return d;
+}
+}  // namespace
+
 HamiltonianField::HamiltonianField(Dissipation kind, Index d, Index width, double beta_init,
                                    bool freeze_structure)
     : kind_(kind),
@@ -52,7 +66,7 @@ HamiltonianField::HamiltonianField(Dissipation kind, Index d, Index width, doubl
       h_(scalar_net_sizes(kind, d, width)),
       structure_offset_(kind == Dissipation::kNetwork ? 2 * h_.n_params() : h_.n_params()),
       n_params_(0),
-      canonical_(canonical_j(d)) {
+      canonical_(canonical_j(checked_dense_dim(d))) {
   if (has_beta()) {
     require(std::isfinite(beta_init) && beta_init != 0.0,
             type() + ": beta_init = " + std::to_string(beta_init) +

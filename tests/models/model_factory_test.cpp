@@ -107,6 +107,16 @@ TEST(ModelFactory, RefusesModelsTooLargeToHoldBeforeAllocating) {
       EXPECT_NE(msg.find("parameters, more than the 50000000"), std::string::npos) << msg;
     }
   }
+  // The Hamiltonian fields hold dense 2d x 2d matrices: refused by d, before allocating them.
+  for (const char* type : {"dhnn", "dhnn2", "phnn", "phnn2"}) {
+    nlohmann::json spec = {{"type", type}, {"d", 100000}, {"width", 2}};
+    try {
+      (void)make_model(spec);
+      ADD_FAILURE() << "accepted " << type << " with d = 100000";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("expected d <= 4096"), std::string::npos) << e.what();
+    }
+  }
   // G(L, w) with d = 2 has 4 L w parameters: 50,000,000 exactly is allowed.
   const Model largest = make_model(nlohmann::json::parse(
       R"({"type":"sympnet","d":2,"core":{"type":"g","layers":12500,"width":1000}})"));

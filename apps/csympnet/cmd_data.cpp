@@ -1,4 +1,5 @@
 // `generate`: a preset's training/validation pairs or test trajectories as CSV.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -8,6 +9,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/experiments/run.hpp"
+#include "csympnet/io/files.hpp"
 #include "system_options.hpp"
 
 namespace csympnet::cli {
@@ -60,6 +62,28 @@ void add_generate(CLI::App& app) {
     if (a->n)
       (test ? c.preset.n_test : (a->split == "train" ? c.preset.n_train : c.preset.n_val)) = *a->n;
     c.validate();
+    // Refused before generating: a file larger than csympnet reads back (kMaxInputBytes) is of
+    // no use, and its text alone would take that much memory. About 24 bytes a number.
+    {
+      const double dim = 2.0 * static_cast<double>(c.preset.system.d);
+      const double rows =
+          test ? static_cast<double>(c.preset.n_test) *
+                     (std::floor(c.preset.horizon / c.preset.h_test) + 1.0)
+               : static_cast<double>(a->split == "train" ? c.preset.n_train : c.preset.n_val);
+      const double per_row = 24.0 * (test ? dim + 2.0 : 2.0 * dim + 1.0);
+      const double bytes = rows * per_row;
+      const double limit = static_cast<double>(kMaxInputBytes);
+      if (bytes > limit) {
+        const double per_item =
+            test ? per_row * (std::floor(c.preset.horizon / c.preset.h_test) + 1.0) : per_row;
+        throw CLI::ValidationError(
+            "--n", "the file would hold about " + std::to_string(std::llround(bytes / 1e6)) +
+                       " MB, more than the " + std::to_string(kMaxInputBytes >> 20) +
+                       " MiB csympnet reads back; expected --n <= " +
+                       std::to_string(static_cast<long long>(limit / per_item)) +
+                       " for this preset and d");
+      }
+    }
     // Generates all three splits; they come from independent streams, so this equals what
     // `run` sees for the same seed.
     const RunData d = generate_run_data(c);

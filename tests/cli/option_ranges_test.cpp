@@ -68,6 +68,7 @@ TEST_F(OptionRanges, Generate) {
            {"--sigma nan", "--sigma", 2},
            {"--split nosuch", "--split", 2},
            {"--reference euler", "--reference", 2},
+           {"--n 100000000", "more than the 1024 MiB csympnet reads back; expected --n <= ", 2},
            {"--seed -1", "--seed", 2},
            {"--seed x", "--seed", 2},
        })

@@ -6,6 +6,10 @@
 
 #include <Eigen/Cholesky>
 
+#include <cmath>
+#include <limits>
+
+#include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 
 namespace csympnet {
@@ -97,6 +101,34 @@ TEST(Sandwich, NeverHasZeroWidthAndSeesAnUnfinishedStep) {
   // u = A⁻¹ e₁ has u₁ = 4 / 11: |uᵀ g| = 3e-3 · 4 / 11.
   EXPECT_NEAR(unfinished.optimisation, 3e-3 * 4.0 / 11.0, 1e-11);
   EXPECT_GT(unfinished.high - unfinished.low, 2.0 * unfinished.optimisation);
+}
+
+}  // namespace
+}  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+// The held-out inflation scales the standard error and both half-widths by the factor, keeps
+// the centre, accumulates the factor, and refuses a factor below 1 or not finite.
+TEST(Sandwich, HeldOutInflationWidensAboutTheEstimate) {
+  SandwichInterval s;
+  s.gamma = 0.3;
+  s.low = 0.25;
+  s.high = 0.35;
+  s.std_error = 0.025;
+  inflate_interval(s, 2.0);
+  EXPECT_DOUBLE_EQ(s.gamma, 0.3);
+  EXPECT_DOUBLE_EQ(s.low, 0.2);
+  EXPECT_DOUBLE_EQ(s.high, 0.4);
+  EXPECT_DOUBLE_EQ(s.std_error, 0.05);
+  EXPECT_DOUBLE_EQ(s.heldout_inflation, 2.0);
+  inflate_interval(s, 1.0);  // no held-out excess: unchanged
+  EXPECT_DOUBLE_EQ(s.low, 0.2);
+  EXPECT_DOUBLE_EQ(s.heldout_inflation, 2.0);
+  for (const double bad : {0.5, -1.0, std::nan(""), std::numeric_limits<double>::infinity()})
+    EXPECT_THROW(inflate_interval(s, bad), Error) << bad;
+  EXPECT_EQ(nlohmann::json(s)["heldout_inflation"], 2.0);
 }
 
 }  // namespace

@@ -128,7 +128,13 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                     static_cast<Index>(k));
   }
   std::optional<PairSet> val;
-  if (!a.val.empty()) val = read_any_as_pairs(a.val);
+  if (!a.val.empty()) {
+    val = read_any_as_pairs(a.val);
+    if (val->d() != data.d())
+      throw Error("--val " + a.val + " has d = " + std::to_string(val->d()) + " (" +
+                  std::to_string(2 * val->d()) + " state columns) but " + input.name + " has d = " +
+                  std::to_string(data.d()) + "; expected validation data of the same system");
+  }
   FitConfig c;
   c.model = a.model;
   if (!a.core.empty()) c.core = parse_core(a.core);

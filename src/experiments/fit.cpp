@@ -116,7 +116,8 @@ namespace {
 // (training indices, validation indices) of a deterministic split.
 std::pair<std::vector<Index>, std::vector<Index>> split_indices(Index n, double val_fraction,
                                                                 Rng& rng) {
-  require(n >= 2, "need at least 2 pairs to hold out a validation set, got " + std::to_string(n));
+  require(n >= 2, "need at least 2 pairs to hold out a validation set, got " + std::to_string(n) +
+                      "; expected more pairs, or a separate validation file (--val FILE)");
   std::vector<Index> idx(static_cast<std::size_t>(n));
   std::iota(idx.begin(), idx.end(), Index{0});
   // Fisher–Yates with our own RNG, so the split is the same on every platform.

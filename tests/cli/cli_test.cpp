@@ -246,8 +246,7 @@ TEST_F(Cli, ReproduceTrustsItsMarkerByContentNotName) {
 // signal per chunk), exits 130, and keeps the best parameters so far with their report.
 TEST_F(Cli, FitStopsWithinASecondOfSigintInEveryStage) {
   const fs::path data = dir_ / "d10.csv";
-  ASSERT_EQ(
-      run("generate --preset s2 --split test --n 39 --out " + data.string()).code, 0);
+  ASSERT_EQ(run("generate --preset s2 --split test --n 39 --out " + data.string()).code, 0);
   for (const double delay : {0.3, 1.5, 4.0, 7.0}) {
     const fs::path out = dir_ / ("int" + std::to_string(static_cast<int>(delay * 10)));
     const fs::path ms = dir_ / "latency_ms.txt";
@@ -267,6 +266,25 @@ TEST_F(Cli, FitStopsWithinASecondOfSigintInEveryStage) {
     EXPECT_EQ(rep["identified"], false);
     EXPECT_TRUE(fs::exists(out / "model.json"));
   }
+}
+
+// Messages name both files and the real dimensions, and a one-pair file is told about --val.
+TEST_F(Cli, MismatchedValidationAndOnePairFilesSayWhatToDo) {
+  const fs::path s1 = dir_ / "s1.csv", s2 = dir_ / "s2val.csv";
+  ASSERT_EQ(run("generate --preset s1 --n 20 --out " + s1.string()).code, 0);
+  ASSERT_EQ(run("generate --preset s2 --split val --n 5 --out " + s2.string()).code, 0);
+  Result r = run("train --data " + s1.string() + " --val " + s2.string() + " -q --epochs 5 --out " +
+                 (dir_ / "o").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--val " + s2.string() + " has d = 10 (20 state columns) but " +
+                       s1.string() + " has d = 1"),
+            std::string::npos)
+      << r.err;
+  const fs::path one = write("one.csv", "h,q1,p1,next_q1,next_p1\n0.1,1,0,0.9,-0.1\n");
+  r = run("train --data " + one.string() + " -q --out " + (dir_ / "o").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("a separate validation file (--val FILE)"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "o"));
 }
 
 TEST_F(Cli, SavedModelRollsOutAndEvaluates) {

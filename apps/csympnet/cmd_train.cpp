@@ -100,7 +100,18 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                              "(default: ") +
                      (a.bootstrap_default < 0 ? "100 up to 1000 parameters, else none)" : "0)"))
       ->check(kWholeNumber)
-      ->check(CLI::Range(0L, 1000000L));
+      ->check(CLI::Range(0L, 1000000L))
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            // A percentile interval needs at least 10 replicates: a usage error (exit 2),
+            // found before any work.
+            const long n = std::stol(v);
+            return n == 0 || n >= 10 ? std::string()
+                                     : "'" + v +
+                                           "' replicates are too few for a percentile "
+                                           "interval; expected 0 (off) or >= 10";
+          },
+          "0|>=10"));
   add_threads_option(cmd, a.threads);
   cmd.add_option("--out", a.out, "Output directory")->required();
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");

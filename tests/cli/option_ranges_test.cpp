@@ -186,6 +186,14 @@ TEST_F(OptionRanges, RunTrainAndFit) {
   expect_refused("fit " + data + " -q" + out(), {"--refine-solver dense_qr", "--refine-solver", 2});
   expect_refused("train --data " + data + " -q" + out(),
                  {"--refine auto --refine-solver blas_normal_cholesky", "--refine-solver", 2});
+  // Too few bootstrap replicates is a usage error found before any work (it exited 1 after
+  // creating --out).
+  for (const char* n : {"1", "5", "9"}) {
+    expect_refused("fit " + data + " --recipe classic -q" + out(),
+                   {std::string("--bootstrap ") + n, "replicates are too few", 2});
+    expect_refused("train --data " + data + " -q" + out(),
+                   {std::string("--bootstrap ") + n, "expected 0 (off) or >= 10", 2});
+  }
   expect_refused("fit -q" + out(), {(dir_ / "none.csv").string(), "none.csv", 2});
   expect_refused("train -q" + out(), {"--data " + (dir_ / "none.csv").string(), "--data", 2});
 }

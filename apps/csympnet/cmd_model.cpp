@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -15,6 +16,7 @@
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/model_file.hpp"
+#include "interrupt.hpp"
 #include "system_options.hpp"
 
 namespace csympnet::cli {
@@ -146,26 +148,39 @@ void add_rollout(CLI::App& app) {
       ->check(CLI::Range(1L, 100000000L));
   cmd->callback([=] {
     const SavedModel saved = load_model(*model);
-    const Vector z = parse_state(*z0, saved.model.dim());
-    const Vector hs = Vector::Constant(*steps, *h);
-    const Matrix states = rollout(learned_map(saved.model, saved.theta), z, hs);
-    // Non-finite output is an error, not rows of nan: say where the rollout broke down.
-    for (Index n = 0; n < states.cols(); ++n)
-      if (!states.col(n).allFinite())
-        throw Error("rollout: the state is not finite after step " + std::to_string(n) +
-                    " (t = " + std::to_string(static_cast<double>(n) * *h) +
-                    "); expected a "
-                    "finite state: the model cannot be iterated at --h " +
-                    std::to_string(*h) + " from this --z0 (try a smaller step)");
+    Vector z = parse_state(*z0, saved.model.dim());
+    const LearnedMap map = learned_map(saved.model, saved.theta);
     const Index d = saved.model.dim() / 2;
     std::string line = "t";
     for (Index i = 1; i <= d; ++i) line += ",q" + std::to_string(i);
     for (Index i = 1; i <= d; ++i) line += ",p" + std::to_string(i);
     std::printf("%s\n", line.c_str());
-    for (Index n = 0; n < states.cols(); ++n) {
+    // Streamed, a row per step: memory stays constant for any --steps, and a signal stops it
+    // within a few thousand steps (the rows printed are the rollout up to there).
+    auto print = [&](Index n) {
       std::printf("%.17g", static_cast<double>(n) * *h);
-      for (Index i = 0; i < states.rows(); ++i) std::printf(",%.17g", states(i, n));
+      for (Index i = 0; i < z.size(); ++i) std::printf(",%.17g", z(i));
       std::printf("\n");
+    };
+    print(0);
+    for (Index n = 1; n <= *steps; ++n) {
+      if (n % 1024 == 0 && interrupted())
+        throw Interrupted("rollout stopped after step " + std::to_string(n - 1) +
+                          "; the rows printed are the rollout up to it");
+      Vector next;
+      try {
+        next = map.step(z, *h);
+      } catch (const Error&) {
+        next = Vector::Constant(z.size(), std::numeric_limits<double>::infinity());
+      }
+      // Non-finite output is an error, not rows of nan: say where the rollout broke down.
+      if (!next.allFinite())
+        throw Error("rollout: the state is not finite after step " + std::to_string(n) +
+                    " (t = " + std::to_string(static_cast<double>(n) * *h) +
+                    "); expected a finite state: the model cannot be iterated at --h " +
+                    std::to_string(*h) + " from this --z0 (try a smaller step)");
+      z = std::move(next);
+      print(n);
     }
   });
 }

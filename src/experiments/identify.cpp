@@ -476,11 +476,6 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   r.training = best.training;
   const bool lm_fits = n_params <= 6000;
   if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
-  auto run_best_lm = [&](long budget, const std::string& label) {
-    best.theta = r.theta;
-    run_lm(best, budget, label);
-    r.theta = best.theta;
-  };
   r.stopped = stopped;
 
   // 5b. Longer windows when noise dominates. Along a trajectory, one-step residuals of pure
@@ -510,7 +505,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
           std::to_string(m) + " steps";
       const long stage_b = lm_budget(best, 15.0);
       r.choices["lm_iterations_windows"] = stage_b;
-      run_best_lm(stage_b, "LM on longer windows (noise dominates)");
+      run_lm(best, stage_b, "LM on longer windows (noise dominates)");
+      r.theta = best.theta;
     } else {
       r.choices["window_reason"] =
           "one-step residuals correlate positively along trajectories "

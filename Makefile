@@ -35,7 +35,7 @@ test-asan: deps
 # appended to fuzz/hours.md. Crashes are kept in fuzz/regressions/, which `make test` replays.
 FUZZ_BUILD   ?= build-fuzz
 FUZZ_SECONDS ?= 60
-FUZZ_TARGETS := fuzz_csv_pairs fuzz_csv_trajectories fuzz_model_file
+FUZZ_TARGETS := fuzz_csv_pairs fuzz_csv_trajectories fuzz_model_file fuzz_cli_args fuzz_suite_file
 fuzz-build:
 	@CC=clang-14 CXX=clang++-14 cmake -S . -B $(FUZZ_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
 	  -DCSYMPNET_FUZZ=ON -DCSYMPNET_SANITIZE=ON -DCSYMPNET_BUILD_PYTHON=OFF \

@@ -15,7 +15,7 @@ build=${1:?build dir}
 seconds=${2:?seconds per target}
 shift 2
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_csv_pairs fuzz_csv_trajectories fuzz_model_file)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_csv_pairs fuzz_csv_trajectories fuzz_model_file fuzz_cli_args fuzz_suite_file)
 nice_level=${FUZZ_NICE:-19}
 log=fuzz/hours.md
 if [ ! -f "$log" ]; then
@@ -42,10 +42,13 @@ for t in "${targets[@]}"; do
   out="$build/fuzz-$t.log"
   maxlen=8192
   [ "$t" = fuzz_model_file ] && maxlen=32768  # the seed models are up to 30 kB
+  [ "$t" = fuzz_cli_args ] && maxlen=1024
   start=$(date -u +%s)
   stamp=$(date -u '+%Y-%m-%d %H:%M')
+  dict=()
+  [ -f "fuzz/$t.dict" ] && dict=(-dict="fuzz/$t.dict")
   /usr/bin/time -f '%U %S' -o "$build/time-$t.txt" \
-    nice -n "$nice_level" "$bin" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+    nice -n "$nice_level" "$bin" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
     -max_len="$maxlen" -print_final_stats=1 -artifact_prefix="$art/" "$work" >"$out" 2>&1
   rc=$?
   wall=$(( $(date -u +%s) - start ))

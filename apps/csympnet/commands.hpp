@@ -15,4 +15,13 @@ void add_evaluate(CLI::App& app);
 void add_rollout(CLI::App& app);
 void add_reproduce(CLI::App& app);
 
+// The whole command line: the app with every subcommand registered, as main() runs it.
+void add_all_commands(CLI::App& app);
+
+// Parse-only mode, for the command-line fuzz target (fuzz/fuzz_cli_args.cpp): every
+// subcommand's callback returns before it touches a file or starts work, so parsing and the
+// option validators run alone. Off in the CLI.
+void set_parse_only(bool on);
+bool parse_only();
+
 }  // namespace csympnet::cli

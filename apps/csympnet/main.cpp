@@ -12,16 +12,7 @@
 int main(int argc, char** argv) {
   CLI::App app{
       "csympnet: conformal-symplectic map learning (CSympNet-ID) and damping identification"};
-  app.require_subcommand(1);
-  app.set_version_flag("--version", "csympnet 0.1.0");
-  csympnet::cli::add_run(app);
-  csympnet::cli::add_describe(app);
-  csympnet::cli::add_generate(app);
-  csympnet::cli::add_train(app);
-  csympnet::cli::add_fit(app);
-  csympnet::cli::add_evaluate(app);
-  csympnet::cli::add_rollout(app);
-  csympnet::cli::add_reproduce(app);
+  csympnet::cli::add_all_commands(app);
   csympnet::cli::install_interrupt_handlers();
   try {
     app.parse(argc, argv);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <set>
 
@@ -17,6 +18,10 @@ namespace {
 
 using nlohmann::json;
 
+// Bounds on what a suite file may ask for, checked before any run is expanded or trained.
+constexpr std::int64_t kMaxSuiteNTrain = 10000000;
+constexpr double kMaxSuiteRuns = 10000.0;
+
 std::string join(const std::vector<std::string>& items) {
   std::string out;
   for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
@@ -28,8 +33,19 @@ void reject_unknown_keys(const json& doc, const std::string& where,
   for (const auto& item : doc.items()) {
     bool known = false;
     for (const auto& a : allowed) known = known || a == item.key();
-    require(known, where + ": unknown key '" + item.key() + "' (allowed: " + join(allowed) + ")");
+    require(known, where + ": unknown key '" + item.key() + "'; expected only the keys " + join(allowed));
   }
+}
+
+// A list whose entries make runs (presets, models, seeds, sigmas, sizes) names each once: a
+// repeat would be the same run twice, under one cache key.
+template <class T>
+void reject_repeats(const std::vector<T>& items, const std::string& where, const std::string& key) {
+  for (std::size_t i = 0; i < items.size(); ++i)
+    for (std::size_t j = 0; j < i; ++j)
+      require(!(items[i] == items[j]),
+              where + ": key '" + key + "' lists " + json(items[i]).dump() +
+                  " twice; expected each entry at most once");
 }
 
 std::vector<std::string> string_list(const json& doc, const char* key, const std::string& where,
@@ -49,6 +65,7 @@ std::vector<std::string> string_list(const json& doc, const char* key, const std
     require(ok, where + ": key '" + key + "' holds '" + s + "', expected one of: " + join(valid));
     out.push_back(s);
   }
+  reject_repeats(out, where, key);
   return out;
 }
 
@@ -66,6 +83,7 @@ std::vector<double> number_list(const json& v, const std::string& where, const s
                 (lo_open ? "> " : ">= ") + std::to_string(lo));
     out.push_back(x);
   }
+  reject_repeats(out, where, key);
   return out;
 }
 
@@ -118,6 +136,7 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
     s.seeds.push_back(v.get<std::uint64_t>());
   }
   require(!s.seeds.empty(), where + ": key 'seeds' is empty, expected at least one seed");
+  reject_repeats(s.seeds, where, "seeds");
   if (doc.contains("sigmas")) s.sigmas = number_list(doc.at("sigmas"), where, "sigmas", 0, false);
   if (doc.contains("h_tests"))
     s.h_tests = number_list(doc.at("h_tests"), where, "h_tests", 0, true);
@@ -135,10 +154,15 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
       preset_by_name(preset);
       require(sizes.is_array() && !sizes.empty(),
               where + ": n_train." + preset + " = " + sizes.dump() + ", expected a list");
-      for (const auto& n : sizes)
-        require(n.is_number_integer() && n.get<std::int64_t>() >= 4,
+      std::vector<std::int64_t> ns;
+      for (const auto& n : sizes) {
+        require(n.is_number_integer() && n.get<std::int64_t>() >= 4 &&
+                    n.get<std::int64_t>() <= kMaxSuiteNTrain,
                 where + ": n_train." + preset + " holds " + n.dump() +
-                    ", expected integers >= 4 (validation pairs are N/4)");
+                    ", expected integers in [4, 1e7] (validation pairs are N/4)");
+        ns.push_back(n.get<std::int64_t>());
+      }
+      reject_repeats(ns, where, "n_train." + preset);
     }
   }
   if (doc.contains("reference")) {
@@ -195,18 +219,35 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
     s.columns = doc.contains("columns") ? string_list(doc, "columns", where, metrics)
                                         : std::vector<std::string>{"l2_error"};
   }
+  // The runs are the product of the lists; bound it before anything is expanded.
+  double runs = static_cast<double>(s.models.size()) * static_cast<double>(s.seeds.size()) *
+                static_cast<double>(s.sigmas.size());
+  double sizes = 0.0;
+  for (const auto& preset : s.presets)
+    sizes += s.n_train.is_object() && s.n_train.contains(preset)
+                 ? static_cast<double>(s.n_train.at(preset).size())
+                 : 1.0;
+  runs *= sizes;
+  require(runs <= kMaxSuiteRuns,
+          where + ": the suite has " + std::to_string(static_cast<long long>(runs)) +
+              " runs (presets x n_train sizes x sigmas x models x seeds); expected at most " +
+              std::to_string(static_cast<long long>(kMaxSuiteRuns)));
   return s;
 }
 
-SuiteSpec load_suite(const std::string& path) {
-  const std::string text = read_text_file(path);
+SuiteSpec suite_from_text(const std::string& text, const std::string& where) {
   json doc;
   try {
     doc = json::parse(text);
-  } catch (const json::parse_error& e) {
-    throw Error(path + ": not valid JSON (" + e.what() + ")");
+  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number like 1e999
+    throw Error(where + ": not valid JSON (" + printable(std::string(e.what()).substr(0, 200)) +
+                "); expected a suite file (a JSON object)");
   }
-  return parse_suite(doc, path);
+  return parse_suite(doc, where);
+}
+
+SuiteSpec load_suite(const std::string& path) {
+  return suite_from_text(read_text_file(path), path);
 }
 
 long suite_epochs(const SuiteSpec& s, const std::string& preset, const std::string& model) {
@@ -222,9 +263,14 @@ std::vector<SuiteRun> expand_suite(const SuiteSpec& s) {
   std::vector<SuiteRun> runs;
   for (const auto& preset_name : s.presets) {
     const Preset base = preset_by_name(preset_name);
+    // Parameter counts for the cost model, once per model (building one is not free).
+    std::vector<double> params;
+    for (const auto& model : s.models)
+      params.push_back(static_cast<double>(make_model(model_spec_for(base, model)).n_params()));
     for (const Index n : n_train_for(s, base)) {
       for (const double sigma : s.sigmas) {
-        for (const auto& model : s.models) {
+        for (std::size_t m = 0; m < s.models.size(); ++m) {
+          const std::string& model = s.models[m];
           for (const std::uint64_t seed : s.seeds) {
             SuiteRun r;
             RunConfig& c = r.config;
@@ -245,8 +291,7 @@ std::vector<SuiteRun> expand_suite(const SuiteSpec& s) {
                     compact(sigma) + "-n" + std::to_string(n) + "-" + hex64(fnv1a64(canonical));
             // Cost model for scheduling only: epochs x parameters, fields a few times dearer.
             const double per_epoch =
-                static_cast<double>(make_model(model_spec_for(c.preset, model)).n_params()) *
-                static_cast<double>(n) * (is_vector_field_type(model) ? 4 : 1);
+                params[m] * static_cast<double>(n) * (is_vector_field_type(model) ? 4 : 1);
             r.cost = static_cast<double>(c.train.epochs) * per_epoch;
             runs.push_back(std::move(r));
           }

@@ -12,7 +12,7 @@
 #include <typeinfo>
 #include <vector>
 
-#include "../../fuzz/fuzz_entry.hpp"
+#include "../../fuzz/fuzz_cli_entry.hpp"
 
 namespace csympnet {
 namespace {
@@ -66,6 +66,16 @@ TEST(FuzzReplay, EntryPointsSeeTheParsers) {
   EXPECT_EQ(parse_pairs_csv(good, "x.csv").size(), 1);
   EXPECT_THROW(parse_pairs_csv("h,q1\n", "x.csv"), Error);
   EXPECT_THROW(model_from_text("{\"format\": 1", "x.json"), Error);
+}
+
+TEST(FuzzReplay, CommandLineCorpusAndRegressions) {
+  EXPECT_GE(replay("fuzz_cli_args", &fuzz::cli_args), 3u);
+  fuzz::cli_args(nullptr, 0);  // no arguments at all
+  cli::set_parse_only(false);
+}
+
+TEST(FuzzReplay, SuiteFileCorpusAndRegressions) {
+  EXPECT_GE(replay("fuzz_suite_file", &fuzz::suite_file), 3u);
 }
 
 }  // namespace

@@ -36,6 +36,8 @@ struct SuiteSpec {
 
 // Reads and validates a suite file; errors name the file and the key.
 SuiteSpec load_suite(const std::string& path);
+// The same from a suite file's text; `where` names it in errors.
+SuiteSpec suite_from_text(const std::string& text, const std::string& where);
 SuiteSpec parse_suite(const nlohmann::json& doc, const std::string& where);
 
 // One independent unit of work: train once, evaluate at each h_test.

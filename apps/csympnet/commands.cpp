@@ -1,0 +1,29 @@
+// The command line as a whole: every subcommand on one app, and the parse-only switch that
+// the command-line fuzz target uses.
+#include "commands.hpp"
+
+#include <atomic>
+
+namespace csympnet::cli {
+
+namespace {
+std::atomic<bool> g_parse_only{false};
+}  // namespace
+
+void set_parse_only(bool on) { g_parse_only.store(on); }
+bool parse_only() { return g_parse_only.load(); }
+
+void add_all_commands(CLI::App& app) {
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "csympnet 0.1.0");
+  add_run(app);
+  add_describe(app);
+  add_generate(app);
+  add_train(app);
+  add_fit(app);
+  add_evaluate(app);
+  add_rollout(app);
+  add_reproduce(app);
+}
+
+}  // namespace csympnet::cli

@@ -31,27 +31,29 @@ void add_generate(CLI::App& app) {
       "generate", "Write a preset's training or validation pairs, or its test trajectories");
   cmd->add_option("--preset", a->preset, "Benchmark preset")
       ->required()
-      ->check(CLI::IsMember(preset_names()));
+      ->check(one_of(preset_names()));
   cmd->add_option("--split", a->split, "train, val (pairs CSV) or test (trajectories CSV)")
-      ->check(CLI::IsMember({"train", "val", "test"}));
+      ->check(one_of({"train", "val", "test"}));
   // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd->add_option("--seed", a->seed,
                   "Seed (train/val: training seed, default 42; test: data seed, default 0)")
       ->check(kSeed);
   cmd->add_option("--n", a->n, "Number of pairs or trajectories (default: the preset's)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   cmd->add_option("--sigma", a->sigma, "Relative observation noise (train/val only)")
       ->check(kFiniteNumber)
-      ->check(CLI::Range(0.0, 10.0));
+      ->check(in_range(0.0, 10.0));
   cmd->add_option("--reference", a->reference, "Reference solver")
-      ->check(CLI::IsMember({"splitting", "expm", "rk"}));
-  cmd->add_option("--out", a->out, "Output CSV file")->required();
+      ->check(one_of({"splitting", "expm", "rk"}));
+  cmd->add_option("--out", a->out, "Output CSV file")->required()->check(kOutputPath);
   cmd->add_flag("--force", a->force, "Overwrite an existing output file");
   a->system.add_to(*cmd);
   cmd->callback([a, cmd] {
+    if (parse_only()) return;
     if (std::filesystem::exists(a->out) && !a->force)
-      throw Error("--out " + a->out + " already exists; pass --force to overwrite it");
+      throw Error("--out " + a->out +
+                  " already exists; expected a new file name, or --force to overwrite it");
     RunConfig c = default_run_config(a->preset, "csympnet");
     a->system.apply(c.preset);
     c.reference.method = parse_reference(a->reference);

@@ -47,8 +47,8 @@ Vector parse_state(const std::string& s, Index dim) {
     v.push_back(x);
   }
   if (static_cast<Index>(v.size()) != dim)
-    throw Error("--z0 has " + std::to_string(v.size()) + " values; the model expects " +
-                std::to_string(dim) + " (q1..qd,p1..pd)");
+    throw Error("--z0 has " + std::to_string(v.size()) + " values; expected " + std::to_string(dim) +
+                ", as the model's state q1..qd,p1..pd");
   return Eigen::Map<Vector>(v.data(), dim);
 }
 }  // namespace
@@ -57,26 +57,28 @@ void add_evaluate(CLI::App& app) {
   auto a = std::make_shared<EvaluateArgs>();
   CLI::App* cmd = app.add_subcommand(
       "evaluate", "Roll a saved model out on test trajectories; print the diagnostics as JSON");
-  cmd->add_option("--model", a->model, "Model file")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--model", a->model, "Model file")->required()->check(kExistingFile);
   cmd->add_option("--preset", a->preset,
                   "System and test set of this preset (default: the model's own system)")
-      ->check(CLI::IsMember(preset_names()));
+      ->check(one_of(preset_names()));
   cmd->add_option("--data", a->data, "Test trajectories CSV (default: the preset's test set)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   cmd->add_option("--h-test", a->h_test, "Step of the Jacobian diagnostics (default 0.2)")
       ->check(kFiniteNumber)
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--out", a->out, "Also write DIR/report.json");
+      ->check(kStep);
+  cmd->add_option("--out", a->out, "Also write DIR/report.json")->check(kOutputPath);
   cmd->add_flag("--force", a->force, "Allow writing into a non-empty output directory");
   a->system.add_to(*cmd);
   cmd->callback([a] {
+    if (parse_only()) return;
     std::optional<OutputDir> out_dir;
     if (!a->out.empty()) out_dir.emplace(a->out, a->force);
     const SavedModel saved = load_model(a->model);
     RunConfig c = default_run_config(a->preset.empty() ? "s1" : a->preset, "csympnet");
     if (a->preset.empty()) {
       require(saved.meta.contains("system"),
-              "--preset is required: " + a->model + " does not record its system");
+              "--preset is required: " + a->model +
+                  " does not record its system; expected --preset s1|s2|s3|s2-100|s3-100");
       try {
         c.preset.system = saved.meta["system"].get<SystemSpec>();
       } catch (const std::exception& e) {  // Error or nlohmann::json::exception
@@ -139,14 +141,15 @@ void add_rollout(CLI::App& app) {
   auto steps = std::make_shared<long>(0);
   CLI::App* cmd =
       app.add_subcommand("rollout", "Iterate a saved model from z0; print t,q..,p.. as CSV");
-  cmd->add_option("--model", *model, "Model file")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--model", *model, "Model file")->required()->check(kExistingFile);
   cmd->add_option("--z0", *z0, "Initial state q1,..,qd,p1,..,pd")->required();
-  cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(CLI::PositiveNumber);
+  cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(kStep);
   cmd->add_option("--steps", *steps, "Number of steps")
       ->required()
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   cmd->callback([=] {
+    if (parse_only()) return;
     const SavedModel saved = load_model(*model);
     Vector z = parse_state(*z0, saved.model.dim());
     const LearnedMap map = learned_map(saved.model, saved.theta);

@@ -286,16 +286,20 @@ void add_reproduce(CLI::App& app) {
   cmd->add_option("--suite", a->suite,
                   "quick (Tables 2-4), full (everything) or NAME[,NAME] from --suites-dir");
   cmd->add_option("--out", a->out, "Output directory (an earlier reproduction is resumed)")
-      ->required();
+      ->required()
+      ->check(kOutputPath);
   cmd->add_option("--jobs", a->jobs, "Threads (default: all cores)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1, 1024));
+      ->check(in_range(1, 1024));
   cmd->add_option("--suites-dir", a->suites_dir, "Directory of suite files")
-      ->check(CLI::ExistingDirectory);
+      ->check(kExistingDirectory);
   cmd->add_flag("--no-figures", a->no_figures, "Skip the matplotlib figures");
   cmd->add_flag("--force", a->force, "Allow a non-empty directory that is not a reproduction");
   cmd->add_flag("-q,--quiet", a->quiet, "No progress or summary");
-  cmd->callback([a] { reproduce(*a); });
+  cmd->callback([a] {
+    if (parse_only()) return;
+    reproduce(*a);
+  });
 }
 
 }  // namespace csympnet::cli

@@ -53,7 +53,7 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
       std::printf("  %-26s %-14.4e -\n", name, ours);
   };
   if (d.gamma_hat) {
-    std::printf("  %-26s %-14.10f ", "gamma_hat", *d.gamma_hat);
+    std::printf("  %-26s %-14.10g ", "gamma_hat", *d.gamma_hat);
     if (paper && paper->gamma_hat)
       std::printf("%.4e\n", *paper->gamma_hat);
     else
@@ -73,7 +73,7 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
 CLI::Option* add_preset_option(CLI::App& cmd, std::string& preset) {
   return cmd.add_option("--preset", preset, "Benchmark preset")
       ->required()
-      ->check(CLI::IsMember(preset_names()));
+      ->check(one_of(preset_names()));
 }
 }  // namespace
 
@@ -82,29 +82,29 @@ void add_run(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "run", "Generate a preset's data, train a model, evaluate it, write DIR/report.json");
   add_preset_option(*cmd, args->preset);
-  cmd->add_option("--model", args->model, "Model to train")->check(CLI::IsMember(model_types()));
+  cmd->add_option("--model", args->model, "Model to train")->check(one_of(model_types()));
   // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42")
       ->check(kSeed);
   cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(0L, 100000000L));
+      ->check(in_range(0L, 100000000L));
   cmd->add_option("--recipe", args->recipe,
                   "Training recipe: default (cosine-annealed rate) or paper (constant rate)")
-      ->check(CLI::IsMember({"default", "paper"}));
+      ->check(one_of({"default", "paper"}));
   cmd->add_option("--lr", args->lr, "AdamW learning rate (default: the recipe's)")
       ->check(kFiniteNumber)
-      ->check(CLI::Range(1e-12, 10.0));
+      ->check(in_range(1e-12, 10.0));
   cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
-      ->check(CLI::IsMember({"constant", "cosine"}));
+      ->check(one_of({"constant", "cosine"}));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   cmd->add_option("--sigma", args->sigma, "Relative observation noise (default 0)")
       ->check(kFiniteNumber)
-      ->check(CLI::Range(0.0, 10.0));
+      ->check(in_range(0.0, 10.0));
   cmd->add_option("--reference", args->reference, "Reference solver for the data")
-      ->check(CLI::IsMember({"splitting", "expm", "rk"}));
+      ->check(one_of({"splitting", "expm", "rk"}));
   cmd->add_option("--beta-init", args->beta_init, "Initial beta of CSympNet-ID (nonzero)")
       ->check(kFiniteNumber)
       ->check(kNonZero);
@@ -113,27 +113,28 @@ void add_run(CLI::App& app) {
   cmd->add_option("--refine", args->refine,
                   "Second stage after AdamW for map models: none (default, the paper's "
                   "recipe), lm (Levenberg-Marquardt) or lbfgs")
-      ->check(CLI::IsMember({"none", "lm", "lbfgs"}));
+      ->check(one_of({"none", "lm", "lbfgs"}));
   cmd->add_option("--refine-iterations", args->refine_iterations,
                   "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   cmd->add_option("--refine-solver", args->refine_solver,
                   "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
                   "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
                   "many parameters) (default: dense_qr)")
-      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
+      ->check(one_of({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
   cmd->add_option("--core", args->core,
                   "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)")
       ->check(kCoreSpec);
   cmd->add_flag("--warm-start", args->warm_start,
                 "CSympNet-ID: start beta at the closed-form estimate of gamma from the data");
   add_threads_option(*cmd, args->threads);
-  cmd->add_option("--out", args->out, "Output directory")->required();
+  cmd->add_option("--out", args->out, "Output directory")->required()->check(kOutputPath);
   cmd->add_flag("--force", args->force, "Allow writing into a non-empty output directory");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress line");
   args->system.add_to(*cmd);
   cmd->callback([args] {
+    if (parse_only()) return;
     const OutputDir out_dir = prepare_output_dir(args->out, args->force);
     RunConfig c = default_run_config(args->preset, args->model);
     args->system.apply(c.preset);
@@ -179,9 +180,10 @@ void add_describe(CLI::App& app) {
   CLI::App* cmd =
       app.add_subcommand("describe", "Print a preset model's architecture and size as JSON");
   add_preset_option(*cmd, *preset);
-  cmd->add_option("--model", *model, "Model")->check(CLI::IsMember(model_types()));
+  cmd->add_option("--model", *model, "Model")->check(one_of(model_types()));
   system->add_to(*cmd);
   cmd->callback([preset, model, system] {
+    if (parse_only()) return;
     Preset p = preset_by_name(*preset);
     system->apply(p);
     const Model m = make_model(model_spec_for(p, *model));

@@ -49,29 +49,29 @@ struct FitArgs {
 
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
-      ->check(CLI::IsMember({"csympnet", "sympnet"}));
+      ->check(one_of({"csympnet", "sympnet"}));
   cmd.add_option("--core", a.core,
                  "Symplectic core: la:L:m or g:L:w (default: fit chooses by validation between "
                  "an LA and a G core; train takes one by dimension)")
       ->check(kCoreSpec);
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")
       ->check(kFiniteNumber)
-      ->check(CLI::Range(1e-12, 10.0));
+      ->check(in_range(1e-12, 10.0));
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
-      ->check(CLI::IsMember({"constant", "cosine"}));
+      ->check(one_of({"constant", "cosine"}));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd.add_option("--seed", a.seed, "Seed of the validation split and the init (default 42)")
       ->check(kSeed);
   cmd.add_option("--val-fraction", a.val_fraction,
                  "Held-out share when no --val is given (default 0.2)")
       ->check(kFiniteNumber)
-      ->check(CLI::Range(0.01, 0.99));
+      ->check(in_range(0.01, 0.99));
   cmd.add_option("--beta-init", a.beta_init, "Initial beta of CSympNet-ID (nonzero)")
       ->check(kFiniteNumber)
       ->check(kNonZero);
@@ -84,23 +84,23 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "Second stage after AdamW: none (the paper's recipe), lm, lbfgs, or auto (lm, "
                  "or lbfgs for large models) (default: " +
                      a.refine + ")")
-      ->check(CLI::IsMember({"auto", "none", "lm", "lbfgs"}));
+      ->check(one_of({"auto", "none", "lm", "lbfgs"}));
   cmd.add_option("--refine-iterations", a.refine_iterations,
                  "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1L, 100000000L));
+      ->check(in_range(1L, 100000000L));
   cmd.add_option("--refine-solver", a.refine_solver,
                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
                  "many parameters) (default: dense_qr; --refine auto takes "
                  "blas_normal_cholesky above 1000 parameters)")
-      ->check(CLI::IsMember({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
+      ->check(one_of({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
   cmd.add_option("--bootstrap", a.bootstrap,
                  std::string("Bootstrap replicates for an interval of gamma_hat (0: none; >= 10) "
                              "(default: ") +
                      (a.bootstrap_default < 0 ? "100 up to 1000 parameters, else none)" : "0)"))
       ->check(kWholeNumber)
-      ->check(CLI::Range(0L, 1000000L))
+      ->check(in_range(0L, 1000000L))
       ->check(CLI::Validator(
           [](std::string& v) {
             // A percentile interval needs at least 10 replicates: a usage error (exit 2),
@@ -113,7 +113,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
           },
           "0|>=10"));
   add_threads_option(cmd, a.threads);
-  cmd.add_option("--out", a.out, "Output directory")->required();
+  cmd.add_option("--out", a.out, "Output directory")->required()->check(kOutputPath);
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
   cmd.add_flag("-q,--quiet", a.quiet, "No progress line");
 }
@@ -367,9 +367,6 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
 }
 }  // namespace
 
-// An existing file, or "-" for standard input (read once: pipes and FIFOs work).
-const CLI::Validator kInputFile(
-    [](std::string& s) { return s == "-" ? std::string() : CLI::ExistingFile(s); }, "FILE|-");
 
 void add_train(CLI::App& app) {
   auto a = std::make_shared<FitArgs>();
@@ -378,9 +375,12 @@ void add_train(CLI::App& app) {
       ->required()
       ->check(kInputFile);
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of --data)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   add_fit_options(*cmd, *a);
-  cmd->callback([a] { run_fit(*a, false); });
+  cmd->callback([a] {
+    if (parse_only()) return;
+    run_fit(*a, false);
+  });
 }
 
 void add_fit(CLI::App& app) {
@@ -396,37 +396,38 @@ void add_fit(CLI::App& app) {
       ->required()
       ->check(kInputFile);
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
-      ->check(CLI::ExistingFile);
+      ->check(kExistingFile);
   add_fit_options(*cmd, *a);
   cmd->add_option("--recipe", a->recipe,
                   "identify (default: windows, balanced residuals, LM, a block interval) or "
                   "classic (one-step loss, --refine, --bootstrap)")
-      ->check(CLI::IsMember({"identify", "classic"}));
+      ->check(one_of({"identify", "classic"}));
   cmd->add_option("--window", a->window,
                   "Steps per window of the loss (default 0: automatic, up to 4)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(0L, 64L));
+      ->check(in_range(0L, 64L));
   cmd->add_option("--loss", a->loss,
                   "balanced (default: residuals in the middle of the map) or one-step")
-      ->check(CLI::IsMember({"balanced", "one-step"}));
+      ->check(one_of({"balanced", "one-step"}));
   cmd->add_flag("--no-normalize", a->no_normalize, "Fit in the data's own units and offsets");
   cmd->add_option("--dof-scales", a->dof_scales,
                   "Per-dof momentum scales as parameters, for velocities instead of momenta: "
                   "auto (default: learned when d > 1), learned or fixed")
-      ->check(CLI::IsMember({"auto", "learned", "fixed"}));
+      ->check(one_of({"auto", "learned", "fixed"}));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(0L, 100000L));
+      ->check(in_range(0L, 100000L));
   cmd->add_option("--level", a->level, "Level of the interval for gamma (default 0.95)")
-      ->check(CLI::Range(0.5, 0.9999));
+      ->check(in_range(0.5, 0.9999));
   cmd->add_option("--blocks", a->blocks,
                   "Segments a long trajectory is cut into, for validation and the interval "
                   "(default 20)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(3L, 10000L));
+      ->check(in_range(3L, 10000L));
   CLI::App* self = cmd;
   cmd->callback([a, self] {
+    if (parse_only()) return;
     if (a->recipe == "identify" && a->model == "csympnet")
       run_identify(*a, *self);
     else

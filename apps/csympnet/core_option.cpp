@@ -27,7 +27,7 @@ nlohmann::json parse_core(const std::string& s) {
   } catch (const std::exception&) {
     throw Error("--core '" + s + "': " + expected);
   }
-  if (a < 1 || b < 1) throw Error("--core '" + s + "': sizes must be >= 1");
+  if (a < 1 || b < 1) throw Error("--core '" + s + "': sizes must be >= 1; " + expected);
   if (c3 != std::string::npos && (type != "la" || suffix != "h2"))
     throw Error("--core '" + s + "': the only suffix is ':h2', on la cores; " + expected);
   if (type == "la") {

@@ -2,6 +2,9 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
 #include <string_view>
 #include <system_error>
 
@@ -12,7 +15,8 @@ namespace csympnet::cli {
 const CLI::Validator kFiniteNumber(
     [](std::string& input) {
       double v = 0;
-      if (!CLI::detail::lexical_cast(input, v)) return "'" + input + "' is not a number";
+      if (!CLI::detail::lexical_cast(input, v))
+        return "'" + input + "' is not a number; expected a finite number";
       if (!std::isfinite(v)) return "'" + input + "' is not finite; expected a finite number";
       return std::string();
     },
@@ -54,11 +58,92 @@ const CLI::Validator kSeed(
 const CLI::Validator kNonZero(
     [](std::string& input) {
       double v = 0;
-      if (!CLI::detail::lexical_cast(input, v)) return "'" + input + "' is not a number";
-      if (v == 0.0) return std::string("must be nonzero");
+      if (!CLI::detail::lexical_cast(input, v))
+        return "'" + input + "' is not a number; expected a nonzero number";
+      if (v == 0.0) return "'" + input + "' is zero; expected a nonzero number";
       return std::string();
     },
     "NONZERO");
+
+namespace {
+std::string range_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.15g", v);
+  return buf;
+}
+
+// Checks a number against [lo, hi] (either end may be infinite); `expected` says what is.
+CLI::Validator bounded(double lo, double hi, bool lo_open, std::string expected) {
+  return CLI::Validator(
+      [=](std::string& input) {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(input, v))
+          return "'" + input + "' is not a number; expected " + expected;
+        const bool ok = (lo_open ? v > lo : v >= lo) && v <= hi;  // false for NaN
+        return ok ? std::string() : "'" + input + "' is out of range; expected " + expected;
+      },
+      expected);
+}
+}  // namespace
+
+CLI::Validator in_range(double lo, double hi) {
+  return bounded(lo, hi, false, "a number from " + range_text(lo) + " to " + range_text(hi));
+}
+
+const CLI::Validator kNonNegative =
+    bounded(0.0, std::numeric_limits<double>::infinity(), false, "a number >= 0");
+const CLI::Validator kPositive =
+    bounded(0.0, std::numeric_limits<double>::infinity(), true, "a number > 0");
+
+const CLI::Validator kStep(
+    [](std::string& input) {
+      double v = 0;
+      if (!CLI::detail::lexical_cast(input, v) || !(v > 0.0) || !std::isfinite(v))
+        return "'" + input + "' is not a step; expected a finite number > 0";
+      if (v < std::numeric_limits<double>::min())
+        return "'" + input +
+               "' is below the smallest normal double (2.2e-308), where steps lose their "
+               "digits; expected a larger step (rescale time)";
+      return std::string();
+    },
+    "STEP");
+
+CLI::Validator one_of(const std::vector<std::string>& names) {
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  return CLI::Validator(
+      [names, list](std::string& input) {
+        for (const std::string& n : names)
+          if (input == n) return std::string();
+        return "'" + input + "' is not a choice; expected one of " + list;
+      },
+      "{" + list + "}");
+}
+
+namespace {
+std::string existing(const std::string& path, bool directory) {
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  const char* what = directory ? "an existing directory" : "an existing file";
+  if (path.empty()) return std::string("the path is empty; expected ") + what;
+  if (ec || !std::filesystem::exists(st)) return "'" + path + "' does not exist; expected " + what;
+  if (directory != std::filesystem::is_directory(st))
+    return "'" + path + "' is " + (directory ? "not a directory" : "a directory") +
+           "; expected " + what;
+  return std::string();
+}
+}  // namespace
+
+const CLI::Validator kExistingFile([](std::string& s) { return existing(s, false); }, "FILE");
+const CLI::Validator kExistingDirectory([](std::string& s) { return existing(s, true); }, "DIR");
+const CLI::Validator kInputFile(
+    [](std::string& s) { return s == "-" ? std::string() : existing(s, false); }, "FILE|-");
+const CLI::Validator kOutputPath(
+    [](std::string& s) {
+      return s.empty() ? std::string("the path is empty; expected a file or directory name")
+                       : std::string();
+    },
+    "PATH");
 
 CLI::Option* add_threads_option(CLI::App& cmd, int& threads) {
   return cmd
@@ -66,22 +151,22 @@ CLI::Option* add_threads_option(CLI::App& cmd, int& threads) {
                   "Threads for each training epoch of CSympNet-ID with d > 1 (other models train "
                   "on one); results are identical for any value (default 1)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1, ThreadTeam::kMaxThreads));
+      ->check(in_range(1, ThreadTeam::kMaxThreads));
 }
 
 void SystemOverrides::add_to(CLI::App& cmd) {
   cmd.add_option("--d", d, "Degrees of freedom (overrides the preset)")
       ->check(kWholeNumber)
-      ->check(CLI::Range(1, 100000));
+      ->check(in_range(1, 100000));
   cmd.add_option("--gamma", gamma, "Damping rate gamma >= 0 (default 0.05)")
       ->check(kFiniteNumber)
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd.add_option("--omega", omega, "Frequency omega > 0 (oscillator, cubic)")
       ->check(kFiniteNumber)
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain)")
       ->check(kFiniteNumber)
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd.add_option("--alpha", alpha, "Cubic coefficient alpha (cubic)")->check(kFiniteNumber);
 }
 

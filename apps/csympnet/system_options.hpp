@@ -3,6 +3,8 @@
 #pragma once
 
 #include <optional>
+#include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -20,6 +22,25 @@ extern const CLI::Validator kSeed;
 // Refuses exactly zero (with kFiniteNumber first): CSympNet-ID's beta starts away from 0, where
 // |beta| has no derivative.
 extern const CLI::Validator kNonZero;
+
+// A number in [lo, hi]; the message gives the range in plain digits (CLI11's Range prints
+// DBL_MAX in 309 digits and 1e-12 as 0.000000).
+CLI::Validator in_range(double lo, double hi);
+// A number >= 0, and one > 0.
+extern const CLI::Validator kNonNegative;
+extern const CLI::Validator kPositive;
+
+// A time step: finite, > 0 and a normal double.
+extern const CLI::Validator kStep;
+// One of `names`, exactly (CLI11's IsMember says neither that it is a choice nor what was
+// expected).
+CLI::Validator one_of(const std::vector<std::string>& names);
+// An existing file (not a directory), or directory; kInputFile also takes "-" (stdin).
+extern const CLI::Validator kExistingFile;
+extern const CLI::Validator kExistingDirectory;
+extern const CLI::Validator kInputFile;
+// A non-empty output path.
+extern const CLI::Validator kOutputPath;
 
 // --threads N of the training commands: TrainOptions::threads.
 CLI::Option* add_threads_option(CLI::App& cmd, int& threads);

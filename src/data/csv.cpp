@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 #include "csv_text.hpp"
@@ -181,6 +182,10 @@ PairSet read_pairs(const CsvText& f, bool for_training = false) {
     if (!(step > 0))
       throw Error(at(f.path, line.number) + "column 'h': expected a step h > 0, got " +
                   quote(fields[0]));
+    if (step < std::numeric_limits<double>::min())
+      throw Error(at(f.path, line.number) + "column 'h': the step " + quote(fields[0]) +
+                  " is below the smallest normal double (2.2e-308), where it has lost its "
+                  "digits; expected a larger step (rescale time)");
     hs.push_back(step);
     for (Index i = 0; i < dim; ++i) {
       const auto c0 = static_cast<std::size_t>(1 + i), c1 = static_cast<std::size_t>(1 + dim + i);
@@ -238,6 +243,12 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
                   " after t = " + shortest(cur.t.back()) + " on line " +
                   std::to_string(cur.last_line) +
                   "; expected times to strictly increase within a trajectory");
+    if (!cur.t.empty() && t - cur.t.back() < std::numeric_limits<double>::min())
+      throw Error(at(f.path, line.number) + "column 't': the step from t = " +
+                  shortest(cur.t.back()) + " on line " + std::to_string(cur.last_line) + " to " +
+                  quote(fields[tcol]) +
+                  " is below the smallest normal double (2.2e-308); expected a larger step "
+                  "(rescale time)");
     // Every consumer uses the steps t[n] - t[n-1]; one that overflows is an error here, at
     // its line, rather than an infinite step later.
     if (!cur.t.empty() && !std::isfinite(t - cur.t.back()))

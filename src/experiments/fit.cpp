@@ -137,6 +137,19 @@ std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction,
   return {select_pairs(all, train_idx), select_pairs(all, val_idx)};
 }
 
+void check_beta_start(double beta, double h_max, bool from_warm_start) {
+  require(std::abs(beta) * h_max <= kMaxBetaInitTimesStep,
+          std::string(from_warm_start ? "the warm start's gamma " : "--beta-init ") +
+              number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
+              " shrinks every state by exp(-|beta| h) = " +
+              number_text(std::exp(-std::abs(beta) * h_max)) +
+              " per step, so training could not move it; expected |beta_init| * h <= " +
+              number_text(kMaxBetaInitTimesStep) + " (|beta_init| <= " +
+              number_text(kMaxBetaInitTimesStep / h_max) + " here)" +
+              (from_warm_start ? "; the data decay too fast for their steps to identify gamma"
+                               : ""));
+}
+
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
                     const FitConfig& config, const ProgressCallback& progress,
                     const std::vector<Index>& groups) {
@@ -175,6 +188,8 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
         r.warm_start_note = e.what();
       }
     }
+    check_beta_start(spec["beta_init"].get<double>(), r.train.h.maxCoeff(),
+                     r.warm_start.has_value());
   }
   r.model = make_model(spec);
   r.theta.resize(r.model.n_params());

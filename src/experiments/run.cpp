@@ -7,6 +7,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/experiments/fit.hpp"
 #include "csympnet/train/objective.hpp"
 
 namespace csympnet {
@@ -96,6 +97,9 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
     // γ̂ = |β|, and β must not be 0 (its gradient vanishes there).
     spec["beta_init"] = std::max(std::abs(r.warm_start->gamma), 1e-8);
   }
+  if (spec.contains("beta_init"))
+    check_beta_start(spec["beta_init"].get<double>(), r.data.train.h.maxCoeff(),
+                     r.warm_start.has_value());
   r.model = make_model(spec);
   r.theta.resize(r.model.n_params());
   Rng init_rng(c.seed, "init");

@@ -14,44 +14,12 @@ namespace csympnet {
 
 namespace {
 
-// FNV-1a over the architecture, the context and the exact bits of every parameter (bytes in
-// little-endian order, so the checksum is the same on every platform).
-std::string checksum_of(const nlohmann::json& model, const nlohmann::json& meta,
-                        const Vector& theta) {
-  std::uint64_t h = fnv1a64(model.dump());
-  h = fnv1a64(meta.dump(), h);
-  for (Index i = 0; i < theta.size(); ++i) {
-    std::uint64_t bits = 0;
-    std::memcpy(&bits, &theta(i), sizeof bits);
-    char bytes[8];
-    for (int b = 0; b < 8; ++b) bytes[b] = static_cast<char>((bits >> (8 * b)) & 0xffU);
-    h = fnv1a64(std::string_view(bytes, 8), h);
-  }
-  return "fnv1a64:" + hex64(h);
-}
 
 // The model constructors compute parameter counts as products of the sizes in the spec
 // (layers x sublayers x d^2, width^2, ...) without overflow checks. A file's sizes come from
 // outside, so their product is bounded first: with every size product P <= 2^28 each such
 // count stays below P^2 <= 2^56. A real model that large could not be stored in a file anyway.
 constexpr double kMaxSizeProduct = 268435456.0;  // 2^28
-
-// The parser quotes what it last read, which for a binary file is raw bytes; a message shows
-// them as \xNN so it stays plain text.
-std::string printable(const std::string& text) {
-  std::string out;
-  for (const char ch : text) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c >= 0x20 && c < 0x7f) {
-      out += ch;
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02X", static_cast<unsigned>(c));
-      out += buf;
-    }
-  }
-  return out;
-}
 
 std::string short_number(double v) {
   char buf[32];
@@ -69,6 +37,22 @@ void product_of_sizes(const nlohmann::json& spec, double& product) {
 
 }  // namespace
 
+// FNV-1a over the architecture, the context and the exact bits of every parameter (bytes in
+// little-endian order, so the checksum is the same on every platform).
+std::string model_checksum(const nlohmann::json& model, const nlohmann::json& meta,
+                           const Vector& theta) {
+  std::uint64_t h = fnv1a64(model.dump());
+  h = fnv1a64(meta.dump(), h);
+  for (Index i = 0; i < theta.size(); ++i) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &theta(i), sizeof bits);
+    char bytes[8];
+    for (int b = 0; b < 8; ++b) bytes[b] = static_cast<char>((bits >> (8 * b)) & 0xffU);
+    h = fnv1a64(std::string_view(bytes, 8), h);
+  }
+  return "fnv1a64:" + hex64(h);
+}
+
 nlohmann::json model_to_json(const Model& model, const Vector& theta, const nlohmann::json& meta) {
   require(theta.size() == model.n_params(), "model_to_json: parameter vector has the wrong size");
   nlohmann::json params = nlohmann::json::array();
@@ -76,7 +60,7 @@ nlohmann::json model_to_json(const Model& model, const Vector& theta, const nloh
   const nlohmann::json spec = model.hyperparams();
   return {{"format", kModelFormat}, {"version", kModelFormatVersion},
           {"model", spec},          {"n_params", model.n_params()},
-          {"meta", meta},           {"checksum", checksum_of(spec, meta, theta)},
+          {"meta", meta},           {"checksum", model_checksum(spec, meta, theta)},
           {"params", params}};
 }
 
@@ -145,7 +129,7 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
         doc.contains("checksum") && doc["checksum"].is_string(),
         where + ": missing string \"checksum\"; expected the checksum every model file carries");
     const std::string expected = doc["checksum"].get<std::string>();
-    const std::string actual = checksum_of(doc["model"], out.meta, out.theta);
+    const std::string actual = model_checksum(doc["model"], out.meta, out.theta);
     require(expected == actual, where + ": checksum mismatch (the file says " + expected +
                                     ", its contents give " + actual +
                                     "): it was modified or corrupted after it was written; "

@@ -40,7 +40,8 @@ bool is_vector_field_type(const std::string& type) {
 
 Model make_model(const nlohmann::json& spec) {
   require(spec.is_object() && spec.contains("type") && spec["type"].is_string(),
-          "model spec needs a string \"type\"");
+          "model spec needs a string \"type\"; expected one of csympnet, sympnet, map, ode, dhnn, "
+          "dhnn2, phnn, phnn2, la, g");
   Model m;
   if (is_vector_field_type(spec["type"].get<std::string>()))
     m.field = make_vector_field_model(spec);
@@ -54,7 +55,7 @@ Model make_model(const nlohmann::json& spec) {
           "the model would have " + std::to_string(n) + " parameters, more than the " +
               std::to_string(kMaxModelParams) +
               " this tool holds in memory; expected smaller sizes (the core's layers, "
-              "sublayers or width, the hidden widths, or d)");
+              "sublayers or width, as in --core, the hidden widths, or d)");
   return m;
 }
 

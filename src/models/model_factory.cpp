@@ -63,8 +63,7 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
     return std::make_unique<GSympNet>(d, get_count(spec, "layers", where),
                                       get_count(spec, "width", where));
   }
-  throw Error(where + ": unknown core type '" + type + "' (valid core types: " + kValidCoreTypes +
-              ")");
+  throw Error(where + ": unknown core type '" + type + "'; expected one of " + kValidCoreTypes);
 }
 
 }  // namespace
@@ -108,7 +107,7 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     return std::make_unique<MapBaseline>(get_count(spec, "d", where),
                                          get_count(spec, "width", where));
   }
-  throw Error(where + ": unknown model type '" + type + "' (valid types: " + kValidTypes + ")");
+  throw Error(where + ": unknown model type '" + type + "'; expected one of " + kValidTypes);
 }
 
 }  // namespace csympnet

@@ -27,7 +27,7 @@ inline void reject_unknown_keys(const nlohmann::json& spec, const std::string& w
     if (known) continue;
     std::string list;
     for (const char* key : allowed) list += std::string(list.empty() ? "" : ", ") + key;
-    throw Error(where + ": unknown key '" + item.key() + "' (allowed keys: " + list + ")");
+    throw Error(where + ": unknown key '" + item.key() + "'; expected only the keys " + list);
   }
 }
 

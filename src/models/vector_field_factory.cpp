@@ -45,7 +45,7 @@ std::unique_ptr<VectorFieldModel> make_vector_field_model(const nlohmann::json& 
   } else if (type == "phnn2") {
     kind = Dissipation::kPortDamping;
   } else {
-    throw Error(kWhere + ": unknown model type '" + type + "' (valid types: " + kValidTypes + ")");
+    throw Error(kWhere + ": unknown model type '" + type + "'; expected one of " + kValidTypes);
   }
   const bool damped = kind == Dissipation::kMomentumDamping || kind == Dissipation::kPortDamping;
   if (damped) {

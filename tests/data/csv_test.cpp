@@ -48,7 +48,8 @@ PairSet tricky_pairs(Index d, Index n, std::uint64_t seed) {
   p.z1 = rng.normal_matrix(2 * d, n, 1e3);
   p.h = rng.uniform_vector(n, 1e-6, 2.0);
   p.h(0) = 0.1;
-  p.h(n - 1) = std::numeric_limits<double>::denorm_min();
+  // The smallest step a file may hold (a subnormal step is refused: it has lost its digits).
+  p.h(n - 1) = std::numeric_limits<double>::min();
   return p;
 }
 

@@ -270,7 +270,7 @@ TEST(FieldFactory, ErrorsNameTheBadKeyOrValue) {
     make_vector_field_model(json{{"type", "hnn"}, {"d", 1}, {"width", 4}});
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("'hnn' (valid types: ode, dhnn, dhnn2, phnn, phnn2)"),
+    EXPECT_NE(std::string(e.what()).find("'hnn'; expected one of ode, dhnn, dhnn2, phnn, phnn2"),
               std::string::npos)
         << e.what();
   }

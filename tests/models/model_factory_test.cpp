@@ -166,7 +166,7 @@ TEST(ModelInit, DeterministicAndDocumented) {
 
 TEST(ModelFactory, RejectsBadSpecs) {
   expect_spec_error(json::parse(R"({"type":"mlp","d":1})"),
-                    "valid types: csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2");
+                    "expected one of csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2");
   expect_spec_error(json::parse(R"({"d":1})"), "'type'");
   expect_spec_error(json::parse(R"([1,2])"), "JSON object");
   expect_spec_error(wrap("sympnet", 0, la_core(1, 1)), "'d' = 0");
@@ -179,7 +179,7 @@ TEST(ModelFactory, RejectsBadSpecs) {
                     "missing key 'sublayers'");
   expect_spec_error(wrap("sympnet", 1, json{{"type", "g"}, {"width", 2}}), "missing key 'layers'");
   expect_spec_error(wrap("sympnet", 1, json{{"type", "h"}, {"layers", 2}}),
-                    "valid core types: la, g");
+                    "expected one of la, g");
   expect_spec_error(wrap("sympnet", 1, json{{"type", "la"}, {"layers", 1.5}, {"sublayers", 2}}),
                     "'layers' = 1.5");
   json beta_zero = wrap("csympnet", 1, la_core(1, 1));

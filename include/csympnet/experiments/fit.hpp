@@ -18,6 +18,16 @@
 
 namespace csympnet {
 
+// The largest |beta_init| * h a fit starts from: beyond it exp(-|β| h) shrinks every state to
+// nearly zero in one step and no gradient reaches β (fit_pairs refuses it).
+constexpr double kMaxBetaInitTimesStep = 50.0;
+
+// Refuses a starting β (from --beta-init, or from the warm start) with |β| h_max beyond
+// kMaxBetaInitTimesStep. γ = |β| shrinks every state by exp(-|β| h) per step: past that the
+// model starts by mapping every state to (nearly) zero, where no gradient reaches β, which
+// would then be reported unchanged as γ̂.
+void check_beta_start(double beta, double h_max, bool from_warm_start);
+
 struct FitConfig {
   std::string model = "csympnet";  // "csympnet" or "sympnet"
   nlohmann::json core;             // symplectic core; null → default_core_for(d)

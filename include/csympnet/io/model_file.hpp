@@ -23,6 +23,12 @@ struct SavedModel {
   nlohmann::json meta;  // free-form context: system, training recipe, seed, ...
 };
 
+// The checksum a model file carries ("fnv1a64:..."): FNV-1a over the architecture, the meta
+// and the exact bits of every parameter. It detects corruption and accidental edits; it is
+// not a signature (anyone can recompute it).
+std::string model_checksum(const nlohmann::json& model, const nlohmann::json& meta,
+                           const Vector& theta);
+
 nlohmann::json model_to_json(const Model& model, const Vector& theta,
                              const nlohmann::json& meta = nlohmann::json::object());
 SavedModel model_from_json(const nlohmann::json& doc, const std::string& where = "model");

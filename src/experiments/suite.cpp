@@ -8,6 +8,7 @@
 #include <set>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/io/json_text.hpp"
 #include "csympnet/core/hash.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model.hpp"
@@ -123,6 +124,10 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
   for (const char c : s.name)
     require(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_',
             where + ": name '" + s.name + "' may hold only letters, digits, '-' and '_'");
+  for (const char* key : {"title", "kind", "vary", "comment"})
+    if (doc.contains(key) && !doc.at(key).is_string())
+      throw Error(where + ": key '" + key + "' = " + doc.at(key).dump().substr(0, 80) +
+                  ", expected a string");
   s.title = doc.value("title", s.name);
   s.kind = doc.value("kind", std::string("table"));
   require(s.kind == "table" || s.kind == "grid",
@@ -236,14 +241,7 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
 }
 
 SuiteSpec suite_from_text(const std::string& text, const std::string& where) {
-  json doc;
-  try {
-    doc = json::parse(text);
-  } catch (const json::exception& e) {  // parse_error, or out_of_range for a number like 1e999
-    throw Error(where + ": not valid JSON (" + printable(std::string(e.what()).substr(0, 200)) +
-                "); expected a suite file (a JSON object)");
-  }
-  return parse_suite(doc, where);
+  return parse_suite(parse_json_text(text, where, "a suite file (a JSON object)"), where);
 }
 
 SuiteSpec load_suite(const std::string& path) {

@@ -9,6 +9,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/hash.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/io/json_text.hpp"
 
 namespace csympnet {
 
@@ -148,14 +149,9 @@ void save_model(const std::string& path, const Model& model, const Vector& theta
 }
 
 SavedModel model_from_text(const std::string& text, const std::string& where) {
-  nlohmann::json doc;
-  try {
-    doc = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range for 1e999
-    throw Error(where + ": not valid JSON (" + printable(std::string(e.what()).substr(0, 200)) +
-                "); expected a csympnet model file (was it truncated or overwritten?)");
-  }
-  return model_from_json(doc, where);
+  return model_from_json(
+      parse_json_text(text, where, "a csympnet model file (was it truncated or overwritten?)"),
+      where);
 }
 
 SavedModel load_model(const std::string& path) {

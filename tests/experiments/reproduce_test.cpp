@@ -10,6 +10,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/experiments/reproduce.hpp"
+#include "csympnet/experiments/suite.hpp"
 #include "csympnet/experiments/summary.hpp"
 #include "csympnet/io/files.hpp"
 
@@ -113,6 +114,41 @@ TEST(Suite, KeysChangeWithEveryConfigChoice) {
   doc = tiny_table();
   doc["seeds"] = {43};
   EXPECT_NE(expand_suite(parse_suite(doc, "suite.json")).front().key, base);
+}
+
+// A suite's text: a key given twice (JSON readers keep the last, silently) and a title or kind
+// that is not a string are refused by name (both found by fuzz_suite_file).
+TEST(Suite, RefusesRepeatedKeysAndNonStringTitles) {
+  std::string text = tiny_table().dump();
+  EXPECT_NO_THROW(suite_from_text(text, "suite.json"));
+  const std::string twice_title = R"({"title": "a", "title": [1, 2], )" + text.substr(1);
+  try {
+    suite_from_text(twice_title, "suite.json");
+    ADD_FAILURE() << "accepted " << twice_title;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("suite.json: key 'title' appears twice"),
+              std::string::npos)
+        << e.what();
+  }
+  for (const char* key : {"title", "kind", "comment"})
+    for (const json& v : {json(3), json::array({"a"}), json::object({{"x", 1}})}) {
+      json d = tiny_table();
+      d[key] = v;
+      expect_suite_error(d, std::string("key '") + key + "' = " + v.dump() + ", expected a string");
+    }
+  // Nested objects are checked too; equal keys in different objects are fine.
+  json d = tiny_table();
+  d["epochs"] = json::parse(R"({"s1": {"*": 5}})");
+  text = d.dump();
+  const std::size_t at = text.find(R"({"*":5})");
+  ASSERT_NE(at, std::string::npos) << text;
+  const std::string twice = text.substr(0, at) + R"({"*":5,"*":6})" + text.substr(at + 7);
+  try {
+    suite_from_text(twice, "suite.json");
+    ADD_FAILURE() << "accepted " << twice;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("key '*' appears twice"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Suite, RejectsBadFilesWithNamedKeys) {

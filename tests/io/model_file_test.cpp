@@ -101,6 +101,25 @@ TEST(ModelFile, DowngradesAndUnknownVersionsAreRefused) {
   EXPECT_EQ(model_from_json(good, "m.json").theta, f.theta);
 }
 
+// A key given twice would let an edit hide behind a checked first copy in readers that keep
+// the first, and change the model in those (like nlohmann) that keep the last: refused.
+TEST(ModelFile, RepeatedKeysAreRefused) {
+  const Fixture f = make("csympnet");
+  const std::string text = model_file_text(f.model, f.theta);
+  EXPECT_EQ(model_from_text(text, "m.json").theta, f.theta);
+  const std::size_t brace = text.find('{');
+  ASSERT_NE(brace, std::string::npos);
+  const std::string twice =
+      text.substr(0, brace + 1) + R"("version": 2, )" + text.substr(brace + 1);
+  try {
+    model_from_text(twice, "m.json");
+    ADD_FAILURE() << "accepted a repeated key";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("m.json: key 'version' appears twice"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(ModelFile, TruncatedOrGarbageFilesAreRefusedWithTheirPath) {
   const Fixture f = make("csympnet");
   const fs::path dir = fs::temp_directory_path() / ("csympnet_model_" + std::to_string(::getpid()));

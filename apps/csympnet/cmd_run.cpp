@@ -157,7 +157,8 @@ void add_run(CLI::App& app) {
     RunResult r;
     {
       ProgressLine progress(args->quiet);
-      r = run_experiment(c, progress.callback());
+      r = run_experiment(c, progress.callback(), /*evaluate_if_stopped=*/true,
+                         [] { return interrupted(); });
     }
     out_dir.commit(run_output_files(r));
     const auto& rep = r.report;

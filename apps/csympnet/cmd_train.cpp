@@ -166,7 +166,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   FitResult r;
   {
     ProgressLine progress(a.quiet);
-    r = fit_pairs(data, val, c, progress.callback(), groups);
+    r = fit_pairs(data, val, c, progress.callback(), groups, [] { return interrupted(); });
   }
   const auto gamma = r.model.damping_rate(r.theta);
   const FitQuality quality = fit_quality(r.model, r.theta, r.train, r.val);
@@ -206,6 +206,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
       {"config", r.config},
       {"architecture", r.model.hyperparams()}};
   if (gamma && !r.interval_note.empty()) report["gamma_ci_note"] = r.interval_note;
+  if (r.stopped) report["interrupted"] = true;  // a partial result: see training/refine
   // One set: the report, the wall times (apart, so the report stays bit-identical run to
   // run) and the model, committed together.
   out_dir.commit(
@@ -248,10 +249,20 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     throw Error("training diverged at epoch " + std::to_string(r.training.epochs_run + 1) +
                 " (non-finite loss or gradient); the best checkpoint (epoch " +
                 std::to_string(r.training.best_epoch) + ") was kept in " + a.out);
-  if (interrupted())
+  if (interrupted()) {
+    if (r.refine.stopped)
+      throw Interrupted("stopped in the second stage (" + r.config.refine.method + ") after " +
+                        std::to_string(r.refine.iterations) + " iterations; the best iterate (" +
+                        std::to_string(r.refine.best_iteration) + ") and its report are in " +
+                        a.out);
+    if (r.stopped && r.training.stop_reason == "budget")
+      throw Interrupted("stopped during the bootstrap (" + r.interval_note +
+                        "); the refined model and its report are in " + a.out);
+    if (!r.stopped) throw Interrupted("the fit had finished; its complete result is in " + a.out);
     throw Interrupted("stopped at epoch " + std::to_string(r.training.epochs_run) +
                       "; the best checkpoint (epoch " + std::to_string(r.training.best_epoch) +
                       ") and its report are in " + a.out);
+  }
 }
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
@@ -366,7 +377,6 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
 }
 }  // namespace
-
 
 void add_train(CLI::App& app) {
   auto a = std::make_shared<FitArgs>();

@@ -50,6 +50,20 @@ class PythonProgress {
     };
   }
 
+  // For the stages after AdamW (LM, L-BFGS, the bootstrap): true once a signal is pending
+  // (KeyboardInterrupt, re-raised by rethrow_if_stopped) or the callback has stopped the fit.
+  std::function<bool()> should_stop() {
+    return [this] {
+      if (error_) return true;
+      py::gil_scoped_acquire gil;
+      if (PyErr_CheckSignals() != 0) {
+        error_.emplace();  // fetches the pending KeyboardInterrupt
+        return true;
+      }
+      return false;
+    };
+  }
+
   // Call with the GIL held.
   void rethrow_if_stopped() {
     if (error_) {
@@ -125,7 +139,7 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
   FitResult r;
   {
     py::gil_scoped_release nogil;
-    r = fit_pairs(train, val_pairs, c, watch.callback(), a.groups);
+    r = fit_pairs(train, val_pairs, c, watch.callback(), a.groups, watch.should_stop());
   }
   watch.rethrow_if_stopped();
 
@@ -187,7 +201,7 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   RunResult r;
   {
     py::gil_scoped_release nogil;
-    r = run_experiment(c, watch.callback());
+    r = run_experiment(c, watch.callback(), true, watch.should_stop());
   }
   watch.rethrow_if_stopped();
 

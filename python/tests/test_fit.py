@@ -249,3 +249,54 @@ def test_run_trains_a_baseline():
     result = csympnet.run("s1", "dhnn2", epochs=20)
     assert result.model.type == "dhnn2" and result.model.gamma is not None
     assert result.report["model"] == "dhnn2" and np.isfinite(result.report["l2_error"])
+
+
+# Every stage after AdamW stops within a second of Ctrl-C with KeyboardInterrupt: Ceres' LM,
+# csympnet's own LM (its normal equations taken in polled row blocks at 4,111 parameters),
+# L-BFGS, the bootstrap, and the identification recipe's LM. Each budget would run for minutes.
+_STAGES = {
+    "ceres_lm": dict(core="g:2:8", epochs=5, refine="lm", refine_solver="dense_qr",
+                     refine_iterations=10**8, bootstrap=0),
+    "blas_lm": dict(epochs=5, refine="lm", refine_solver="blas_normal_cholesky",
+                    refine_iterations=10**8, bootstrap=0),
+    "lbfgs": dict(core="g:2:8", epochs=5, refine="lbfgs", refine_iterations=10**8, bootstrap=0),
+    "bootstrap": dict(core="g:2:8", epochs=5, refine="lm", refine_iterations=2,
+                      bootstrap=10**6),
+}
+
+
+@pytest.fixture(scope="module")
+def noisy_d10_pairs():
+    return csympnet.generate("s2", "train", n=400, sigma=0.01)
+
+
+def _interrupt_after(delay, call):
+    """Runs call() in this (the main) thread, sends SIGINT after `delay` s, and returns the
+    seconds from the signal to the KeyboardInterrupt."""
+    sent = []
+
+    def send():
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    timer = threading.Timer(delay, send)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        call()
+    caught = time.perf_counter()
+    timer.join()
+    assert sent, "the call ended before the signal"
+    return caught - sent[0]
+
+
+@pytest.mark.parametrize("stage", sorted(_STAGES))
+def test_ctrl_c_stops_every_later_stage_within_a_second(noisy_d10_pairs, stage):
+    latency = _interrupt_after(1.5, lambda: csympnet.fit(*noisy_d10_pairs, **_STAGES[stage]))
+    assert latency < 1.0, f"{stage}: KeyboardInterrupt {latency:.2f} s after SIGINT"
+
+
+def test_ctrl_c_stops_identify_within_a_second(noisy_d10_pairs):
+    z0, z1, h = noisy_d10_pairs
+    latency = _interrupt_after(
+        4.0, lambda: csympnet.identify(pairs=(z0, z1, h), epochs=50, lm_iterations=100000))
+    assert latency < 1.0, f"KeyboardInterrupt {latency:.2f} s after SIGINT"

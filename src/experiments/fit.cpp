@@ -47,7 +47,9 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
 void resolve_auto_refine(RefineOptions& refine, Index n_pairs, Index dim, Index n_params) {
   const double entries =
       static_cast<double>(n_pairs) * static_cast<double>(dim) * static_cast<double>(n_params);
-  if (entries <= kMaxJacobianEntries && n_params <= kMaxLmParams) {
+  const Index residuals = n_pairs * dim;
+  if (entries <= kMaxJacobianEntries && n_params <= kMaxLmParams &&
+      ceres_iteration_flops("dense_qr", residuals, n_params) <= kMaxCeresIterationFlops) {
     refine.method = "lm";
   } else if (entries <= kMaxNormalLmJacobianEntries && n_params <= kMaxNormalLmParams) {
     refine.method = "lm";
@@ -138,21 +140,21 @@ std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction,
 }
 
 void check_beta_start(double beta, double h_max, bool from_warm_start) {
-  require(std::abs(beta) * h_max <= kMaxBetaInitTimesStep,
-          std::string(from_warm_start ? "the warm start's gamma " : "--beta-init ") +
-              number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
-              " shrinks every state by exp(-|beta| h) = " +
-              number_text(std::exp(-std::abs(beta) * h_max)) +
-              " per step, so training could not move it; expected |beta_init| * h <= " +
-              number_text(kMaxBetaInitTimesStep) + " (|beta_init| <= " +
-              number_text(kMaxBetaInitTimesStep / h_max) + " here)" +
-              (from_warm_start ? "; the data decay too fast for their steps to identify gamma"
-                               : ""));
+  require(
+      std::abs(beta) * h_max <= kMaxBetaInitTimesStep,
+      std::string(from_warm_start ? "the warm start's gamma " : "--beta-init ") +
+          number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
+          " shrinks every state by exp(-|beta| h) = " +
+          number_text(std::exp(-std::abs(beta) * h_max)) +
+          " per step, so training could not move it; expected |beta_init| * h <= " +
+          number_text(kMaxBetaInitTimesStep) +
+          " (|beta_init| <= " + number_text(kMaxBetaInitTimesStep / h_max) + " here)" +
+          (from_warm_start ? "; the data decay too fast for their steps to identify gamma" : ""));
 }
 
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
                     const FitConfig& config, const ProgressCallback& progress,
-                    const std::vector<Index>& groups) {
+                    const std::vector<Index>& groups, const std::function<bool()>& should_stop) {
   config.validate();
   train.validate("training pairs");
   require(groups.empty() || static_cast<Index>(groups.size()) == train.size(),
@@ -211,12 +213,36 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   }
   if (r.config.bootstrap.refine.method == "auto")
     r.config.bootstrap.refine = default_replicate_refine_for(r.config.refine);
-  r.training = train_model(r.model, r.theta, r.train, r.val, r.config.train, progress);
-  if (r.training.stop_reason != "budget") return r;  // diverged or stopped: no second stage
-  r.refine = refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine);
+  // A second stage that could not be interrupted is refused before any training.
+  check_refine_fits(r.config.refine, r.train.size() * r.train.dim(), r.model.n_params());
   if (r.config.bootstrap.replicates > 0)
-    r.interval =
-        gamma_bootstrap(*r.model.map, r.theta, r.train, r.val, r.config.bootstrap, r.train_groups);
+    check_refine_fits(r.config.bootstrap.refine, r.train.size() * r.train.dim(),
+                      r.model.n_params());
+  r.training = train_model(r.model, r.theta, r.train, r.val, r.config.train, progress);
+  if (r.training.stop_reason != "budget") {  // diverged or stopped: no second stage
+    r.stopped = r.training.stop_reason == "callback";
+    return r;
+  }
+  r.refine =
+      refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine, should_stop);
+  if (r.refine.stopped) {
+    r.stopped = true;
+    if (r.config.bootstrap.replicates > 0)
+      r.interval_note = "no interval: the fit was interrupted during the second stage";
+    return r;
+  }
+  if (r.config.bootstrap.replicates > 0) {
+    GammaInterval g = gamma_bootstrap(*r.model.map, r.theta, r.train, r.val, r.config.bootstrap,
+                                      r.train_groups, should_stop);
+    if (g.stopped) {
+      r.stopped = true;
+      r.interval_note = "no interval: the bootstrap was interrupted after " +
+                        std::to_string(g.gammas.size()) + " of " +
+                        std::to_string(r.config.bootstrap.replicates) + " replicates";
+    } else {
+      r.interval = std::move(g);
+    }
+  }
   return r;
 }
 

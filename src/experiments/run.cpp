@@ -84,7 +84,7 @@ RunData generate_run_data(const RunConfig& c) {
 }
 
 RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
-                         bool evaluate_if_stopped) {
+                         bool evaluate_if_stopped, const std::function<bool()>& should_stop) {
   c.validate();
   RunResult r;
   r.data = generate_run_data(c);
@@ -105,11 +105,14 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   Rng init_rng(c.seed, "init");
   r.model.init_params(init_rng, r.theta);
 
+  if (r.model.is_map())  // a second stage that could not be interrupted: refused up front
+    check_refine_fits(c.refine, r.data.train.size() * r.data.train.dim(), r.model.n_params());
   r.training = train_model(r.model, r.theta, r.data.train, r.data.val, c.train, progress);
   const bool stopped = r.training.stop_reason == "callback";
   if (stopped && !evaluate_if_stopped) return r;
   if (r.model.is_map() && !stopped)
-    r.refine = refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine);
+    r.refine =
+        refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine, should_stop);
 
   const System sys(c.preset.system);
   const auto t0 = std::chrono::steady_clock::now();

@@ -49,7 +49,8 @@ double sample_quantile(std::vector<double> values, double q) {
 
 GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const PairSet& train,
                               const PairSet& val, const BootstrapOptions& options,
-                              const std::vector<Index>& groups) {
+                              const std::vector<Index>& groups,
+                              const std::function<bool()>& should_stop) {
   options.validate();
   require(map.damping_rate(theta).has_value(), "bootstrap interval for gamma_hat: the model '" +
                                                    map.type() +
@@ -77,6 +78,10 @@ GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const 
   Rng rng(options.seed, "bootstrap");
   const auto n_units = static_cast<double>(units.size());
   for (long b = 0; b < options.replicates; ++b) {
+    if (should_stop && should_stop()) {
+      g.stopped = true;
+      break;
+    }
     std::vector<Index> idx;
     for (std::size_t u = 0; u < units.size(); ++u) {
       const auto pick = static_cast<std::size_t>(std::floor(rng.uniform() * n_units));
@@ -84,8 +89,16 @@ GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const 
     }
     const PairSet resample = select_pairs(train, idx);
     Vector th = theta;
-    refine_one_step_map(map, th, resample, val, options.refine);
+    if (refine_one_step_map(map, th, resample, val, options.refine, should_stop).stopped) {
+      g.stopped = true;
+      break;
+    }
     g.gammas.push_back(*map.damping_rate(th));
+  }
+  if (g.stopped) {
+    g.replicates = static_cast<long>(g.gammas.size());
+    g.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return g;
   }
   const double alpha = 1.0 - options.level;
   g.low = sample_quantile(g.gammas, alpha / 2);

@@ -1,5 +1,6 @@
 #include "lapack.hpp"
 
+#include <algorithm>
 #include <climits>
 #include <cstddef>
 
@@ -17,6 +18,9 @@ void dgemv_(const char* trans, const int* m, const int* n, const double* alpha, 
 void dsymv_(const char* uplo, const int* n, const double* alpha, const double* a, const int* lda,
             const double* x, const int* incx, const double* beta, double* y, const int* incy,
             std::size_t);
+void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag, const int* m,
+            const int* n, const double* alpha, const double* a, const int* lda, double* b,
+            const int* ldb, std::size_t, std::size_t, std::size_t, std::size_t);
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info, std::size_t);
 void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda,
              double* b, const int* ldb, int* info, std::size_t);
@@ -83,6 +87,31 @@ bool cholesky(double* c, Index n) {
   dpotrf_("L", &ni, c, &lda, &info, 1);
   require(info >= 0, "lapack: dpotrf rejected argument " + std::to_string(-info));
   return info == 0;
+}
+
+Factor cholesky_blocked(double* c, Index n, const std::function<bool()>& should_stop) {
+  const int ni = as_int(n, "n"), lda = ni > 0 ? ni : 1;
+  // Each step's largest call is the dsyrk of the trailing block: about n² · block flops.
+  const double nn = static_cast<double>(n) * static_cast<double>(n);
+  const int block =
+      static_cast<int>(std::clamp(kMaxUninterruptedFlops / std::max(nn, 1.0), 32.0, 256.0));
+  const double one = 1.0, minus_one = -1.0;
+  for (int k = 0; k < ni; k += block) {
+    if (should_stop && should_stop()) return Factor::kStopped;
+    const int kb = std::min(block, ni - k), rest = ni - k - kb;
+    double* a11 = c + k + static_cast<std::size_t>(k) * lda;
+    int info = 0;
+    dpotrf_("L", &kb, a11, &lda, &info, 1);
+    require(info >= 0, "lapack: dpotrf rejected argument " + std::to_string(-info));
+    if (info > 0) return Factor::kNotPositiveDefinite;
+    if (rest == 0) break;
+    double* a21 = a11 + kb;
+    double* a22 = a21 + static_cast<std::size_t>(kb) * lda;
+    // L21 = A21 L11⁻ᵀ, then A22 -= L21 L21ᵀ (lower triangle).
+    dtrsm_("R", "L", "T", "N", &rest, &kb, &one, a11, &lda, a21, &lda, 1, 1, 1, 1);
+    dsyrk_("L", "N", &rest, &kb, &minus_one, a21, &lda, &one, a22, &lda, 1, 1);
+  }
+  return Factor::kDone;
 }
 
 void cholesky_solve(const double* l, Index n, double* b) {

@@ -5,6 +5,8 @@
 // column-major; only the lower triangle of a symmetric matrix is read or written.
 #pragma once
 
+#include <functional>
+
 #include "csympnet/core/types.hpp"
 
 namespace csympnet::lapack {
@@ -41,6 +43,17 @@ void symmetric_times(const double* c, Index n, const double* x, double* y);
 // Cholesky factorisation of symmetric C (n × n, lower triangle) in place. Returns false when C
 // is not numerically positive definite.
 bool cholesky(double* c, Index n);
+
+// The same factor, computed block column by block column (dpotrf on each diagonal block, dtrsm
+// below it, dsyrk on the rest) with `should_stop` polled after each, so no single call runs
+// much over kMaxUninterruptedFlops. Not bit-identical to cholesky(). Returns kStopped when
+// asked to stop (the matrix is then partly factored).
+enum class Factor { kDone, kNotPositiveDefinite, kStopped };
+Factor cholesky_blocked(double* c, Index n, const std::function<bool()>& should_stop);
+
+// About the most floating-point work (1e9 operations, ~0.1-0.3 s on one core) done in one BLAS
+// or LAPACK call between two polls for an interrupt, where a computation is split to poll.
+inline constexpr double kMaxUninterruptedFlops = 1e9;
 
 // Solves L Lᵀ x = b in place, L from cholesky().
 void cholesky_solve(const double* l, Index n, double* b);

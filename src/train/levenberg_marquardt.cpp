@@ -17,19 +17,50 @@ constexpr double kMaxMu = 1e32;      // Ceres: min_trust_region_radius = 1e-32
 constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres: min/max_lm_diagonal
 constexpr double kMinRelativeDecrease = 1e-3;               // Ceres: min_relative_decrease
 
-// JᵀJ (lower triangle) and Jᵀr at the current iterate.
+// JᵀJ (lower triangle) and Jᵀr at the current iterate. Where one dsyrk would run past
+// kMaxUninterruptedFlops, J is taken in blocks of rows with `should_stop` polled between them
+// (false: stopped, a and g incomplete).
 struct NormalEquations {
   Matrix a;
   Vector g;
-  void form(const RowMajorMatrix& jac, const Vector& r) {
+  bool form(const RowMajorMatrix& jac, const Vector& r, const std::function<bool()>& should_stop) {
     const Index m = jac.rows(), n = jac.cols();
     if (a.rows() != n) a.setZero(n, n);  // dsyrk writes the lower triangle; the upper stays 0
     g.resize(n);
     // A row-major m × n J is a column-major n × m Jᵀ.
-    lapack::gram_from_transpose(jac.data(), n, m, a.data());
-    lapack::transpose_times(jac.data(), n, m, r.data(), g.data());
+    const double per_row = static_cast<double>(n) * static_cast<double>(n);
+    if (!should_stop || static_cast<double>(m) * per_row <= lapack::kMaxUninterruptedFlops) {
+      lapack::gram_from_transpose(jac.data(), n, m, a.data());
+      lapack::transpose_times(jac.data(), n, m, r.data(), g.data());
+      return true;
+    }
+    const Index rows = std::max<Index>(
+        1, static_cast<Index>(lapack::kMaxUninterruptedFlops / std::max(per_row, 1.0)));
+    for (Index i = 0; i < m; i += rows) {
+      if (should_stop()) return false;
+      const Index k = std::min(rows, m - i);
+      const double* block = jac.data() + i * n;
+      if (i == 0) {
+        lapack::gram_from_transpose(block, n, k, a.data());
+        lapack::transpose_times(block, n, k, r.data(), g.data());
+      } else {
+        lapack::add_gram_from_transpose(block, n, k, a.data());
+        lapack::add_transpose_times(block, n, k, r.data() + i, g.data());
+      }
+    }
+    return true;
   }
 };
+
+// The damped system's factor: one dpotrf where that is short, else block by block polling
+// `should_stop`.
+lapack::Factor factor(Matrix& lhs, const std::function<bool()>& should_stop) {
+  const double n = static_cast<double>(lhs.rows());
+  if (!should_stop || n * n * n / 3.0 <= lapack::kMaxUninterruptedFlops)
+    return lapack::cholesky(lhs.data(), lhs.rows()) ? lapack::Factor::kDone
+                                                    : lapack::Factor::kNotPositiveDefinite;
+  return lapack::cholesky_blocked(lhs.data(), lhs.rows(), should_stop);
+}
 
 }  // namespace
 
@@ -60,11 +91,12 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
     if (jac.rows() != m) jac.resize(m, n);
     problem.jacobian(theta, jac);
     if (!jac.allFinite()) return false;
-    ne.form(jac, r);
-    return true;
+    return ne.form(jac, r, problem.should_stop);
   };
   if (!linearise()) {
-    report.message = "the Jacobian at the starting point is not finite";
+    report.message = problem.should_stop && problem.should_stop()
+                         ? "stopped by the caller"
+                         : "the Jacobian at the starting point is not finite";
     return report;
   }
 
@@ -87,7 +119,12 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
     lhs.diagonal() += mu * diag;
     bool accepted = false;
     double rho = 0.0;
-    if (lapack::cholesky(lhs.data(), n)) {
+    const lapack::Factor f = factor(lhs, problem.should_stop);
+    if (f == lapack::Factor::kStopped) {
+      report.message = "stopped by the caller";
+      break;
+    }
+    if (f == lapack::Factor::kDone) {
       step = -ne.g;
       lapack::cholesky_solve(lhs.data(), n, step.data());
       const double tol = settings.parameter_tolerance;
@@ -115,7 +152,9 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
             break;
           }
           if (!linearise()) {
-            report.message = "the Jacobian became non-finite";
+            report.message = problem.should_stop && problem.should_stop()
+                                 ? "stopped by the caller"
+                                 : "the Jacobian became non-finite";
             break;
           }
         }

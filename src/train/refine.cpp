@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <sstream>
 
@@ -29,6 +30,23 @@ void RefineOptions::validate() const {
   require(tol_ok(gradient_tolerance), "refine.gradient_tolerance must be a finite number >= 0");
   require(tol_ok(parameter_tolerance), "refine.parameter_tolerance must be a finite number >= 0");
   require(lbfgs_rank >= 1, "refine.lbfgs_rank must be >= 1, got " + std::to_string(lbfgs_rank));
+}
+
+double ceres_iteration_flops(const std::string& linear_solver, Index n_residuals, Index n_params) {
+  const double m = static_cast<double>(n_residuals), n = static_cast<double>(n_params);
+  return linear_solver == "dense_qr" ? 2.0 * m * n * n : m * n * n + n * n * n / 3.0;
+}
+
+void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_params) {
+  if (options.method != "lm" || options.linear_solver == "blas_normal_cholesky") return;
+  const double flops = ceres_iteration_flops(options.linear_solver, n_residuals, n_params);
+  if (flops <= kMaxCeresIterationFlops) return;
+  throw Error("--refine-solver " + options.linear_solver + " with " + std::to_string(n_params) +
+              " parameters and " + std::to_string(n_residuals) + " residuals takes " +
+              number_text(flops) + " operations per LM iteration in one Ceres call that Ctrl-C " +
+              "cannot stop; expected at most " + number_text(kMaxCeresIterationFlops) +
+              ": use --refine-solver blas_normal_cholesky (csympnet's LM, which stops promptly), " +
+              "or --refine auto");
 }
 
 void to_json(nlohmann::json& j, const RefineOptions& o) {
@@ -75,16 +93,34 @@ void to_json(nlohmann::json& j, const RefineSummary& s) {
 
 namespace {
 
+// The caller's stop request, remembered once seen: every optimiser below polls it before each
+// evaluation and after each iteration.
+class StopPoll {
+ public:
+  explicit StopPoll(const std::function<bool()>& should_stop) : should_stop_(should_stop) {}
+  bool operator()() const {
+    if (!stopped_ && should_stop_ && should_stop_()) stopped_ = true;
+    return stopped_;
+  }
+  bool stopped() const { return stopped_; }
+
+ private:
+  const std::function<bool()>& should_stop_;
+  mutable bool stopped_ = false;
+};
+
 // Residuals scaled by 1/√N, so that Ceres' cost ½‖r̃‖² is L/2.
 class OneStepResiduals final : public ceres::CostFunction {
  public:
-  OneStepResiduals(const OneStepMap& map, const PairSet& pairs) : map_(map), pairs_(pairs) {
+  OneStepResiduals(const OneStepMap& map, const PairSet& pairs, const StopPoll& stop)
+      : map_(map), pairs_(pairs), stop_(stop) {
     set_num_residuals(static_cast<int>(pairs.size() * pairs.dim()));
     mutable_parameter_block_sizes()->push_back(static_cast<int>(map.n_params()));
     scale_ = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
   }
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
+    if (stop_()) return false;  // a refused evaluation ends the iteration; the callback stops
     const Eigen::Map<const Vector> theta(parameters[0], map_.n_params());
     const Vector r = one_step_residuals(map_, theta, pairs_);
     Eigen::Map<Vector>(residuals, r.size()) = scale_ * r;
@@ -99,14 +135,17 @@ class OneStepResiduals final : public ceres::CostFunction {
  private:
   const OneStepMap& map_;
   const PairSet& pairs_;
+  const StopPoll& stop_;
   double scale_ = 1.0;
 };
 
 // The one-step loss and its gradient for L-BFGS (Ceres minimises the value as given).
 class OneStepLossFunction final : public ceres::FirstOrderFunction {
  public:
-  OneStepLossFunction(const OneStepMap& map, const PairSet& pairs) : map_(map), pairs_(pairs) {}
+  OneStepLossFunction(const OneStepMap& map, const PairSet& pairs, const StopPoll& stop)
+      : map_(map), pairs_(pairs), stop_(stop) {}
   bool Evaluate(const double* parameters, double* cost, double* gradient) const override {
+    if (stop_()) return false;
     const Eigen::Map<const Vector> theta(parameters, map_.n_params());
     if (gradient == nullptr) {
       *cost = one_step_loss(map_, theta, pairs_);
@@ -121,6 +160,7 @@ class OneStepLossFunction final : public ceres::FirstOrderFunction {
  private:
   const OneStepMap& map_;
   const PairSet& pairs_;
+  const StopPoll& stop_;
   mutable Vector grad_;
   mutable ForwardCache cache_;
 };
@@ -155,26 +195,30 @@ class BestValidation {
   long best_iteration_ = 0;
 };
 
-// Hands Ceres' accepted iterates to BestValidation.
+// Hands Ceres' accepted iterates to BestValidation, and ends the solve once a stop is asked.
 class CeresBestValidation final : public ceres::IterationCallback {
  public:
-  explicit CeresBestValidation(BestValidation& best) : best_(best) {}
+  CeresBestValidation(BestValidation& best, const StopPoll& stop) : best_(best), stop_(stop) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (stop_()) return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     if (it.iteration != 0 && it.step_is_successful) best_.consider(it.iteration);
     return ceres::SOLVER_CONTINUE;
   }
 
  private:
   BestValidation& best_;
+  const StopPoll& stop_;
 };
 
 // The one-step residuals and their Jacobian, scaled by 1/√N like OneStepResiduals.
-LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs) {
+LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs,
+                                     const StopPoll& stop) {
   LeastSquaresProblem p;
   p.n_residuals = pairs.size() * pairs.dim();
   p.n_params = map.n_params();
   const double scale = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
-  p.residuals = [&map, &pairs, scale](ConstParams theta, Eigen::Ref<Vector> r) {
+  p.residuals = [&map, &pairs, scale, &stop](ConstParams theta, Eigen::Ref<Vector> r) {
+    if (stop()) return false;  // a refused trial step; the loop then stops
     r = scale * one_step_residuals(map, theta, pairs);
     return r.allFinite();
   };
@@ -188,13 +232,15 @@ LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs
 }  // namespace
 
 RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
-                                  const PairSet& val, const RefineOptions& options) {
+                                  const PairSet& val, const RefineOptions& options,
+                                  const std::function<bool()>& should_stop) {
   options.validate();
   train.validate("training pairs");
   val.validate("validation pairs");
   require(train.dim() == map.dim() && val.dim() == map.dim(),
           "refine: data dimension does not match the model's phase-space dimension");
   require(theta.size() == map.n_params(), "refine: parameter vector has the wrong size");
+  check_refine_fits(options, train.size() * train.dim(), map.n_params());
   const auto start = std::chrono::steady_clock::now();
 
   RefineSummary s;
@@ -210,21 +256,24 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
 
   const Vector initial = theta;
   BestValidation best(map, val, theta.data(), initial, s.val_loss_before);
+  const StopPoll stop(should_stop);
   if (options.method == "lm" && options.linear_solver == "blas_normal_cholesky") {
     LmSettings ls;
     ls.max_iterations = options.iterations;
     ls.function_tolerance = options.function_tolerance;
     ls.gradient_tolerance = options.gradient_tolerance;
     ls.parameter_tolerance = options.parameter_tolerance;
-    const LmReport lr = levenberg_marquardt(one_step_problem(map, train), theta, ls,
-                                            [&best](long it) { best.consider(it); });
+    LeastSquaresProblem problem = one_step_problem(map, train, stop);
+    problem.should_stop = [&stop] { return stop(); };
+    const LmReport lr =
+        levenberg_marquardt(problem, theta, ls, [&best](long it) { best.consider(it); });
     s.iterations = lr.iterations;
     s.termination = lr.message;
   } else if (options.method == "lm") {
     ceres::Problem::Options po;
     po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(po);
-    OneStepResiduals residuals(map, train);
+    OneStepResiduals residuals(map, train, stop);
     problem.AddResidualBlock(&residuals, nullptr, theta.data());
     ceres::Solver::Options so;
     so.minimizer_type = ceres::TRUST_REGION;
@@ -239,14 +288,14 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     so.logging_type = ceres::SILENT;
     so.minimizer_progress_to_stdout = false;
     so.update_state_every_iteration = true;
-    CeresBestValidation callback(best);
+    CeresBestValidation callback(best, stop);
     so.callbacks.push_back(&callback);
     ceres::Solver::Summary cs;
     ceres::Solve(so, &problem, &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;
     s.termination = cs.message;
   } else {
-    ceres::GradientProblem problem(new OneStepLossFunction(map, train));
+    ceres::GradientProblem problem(new OneStepLossFunction(map, train, stop));
     ceres::GradientProblemSolver::Options so;
     so.line_search_direction_type = ceres::LBFGS;
     so.line_search_type = ceres::WOLFE;
@@ -258,12 +307,16 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     so.logging_type = ceres::SILENT;
     so.minimizer_progress_to_stdout = false;
     so.update_state_every_iteration = true;
-    CeresBestValidation callback(best);
+    CeresBestValidation callback(best, stop);
     so.callbacks.push_back(&callback);
     ceres::GradientProblemSolver::Summary cs;
     ceres::Solve(so, problem, theta.data(), &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;
     s.termination = cs.message;
+  }
+  if (stop.stopped()) {
+    s.stopped = true;
+    s.termination = "interrupted";
   }
   if (options.keep_best_validation) {
     theta = best.best();

@@ -57,6 +57,78 @@ TEST(Lapack, CholeskyReportsAnIndefiniteMatrix) {
   EXPECT_FALSE(lapack::cholesky(c.data(), 2));
 }
 
+// The block-column factor (polled for interrupts) is the same factor as dpotrf's at random
+// SPD matrices of sizes around and across its block width, reports an indefinite matrix, and
+// stops when asked.
+TEST(Lapack, BlockedCholeskyAgreesWithDpotrfAndStops) {
+  Rng rng(43, "blocked");
+  for (const Index n : {1, 5, 31, 32, 33, 100, 257, 700}) {
+    const RowMajorMatrix j = random_rows(n + 3, n, rng);
+    Matrix a(n, n);
+    lapack::gram_from_transpose(j.data(), n, n + 3, a.data());
+    a.diagonal().array() += 0.5;
+    Matrix whole = a, blocked = a;
+    ASSERT_TRUE(lapack::cholesky(whole.data(), n));
+    long polls = 0;
+    ASSERT_EQ(lapack::cholesky_blocked(blocked.data(), n,
+                                       [&polls] {
+                                         ++polls;
+                                         return false;
+                                       }),
+              lapack::Factor::kDone);
+    const Matrix lw = whole.triangularView<Eigen::Lower>();
+    const Matrix lb = blocked.triangularView<Eigen::Lower>();
+    EXPECT_LE((lw - lb).norm(), 1e-12 * lw.norm()) << "n = " << n;
+    EXPECT_EQ(polls, (n + 255) / 256) << "n = " << n;  // one poll per block of <= 256 columns
+    // The factor reproduces the matrix.
+    const Matrix want = a.selfadjointView<Eigen::Lower>();
+    EXPECT_LE((lb * lb.transpose() - want).norm(), 1e-12 * want.norm()) << "n = " << n;
+  }
+  Matrix c(2, 2);
+  c << 1.0, 0.0, 2.0, 1.0;
+  EXPECT_EQ(lapack::cholesky_blocked(c.data(), 2, {}), lapack::Factor::kNotPositiveDefinite);
+  Matrix big = Matrix::Identity(600, 600);
+  EXPECT_EQ(lapack::cholesky_blocked(big.data(), 600, [] { return true; }),
+            lapack::Factor::kStopped);
+}
+
+// A problem too large to linearise in one BLAS call between polls is formed in row blocks: the
+// same solution as unpolled, and a stop request ends it before the first iteration.
+TEST(LevenbergMarquardt, LargeProblemsPollBetweenBlocksAndStop) {
+  Rng rng(44, "large");
+  const Index m = 9000, n = 400;  // m n² = 1.44e9 > kMaxUninterruptedFlops: two row blocks
+  ASSERT_GT(static_cast<double>(m) * n * n, lapack::kMaxUninterruptedFlops);
+  const RowMajorMatrix a = random_rows(m, n, rng);
+  const Vector b = rng.normal_matrix(m, 1, 1.0);
+  LeastSquaresProblem p;
+  p.n_residuals = m;
+  p.n_params = n;
+  p.residuals = [&](ConstParams x, Eigen::Ref<Vector> r) {
+    r = a * x - b;
+    return true;
+  };
+  p.jacobian = [&](ConstParams, Eigen::Ref<RowMajorMatrix> j) { j = a; };
+  LmSettings settings;
+  settings.max_iterations = 20;
+  Vector plain = Vector::Zero(n);
+  levenberg_marquardt(p, plain, settings);
+  long polls = 0;
+  p.should_stop = [&polls] {
+    ++polls;
+    return false;
+  };
+  Vector polled = Vector::Zero(n);
+  levenberg_marquardt(p, polled, settings);
+  EXPECT_GT(polls, 0);
+  EXPECT_LE((polled - plain).norm(), 1e-10 * plain.norm());
+  p.should_stop = [] { return true; };
+  Vector stopped = Vector::Zero(n);
+  const LmReport r = levenberg_marquardt(p, stopped, settings);
+  EXPECT_EQ(r.message, "stopped by the caller");
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_EQ(stopped, Vector::Zero(n));
+}
+
 LeastSquaresProblem rosenbrock() {
   LeastSquaresProblem p;
   p.n_residuals = 2;

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -119,14 +120,18 @@ struct FitResult {
   PairSet train;
   std::vector<Index> train_groups;  // trajectory of each training pair (empty: unknown)
   PairSet val;
-  FitConfig config;  // with the defaults filled in
+  FitConfig config;      // with the defaults filled in
+  bool stopped = false;  // a stage ended early because the caller asked
 };
 
 // Trains on `train`; validates on `val` if given, else on a split of `train`. `groups`, when
 // not empty, names the trajectory of each pair of `train`, and the bootstrap then resamples
-// whole trajectories.
+// whole trajectories. `should_stop` (an interrupt), when given, is polled by the second stage
+// and the bootstrap (AdamW stops through `progress`); a fit stopped there keeps its best
+// iterate, says `stopped`, and has no interval (interval_note says why).
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
                     const FitConfig& config, const ProgressCallback& progress = {},
-                    const std::vector<Index>& groups = {});
+                    const std::vector<Index>& groups = {},
+                    const std::function<bool()>& should_stop = {});
 
 }  // namespace csympnet

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -63,7 +64,10 @@ struct RunResult {
 // When `progress` stops training (stop_reason "callback", e.g. on Ctrl-C) the second stage is
 // skipped, and so is the evaluation unless `evaluate_if_stopped` (then r.diagnostics and
 // r.report stay empty: `reproduce` discards such runs and should not wait for them).
+// `should_stop`, when given, is polled by the second stage (refine_one_step_map); a second
+// stage it stops keeps its best iterate and says so in r.refine.stopped.
 RunResult run_experiment(const RunConfig& config, const ProgressCallback& progress = {},
-                         bool evaluate_if_stopped = true);
+                         bool evaluate_if_stopped = true,
+                         const std::function<bool()>& should_stop = {});
 
 }  // namespace csympnet

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -45,15 +46,20 @@ struct GammaInterval {
   std::string resample;        // "pairs" or "trajectories"
   std::vector<double> gammas;  // every replicate's γ̂, in draw order
   double seconds = 0.0;
+  // Ended early because the caller asked: `gammas` holds the replicates finished, and the
+  // other fields are unset (an interval from part of the replicates is not the one asked for).
+  bool stopped = false;
 };
 // Every field but the wall time.
 void to_json(nlohmann::json& j, const GammaInterval& g);
 
 // `groups`: empty (resample pairs) or one trajectory index per training pair (resample
-// trajectories). Requires a map with a damping rate.
+// trajectories). Requires a map with a damping rate. `should_stop`, when given, is polled
+// between replicates and inside each replicate's refinement (refine_one_step_map).
 GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const PairSet& train,
                               const PairSet& val, const BootstrapOptions& options,
-                              const std::vector<Index>& groups = {});
+                              const std::vector<Index>& groups = {},
+                              const std::function<bool()>& should_stop = {});
 
 // The q-quantile (q in [0, 1]) of values, linear interpolation between order statistics
 // (NumPy's default "linear" method).

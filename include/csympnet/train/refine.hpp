@@ -9,6 +9,7 @@
 // is kept, so a second stage can never return parameters that validate worse than it got.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -54,13 +55,31 @@ struct RefineSummary {
   double val_loss_after = 0.0;
   double seconds = 0.0;
   std::string termination;  // the optimiser's termination message
+  bool stopped = false;     // ended early because the caller asked (an interrupt)
   std::string brief_report() const;
 };
 // Every field but the wall time, so that reports stay bit-identical run to run.
 void to_json(nlohmann::json& j, const RefineSummary& s);
 
+// The most floating-point work one Ceres LM iteration may take (3e9, about 0.3 s on one core
+// here): Ceres factors the whole Jacobian in one call that cannot be interrupted, so a larger
+// problem would not stop within a second of Ctrl-C. csympnet's own LM
+// ("blas_normal_cholesky") polls between blocks of its work and has no such limit.
+inline constexpr double kMaxCeresIterationFlops = 3e9;
+// The work of one LM iteration with Ceres' `linear_solver` on an m × n Jacobian: 2mn² for
+// dense_qr, mn² + n³/3 for dense_normal_cholesky.
+double ceres_iteration_flops(const std::string& linear_solver, Index n_residuals, Index n_params);
+// Refuses a Ceres linear solver for a problem past kMaxCeresIterationFlops, naming
+// --refine-solver and the solver that fits; call before training, so no work is lost.
+void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_params);
+
 // Refines theta in place. With method "none", returns a summary of zero iterations.
+// `should_stop`, when given, is polled before every residual or loss evaluation and after
+// every iteration: once it returns true the optimiser ends at the next poll (evaluations are
+// refused, so a Ceres iteration in progress ends early), the best iterate so far is kept as
+// usual, and the summary says `stopped` with termination "interrupted".
 RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
-                                  const PairSet& val, const RefineOptions& options);
+                                  const PairSet& val, const RefineOptions& options,
+                                  const std::function<bool()>& should_stop = {});
 
 }  // namespace csympnet

@@ -255,16 +255,20 @@ void reproduce(const Args& a) {
     return it->second;
   };
   const json summary = summarize(suites, lookup);
-  write_json_file((fs::path(a.out) / "summary.json").string(), summary);
-  write_json_file((fs::path(a.out) / "timings.json").string(), timings(suites, lookup));
-  const fs::path tables = fs::path(a.out) / "tables";
-  fs::create_directories(tables);
+  // The summary, the timings and every table change as one set (OutputDir::commit): a kill or
+  // a full disk leaves the earlier complete set, never a summary beside older tables.
+  OutputFiles files{{"summary.json", json_file_text(summary)},
+                    {"timings.json", json_file_text(timings(suites, lookup))}};
   for (const auto& s : suites) {
     const TableFiles f = render_tables(s, summary);
-    write_text_atomic((tables / (s.name + ".md")).string(), f.markdown);
-    write_text_atomic((tables / (s.name + ".csv")).string(), f.csv);
-    write_text_atomic((tables / (s.name + ".tex")).string(), f.latex);
+    files.push_back({"tables/" + s.name + ".md", f.markdown});
+    files.push_back({"tables/" + s.name + ".csv", f.csv});
+    files.push_back({"tables/" + s.name + ".tex", f.latex});
   }
+  if (out_dir)
+    out_dir->commit(files);
+  else
+    commit_files(a.out, files);  // another rank: rank 0 holds the directory
   const bool figures = !a.no_figures && draw_figures(a);
   if (!a.quiet) {
     print_table_overview(summary, suites);

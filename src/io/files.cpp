@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <set>
 #include <sstream>
 #include <system_error>
 
@@ -137,6 +138,18 @@ void sync_directory(const fs::path& dir) {
 
 constexpr const char* kCommitJournal = ".csympnet.commit";
 
+// A name OutputDir::commit accepts: NAME or SUB/NAME, each part a plain file name.
+bool is_output_file_name(const std::string& name) {
+  const std::size_t slash = name.find('/');
+  auto plain = [](const std::string& part) {
+    return !part.empty() && part != "." && part != ".." && part.find('/') == std::string::npos &&
+           part.find('\0') == std::string::npos && part.find('\t') == std::string::npos &&
+           part.find('\n') == std::string::npos;
+  };
+  if (slash == std::string::npos) return plain(name);
+  return plain(name.substr(0, slash)) && plain(name.substr(slash + 1));
+}
+
 // Completes a commit a killed writer left: every temporary the journal names that still
 // exists is renamed over its target, then the journal goes. Each journal line is
 // "TEMP<TAB>TARGET", names inside `dir`.
@@ -149,9 +162,11 @@ void roll_forward(const fs::path& dir) {
     const std::size_t tab = line.find('\t');
     if (tab == std::string::npos) continue;
     const std::string tmp = line.substr(0, tab), target = line.substr(tab + 1);
-    // Only names this process could have written: no path separators, our temp pattern.
-    if (tmp.find('/') != std::string::npos || target.find('/') != std::string::npos ||
-        target.empty() || !is_atomic_write_temp(tmp))
+    // Only names a commit could have written: a plain name or SUB/NAME on both sides, in the
+    // same subdirectory, and our temp pattern.
+    if (!is_output_file_name(target) || !is_output_file_name(tmp) ||
+        fs::path(tmp).parent_path() != fs::path(target).parent_path() ||
+        !is_atomic_write_temp(fs::path(tmp).filename().string()))
       continue;
     if (fs::exists(dir / tmp, ec)) fs::rename(dir / tmp, dir / target, ec);
   }
@@ -178,7 +193,11 @@ void write_text_atomic(const std::string& path, const std::string& content) {
 
 void OutputDir::commit(const OutputFiles& files) const {
   require(fd_ >= 0, "OutputDir::commit: the directory is not held");
-  const fs::path dir(dir_);
+  commit_files(dir_, files);
+}
+
+void commit_files(const std::string& directory, const OutputFiles& files) {
+  const fs::path dir(directory);
   std::vector<fs::path> temps;
   auto discard = [&] {
     std::error_code ignored;
@@ -189,10 +208,18 @@ void OutputDir::commit(const OutputFiles& files) const {
   std::string journal;
   try {
     for (const auto& [name, content] : files) {
-      require(!name.empty() && name.find('/') == std::string::npos,
-              "OutputDir::commit: '" + name + "' is not a plain file name");
+      require(is_output_file_name(name),
+              "OutputDir::commit: '" + name + "' is not NAME or SUB/NAME of plain names");
+      const fs::path sub = fs::path(name).parent_path();
+      if (!sub.empty()) {
+        std::error_code ec;
+        fs::create_directories(dir / sub, ec);
+        if (ec)
+          throw Error("cannot create '" + (dir / sub).string() + "': " + ec.message() +
+                      "; expected a writable output directory");
+      }
       temps.push_back(write_synced_temp(dir / name, content));
-      journal += temps.back().filename().string() + "\t" + name + "\n";
+      journal += (sub / temps.back().filename()).string() + "\t" + name + "\n";
     }
     // 2. The journal: from here on the new set is decided; a crash is rolled forward by the
     //    next csympnet that takes this directory.
@@ -202,13 +229,17 @@ void OutputDir::commit(const OutputFiles& files) const {
     throw;
   }
   // 3. The renames, then the journal goes.
+  std::set<fs::path> subdirs;
   for (std::size_t k = 0; k < files.size(); ++k) {
     std::error_code ec;
     fs::rename(temps[k], dir / files[k].first, ec);
     if (ec)
       throw Error("cannot write '" + (dir / files[k].first).string() + "': rename failed: " +
                   ec.message() + "; the next csympnet command on this directory completes the set");
+    subdirs.insert(fs::path(files[k].first).parent_path());
   }
+  for (const fs::path& sub : subdirs)
+    if (!sub.empty()) sync_directory(dir / sub);
   sync_directory(dir);
   std::error_code ec;
   fs::remove(dir / kCommitJournal, ec);

@@ -250,6 +250,38 @@ TEST(OutputDirCommit, AKilledCommitIsRolledForward) {
   EXPECT_FALSE(fs::exists(dir.file("outside")));
 }
 
+// A set may hold files one subdirectory down (reproduce's tables/): written, replaced and
+// rolled forward like the rest; names that climb out or nest deeper are refused.
+TEST(OutputDirCommit, SubdirectoriesAreOneSetWithTheRest) {
+  TempDir dir;
+  const std::string out = dir.file("rep");
+  {
+    const OutputDir held = prepare_output_dir(out, false);
+    held.commit({{"summary.json", "old summary"}, {"tables/t.md", "old table"}});
+    held.commit({{"summary.json", "new summary"}, {"tables/t.md", "new table"}});
+    for (const std::string bad :
+         {"../x", "tables/../../x", "a/b/c", "/abs", "tables/", "./x", "", "a\tb"}) {
+      const std::string& name = bad;
+      EXPECT_THROW(held.commit({{"ok.json", "x"}, {name, "y"}}), Error) << name;
+    }
+  }
+  EXPECT_EQ(read_text_file(out + "/summary.json"), "new summary");
+  EXPECT_EQ(read_text_file(out + "/tables/t.md"), "new table");
+  EXPECT_FALSE(fs::exists(out + "/ok.json"));  // a refused set writes nothing
+  EXPECT_EQ(entries(out + "/tables"), 1u);
+  EXPECT_FALSE(fs::exists(dir.file("x")));
+
+  // Killed between the renames of a set with a table: completed by the next command.
+  write_text_atomic(out + "/tables/.t.md.tmp.77.1.5", "newest table");
+  write_text_atomic(out + "/.csympnet.commit",
+                    "tables/.t.md.tmp.77.1.5\ttables/t.md\n"
+                    "tables/.t.md.tmp.77.1.5\tother/t.md\n");  // another directory: ignored
+  { const OutputDir held = prepare_output_dir(out, true); }
+  EXPECT_EQ(read_text_file(out + "/tables/t.md"), "newest table");
+  EXPECT_FALSE(fs::exists(out + "/other"));
+  EXPECT_FALSE(fs::exists(out + "/.csympnet.commit"));
+}
+
 TEST(PrepareOutputDir, RefusesAFile) {
   TempDir dir;
   const std::string file = dir.write("plain", "x");

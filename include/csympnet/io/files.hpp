@@ -24,7 +24,8 @@ std::string read_text_file(const std::string& path, std::size_t max_bytes = kMax
 // never a half-written file. On failure the temporary is removed and Error names the path.
 void write_text_atomic(const std::string& path, const std::string& content);
 
-// Files to write together: plain names in one directory, and their contents.
+// Files to write together: names (NAME, or SUB/NAME for a file in a subdirectory, created if
+// missing) relative to one directory, and their contents.
 using OutputFiles = std::vector<std::pair<std::string, std::string>>;
 
 // An output directory held by one writer for as long as this object lives.
@@ -50,7 +51,7 @@ class [[nodiscard]] OutputDir {
   OutputDir& operator=(OutputDir&&) = delete;
   const std::string& path() const { return dir_; }
 
-  // Writes a set of files (plain names in this directory → contents) as one change: every
+  // Writes a set of files (names in this directory → contents) as one change: every
   // file is first written complete and flushed under a temporary name (a full disk or any
   // failure leaves the old set as it was), then a journal naming them is written, then each
   // is renamed over its target and the journal removed. A process killed between the renames
@@ -64,6 +65,10 @@ class [[nodiscard]] OutputDir {
   int fd_ = -1;
   bool created_ = false;
 };
+
+// OutputDir::commit without holding the directory: for a writer that knows no other writes
+// there, or whose rivals write identical files (the ranks of one `reproduce`).
+void commit_files(const std::string& dir, const OutputFiles& files);
 
 // The usual way to take an output directory (see OutputDir).
 OutputDir prepare_output_dir(const std::string& dir, bool force);

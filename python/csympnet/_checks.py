@@ -54,6 +54,22 @@ def states(name, z, dim=None, allow_single=True):
     return a, single
 
 
+# Like the CLI's readers: a state beyond this in magnitude has a square that overflows double,
+# so no loss on it is finite and training would keep its starting point.
+MAX_TRAINING_MAGNITUDE = 1e150
+
+
+def trainable(name, a):
+    """Refuses training data with a value whose square overflows (as `csympnet fit` does)."""
+    big = np.abs(a) > MAX_TRAINING_MAGNITUDE
+    if np.any(big):
+        at = tuple(int(i) for i in np.argwhere(big)[0])
+        raise ValueError(
+            f"{name}: {a[at]!r} at index {at} is too large to train on (its square overflows "
+            f"double); expected |value| <= {MAX_TRAINING_MAGNITUDE:g}")
+    return a
+
+
 def vector(name, x, length=None, min_length=0):
     """A 1-D array of finite reals."""
     a = _as_real_array(name, x)
@@ -77,7 +93,20 @@ def steps(name, h, n):
     _require_finite(name, a)
     if n and not np.all(a > 0):
         raise ValueError(f"{name}: expected steps > 0, got {a[a <= 0][0]!r}")
+    tiny = a < np.finfo(np.float64).tiny
+    if np.any(tiny):
+        raise ValueError(
+            f"{name}: step {a[tiny][0]!r} is below the smallest normal double (2.2e-308), where "
+            "exp(-gamma h) and h-polynomials lose their precision; expected a rescaled time unit")
     return a
+
+
+def learning_rate(name, x):
+    """A learning rate in [1e-12, 10], the range `csympnet fit --lr` accepts."""
+    lr = real(name, x, positive=True)
+    if not 1e-12 <= lr <= 10:
+        raise ValueError(f"{name}: expected a number from 1e-12 to 10, got {lr!r}")
+    return lr
 
 
 def real(name, x, positive=False, nonnegative=False):

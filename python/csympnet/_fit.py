@@ -50,6 +50,8 @@ def _core_spec(core):
 def _pairs(prefix, z0, z1, h):
     a0, _ = _checks.states(f"{prefix}z0", z0, allow_single=False)
     a1, _ = _checks.states(f"{prefix}z1", z1, dim=a0.shape[1], allow_single=False)
+    _checks.trainable(f"{prefix}z0", a0)
+    _checks.trainable(f"{prefix}z1", a1)
     if a1.shape[0] != a0.shape[0]:
         raise ValueError(f"{prefix}z1: has {a1.shape[0]} states, expected {a0.shape[0]} (as z0)")
     return a0, a1, _checks.steps(f"{prefix}h", h, a0.shape[0])
@@ -143,7 +145,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         raise ValueError("beta_init: expected a nonzero number (d|β|/dβ vanishes at 0)")
     if not isinstance(beta_decay, (bool, np.bool_)):
         raise TypeError(f"beta_decay: expected True or False, got {type(beta_decay).__name__}")
-    lr = _checks.real("lr", lr, positive=True)
+    lr = _checks.learning_rate("lr", lr)
     _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
     lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction, positive=True)
     weight_decay = _checks.real("weight_decay", weight_decay, nonnegative=True)
@@ -266,7 +268,7 @@ def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="de
         epochs = _checks.integer("epochs", epochs, minimum=0)
     sigma = _checks.real("sigma", sigma, nonnegative=True)
     if lr is not None:
-        lr = _checks.real("lr", lr, positive=True)
+        lr = _checks.learning_rate("lr", lr)
     if lr_schedule is not None:
         _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
     val_every = _checks.integer("val_every", val_every, minimum=1)

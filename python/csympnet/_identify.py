@@ -91,6 +91,8 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         trajs = _as_trajectories(t, z, traj)
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")
+    for k, tr in enumerate(checked):
+        _checks.trainable(f"trajectory {k} z", tr.z)
     _checks.choice("loss", loss, ("balanced", "one-step"))
     _checks.choice("dof_scales", dof_scales, ("auto", "learned", "fixed"))
     if not isinstance(normalize, (bool, np.bool_)):
@@ -101,7 +103,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         "balanced": loss == "balanced",
         "normalize": bool(normalize),
         "epochs": _checks.integer("epochs", epochs, minimum=0),
-        "lr": _checks.real("lr", lr, positive=True),
+        "lr": _checks.learning_rate("lr", lr),
         "lm_iterations": _checks.integer("lm_iterations", lm_iterations, minimum=0),
         "val_fraction": _checks.real("val_fraction", val_fraction, positive=True),
         "blocks": _checks.integer("blocks", blocks, minimum=3, maximum=10000),

@@ -1,0 +1,260 @@
+"""The Python part of the hostile-input suite (docs/hardening.md, "The hostile-input suite").
+
+Every public entry point gets values a careless or hostile caller could pass: wrong types,
+shapes and sizes, NaN and infinities, subnormal, huge and negative numbers, empty and ragged
+arrays, non-contiguous and read-only views, objects that raise when read, bad files. For each:
+no crash (the interpreter survives: a crash would end the run), no hang (tiny budgets), and no
+silent wrong result: either a ValueError/TypeError/OSError (csympnet.Error is a ValueError)
+whose message names the argument and says what was expected, or an answer that is finite and
+unchanged by the caller's view of the data.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import csympnet
+
+RNG = np.random.default_rng(5)
+Z0 = RNG.uniform(-1, 1, (12, 2))
+Z1 = Z0 * 0.99
+H = 0.1
+REFUSED = (ValueError, TypeError, OSError)
+
+
+class Exploding:
+    """An array-like that raises when NumPy reads it."""
+
+    def __array__(self, *args, **kwargs):
+        raise RuntimeError("boom")
+
+
+def _bad_arrays(shape):
+    """Values that are not an array of real numbers of `shape`."""
+    n, m = shape
+    good = RNG.uniform(-1, 1, shape)
+    cases = {
+        "none": None, "string": "abc", "dict": {"a": 1}, "set": {1, 2},
+        "ragged": [[1.0, 2.0], [3.0]], "complex": good.astype(complex),
+        "strings": np.full(shape, "x"), "objects": np.full(shape, object()),
+        "bools": np.ones(shape, bool), "empty": np.zeros((0, m)),
+        "scalar": 1.0, "three_d": np.zeros((2, n, m)), "wrong_width": np.zeros((n, m + 1)),
+        "odd_width": np.zeros((n, 3)), "fewer_rows": good[:1], "nan": _with(good, np.nan),
+        "inf": _with(good, np.inf), "neg_inf": _with(good, -np.inf),
+        "huge": _with(good, 1e300), "exploding": Exploding(),
+    }
+    return cases
+
+
+def _with(a, value):
+    b = a.copy()
+    b.flat[len(b.flat) // 2] = value
+    return b
+
+
+def _bad_steps(n):
+    return {
+        "zero": 0.0, "negative": -0.1, "nan": math.nan, "inf": math.inf, "subnormal": 5e-324,
+        "wrong_length": np.full(n + 1, 0.1), "string": "0.1", "none": None, "complex": 0.1j,
+        "negative_in_array": np.r_[np.full(n - 1, 0.1), -0.1], "matrix": np.full((n, 2), 0.1),
+        "huge": 1e300,
+    }
+
+
+def _expect_refused_or_finite(call, *, must_refuse=False):
+    try:
+        out = call()
+    except RuntimeError as e:  # the caller's own object raised while being read: passed on
+        assert str(e) == "boom", f"{type(e).__name__}: {e}"
+        return
+    except REFUSED as e:
+        msg = str(e)
+        assert msg.strip(), "a refusal without a message"
+        assert "internal error" not in msg and "std::" not in msg, msg
+        return
+    assert not must_refuse, f"accepted: {out!r}"
+    for value in _numbers(out):
+        assert np.all(np.isfinite(value)), f"accepted with a non-finite result: {value!r}"
+
+
+def _numbers(out):
+    if isinstance(out, (float, int, np.ndarray)):
+        yield np.asarray(out, dtype=float)
+    elif isinstance(out, csympnet.Model):
+        yield out.params
+        if out.gamma is not None:
+            yield out.gamma
+
+
+FIT_CASES = []
+for _name, _v in _bad_arrays(Z0.shape).items():
+    FIT_CASES.append(pytest.param("z0", _v, id=f"fit-z0-{_name}"))
+    FIT_CASES.append(pytest.param("z1", _v, id=f"fit-z1-{_name}"))
+for _name, _v in _bad_steps(len(Z0)).items():
+    FIT_CASES.append(pytest.param("h", _v, id=f"fit-h-{_name}"))
+
+
+@pytest.mark.parametrize("which, value", FIT_CASES)
+def test_fit_refuses_bad_data(which, value):
+    args = {"z0": Z0, "z1": Z1, "h": H}
+    args[which] = value
+    must = not (which == "h" and np.ndim(value) == 0 and isinstance(value, float)
+                and value == 1e300)
+    _expect_refused_or_finite(lambda: csympnet.fit(args["z0"], args["z1"], args["h"], epochs=2,
+                                                   refine="none", bootstrap=0),
+                              must_refuse=must)
+
+
+OPTION_CASES = [
+    ("epochs", v) for v in (0, -1, 1.5, "10", 10**20, True)
+] + [
+    ("seed", v) for v in (-1, 2**64, 1.5, "1")
+] + [
+    ("lr", v) for v in (0.0, -1.0, math.nan, math.inf, "0.1", 1e300)
+] + [
+    ("beta_init", v) for v in (0.0, math.nan, math.inf, "x", 1e300)
+] + [
+    ("val_fraction", v) for v in (0.0, 1.0, -0.5, math.nan, 2)
+] + [
+    ("core", v) for v in ("la:0:0", "la:5", "g:1:0", "xx:1:1", 5, {"type": "la"},
+                          "la:100000:100000", {"type": "la", "layers": -1, "sublayers": 2})
+] + [
+    ("refine", v) for v in ("fast", 1, None)
+] + [
+    ("refine_iterations", v) for v in (0, -5, 1.5)
+] + [
+    ("refine_solver", v) for v in ("qr", 3)
+] + [
+    ("bootstrap", v) for v in (-1, 5, 1.5, "100")
+] + [
+    ("threads", v) for v in (0, -1, 10**6, 1.5)
+] + [
+    ("model", v) for v in ("hnn", "", None)
+] + [
+    ("lr_schedule", v) for v in ("step", None)
+] + [
+    ("progress", v) for v in (3, "print")
+]
+
+
+@pytest.mark.parametrize("option, value", OPTION_CASES,
+                         ids=[f"fit-{o}-{v!r}"[:60] for o, v in OPTION_CASES])
+def test_fit_refuses_bad_options(option, value):
+    kwargs = {"epochs": 2, "refine": "none", "bootstrap": 0}
+    kwargs[option] = value
+    if option == "beta_init":
+        kwargs["warm_start"] = False  # else the warm start replaces beta_init
+    _expect_refused_or_finite(lambda: csympnet.fit(Z0, Z1, H, **kwargs), must_refuse=True)
+
+
+def _trajectory(n=40, d=1):
+    t = np.cumsum(np.r_[0.0, np.full(n - 1, 0.1)])
+    z = np.c_[np.cos(t), -np.sin(t)] * np.exp(-0.05 * t)[:, None]
+    return z, t
+
+
+IDENTIFY_CASES = []
+_z, _t = _trajectory()
+for _name, _v in _bad_arrays(_z.shape).items():
+    IDENTIFY_CASES.append(pytest.param(_v, _t, id=f"identify-z-{_name}"))
+for _name, _v in {
+        "repeated": np.r_[_t[:5], _t[4:-1]], "decreasing": _t[::-1], "nan": _with(_t, np.nan),
+        "short": _t[:-3], "string": "t", "none": None, "two_d": _t[:, None] * np.ones(2),
+        "subnormal_steps": _t * 1e-320}.items():
+    IDENTIFY_CASES.append(pytest.param(_z, _v, id=f"identify-t-{_name}"))
+
+
+@pytest.mark.parametrize("z, t", IDENTIFY_CASES)
+def test_identify_refuses_bad_trajectories(z, t):
+    _expect_refused_or_finite(lambda: csympnet.identify(z, t, epochs=5, lm_iterations=1),
+                              must_refuse=True)
+
+
+@pytest.fixture(scope="module")
+def small_model():
+    return csympnet.fit(Z0, Z1, H, epochs=2, refine="none", bootstrap=0, core="la:1:2")
+
+
+MODEL_CASES = []
+for _name, _v in _bad_arrays((3, 2)).items():
+    if _name in ("fewer_rows", "huge"):
+        continue  # one state, or large finite states: valid inputs
+    if _name == "empty":  # an empty batch gives an empty answer, as in NumPy; rollout refuses
+        MODEL_CASES.append(pytest.param("rollout", _v, 0.1, id=f"rollout-z0-{_name}"))
+        continue
+    MODEL_CASES.append(pytest.param("predict", _v, 0.1, id=f"predict-z-{_name}"))
+    MODEL_CASES.append(pytest.param("jacobian", _v, 0.1, id=f"jacobian-z-{_name}"))
+    MODEL_CASES.append(pytest.param("rollout", _v, 0.1, id=f"rollout-z0-{_name}"))
+for _name, _v in _bad_steps(3).items():
+    if _name == "huge":
+        continue
+    MODEL_CASES.append(pytest.param("predict", np.zeros((3, 2)), _v, id=f"predict-h-{_name}"))
+    MODEL_CASES.append(pytest.param("jacobian", np.zeros((3, 2)), _v, id=f"jacobian-h-{_name}"))
+
+
+@pytest.mark.parametrize("method, z, h", MODEL_CASES)
+def test_model_methods_refuse_bad_input(small_model, method, z, h):
+    call = {
+        "predict": lambda: small_model.predict(z, h),
+        "jacobian": lambda: small_model.jacobian(z, h),
+        "rollout": lambda: small_model.rollout(z, h, steps=3),
+    }[method]
+    _expect_refused_or_finite(call, must_refuse=True)
+
+
+def test_views_do_not_change_answers(small_model):
+    """A non-contiguous, reversed or read-only view is read as the values it shows."""
+    z = RNG.uniform(-1, 1, (6, 4))[:, ::2]
+    ro = np.ascontiguousarray(z)
+    ro.setflags(write=False)
+    want = small_model.predict(np.ascontiguousarray(z), 0.1)
+    assert np.array_equal(small_model.predict(z, 0.1), want)
+    assert np.array_equal(small_model.predict(ro, 0.1), want)
+    assert np.array_equal(small_model.predict(np.asfortranarray(z), 0.1), want)
+
+
+FILE_CASES = {
+    "missing": None, "directory": "DIR", "empty": "", "garbage": "\x00\x01\x02",
+    "json_list": "[1, 2]", "truncated": "{\"format\": \"csympnet-model\", \"vers",
+    "wrong_format": "{\"format\": \"x\"}", "huge_number": "{\"format\": 1e999}",
+    "repeated_key": "{\"format\": \"csympnet-model\", \"format\": \"csympnet-model\"}",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(FILE_CASES))
+def test_load_refuses_bad_files(tmp_path, kind):
+    text = FILE_CASES[kind]
+    path = tmp_path / "model.json"
+    if text == "DIR":
+        path.mkdir()
+    elif text is not None:
+        path.write_text(text)
+    _expect_refused_or_finite(lambda: csympnet.load(path), must_refuse=True)
+    if text not in (None, "DIR"):
+        _expect_refused_or_finite(lambda: csympnet.from_json(text), must_refuse=True)
+
+
+def test_edited_model_files_are_refused(tmp_path, small_model):
+    text = small_model.to_json()
+    assert np.array_equal(csympnet.from_json(text).params, small_model.params)
+    for old, new in (("\"version\": 2", "\"version\": 1"), ("\"version\": 2", "\"version\": 3")):
+        assert old in text
+        with pytest.raises(ValueError):
+            csympnet.from_json(text.replace(old, new, 1))
+    digits = [i for i, c in enumerate(text) if c.isdigit()]
+    for i in digits[len(digits) // 2: len(digits) // 2 + 20]:
+        edited = text[:i] + str((int(text[i]) + 1) % 10) + text[i + 1:]
+        try:
+            loaded = csympnet.from_json(edited)
+        except ValueError:
+            continue
+        # Accepted only where the edit does not change the number read (a 17th digit that
+        # rounds to the same double): then the model is the original, to the bit.
+        assert loaded.to_json() == text, f"an edit at {i} changed the model and was accepted"
+
+
+def test_the_suite_has_at_least_two_hundred_cases():
+    n = (len(FIT_CASES) + len(OPTION_CASES) + len(IDENTIFY_CASES) + len(MODEL_CASES)
+         + len(FILE_CASES))
+    assert n >= 200, n

@@ -8,9 +8,9 @@
 #include <set>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/io/json_text.hpp"
 #include "csympnet/core/hash.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/io/json_text.hpp"
 #include "csympnet/models/model.hpp"
 
 namespace csympnet {
@@ -34,7 +34,8 @@ void reject_unknown_keys(const json& doc, const std::string& where,
   for (const auto& item : doc.items()) {
     bool known = false;
     for (const auto& a : allowed) known = known || a == item.key();
-    require(known, where + ": unknown key '" + item.key() + "'; expected only the keys " + join(allowed));
+    require(known,
+            where + ": unknown key '" + item.key() + "'; expected only the keys " + join(allowed));
   }
 }
 
@@ -44,9 +45,9 @@ template <class T>
 void reject_repeats(const std::vector<T>& items, const std::string& where, const std::string& key) {
   for (std::size_t i = 0; i < items.size(); ++i)
     for (std::size_t j = 0; j < i; ++j)
-      require(!(items[i] == items[j]),
-              where + ": key '" + key + "' lists " + json(items[i]).dump() +
-                  " twice; expected each entry at most once");
+      require(!(items[i] == items[j]), where + ": key '" + key + "' lists " +
+                                           json(items[i]).dump() +
+                                           " twice; expected each entry at most once");
 }
 
 std::vector<std::string> string_list(const json& doc, const char* key, const std::string& where,

@@ -15,7 +15,6 @@ namespace csympnet {
 
 namespace {
 
-
 // The model constructors compute parameter counts as products of the sizes in the spec
 // (layers x sublayers x d^2, width^2, ...) without overflow checks. A file's sizes come from
 // outside, so their product is bounded first: with every size product P <= 2^28 each such

@@ -90,6 +90,7 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
     }
     if (jac.rows() != m) jac.resize(m, n);
     problem.jacobian(theta, jac);
+    if (problem.should_stop && problem.should_stop()) return false;  // jac may be partial
     if (!jac.allFinite()) return false;
     return ne.form(jac, r, problem.should_stop);
   };

@@ -126,7 +126,8 @@ class OneStepResiduals final : public ceres::CostFunction {
     Eigen::Map<Vector>(residuals, r.size()) = scale_ * r;
     if (jacobians != nullptr && jacobians[0] != nullptr) {
       Eigen::Map<RowMajorMatrix> jac(jacobians[0], r.size(), map_.n_params());
-      residual_jacobian(map_, theta, pairs_, jac);
+      residual_jacobian(map_, theta, pairs_, jac, [this] { return stop_(); });
+      if (stop_()) return false;
       jac *= scale_;
     }
     return r.allFinite();
@@ -222,9 +223,9 @@ LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs
     r = scale * one_step_residuals(map, theta, pairs);
     return r.allFinite();
   };
-  p.jacobian = [&map, &pairs, scale](ConstParams theta, Eigen::Ref<RowMajorMatrix> jac) {
-    residual_jacobian(map, theta, pairs, jac);
-    jac *= scale;
+  p.jacobian = [&map, &pairs, scale, &stop](ConstParams theta, Eigen::Ref<RowMajorMatrix> jac) {
+    residual_jacobian(map, theta, pairs, jac, [&stop] { return stop(); });
+    jac *= scale;  // when stopped, the solver sees the stop before it uses jac
   };
   return p;
 }

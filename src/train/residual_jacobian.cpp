@@ -25,7 +25,7 @@ Vector one_step_residuals(const OneStepMap& map, ConstParams theta, const PairSe
 }
 
 void residual_jacobian(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
-                       Eigen::Ref<RowMajorMatrix> jac) {
+                       Eigen::Ref<RowMajorMatrix> jac, const std::function<bool()>& should_stop) {
   check_shapes(map, theta, pairs);
   const Index m = pairs.dim(), n = pairs.size(), p = map.n_params();
   require(jac.rows() == n * m && jac.cols() == p,
@@ -35,6 +35,7 @@ void residual_jacobian(const OneStepMap& map, ConstParams theta, const PairSet& 
   Vector h(1);
   Matrix upstream = Matrix::Zero(m, 1);
   for (Index j = 0; j < n; ++j) {
+    if (should_stop && j % 32 == 0 && should_stop()) return;
     z = pairs.z0.col(j);
     h(0) = pairs.h(j);
     map.forward(theta, z, h, &cache);

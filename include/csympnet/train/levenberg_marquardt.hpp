@@ -33,8 +33,11 @@ struct LeastSquaresProblem {
   // Optional, instead of `jacobian`: writes JᵀJ (the lower triangle of a, n_params²) and Jᵀr
   // at θ directly, for problems whose J is formed in chunks and never held whole.
   std::function<void(ConstParams theta, Matrix& a, Vector& g)> normal_equations;
-  // Optional: polled once per iteration; true stops the solver (an interrupt, or the caller's
-  // own stopping rule), with the message "stopped by the caller".
+  // Optional: polled once per iteration, after each Jacobian, and between the blocks of work
+  // that forming and factoring the normal equations are split into past
+  // lapack::kMaxUninterruptedFlops; true stops the solver (an interrupt, or the caller's own
+  // stopping rule), with the message "stopped by the caller". `jacobian` may poll it too and
+  // return early, since a stop is checked before its output is used.
   std::function<bool()> should_stop;
 };
 

@@ -9,6 +9,8 @@
 // (docs/identification.md, "The residual Jacobian").
 #pragma once
 
+#include <functional>
+
 #include <Eigen/Core>
 
 #include "csympnet/data/dataset.hpp"
@@ -23,8 +25,11 @@ Vector one_step_residuals(const OneStepMap& map, ConstParams theta, const PairSe
 
 // Writes J(θ) into `jac`, which must be (N·2d) × P. Row-major, so that each row is a
 // contiguous gradient (and so that Ceres can use the buffer as is).
+// `should_stop`, when given, is polled every 32 samples; once it returns true the remaining
+// rows are left as they were, and the caller, who asked, must not use `jac`.
 void residual_jacobian(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
-                       Eigen::Ref<RowMajorMatrix> jac);
+                       Eigen::Ref<RowMajorMatrix> jac,
+                       const std::function<bool()>& should_stop = {});
 RowMajorMatrix residual_jacobian(const OneStepMap& map, ConstParams theta, const PairSet& pairs);
 
 }  // namespace csympnet

@@ -128,8 +128,7 @@ void add_evaluate(CLI::App& app) {
     rep["system"] = c.preset.system;
     rep["h_test"] = c.preset.h_test;
     rep["test_trajectories"] = tests.size();
-    if (!a->out.empty())
-      write_json_file((std::filesystem::path(a->out) / "report.json").string(), rep);
+    if (out_dir) out_dir->commit({{"report.json", json_file_text(rep)}});
     std::cout << rep.dump(2) << "\n";
   });
 }

@@ -47,8 +47,8 @@ Vector parse_state(const std::string& s, Index dim) {
     v.push_back(x);
   }
   if (static_cast<Index>(v.size()) != dim)
-    throw Error("--z0 has " + std::to_string(v.size()) + " values; expected " + std::to_string(dim) +
-                ", as the model's state q1..qd,p1..pd");
+    throw Error("--z0 has " + std::to_string(v.size()) + " values; expected " +
+                std::to_string(dim) + ", as the model's state q1..qd,p1..pd");
   return Eigen::Map<Vector>(v.data(), dim);
 }
 }  // namespace

@@ -10,8 +10,12 @@ namespace {
 std::atomic<bool> g_parse_only{false};
 }  // namespace
 
-void set_parse_only(bool on) { g_parse_only.store(on); }
-bool parse_only() { return g_parse_only.load(); }
+void set_parse_only(bool on) {
+  g_parse_only.store(on);
+}
+bool parse_only() {
+  return g_parse_only.load();
+}
 
 void add_all_commands(CLI::App& app) {
   app.require_subcommand(1);

@@ -128,8 +128,8 @@ std::string existing(const std::string& path, bool directory) {
   if (path.empty()) return std::string("the path is empty; expected ") + what;
   if (ec || !std::filesystem::exists(st)) return "'" + path + "' does not exist; expected " + what;
   if (directory != std::filesystem::is_directory(st))
-    return "'" + path + "' is " + (directory ? "not a directory" : "a directory") +
-           "; expected " + what;
+    return "'" + path + "' is " + (directory ? "not a directory" : "a directory") + "; expected " +
+           what;
   return std::string();
 }
 }  // namespace

@@ -244,9 +244,9 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
                   std::to_string(cur.last_line) +
                   "; expected times to strictly increase within a trajectory");
     if (!cur.t.empty() && t - cur.t.back() < std::numeric_limits<double>::min())
-      throw Error(at(f.path, line.number) + "column 't': the step from t = " +
-                  shortest(cur.t.back()) + " on line " + std::to_string(cur.last_line) + " to " +
-                  quote(fields[tcol]) +
+      throw Error(at(f.path, line.number) +
+                  "column 't': the step from t = " + shortest(cur.t.back()) + " on line " +
+                  std::to_string(cur.last_line) + " to " + quote(fields[tcol]) +
                   " is below the smallest normal double (2.2e-308); expected a larger step "
                   "(rescale time)");
     // Every consumer uses the steps t[n] - t[n-1]; one that overflows is an error here, at

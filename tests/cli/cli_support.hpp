@@ -48,9 +48,11 @@ class CliTest : public ::testing::Test {
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
-  CliResult run(const std::string& args) const {
+  // Runs the CLI with `args` (shell words: the tests' own, quoted where needed), with `env`
+  // (VAR=value words, quoted likewise) put before it.
+  CliResult run(const std::string& args, const std::string& env = "") const {
     const std::filesystem::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
-    const std::string cmd = std::string(CSYMPNET_CLI_PATH) + " " + args + " >" +
+    const std::string cmd = env + " " + std::string(CSYMPNET_CLI_PATH) + " " + args + " >" +
                             shell_quote(out.string()) + " 2>" + shell_quote(err.string()) +
                             " </dev/null";
     const int status = std::system(cmd.c_str());

@@ -85,12 +85,12 @@ class FaultInjection : public CliTest {
       const fs::path out = dir_ / (mode + std::to_string(n)), mark = dir_ / "mark";
       fs::remove(mark);
       fs::copy(dir_ / "old", out, fs::copy_options::recursive);
-      const CliResult r = run_env("LD_PRELOAD=" + shell_quote(CSYMPNET_FAULT_SHIM) +
-                                      " ASAN_OPTIONS=verify_asan_link_order=0:detect_leaks=0"
-                                      " CSYMPNET_FAULT_MODE=" +
-                                      mode + " CSYMPNET_FAULT_AT=" + std::to_string(n) +
-                                      " CSYMPNET_FAULT_MARK=" + shell_quote(mark.string()),
-                                  fit_args(2, out));
+      const std::string env = "LD_PRELOAD=" + shell_quote(CSYMPNET_FAULT_SHIM) +
+                              " ASAN_OPTIONS=verify_asan_link_order=0:detect_leaks=0" +
+                              " CSYMPNET_FAULT_MODE=" + mode +
+                              " CSYMPNET_FAULT_AT=" + std::to_string(n) +
+                              " CSYMPNET_FAULT_MARK=" + shell_quote(mark.string());
+      const CliResult r = run(fit_args(2, out), env);
       const bool hit = fs::exists(mark);
       if (!hit) {  // past the last file operation: the command ran untouched
         EXPECT_EQ(r.code, 0) << r.err;
@@ -116,19 +116,6 @@ class FaultInjection : public CliTest {
           << mode << " at operation " << n;
     }
     ADD_FAILURE() << "the command still hit a fault after 200 operations";
-  }
-
-  CliResult run_env(const std::string& env, const std::string& args) const {
-    const fs::path out = dir_ / "stdout.txt", err = dir_ / "stderr.txt";
-    const std::string cmd = env + " " + std::string(CSYMPNET_CLI_PATH) + " " + args + " >" +
-                            shell_quote(out.string()) + " 2>" + shell_quote(err.string()) +
-                            " </dev/null";
-    const int status = std::system(cmd.c_str());
-    CliResult r;
-    r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
   }
 
   fs::path data_;

@@ -135,8 +135,8 @@ std::string base_trajectories() {
 // A model file made by the CLI itself (train on base_pairs), once per test process.
 const std::string& base_model() {
   static const std::string text = [] {
-    const fs::path dir = fs::temp_directory_path() / ("csympnet_hostile_base_" +
-                                                      std::to_string(::getpid()));
+    const fs::path dir =
+        fs::temp_directory_path() / ("csympnet_hostile_base_" + std::to_string(::getpid()));
     fs::remove_all(dir);
     write_file(dir / "d.csv", base_pairs());
     const Outcome r = spawn({"train", "--data", "d.csv", "--epochs", "3", "-q", "--out", "m"}, dir);
@@ -168,14 +168,16 @@ struct Case {
   std::string name;
   std::function<void(const fs::path&)> setup;  // writes the case's input files
   std::vector<std::string> args;
-  std::set<int> codes;               // allowed exit codes
-  std::vector<std::string> say;      // fragments a refusal must contain
-  std::vector<std::string> absent;   // paths (relative) that must not exist afterwards
+  std::set<int> codes;                    // allowed exit codes
+  std::vector<std::string> say;           // fragments a refusal must contain
+  std::vector<std::string> absent;        // paths (relative) that must not exist afterwards
   std::vector<std::string> say_any = {};  // a refusal must contain at least one of these
 };
 
 // gtest prints a failing case by its name, not its bytes.
-void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+void PrintTo(const Case& c, std::ostream* os) {
+  *os << c.name;
+}
 
 std::string gtest_name(std::string s) {
   for (char& c : s)
@@ -301,43 +303,65 @@ std::vector<Case> csv_cases() {
                        std::vector<std::string> say) {
     for (const auto& cmd : csv_commands("d.csv")) {
       say.insert(say.begin(), "d.csv");
-      cases.push_back({"csv_" + cmd[0] + "_" + name,
-                       [text](const fs::path& d) { write_file(d / "d.csv", text); }, cmd, codes,
-                       say, codes.count(0) ? std::vector<std::string>{} : std::vector<std::string>{"out"}});
+      cases.push_back(
+          {"csv_" + cmd[0] + "_" + name,
+           [text](const fs::path& d) { write_file(d / "d.csv", text); }, cmd, codes, say,
+           codes.count(0) ? std::vector<std::string>{} : std::vector<std::string>{"out"}});
       say.erase(say.begin());
     }
   };
   const std::string pairs = base_pairs(), trajs = base_trajectories();
   // Values no reader may accept, in a state column and in the step column.
   const std::vector<std::pair<std::string, std::string>> bad_values = {
-      {"empty", ""},         {"space", " "},           {"nan", "nan"},
-      {"NaN", "NaN"},        {"minus_nan", "-nan"},    {"inf", "inf"},
-      {"minus_Infinity", "-Infinity"},                 {"overflow", "1e999"},
-      {"underflow", "1e-999"},                         {"hexfloat", "0x1p3"},
-      {"decimal_comma", "1;5"},                        {"two_points", "1.2.3"},
-      {"double_minus", "--1"},                         {"plus_minus", "+-1"},
-      {"bare_exponent", "1e"},                         {"exponent_only", "e5"},
-      {"point", "."},        {"minus", "-"},           {"underscore", "1_000"},
-      {"quoted", "\"0.5\""}, {"single_quoted", "'0.5'"},                   {"word", "TRUE"},
-      {"null", "null"},      {"printf", "%s%n"},       {"subshell", "$(touch INJECTED)"},
-      {"backticks", "`touch INJECTED`"},               {"arabic_digit", "\xD9\xA3"},
+      {"empty", ""},
+      {"space", " "},
+      {"nan", "nan"},
+      {"NaN", "NaN"},
+      {"minus_nan", "-nan"},
+      {"inf", "inf"},
+      {"minus_Infinity", "-Infinity"},
+      {"overflow", "1e999"},
+      {"underflow", "1e-999"},
+      {"hexfloat", "0x1p3"},
+      {"decimal_comma", "1;5"},
+      {"two_points", "1.2.3"},
+      {"double_minus", "--1"},
+      {"plus_minus", "+-1"},
+      {"bare_exponent", "1e"},
+      {"exponent_only", "e5"},
+      {"point", "."},
+      {"minus", "-"},
+      {"underscore", "1_000"},
+      {"quoted", "\"0.5\""},
+      {"single_quoted", "'0.5'"},
+      {"word", "TRUE"},
+      {"null", "null"},
+      {"printf", "%s%n"},
+      {"subshell", "$(touch INJECTED)"},
+      {"backticks", "`touch INJECTED`"},
+      {"arabic_digit", "\xD9\xA3"},
       {"huge_digits", std::string(400, '9')},
-      {"near_dbl_max", "1.7e308"},                     {"too_large_to_square", "1e151"},
+      {"near_dbl_max", "1.7e308"},
+      {"too_large_to_square", "1e151"},
   };
   for (const auto& [name, v] : bad_values) {
     add("q_" + name, with_field(pairs, 3, 1, v), {1}, {":3:"});
     add("traj_p_" + name, with_field(trajs, 4, 3, v), {1}, {":4:"});
   }
   const std::vector<std::pair<std::string, std::string>> bad_steps = {
-      {"zero", "0"}, {"minus_zero", "-0"}, {"negative", "-0.1"}, {"subnormal", "1e-320"},
-      {"nan", "nan"}, {"inf", "inf"}, {"huge", "1e300"}};
-  for (const auto& [name, v] : bad_steps) add("h_" + name, with_field(pairs, 2, 0, v), {1}, {"d.csv"});
+      {"zero", "0"},  {"minus_zero", "-0"}, {"negative", "-0.1"}, {"subnormal", "1e-320"},
+      {"nan", "nan"}, {"inf", "inf"},       {"huge", "1e300"}};
+  for (const auto& [name, v] : bad_steps)
+    add("h_" + name, with_field(pairs, 2, 0, v), {1}, {"d.csv"});
   // Steps so small or states so tiny that nothing can be identified: refused or "not
   // identified", never a confident number.
   cases.push_back({"csv_fit_h_tiny",
                    [t = with_field(with_field(pairs, 2, 0, "1e-15"), 3, 0, "1e-16")](
                        const fs::path& d) { write_file(d / "d.csv", t); },
-                   csv_commands("d.csv")[1], {0, 1, 4}, {}, {}});
+                   csv_commands("d.csv")[1],
+                   {0, 1, 4},
+                   {},
+                   {}});
   // Structure.
   const std::string body = pairs.substr(pairs.find('\n') + 1);
   const std::vector<std::pair<std::string, std::string>> bad_texts = {
@@ -355,7 +379,8 @@ std::vector<Case> csv_cases() {
       {"blank_line_inside", "h,q1,p1,next_q1,next_p1\n" + body.substr(0, body.find('\n') + 1) +
                                 "\n" + body.substr(body.find('\n') + 1)},
       {"long_line", "h,q1,p1,next_q1,next_p1\n" + std::string(2000000, '1') + "\n"},
-      {"many_columns", [] {
+      {"many_columns",
+       [] {
          std::string h = "h";
          for (int k = 1; k <= 3000; ++k) h += ",q" + std::to_string(k);
          return h + "\n0.1\n";
@@ -378,13 +403,16 @@ std::vector<Case> csv_cases() {
   add("crlf", std::regex_replace(pairs, std::regex("\n"), "\r\n"), {0}, {});
   add("trailing_blank_lines", pairs + "\n\n", {0}, {});
   add("no_final_newline", pairs.substr(0, pairs.size() - 1), {0}, {});
-  add("trajectories_no_id", "t,q1,p1\n" + [] {
-    std::string s;
-    for (int i = 0; i < 20; ++i)
-      s += std::to_string(0.1 * i) + "," + std::to_string(std::cos(0.1 * i)) + "," +
-           std::to_string(-std::sin(0.1 * i)) + "\n";
-    return s;
-  }(), {0}, {});
+  add("trajectories_no_id",
+      "t,q1,p1\n" +
+          [] {
+            std::string s;
+            for (int i = 0; i < 20; ++i)
+              s += std::to_string(0.1 * i) + "," + std::to_string(std::cos(0.1 * i)) + "," +
+                   std::to_string(-std::sin(0.1 * i)) + "\n";
+            return s;
+          }(),
+      {0}, {});
   add("subnormal_state", with_field(pairs, 3, 1, "4.9e-324"), {0}, {});
   // Lenient but unambiguous: a byte-order mark (spreadsheet exports), spaces after commas in
   // the header, a leading tab before a number.
@@ -410,66 +438,86 @@ std::vector<Case> model_cases() {
   };
   const auto add_text = [&](const std::string& name, TextEdit edit, std::set<int> codes) {
     for (const auto& cmd : commands("m.json"))
-      cases.push_back({"model_" + cmd[0] + "_" + name,
-                       [edit](const fs::path& d) {
-                         write_file(d / "m.json", edit(base_model()));
-                         write_file(d / "t.csv", base_trajectories());
-                       },
-                       cmd, codes, codes.count(0) ? std::vector<std::string>{} : std::vector<std::string>{"m.json"}, {}});
+      cases.push_back(
+          {"model_" + cmd[0] + "_" + name,
+           [edit](const fs::path& d) {
+             write_file(d / "m.json", edit(base_model()));
+             write_file(d / "t.csv", base_trajectories());
+           },
+           cmd,
+           codes,
+           codes.count(0) ? std::vector<std::string>{} : std::vector<std::string>{"m.json"},
+           {}});
   };
   // Edits of the architecture are re-signed after the edit, so they reach the checks behind
   // the checksum; edits of the file's own fields (version, checksum, params) are made after
   // signing, as a user editing the file would.
   const auto add_doc = [&](const std::string& name, DocEdit edit, std::set<int> codes,
                            bool resign_after = true) {
-    add_text(name, [edit, resign_after](const std::string& text) {
-      json doc = json::parse(text);
-      if (!resign_after) doc = json::parse(resigned(doc));
-      edit(doc);
-      return resign_after ? resigned(doc) : doc.dump(1);
-    }, codes);
+    add_text(
+        name,
+        [edit, resign_after](const std::string& text) {
+          json doc = json::parse(text);
+          if (!resign_after) doc = json::parse(resigned(doc));
+          edit(doc);
+          return resign_after ? resigned(doc) : doc.dump(1);
+        },
+        codes);
   };
   // Every key of the document and of its "model" part: removed, or replaced by each JSON type.
   const std::vector<std::pair<std::string, json>> replacements = {
-      {"null", nullptr},        {"string", "x"},         {"negative", -1},
-      {"zero", 0},              {"fraction", 2.5},       {"huge", 1e300},
-      {"array", json::array()}, {"object", json::object()}, {"true", true}};
+      {"null", nullptr}, {"string", "x"}, {"negative", -1},         {"zero", 0},
+      {"fraction", 2.5}, {"huge", 1e300}, {"array", json::array()}, {"object", json::object()},
+      {"true", true}};
   for (const std::string key : {"format", "version", "model", "params", "n_params", "checksum"}) {
     // n_params is redundant (the architecture gives the count): a file without it is read,
     // one whose count disagrees is refused.
-    add_doc("drop_" + key, [key](json& d) { d.erase(key); },
-            key == "n_params" ? std::set<int>{0, 1} : std::set<int>{1}, false);
+    add_doc(
+        "drop_" + key, [key](json& d) { d.erase(key); },
+        key == "n_params" ? std::set<int>{0, 1} : std::set<int>{1}, false);
     for (const auto& [rn, v] : replacements)
-      add_doc(key + "_" + rn, [key, v = v](json& d) { d[key] = v; }, {1}, false);
+      add_doc(
+          key + "_" + rn, [key, v = v](json& d) { d[key] = v; }, {1}, false);
   }
   for (const std::string key : {"type", "d", "beta_init", "core"}) {
-    add_doc("drop_model_" + key, [key](json& d) { d["model"].erase(key); },
-            key == "beta_init" ? std::set<int>{0, 1} : std::set<int>{1});
+    add_doc(
+        "drop_model_" + key, [key](json& d) { d["model"].erase(key); },
+        key == "beta_init" ? std::set<int>{0, 1} : std::set<int>{1});
     for (const auto& [rn, v] : replacements) {
       // A beta_init of any finite nonzero value is a valid (if odd) model.
       const bool valid = key == "beta_init" && v.is_number() && v.get<double>() != 0.0;
-      add_doc("model_" + key + "_" + rn, [key, v = v](json& d) { d["model"][key] = v; },
-              valid ? std::set<int>{0} : std::set<int>{1});
+      add_doc(
+          "model_" + key + "_" + rn, [key, v = v](json& d) { d["model"][key] = v; },
+          valid ? std::set<int>{0} : std::set<int>{1});
     }
   }
   for (const std::string key : {"layers", "sublayers", "type"})
     for (const auto& [rn, v] : replacements)
-      add_doc("core_" + key + "_" + rn, [key, v = v](json& d) { d["model"]["core"][key] = v; }, {1});
-  add_doc("version_1", [](json& d) { d["version"] = 1; }, {1}, false);
-  add_doc("version_3", [](json& d) { d["version"] = 3; }, {1}, false);
+      add_doc("core_" + key + "_" + rn, [key, v = v](json& d) { d["model"]["core"][key] = v; },
+              {1});
+  add_doc(
+      "version_1", [](json& d) { d["version"] = 1; }, {1}, false);
+  add_doc(
+      "version_3", [](json& d) { d["version"] = 3; }, {1}, false);
   add_doc("params_short", [](json& d) { d["params"].erase(d["params"].size() - 1); }, {1});
   add_doc("params_long", [](json& d) { d["params"].push_back(0.5); }, {1});
-  add_doc("param_string", [](json& d) { d["params"][0] = "0.5"; }, {1}, false);
-  add_doc("param_null", [](json& d) { d["params"][0] = nullptr; }, {1}, false);
+  add_doc(
+      "param_string", [](json& d) { d["params"][0] = "0.5"; }, {1}, false);
+  add_doc(
+      "param_null", [](json& d) { d["params"][0] = nullptr; }, {1}, false);
   add_doc("param_huge", [](json& d) { d["params"][0] = 1e300; }, {0, 1});
-  add_doc("unknown_key", [](json& d) { d["extra"] = 1; }, {0, 1}, false);
+  add_doc(
+      "unknown_key", [](json& d) { d["extra"] = 1; }, {0, 1}, false);
   add_doc("unknown_model_key", [](json& d) { d["model"]["extra"] = 1; }, {1});
   add_doc("d_mismatch", [](json& d) { d["model"]["d"] = 2; }, {1});
-  add_doc("edited_param_unsigned", [](json& d) {
-    const std::string sum = d["checksum"];
-    d["params"][0] = d["params"][0].get<double>() + 1.0;
-    d["checksum"] = sum;  // kept: the edit must be detected
-  }, {1}, false);
+  add_doc(
+      "edited_param_unsigned",
+      [](json& d) {
+        const std::string sum = d["checksum"];
+        d["params"][0] = d["params"][0].get<double>() + 1.0;
+        d["checksum"] = sum;  // kept: the edit must be detected
+      },
+      {1}, false);
   for (const double frac : {0.0, 0.1, 0.5, 0.9, 0.999})
     add_text("truncated_" + std::to_string(static_cast<int>(frac * 1000)),
              [frac](const std::string& t) {
@@ -477,13 +525,15 @@ std::vector<Case> model_cases() {
              },
              {1});
   add_text("garbage_after", [](const std::string& t) { return t + "}}garbage"; }, {1});
-  add_text("deep_nesting", [](const std::string&) {
-    return std::string(100000, '[') + std::string(100000, ']');
-  }, {1});
+  add_text("deep_nesting",
+           [](const std::string&) { return std::string(100000, '[') + std::string(100000, ']'); },
+           {1});
   add_text("binary", [](const std::string&) { return std::string("\x1f\x8b\x08\0\0\0", 6); }, {1});
-  add_text("number_overflow", [](const std::string& t) {
-    return std::regex_replace(t, std::regex("\"version\": ?2"), "\"version\": 1e999");
-  }, {1});
+  add_text("number_overflow",
+           [](const std::string& t) {
+             return std::regex_replace(t, std::regex("\"version\": ?2"), "\"version\": 1e999");
+           },
+           {1});
   return cases;
 }
 
@@ -499,12 +549,14 @@ std::vector<Case> option_cases() {
   // The command each option is tried on, with everything else valid and fast.
   const std::map<std::string, std::vector<std::string>> base = {
       {"train", {"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "out"}},
-      {"fit", {"fit", "d.csv", "--recipe", "classic", "--refine", "none", "--bootstrap", "0",
-               "--epochs", "2", "-q", "--out", "out"}},
+      {"fit",
+       {"fit", "d.csv", "--recipe", "classic", "--refine", "none", "--bootstrap", "0", "--epochs",
+        "2", "-q", "--out", "out"}},
       {"fit_identify", {"fit", "d.csv", "-q", "--out", "out"}},
       {"run", {"run", "--preset", "s1", "--epochs", "2", "-q", "--out", "out"}},
       {"generate", {"generate", "--preset", "s1", "--n", "2", "--out", "g.csv"}},
-      {"rollout", {"rollout", "--model", "m.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}},
+      {"rollout",
+       {"rollout", "--model", "m.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}},
       {"describe", {"describe", "--preset", "s1"}},
       {"evaluate", {"evaluate", "--model", "m.json", "--preset", "s1", "--data", "t.csv"}},
   };
@@ -525,12 +577,12 @@ std::vector<Case> option_cases() {
       }
       std::vector<std::string> named{opt};
       if (!v.empty()) named.push_back(v);
-      cases.push_back({"opt_" + cmd + opt + "_" + v, setup, args, {1, 2}, {},
-                       {"out", "g.csv"}, named});
+      cases.push_back(
+          {"opt_" + cmd + opt + "_" + v, setup, args, {1, 2}, {}, {"out", "g.csv"}, named});
     }
   };
-  const std::vector<std::string> not_numbers = {"", "abc", "nan", "inf", "-inf", "1e400",
-                                                "0x", "1..2", "1,5", "--", "7abc"};
+  const std::vector<std::string> not_numbers = {"",   "abc",  "nan", "inf", "-inf", "1e400",
+                                                "0x", "1..2", "1,5", "--",  "7abc"};
   std::vector<std::string> not_whole = not_numbers;
   for (const char* v : {"1.5", "-1", "1e3", "99999999999999999999999", "+-3", "\xD9\xA3"})
     not_whole.push_back(v);
@@ -549,9 +601,9 @@ std::vector<Case> option_cases() {
     add(cmd, "--val-fraction", with(not_numbers, {"0", "1", "-0.5", "2"}));
     add(cmd, "--beta-init", with(not_numbers, {"0", "-0"}));
     add(cmd, "--model", {"", "CSYMPNET", "csympnet ", "dhnn", "$(touch INJECTED)"});
-    add(cmd, "--core", {"", "la", "la:", "la:0:10", "la:-1:10", "la:1:0", "g:1:1.5",
-                        "la:4:10:9", "LA:4:10", "x:1:2", "la:99999999999999999999:1",
-                        "la:100000:100000", "g:100000:100000"});
+    add(cmd, "--core",
+        {"", "la", "la:", "la:0:10", "la:-1:10", "la:1:0", "g:1:1.5", "la:4:10:9", "LA:4:10",
+         "x:1:2", "la:99999999999999999999:1", "la:100000:100000", "g:100000:100000"});
     add(cmd, "--refine", {"", "LM", "newton"});
     add(cmd, "--refine-solver", {"", "qr", "$(id)"});
     add(cmd, "--lr-schedule", {"", "linear"});
@@ -597,8 +649,8 @@ std::vector<Case> output_cases() {
   // Names a shell would act on: written literally, and no payload runs.
   for (const std::string& name : std::vector<std::string>{
            "bob's run", "a b", "x';touch INJECTED;'", "$(touch INJECTED)", "`touch INJECTED`",
-        "a;touch INJECTED", "a|touch INJECTED", "a&&touch INJECTED", "line\nbreak", "*", "-",
-        "--force", "..x", "caf\xC3\xA9", std::string("tab\there")}) {
+           "a;touch INJECTED", "a|touch INJECTED", "a&&touch INJECTED", "line\nbreak", "*", "-",
+           "--force", "..x", "caf\xC3\xA9", std::string("tab\there")}) {
     // A name that starts with '-' may be read as an option: a usage error is fine too.
     const std::set<int> codes = name[0] == '-' ? std::set<int>{0, 2} : std::set<int>{0};
     cases.push_back({"out_name_" + name, data, train_to(name), codes, {}, {}});
@@ -619,8 +671,8 @@ std::vector<Case> output_cases() {
     write_file(d / "res" / "notes.txt", "the user's notes\n");
     write_file(d / "res" / "report.json", "{\"mine\": true}\n");
   };
-  const std::vector<std::tuple<std::string, std::function<void(const fs::path&)>, std::string,
-                               std::set<int>>>
+  const std::vector<
+      std::tuple<std::string, std::function<void(const fs::path&)>, std::string, std::set<int>>>
       targets = {
           {"regular_file", file_there, "f", {1}},
           {"under_a_file", file_there, "f/sub", {1}},
@@ -628,23 +680,34 @@ std::vector<Case> output_cases() {
           {"dev_null", data, "/dev/null", {1}},
           {"proc", data, "/proc/self/x", {1}},
           {"long_component", data, std::string(300, 'a'), {1}},
-          {"long_path", data, [] {
+          {"long_path",
+           data,
+           [] {
              std::string p;
              for (int i = 0; i < 40; ++i) p += std::string(120, 'b') + "/";
              return p;
-           }(), {1}},
+           }(),
+           {1}},
           {"user_dir_no_force", user_dir, "res", {1}},
-          {"dangling_symlink", [data](const fs::path& d) {
+          {"dangling_symlink",
+           [data](const fs::path& d) {
              data(d);
              fs::create_symlink(d / "nowhere" / "x", d / "link");
-           }, "link", {0, 1}},
+           },
+           "link",
+           {0, 1}},
       };
   for (const auto& [name, setup, out, codes] : targets) {
-    cases.push_back({"train_out_" + name, setup, train_to(out), codes,
+    cases.push_back({"train_out_" + name,
+                     setup,
+                     train_to(out),
+                     codes,
                      out.empty() ? std::vector<std::string>{"--out"} : std::vector<std::string>{},
                      {}});
-    cases.push_back({"run_out_" + name, setup,
-                     {"run", "--preset", "s1", "--epochs", "2", "-q", "--out", out}, codes,
+    cases.push_back({"run_out_" + name,
+                     setup,
+                     {"run", "--preset", "s1", "--epochs", "2", "-q", "--out", out},
+                     codes,
                      out.empty() ? std::vector<std::string>{"--out"} : std::vector<std::string>{},
                      {}});
   }
@@ -654,17 +717,27 @@ std::vector<Case> output_cases() {
                      user_dir(d);
                      fs::remove(d / "res" / "report.json");
                    },
-                   train_to("res", {"--force"}), {0}, {}, {}});
+                   train_to("res", {"--force"}),
+                   {0},
+                   {},
+                   {}});
   // generate never overwrites an existing file without --force.
-  cases.push_back({"generate_over_user_file", file_there,
-                   {"generate", "--preset", "s1", "--n", "2", "--out", "f"}, {1}, {"f"}, {}});
+  cases.push_back({"generate_over_user_file",
+                   file_there,
+                   {"generate", "--preset", "s1", "--n", "2", "--out", "f"},
+                   {1},
+                   {"f"},
+                   {}});
   // A stale temporary file of a killed writer does not make a directory count as non-empty.
   cases.push_back({"stale_temp_only",
                    [data](const fs::path& d) {
                      data(d);
                      write_file(d / "res" / ".report.json.tmp.99999.0.1", "partial");
                    },
-                   train_to("res"), {0}, {}, {}});
+                   train_to("res"),
+                   {0},
+                   {},
+                   {}});
   return cases;
 }
 

@@ -243,22 +243,14 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   IdentifyHooks hooks;
   hooks.adamw = watch.callback();
   // LM and the interval poll for Ctrl-C through the same watcher (with no training progress).
-  bool interrupted = false;
-  hooks.should_stop = [&interrupted] {
-    py::gil_scoped_acquire gil;
-    if (PyErr_CheckSignals() != 0) {
-      PyErr_Clear();
-      interrupted = true;
-    }
-    return interrupted;
-  };
+  hooks.should_stop = watch.should_stop();
   IdentifyResult r;
   {
     py::gil_scoped_release nogil;
     r = identify(data, pairs_only, c, hooks);
   }
-  watch.rethrow_if_stopped();
-  if (interrupted || r.stopped) {
+  watch.rethrow_if_stopped();  // a KeyboardInterrupt, or the progress callback's exception
+  if (r.stopped) {
     PyErr_SetNone(PyExc_KeyboardInterrupt);
     throw py::error_already_set();
   }

@@ -53,9 +53,10 @@ T await_change(const std::atomic<T>& value, T old, std::atomic<int>& sleepers, b
 }  // namespace
 
 ThreadTeam::ThreadTeam(int threads) {
-  require(
-      threads >= 1 && threads <= kMaxThreads,
-      "threads = " + std::to_string(threads) + ", expected 1 to " + std::to_string(kMaxThreads));
+  require(threads >= 1 && threads <= kMaxThreads, [&] {
+    return "threads = " + std::to_string(threads) + ", expected 1 to " +
+           std::to_string(kMaxThreads);
+  });
   const unsigned cores = std::thread::hardware_concurrency();
   spin_ = cores == 0 || static_cast<unsigned>(threads) <= cores;
   errors_.resize(static_cast<std::size_t>(threads));

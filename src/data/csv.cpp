@@ -359,13 +359,14 @@ std::string pairs_csv_text(const PairSet& pairs) {
 
 std::string trajectories_csv_text(const std::vector<Trajectory>& trajs) {
   const std::string where = "trajectories_csv_text";
-  require(!trajs.empty(), where + ": no trajectories; expected at least one");
+  require(!trajs.empty(), [&] { return where + ": no trajectories; expected at least one"; });
   const Index dim = trajs.front().z.rows();
   for (std::size_t k = 0; k < trajs.size(); ++k) {
     trajs[k].validate(where + ": trajectory " + std::to_string(k));
-    require(trajs[k].z.rows() == dim, where + ": trajectory " + std::to_string(k) +
-                                          " has dimension " + std::to_string(trajs[k].z.rows()) +
-                                          "; expected " + std::to_string(dim));
+    require(trajs[k].z.rows() == dim, [&] {
+      return where + ": trajectory " + std::to_string(k) + " has dimension " +
+             std::to_string(trajs[k].z.rows()) + "; expected " + std::to_string(dim);
+    });
   }
   std::string out;
   append_header(out, header_names(CsvKind::kTrajectories, dim / 2, true));

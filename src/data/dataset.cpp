@@ -30,33 +30,40 @@ void require_finite(const Matrix& m, const std::string& where, const std::string
 }
 
 void require_state_rows(Index rows, const std::string& where, const std::string& name) {
-  require(rows > 0 && rows % 2 == 0, where + ": " + name + " has " + std::to_string(rows) +
-                                         " rows; expected an even number 2d > 0 (q then p)");
+  require(rows > 0 && rows % 2 == 0, [&] {
+    return where + ": " + name + " has " + std::to_string(rows) +
+           " rows; expected an even number 2d > 0 (q then p)";
+  });
 }
 
 }  // namespace
 
 void PairSet::validate(const std::string& where) const {
-  require(z0.rows() == z1.rows() && z0.cols() == z1.cols(),
-          where + ": z0 is " + shape(z0) + " but z1 is " + shape(z1) + "; expected the same shape");
+  require(z0.rows() == z1.rows() && z0.cols() == z1.cols(), [&] {
+    return where + ": z0 is " + shape(z0) + " but z1 is " + shape(z1) + "; expected the same shape";
+  });
   require_state_rows(z0.rows(), where, "z0");
-  require(z0.cols() >= 1, where + ": no pairs (N = 0); expected at least one");
-  require(h.size() == z0.cols(), where + ": h has length " + std::to_string(h.size()) +
-                                     "; expected N = " + std::to_string(z0.cols()));
+  require(z0.cols() >= 1, [&] { return where + ": no pairs (N = 0); expected at least one"; });
+  require(h.size() == z0.cols(), [&] {
+    return where + ": h has length " + std::to_string(h.size()) +
+           "; expected N = " + std::to_string(z0.cols());
+  });
   require_finite(z0, where, "z0");
   require_finite(z1, where, "z1");
   for (Index n = 0; n < h.size(); ++n) {
-    const std::string at = where + ": h[" + std::to_string(n) + "] = " + num(h(n));
-    require(std::isfinite(h(n)), at + "; expected a finite value");
-    require(h(n) > 0, at + " must be > 0");
+    const auto at = [&] { return where + ": h[" + std::to_string(n) + "] = " + num(h(n)); };
+    require(std::isfinite(h(n)), [&] { return at() + "; expected a finite value"; });
+    require(h(n) > 0, [&] { return at() + " must be > 0"; });
   }
 }
 
 PairSet select_pairs(const PairSet& pairs, const std::vector<Index>& idx) {
   const Index n = pairs.size();
-  require(pairs.z1.cols() == n && pairs.h.size() == n && pairs.z1.rows() == pairs.dim(),
-          "select_pairs: inconsistent pair set (z0 " + shape(pairs.z0) + ", z1 " + shape(pairs.z1) +
-              ", h " + std::to_string(pairs.h.size()) + "); expected matching shapes");
+  require(pairs.z1.cols() == n && pairs.h.size() == n && pairs.z1.rows() == pairs.dim(), [&] {
+    return "select_pairs: inconsistent pair set (z0 " + shape(pairs.z0) + ", z1 " +
+           shape(pairs.z1) + ", h " + std::to_string(pairs.h.size()) +
+           "); expected matching shapes";
+  });
   PairSet out;
   const Index m = static_cast<Index>(idx.size());
   out.z0.resize(pairs.dim(), m);
@@ -64,9 +71,10 @@ PairSet select_pairs(const PairSet& pairs, const std::vector<Index>& idx) {
   out.h.resize(m);
   for (Index k = 0; k < m; ++k) {
     const Index j = idx[static_cast<std::size_t>(k)];
-    require(j >= 0 && j < n, "select_pairs: index " + std::to_string(j) + " at position " +
-                                 std::to_string(k) + "; expected an index in [0, " +
-                                 std::to_string(n) + ")");
+    require(j >= 0 && j < n, [&] {
+      return "select_pairs: index " + std::to_string(j) + " at position " + std::to_string(k) +
+             "; expected an index in [0, " + std::to_string(n) + ")";
+    });
     out.z0.col(k) = pairs.z0.col(j);
     out.z1.col(k) = pairs.z1.col(j);
     out.h(k) = pairs.h(j);
@@ -81,11 +89,14 @@ PairSet concat_pairs(const std::vector<PairSet>& parts) {
   for (std::size_t k = 0; k < parts.size(); ++k) {
     const PairSet& p = parts[k];
     const std::string part = "concat_pairs: part " + std::to_string(k);
-    require(p.dim() == dim, part + " has dimension " + std::to_string(p.dim()) + "; expected " +
-                                std::to_string(dim) + " like part 0");
-    require(p.z1.rows() == dim && p.z1.cols() == p.size() && p.h.size() == p.size(),
-            part + " is inconsistent (z0 " + shape(p.z0) + ", z1 " + shape(p.z1) + ", h " +
-                std::to_string(p.h.size()) + "); expected matching shapes");
+    require(p.dim() == dim, [&] {
+      return part + " has dimension " + std::to_string(p.dim()) + "; expected " +
+             std::to_string(dim) + " like part 0";
+    });
+    require(p.z1.rows() == dim && p.z1.cols() == p.size() && p.h.size() == p.size(), [&] {
+      return part + " is inconsistent (z0 " + shape(p.z0) + ", z1 " + shape(p.z1) + ", h " +
+             std::to_string(p.h.size()) + "); expected matching shapes";
+    });
     total += p.size();
   }
   PairSet out;
@@ -103,38 +114,46 @@ PairSet concat_pairs(const std::vector<PairSet>& parts) {
 }
 
 void Trajectory::validate(const std::string& where) const {
-  require(t.size() >= 1, where + ": no points; expected at least one time and state");
+  require(t.size() >= 1,
+          [&] { return where + ": no points; expected at least one time and state"; });
   require_state_rows(z.rows(), where, "z");
-  require(z.cols() == t.size(), where + ": z has " + std::to_string(z.cols()) +
-                                    " columns but t has " + std::to_string(t.size()) +
-                                    " entries; expected one state per time");
+  require(z.cols() == t.size(), [&] {
+    return where + ": z has " + std::to_string(z.cols()) + " columns but t has " +
+           std::to_string(t.size()) + " entries; expected one state per time";
+  });
   require_finite(z, where, "z");
   for (Index n = 0; n < t.size(); ++n) {
-    require(std::isfinite(t(n)),
-            where + ": t[" + std::to_string(n) + "] = " + num(t(n)) + "; expected a finite value");
+    require(std::isfinite(t(n)), [&] {
+      return where + ": t[" + std::to_string(n) + "] = " + num(t(n)) + "; expected a finite value";
+    });
     if (n > 0)
-      require(t(n) > t(n - 1), where + ": t[" + std::to_string(n) + "] = " + num(t(n)) +
-                                   " is not greater than t[" + std::to_string(n - 1) +
-                                   "] = " + num(t(n - 1)) + "; expected strictly increasing times");
+      require(t(n) > t(n - 1), [&] {
+        return where + ": t[" + std::to_string(n) + "] = " + num(t(n)) + " is not greater than t[" +
+               std::to_string(n - 1) + "] = " + num(t(n - 1)) +
+               "; expected strictly increasing times";
+      });
   }
 }
 
 PairSet pairs_from_trajectories(const std::vector<Trajectory>& trajs) {
   const std::string where = "pairs_from_trajectories";
-  require(!trajs.empty(), where + ": no trajectories; expected at least one");
+  require(!trajs.empty(), [&] { return where + ": no trajectories; expected at least one"; });
   const Index dim = trajs.front().z.rows();
   Index total = 0;
   for (std::size_t k = 0; k < trajs.size(); ++k) {
     trajs[k].validate(where + ": trajectory " + std::to_string(k));
-    require(trajs[k].z.rows() == dim, where + ": trajectory " + std::to_string(k) +
-                                          " has dimension " + std::to_string(trajs[k].z.rows()) +
-                                          "; expected " + std::to_string(dim) +
-                                          " like trajectory 0");
+    require(trajs[k].z.rows() == dim, [&] {
+      return where + ": trajectory " + std::to_string(k) + " has dimension " +
+             std::to_string(trajs[k].z.rows()) + "; expected " + std::to_string(dim) +
+             " like trajectory 0";
+    });
     total += trajs[k].steps();
   }
-  require(total > 0, where + ": all " + std::to_string(trajs.size()) +
-                         " trajectories have a single point, so there are no pairs; expected "
-                         "at least one trajectory with two or more points");
+  require(total > 0, [&] {
+    return where + ": all " + std::to_string(trajs.size()) +
+           " trajectories have a single point, so there are no pairs; expected "
+           "at least one trajectory with two or more points";
+  });
   PairSet out;
   out.z0.resize(dim, total);
   out.z1.resize(dim, total);

@@ -17,8 +17,9 @@ std::string num(double x) {
 }
 
 void check_box(double box, const char* where) {
-  require(std::isfinite(box) && box > 0.0,
-          std::string(where) + ": box must be a finite number > 0, got " + num(box));
+  require(std::isfinite(box) && box > 0.0, [&] {
+    return std::string(where) + ": box must be a finite number > 0, got " + num(box);
+  });
 }
 
 // Population standard deviation of each row (divide by the number of columns).
@@ -39,9 +40,10 @@ bool bounded(const Eigen::Ref<const Vector>& z, double bound) {
 
 void StepSpec::validate() const {
   require(std::isfinite(h_min) && h_min > 0.0,
-          "steps.h_min must be a finite number > 0, got " + num(h_min));
-  require(std::isfinite(h_max) && h_max >= h_min,
-          "steps.h_max must be a finite number >= h_min = " + num(h_min) + ", got " + num(h_max));
+          [&] { return "steps.h_min must be a finite number > 0, got " + num(h_min); });
+  require(std::isfinite(h_max) && h_max >= h_min, [&] {
+    return "steps.h_max must be a finite number >= h_min = " + num(h_min) + ", got " + num(h_max);
+  });
 }
 
 void to_json(nlohmann::json& j, const StepSpec& s) {
@@ -49,12 +51,14 @@ void to_json(nlohmann::json& j, const StepSpec& s) {
 }
 
 void from_json(const nlohmann::json& j, StepSpec& s) {
-  require(j.is_object(), "steps: expected a JSON object, got " + std::string(j.type_name()));
+  require(j.is_object(),
+          [&] { return "steps: expected a JSON object, got " + std::string(j.type_name()); });
   StepSpec out;
   for (const auto& [key, value] : j.items()) {
     require(key == "h_min" || key == "h_max",
-            "steps: unknown key \"" + key + "\" (allowed: h_min, h_max)");
-    require(value.is_number(), "steps." + key + " must be a number, got " + value.dump());
+            [&] { return "steps: unknown key \"" + key + "\" (allowed: h_min, h_max)"; });
+    require(value.is_number(),
+            [&] { return "steps." + key + " must be a number, got " + value.dump(); });
     (key == "h_min" ? out.h_min : out.h_max) = value.get<double>();
   }
   require(j.contains("h_min"), "steps.h_min is required");
@@ -68,7 +72,8 @@ PairSet generate_pairs(const System& sys, Index n, const StepSpec& steps, Rng& r
   steps.validate();
   ref.validate();
   check_box(box, "generate_pairs");
-  require(n >= 1, "generate_pairs: number of pairs must be >= 1, got " + std::to_string(n));
+  require(n >= 1,
+          [&] { return "generate_pairs: number of pairs must be >= 1, got " + std::to_string(n); });
   const Index dim = sys.dim();
   PairSet pairs;
   pairs.z0.resize(dim, n);
@@ -84,20 +89,22 @@ PairSet generate_pairs(const System& sys, Index n, const StepSpec& steps, Rng& r
 
 NoiseScales noise_scales(const System& sys, const StepSpec& steps, Rng& rng,
                          const ReferenceOptions& ref, Index m, double box) {
-  require(m >= 2, "noise_scales: m must be >= 2 snapshots, got " + std::to_string(m));
+  require(m >= 2,
+          [&] { return "noise_scales: m must be >= 2 snapshots, got " + std::to_string(m); });
   const PairSet clean = generate_pairs(sys, m, steps, rng, ref, box);
   return NoiseScales{row_std(clean.z0), row_std(clean.z1)};
 }
 
 void add_noise(PairSet& pairs, double sigma, const NoiseScales& scales, Rng& rng) {
   require(std::isfinite(sigma) && sigma >= 0.0,
-          "add_noise: sigma must be a finite number >= 0, got " + num(sigma));
+          [&] { return "add_noise: sigma must be a finite number >= 0, got " + num(sigma); });
   const Index dim = pairs.z0.rows();
   require(pairs.z1.rows() == dim && pairs.z1.cols() == pairs.z0.cols(),
           "add_noise: z0 and z1 must have the same shape");
-  require(scales.s0.size() == dim && scales.s1.size() == dim,
-          "add_noise: noise scales have lengths " + std::to_string(scales.s0.size()) + " and " +
-              std::to_string(scales.s1.size()) + ", expected 2d = " + std::to_string(dim));
+  require(scales.s0.size() == dim && scales.s1.size() == dim, [&] {
+    return "add_noise: noise scales have lengths " + std::to_string(scales.s0.size()) + " and " +
+           std::to_string(scales.s1.size()) + ", expected 2d = " + std::to_string(dim);
+  });
   Vector xi0(dim), xi1(dim);
   for (Index j = 0; j < pairs.z0.cols(); ++j) {
     for (Index i = 0; i < dim; ++i) xi0(i) = rng.normal();
@@ -113,19 +120,26 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
                           Index max_redraws) {
   ref.validate();
   check_box(box, "generate_test_set");
-  require(m >= 1, "generate_test_set: m must be >= 1 trajectories, got " + std::to_string(m));
-  require(std::isfinite(h_test) && h_test > 0.0,
-          "generate_test_set: h_test must be a finite number > 0, got " + num(h_test));
-  require(std::isfinite(horizon) && horizon > 0.0,
-          "generate_test_set: horizon must be a finite number > 0, got " + num(horizon));
-  require(std::isfinite(bound) && bound > 0.0,
-          "generate_test_set: bound must be a finite number > 0, got " + num(bound));
-  require(max_redraws >= 0,
-          "generate_test_set: max_redraws must be >= 0, got " + std::to_string(max_redraws));
+  require(m >= 1, [&] {
+    return "generate_test_set: m must be >= 1 trajectories, got " + std::to_string(m);
+  });
+  require(std::isfinite(h_test) && h_test > 0.0, [&] {
+    return "generate_test_set: h_test must be a finite number > 0, got " + num(h_test);
+  });
+  require(std::isfinite(horizon) && horizon > 0.0, [&] {
+    return "generate_test_set: horizon must be a finite number > 0, got " + num(horizon);
+  });
+  require(std::isfinite(bound) && bound > 0.0, [&] {
+    return "generate_test_set: bound must be a finite number > 0, got " + num(bound);
+  });
+  require(max_redraws >= 0, [&] {
+    return "generate_test_set: max_redraws must be >= 0, got " + std::to_string(max_redraws);
+  });
   const double steps_real = std::round(horizon / h_test);
-  require(steps_real >= 1.0 && steps_real <= 1e9,
-          "generate_test_set: horizon / h_test = " + num(horizon / h_test) +
-              " must round to a step count in [1, 1e9]");
+  require(steps_real >= 1.0 && steps_real <= 1e9, [&] {
+    return "generate_test_set: horizon / h_test = " + num(horizon / h_test) +
+           " must round to a step count in [1, 1e9]";
+  });
   const auto n_steps = static_cast<Index>(steps_real);
   const Index dim = sys.dim();
 
@@ -171,11 +185,12 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
       else
         ++out.redraws;
     }
-    require(out.redraws <= max_redraws,
-            "generate_test_set: gave up after " + std::to_string(out.redraws) +
-                " redrawn starts (max_redraws = " + std::to_string(max_redraws) + "); only " +
-                std::to_string(out.trajectories.size()) + " of " + std::to_string(m) +
-                " trajectories stay within ||z||_inf <= " + num(bound));
+    require(out.redraws <= max_redraws, [&] {
+      return "generate_test_set: gave up after " + std::to_string(out.redraws) +
+             " redrawn starts (max_redraws = " + std::to_string(max_redraws) + "); only " +
+             std::to_string(out.trajectories.size()) + " of " + std::to_string(m) +
+             " trajectories stay within ||z||_inf <= " + num(bound);
+    });
   }
   return out;
 }

@@ -9,22 +9,27 @@ namespace csympnet {
 
 void Normalization::validate(const std::string& where) const {
   const Index n = d();
-  require(n >= 1 && q_scale.size() == n && p_scale.size() == n,
-          where + ": q_shift, q_scale and p_scale need one entry per degree of freedom");
-  require(q_shift.allFinite(), where + ": q_shift must be finite");
+  require(n >= 1 && q_scale.size() == n && p_scale.size() == n, [&] {
+    return where + ": q_shift, q_scale and p_scale need one entry per degree of freedom";
+  });
+  require(q_shift.allFinite(), [&] { return where + ": q_shift must be finite"; });
   require(std::isfinite(time_scale) && time_scale > 0.0,
-          where + ": time_scale must be finite and > 0");
+          [&] { return where + ": time_scale must be finite and > 0"; });
   for (Index i = 0; i < n; ++i)
     require(std::isfinite(q_scale(i)) && q_scale(i) > 0.0 && std::isfinite(p_scale(i)) &&
                 p_scale(i) > 0.0,
-            where + ": scales must be finite and > 0 (entry " + std::to_string(i + 1) + ")");
+            [&] {
+              return where + ": scales must be finite and > 0 (entry " + std::to_string(i + 1) +
+                     ")";
+            });
   const double c = q_scale(0) * p_scale(0);
   for (Index i = 1; i < n; ++i)
-    require(std::abs(q_scale(i) * p_scale(i) - c) <= 1e-12 * c,
-            where + ": q_scale[i] * p_scale[i] must be the same for every i (entry " +
-                std::to_string(i + 1) +
-                " differs), or the map would not stay conformally "
-                "symplectic");
+    require(std::abs(q_scale(i) * p_scale(i) - c) <= 1e-12 * c, [&] {
+      return where + ": q_scale[i] * p_scale[i] must be the same for every i (entry " +
+             std::to_string(i + 1) +
+             " differs), or the map would not stay conformally "
+             "symplectic";
+    });
 }
 
 Vector Normalization::unit() const {
@@ -35,8 +40,10 @@ Vector Normalization::unit() const {
 
 Matrix Normalization::to_normal(const Matrix& z) const {
   const Index n = d();
-  require(z.rows() == 2 * n, "normalization: states have " + std::to_string(z.rows()) +
-                                 " rows, expected " + std::to_string(2 * n));
+  require(z.rows() == 2 * n, [&] {
+    return "normalization: states have " + std::to_string(z.rows()) + " rows, expected " +
+           std::to_string(2 * n);
+  });
   Matrix out(z.rows(), z.cols());
   for (Index i = 0; i < n; ++i) {
     out.row(i) = (z.row(i).array() - q_shift(i)) / q_scale(i);
@@ -47,8 +54,10 @@ Matrix Normalization::to_normal(const Matrix& z) const {
 
 Matrix Normalization::from_normal(const Matrix& zn) const {
   const Index n = d();
-  require(zn.rows() == 2 * n, "normalization: states have " + std::to_string(zn.rows()) +
-                                  " rows, expected " + std::to_string(2 * n));
+  require(zn.rows() == 2 * n, [&] {
+    return "normalization: states have " + std::to_string(zn.rows()) + " rows, expected " +
+           std::to_string(2 * n);
+  });
   Matrix out(zn.rows(), zn.cols());
   for (Index i = 0; i < n; ++i) {
     out.row(i) = zn.row(i).array() * q_scale(i) + q_shift(i);
@@ -67,16 +76,17 @@ void to_json(nlohmann::json& j, const Normalization& n) {
 
 void from_json(const nlohmann::json& j, Normalization& n) {
   const std::string where = "normalization";
-  require(j.is_object(), where + ": expected an object");
+  require(j.is_object(), [&] { return where + ": expected an object"; });
   for (const auto& [key, value] : j.items())
     require(key == "q_shift" || key == "q_scale" || key == "p_scale" || key == "time_scale",
-            where + ": unknown key '" + key + "'");
+            [&] { return where + ": unknown key '" + key + "'"; });
   auto vec = [&](const char* key) {
-    require(j.contains(key) && j.at(key).is_array(), where + ": missing array '" + key + "'");
+    require(j.contains(key) && j.at(key).is_array(),
+            [&] { return where + ": missing array '" + key + "'"; });
     const auto& a = j.at(key);
     Vector v(static_cast<Index>(a.size()));
     for (std::size_t i = 0; i < a.size(); ++i) {
-      require(a[i].is_number(), where + "." + key + ": expected numbers");
+      require(a[i].is_number(), [&] { return where + "." + key + ": expected numbers"; });
       v(static_cast<Index>(i)) = a[i].get<double>();
     }
     return v;
@@ -85,7 +95,7 @@ void from_json(const nlohmann::json& j, Normalization& n) {
   n.q_scale = vec("q_scale");
   n.p_scale = vec("p_scale");
   require(j.contains("time_scale") && j.at("time_scale").is_number(),
-          where + ": missing number 'time_scale'");
+          [&] { return where + ": missing number 'time_scale'"; });
   n.time_scale = j.at("time_scale").get<double>();
   n.validate(where);
 }
@@ -123,12 +133,14 @@ Normalization from_states(const Matrix& z, const std::vector<double>& steps) {
     // The spread of p about its mean; p itself is not shifted (the damping pulls p to 0).
     sp(i) = std::sqrt((z.row(d + i).array() - mp).square().sum() / m);
     const std::string dof = std::to_string(i + 1);
-    require(
-        sq(i) > 0.0 && std::isfinite(sq(i)),
-        "normalization: q" + dof + " does not vary in the data; expected every coordinate to vary");
-    require(
-        sp(i) > 0.0 && std::isfinite(sp(i)),
-        "normalization: p" + dof + " does not vary in the data; expected every coordinate to vary");
+    require(sq(i) > 0.0 && std::isfinite(sq(i)), [&] {
+      return "normalization: q" + dof +
+             " does not vary in the data; expected every coordinate to vary";
+    });
+    require(sp(i) > 0.0 && std::isfinite(sp(i)), [&] {
+      return "normalization: p" + dof +
+             " does not vary in the data; expected every coordinate to vary";
+    });
   }
   // c = geometric mean of σ_q σ_p, in logs (no overflow for spreads of 1e±150).
   double log_c = 0.0;

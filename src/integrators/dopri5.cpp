@@ -37,21 +37,22 @@ bool all_finite(const State& x) {
 
 void check_h(double h, const char* where) {
   require(std::isfinite(h) && h > 0.0,
-          std::string(where) + ": h must be a finite number > 0, got " + num(h));
+          [&] { return std::string(where) + ": h must be a finite number > 0, got " + num(h); });
 }
 
 void check_z0(const Vector& z0, const char* where) {
-  require(z0.size() > 0, std::string(where) + ": z0 must be non-empty");
-  require(z0.allFinite(), std::string(where) + ": z0 has non-finite entries");
+  require(z0.size() > 0, [&] { return std::string(where) + ": z0 must be non-empty"; });
+  require(z0.allFinite(), [&] { return std::string(where) + ": z0 has non-finite entries"; });
 }
 
 // Calls f into a preallocated buffer and checks that f kept the length (a model with the wrong
 // state dimension would otherwise write out of bounds of the odeint state).
 void eval_field(const VectorField& f, const Vector& z, Vector& out) {
   f(z, out);
-  require(out.size() == z.size(), "dopri5: the vector field returned " +
-                                      std::to_string(out.size()) + " components for a state of " +
-                                      std::to_string(z.size()));
+  require(out.size() == z.size(), [&] {
+    return "dopri5: the vector field returned " + std::to_string(out.size()) +
+           " components for a state of " + std::to_string(z.size());
+  });
 }
 
 // dz/dt = f(z) as an odeint system. odeint copies the system by value on every step, so the
@@ -83,10 +84,11 @@ struct AugmentedSystem {
     eval_field(*f, *z, *fz);
     Eigen::Map<Vector>(dxdt.data(), n) = *fz;
     const Matrix jac = (*df)(*z);
-    require(jac.rows() == n && jac.cols() == n, "dopri5_flow_jacobian: the field Jacobian is " +
-                                                    std::to_string(jac.rows()) + " x " +
-                                                    std::to_string(jac.cols()) + ", expected " +
-                                                    std::to_string(n) + " x " + std::to_string(n));
+    require(jac.rows() == n && jac.cols() == n, [&] {
+      return "dopri5_flow_jacobian: the field Jacobian is " + std::to_string(jac.rows()) + " x " +
+             std::to_string(jac.cols()) + ", expected " + std::to_string(n) + " x " +
+             std::to_string(n);
+    });
     const Eigen::Map<const Matrix> m(x.data() + n, n, n);
     Eigen::Map<Matrix>(dxdt.data() + n, n, n).noalias() = jac * m;
   }
@@ -151,9 +153,11 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
   double t = 0.0;
   long steps = 0;
   while (t < h) {
-    require(steps < opt.max_steps, "dopri5: step budget of " + std::to_string(opt.max_steps) +
-                                       " exhausted at t = " + num(t) + " of h = " + num(h) +
-                                       " (the learned field may be stiff or blowing up)");
+    require(steps < opt.max_steps, [&] {
+      return "dopri5: step budget of " + std::to_string(opt.max_steps) +
+             " exhausted at t = " + num(t) + " of h = " + num(h) +
+             " (the learned field may be stiff or blowing up)";
+    });
     ++steps;
     const double remaining = h - t;
     const bool last = dt >= remaining;
@@ -162,16 +166,18 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
     if (result == odeint::success) {
       // A NaN error estimate compares as "not > 1" and is accepted by Boost, so this check is
       // also what catches a field that returned NaN inside the step.
-      require(all_finite(x_new) && all_finite(dxdt_new),
-              "dopri5: the state became non-finite at t = " + num(t) + " of h = " + num(h) +
-                  " (the learned field may be blowing up or returned NaN)");
+      require(all_finite(x_new) && all_finite(dxdt_new), [&] {
+        return "dopri5: the state became non-finite at t = " + num(t) + " of h = " + num(h) +
+               " (the learned field may be blowing up or returned NaN)";
+      });
       x.swap(x_new);
       dxdt.swap(dxdt_new);
       if (last) t = h;
     }
-    require(t >= h || (std::isfinite(dt) && dt > 0.0 && t + dt > t),
-            "dopri5: step size underflow (dt = " + num(dt) + ") at t = " + num(t) +
-                " of h = " + num(h) + " (the learned field may be stiff or blowing up)");
+    require(t >= h || (std::isfinite(dt) && dt > 0.0 && t + dt > t), [&] {
+      return "dopri5: step size underflow (dt = " + num(dt) + ") at t = " + num(t) +
+             " of h = " + num(h) + " (the learned field may be stiff or blowing up)";
+    });
   }
 }
 
@@ -179,10 +185,11 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
 
 void OdeOptions::validate() const {
   require(std::isfinite(rtol) && rtol > 0.0,
-          "OdeOptions.rtol must be a finite number > 0, got " + num(rtol));
+          [&] { return "OdeOptions.rtol must be a finite number > 0, got " + num(rtol); });
   require(std::isfinite(atol) && atol > 0.0,
-          "OdeOptions.atol must be a finite number > 0, got " + num(atol));
-  require(max_steps >= 1, "OdeOptions.max_steps must be >= 1, got " + std::to_string(max_steps));
+          [&] { return "OdeOptions.atol must be a finite number > 0, got " + num(atol); });
+  require(max_steps >= 1,
+          [&] { return "OdeOptions.max_steps must be >= 1, got " + std::to_string(max_steps); });
 }
 
 Vector dopri5_flow(const VectorField& f, const Vector& z0, double h, const OdeOptions& opt) {

@@ -54,13 +54,16 @@ void splitting_block(const System& sys, Matrix& Z, double h, double h_ref) {
 }
 
 void check_state(const System& sys, const Vector& z, const char* where) {
-  require(z.size() == sys.dim(), std::string(where) + ": z has length " + std::to_string(z.size()) +
-                                     ", expected 2d = " + std::to_string(sys.dim()));
+  require(z.size() == sys.dim(), [&] {
+    return std::string(where) + ": z has length " + std::to_string(z.size()) +
+           ", expected 2d = " + std::to_string(sys.dim());
+  });
 }
 
 void check_step(double h, const char* where) {
-  require(std::isfinite(h) && h > 0.0,
-          std::string(where) + ": step h must be a finite number > 0, got " + num(h));
+  require(std::isfinite(h) && h > 0.0, [&] {
+    return std::string(where) + ": step h must be a finite number > 0, got " + num(h);
+  });
 }
 
 }  // namespace
@@ -86,28 +89,34 @@ std::string to_string(Reference r) {
 
 void ReferenceOptions::validate() const {
   require(method == Reference::kSplitting || method == Reference::kExpm || method == Reference::kRk,
-          "reference.method: invalid enum value " + std::to_string(static_cast<int>(method)));
+          [&] {
+            return "reference.method: invalid enum value " +
+                   std::to_string(static_cast<int>(method));
+          });
   require(std::isfinite(h_ref) && h_ref > 0.0,
-          "reference.h_ref must be a finite number > 0, got " + num(h_ref));
+          [&] { return "reference.h_ref must be a finite number > 0, got " + num(h_ref); });
   require(std::isfinite(rk_rtol) && rk_rtol > 0.0,
-          "reference.rk_rtol must be a finite number > 0, got " + num(rk_rtol));
+          [&] { return "reference.rk_rtol must be a finite number > 0, got " + num(rk_rtol); });
   require(std::isfinite(rk_atol) && rk_atol > 0.0,
-          "reference.rk_atol must be a finite number > 0, got " + num(rk_atol));
+          [&] { return "reference.rk_atol must be a finite number > 0, got " + num(rk_atol); });
 }
 
 Index substep_count(double h, double h_ref) {
   check_step(h, "substep_count");
   require(std::isfinite(h_ref) && h_ref > 0.0,
-          "substep_count: h_ref must be a finite number > 0, got " + num(h_ref));
+          [&] { return "substep_count: h_ref must be a finite number > 0, got " + num(h_ref); });
   const double r = h / h_ref;
-  require(r <= kMaxSubsteps, "substep_count: h / h_ref = " + num(r) + " substeps is too many");
+  require(r <= kMaxSubsteps,
+          [&] { return "substep_count: h / h_ref = " + num(r) + " substeps is too many"; });
   const double n = std::ceil(r * (1.0 - kCeilSlack));
   return n < 1.0 ? Index{1} : static_cast<Index>(n);
 }
 
 void conformal_sv_substep(const System& sys, Matrix& Z, double delta) {
-  require(Z.rows() == sys.dim(), "conformal_sv_substep: Z has " + std::to_string(Z.rows()) +
-                                     " rows, expected 2d = " + std::to_string(sys.dim()));
+  require(Z.rows() == sys.dim(), [&] {
+    return "conformal_sv_substep: Z has " + std::to_string(Z.rows()) +
+           " rows, expected 2d = " + std::to_string(sys.dim());
+  });
   check_step(delta, "conformal_sv_substep");
   Matrix Q = Z.topRows(sys.d());
   Matrix P = Z.bottomRows(sys.d());
@@ -157,9 +166,11 @@ Matrix conformal_sv_jacobian(const System& sys, const Vector& z, double h, doubl
 }
 
 Matrix expm_propagator(const System& sys, double h) {
-  require(sys.is_linear(), "expm reference: system kind \"" + sys.spec().kind +
-                               "\" is nonlinear; use splitting or rk");
-  require(std::isfinite(h), "expm_propagator: h must be finite, got " + num(h));
+  require(sys.is_linear(), [&] {
+    return "expm reference: system kind \"" + sys.spec().kind +
+           "\" is nonlinear; use splitting or rk";
+  });
+  require(std::isfinite(h), [&] { return "expm_propagator: h must be finite, got " + num(h); });
   const Matrix hA = h * sys.linear_generator();
   return hA.exp();
 }
@@ -168,9 +179,10 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
   namespace odeint = boost::numeric::odeint;
   check_state(sys, z, "rk_flow");
   check_step(h, "rk_flow");
-  require(
-      std::isfinite(rtol) && rtol > 0.0 && std::isfinite(atol) && atol > 0.0,
-      "rk_flow: tolerances must be finite and > 0, got rtol " + num(rtol) + ", atol " + num(atol));
+  require(std::isfinite(rtol) && rtol > 0.0 && std::isfinite(atol) && atol > 0.0, [&] {
+    return "rk_flow: tolerances must be finite and > 0, got rtol " + num(rtol) + ", atol " +
+           num(atol);
+  });
   using State = std::vector<double>;
   const Index dim = sys.dim();
   State x(z.data(), z.data() + dim);
@@ -187,10 +199,14 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
 Matrix reference_flow(const System& sys, const Matrix& Z, const Vector& h,
                       const ReferenceOptions& opt) {
   opt.validate();
-  require(Z.rows() == sys.dim(), "reference_flow: Z has " + std::to_string(Z.rows()) +
-                                     " rows, expected 2d = " + std::to_string(sys.dim()));
-  require(h.size() == Z.cols(), "reference_flow: h has length " + std::to_string(h.size()) +
-                                    " but Z has " + std::to_string(Z.cols()) + " columns");
+  require(Z.rows() == sys.dim(), [&] {
+    return "reference_flow: Z has " + std::to_string(Z.rows()) +
+           " rows, expected 2d = " + std::to_string(sys.dim());
+  });
+  require(h.size() == Z.cols(), [&] {
+    return "reference_flow: h has length " + std::to_string(h.size()) + " but Z has " +
+           std::to_string(Z.cols()) + " columns";
+  });
   for (Index j = 0; j < h.size(); ++j) check_step(h(j), "reference_flow");
   if (Z.cols() == 0) return Z;
 

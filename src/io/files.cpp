@@ -208,8 +208,9 @@ void commit_files(const std::string& directory, const OutputFiles& files) {
   std::string journal;
   try {
     for (const auto& [name, content] : files) {
-      require(is_output_file_name(name),
-              "OutputDir::commit: '" + name + "' is not NAME or SUB/NAME of plain names");
+      require(is_output_file_name(name), [&] {
+        return "OutputDir::commit: '" + name + "' is not NAME or SUB/NAME of plain names";
+      });
       const fs::path sub = fs::path(name).parent_path();
       if (!sub.empty()) {
         std::error_code ec;

@@ -65,34 +65,40 @@ nlohmann::json model_to_json(const Model& model, const Vector& theta, const nloh
 }
 
 SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) {
-  require(doc.is_object(), where + ": expected a JSON object");
-  require(doc.contains("format") && doc["format"] == kModelFormat,
-          where + ": not a csympnet model file (expected \"format\": \"" + kModelFormat + "\")");
-  require(doc.contains("version") && doc["version"].is_number_integer(),
-          where + ": missing integer \"version\"; expected \"version\": " +
-              std::to_string(kModelFormatVersion));
+  require(doc.is_object(), [&] { return where + ": expected a JSON object"; });
+  require(doc.contains("format") && doc["format"] == kModelFormat, [&] {
+    return where + ": not a csympnet model file (expected \"format\": \"" + kModelFormat + "\")";
+  });
+  require(doc.contains("version") && doc["version"].is_number_integer(), [&] {
+    return where + ": missing integer \"version\"; expected \"version\": " +
+           std::to_string(kModelFormatVersion);
+  });
   const auto version = doc["version"].get<std::int64_t>();
   // Version 1 predates the checksum: reading it would let anyone edit a file's parameters and
   // relabel it "version": 1 to pass. Every version read carries a checksum.
-  require(version != 1,
-          where +
-              ": model format version 1 (no checksum) is no longer read: it cannot be told "
-              "from a file whose checksum was removed; expected version " +
-              std::to_string(kModelFormatVersion) +
-              " (fit or train the model again with this csympnet)");
-  require(version == kModelFormatVersion,
-          where + ": model format version " + std::to_string(version) +
-              " is not supported (expected " + std::to_string(kModelFormatVersion) +
-              "; a newer csympnet wrote it?)");
-  require(
-      doc.contains("model"),
-      where + ": missing \"model\"; expected the architecture, e.g. {\"type\": \"csympnet\", ...}");
+  require(version != 1, [&] {
+    return where +
+           ": model format version 1 (no checksum) is no longer read: it cannot be told "
+           "from a file whose checksum was removed; expected version " +
+           std::to_string(kModelFormatVersion) +
+           " (fit or train the model again with this csympnet)";
+  });
+  require(version == kModelFormatVersion, [&] {
+    return where + ": model format version " + std::to_string(version) +
+           " is not supported (expected " + std::to_string(kModelFormatVersion) +
+           "; a newer csympnet wrote it?)";
+  });
+  require(doc.contains("model"), [&] {
+    return where +
+           ": missing \"model\"; expected the architecture, e.g. {\"type\": \"csympnet\", ...}";
+  });
   double sizes = 1.0;
   product_of_sizes(doc["model"], sizes);
-  require(sizes <= kMaxSizeProduct,
-          where + ": the architecture's sizes multiply to " + short_number(sizes) +
-              ", more than any model file can hold; expected sizes whose product is at most " +
-              std::to_string(static_cast<long long>(kMaxSizeProduct)));
+  require(sizes <= kMaxSizeProduct, [&] {
+    return where + ": the architecture's sizes multiply to " + short_number(sizes) +
+           ", more than any model file can hold; expected sizes whose product is at most " +
+           std::to_string(static_cast<long long>(kMaxSizeProduct));
+  });
   SavedModel out;
   try {
     out.model = make_model(doc["model"]);
@@ -100,40 +106,50 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
     throw Error(where + ": " + e.what());
   }
   require(doc.contains("params") && doc["params"].is_array(),
-          where + ": missing array \"params\"; expected the flat parameter vector");
+          [&] { return where + ": missing array \"params\"; expected the flat parameter vector"; });
   const auto& params = doc["params"];
-  require(static_cast<Index>(params.size()) == out.model.n_params(),
-          where + ": \"params\" has " + std::to_string(params.size()) +
-              " entries but the architecture needs " + std::to_string(out.model.n_params()) +
-              "; expected one entry per parameter");
+  require(static_cast<Index>(params.size()) == out.model.n_params(), [&] {
+    return where + ": \"params\" has " + std::to_string(params.size()) +
+           " entries but the architecture needs " + std::to_string(out.model.n_params()) +
+           "; expected one entry per parameter";
+  });
   // n_params is redundant (the architecture fixes it) but written since version 1; a file
   // that disagrees with itself is damaged.
   if (doc.contains("n_params"))
     require(doc["n_params"].is_number_integer() &&
                 doc["n_params"].get<std::int64_t>() == out.model.n_params(),
-            where + ": \"n_params\" = " + doc["n_params"].dump().substr(0, 40) +
-                " but the architecture has " + std::to_string(out.model.n_params()) +
-                " parameters; expected them to agree");
+            [&] {
+              return where + ": \"n_params\" = " + doc["n_params"].dump().substr(0, 40) +
+                     " but the architecture has " + std::to_string(out.model.n_params()) +
+                     " parameters; expected them to agree";
+            });
   out.theta.resize(out.model.n_params());
   for (Index i = 0; i < out.theta.size(); ++i) {
     const auto& v = params[static_cast<std::size_t>(i)];
-    require(v.is_number(), where + ": params[" + std::to_string(i) + "] is not a number (" +
-                               v.dump().substr(0, 40) + "); expected a finite number");
+    require(v.is_number(), [&] {
+      return where + ": params[" + std::to_string(i) + "] is not a number (" +
+             v.dump().substr(0, 40) + "); expected a finite number";
+    });
     out.theta(i) = v.get<double>();
-    require(std::isfinite(out.theta(i)), where + ": params[" + std::to_string(i) + "] = " +
-                                             v.dump() + " is not finite; expected finite numbers");
+    require(std::isfinite(out.theta(i)), [&] {
+      return where + ": params[" + std::to_string(i) + "] = " + v.dump() +
+             " is not finite; expected finite numbers";
+    });
   }
   out.meta = doc.value("meta", nlohmann::json::object());
   {
-    require(
-        doc.contains("checksum") && doc["checksum"].is_string(),
-        where + ": missing string \"checksum\"; expected the checksum every model file carries");
+    require(doc.contains("checksum") && doc["checksum"].is_string(), [&] {
+      return where +
+             ": missing string \"checksum\"; expected the checksum every model file carries";
+    });
     const std::string expected = doc["checksum"].get<std::string>();
     const std::string actual = model_checksum(doc["model"], out.meta, out.theta);
-    require(expected == actual, where + ": checksum mismatch (the file says " + expected +
-                                    ", its contents give " + actual +
-                                    "): it was modified or corrupted after it was written; "
-                                    "expected the file exactly as csympnet wrote it");
+    require(expected == actual, [&] {
+      return where + ": checksum mismatch (the file says " + expected + ", its contents give " +
+             actual +
+             "): it was modified or corrupted after it was written; "
+             "expected the file exactly as csympnet wrote it";
+    });
   }
   return out;
 }

@@ -144,10 +144,11 @@ double scalar_damping_sum(const Matrix& dZout, const Matrix& p_core, const Matri
 CSympNetId::CSympNetId(std::unique_ptr<SymplecticCore> core, double beta_init)
     : core_(std::move(core)), beta_init_(beta_init) {
   require(core_ != nullptr, "csympnet: the symplectic core must not be null");
-  require(std::isfinite(beta_init) && beta_init != 0.0,
-          "csympnet: beta_init = " + std::to_string(beta_init) +
-              ", expected a finite nonzero value (d|beta|/dbeta vanishes at 0, so beta would "
-              "never train)");
+  require(std::isfinite(beta_init) && beta_init != 0.0, [&] {
+    return "csympnet: beta_init = " + std::to_string(beta_init) +
+           ", expected a finite nonzero value (d|beta|/dbeta vanishes at 0, so beta would "
+           "never train)";
+  });
 }
 
 void CSympNetId::init_params(Rng& rng, ParamsRef theta) const {

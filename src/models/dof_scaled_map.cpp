@@ -18,9 +18,10 @@ void DofScaledMap::init_params(Rng& rng, ParamsRef theta) const {
 }
 
 Vector DofScaledMap::scales(ConstParams theta) const {
-  require(theta.size() == n_params(), "dof-scaled map: parameter vector has size " +
-                                          std::to_string(theta.size()) + ", expected " +
-                                          std::to_string(n_params()));
+  require(theta.size() == n_params(), [&] {
+    return "dof-scaled map: parameter vector has size " + std::to_string(theta.size()) +
+           ", expected " + std::to_string(n_params());
+  });
   Vector mu(d_);
   mu(0) = 1.0;
   for (Index i = 1; i < d_; ++i) mu(i) = std::exp(theta(inner_->n_params() + i - 1));

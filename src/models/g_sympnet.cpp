@@ -9,13 +9,17 @@ namespace csympnet {
 
 GSympNet::GSympNet(Index d, Index layers, Index width)
     : SymplecticCore(d), layers_(layers), width_(width) {
-  require(layers >= 1, "g core: layers = " + std::to_string(layers) + ", expected >= 1");
-  require(width >= 1, "g core: width = " + std::to_string(width) + ", expected >= 1");
+  require(layers >= 1,
+          [&] { return "g core: layers = " + std::to_string(layers) + ", expected >= 1"; });
+  require(width >= 1,
+          [&] { return "g core: width = " + std::to_string(width) + ", expected >= 1"; });
 }
 
 void GSympNet::init_params(Rng& rng, ParamsRef theta) const {
-  require(theta.size() == n_params(), "g::init_params: theta has " + std::to_string(theta.size()) +
-                                          " entries, expected " + std::to_string(n_params()));
+  require(theta.size() == n_params(), [&] {
+    return "g::init_params: theta has " + std::to_string(theta.size()) + " entries, expected " +
+           std::to_string(n_params());
+  });
   Index off = 0;
   for (Index k = 0; k < layers_; ++k) {
     for (Index i = 0; i < width_ * (d() + 1); ++i) theta(off++) = kInitStddev * rng.normal();

@@ -28,8 +28,10 @@ const char* type_name(Dissipation kind) {
 
 // Sizes of H (and D): n → w → w → 1, validated first so the error names the model.
 std::vector<Index> scalar_net_sizes(Dissipation kind, Index d, Index width) {
-  require(d >= 1 && width >= 1, std::string(type_name(kind)) + ": d = " + std::to_string(d) +
-                                    ", width = " + std::to_string(width) + ", expected both >= 1");
+  require(d >= 1 && width >= 1, [&] {
+    return std::string(type_name(kind)) + ": d = " + std::to_string(d) +
+           ", width = " + std::to_string(width) + ", expected both >= 1";
+  });
   return {2 * d, width, width, 1};
 }
 
@@ -47,11 +49,12 @@ namespace {
 // matrix would not fit in memory before allocating it, instead of std::bad_alloc.
 constexpr Index kMaxDenseD = 4096;  // 2d × 2d doubles: 537 MB
 Index checked_dense_dim(Index d) {
-  require(d >= 1 && d <= kMaxDenseD,
-          "d = " + std::to_string(d) +
-              " is too large for a Hamiltonian vector-field model, which holds dense 2d x 2d "
-              "matrices; expected d <= " +
-              std::to_string(kMaxDenseD));
+  require(d >= 1 && d <= kMaxDenseD, [&] {
+    return "d = " + std::to_string(d) +
+           " is too large for a Hamiltonian vector-field model, which holds dense 2d x 2d "
+           "matrices; expected d <= " +
+           std::to_string(kMaxDenseD);
+  });
   return d;
 }
 }  // namespace
@@ -68,10 +71,11 @@ HamiltonianField::HamiltonianField(Dissipation kind, Index d, Index width, doubl
       n_params_(0),
       canonical_(canonical_j(checked_dense_dim(d))) {
   if (has_beta()) {
-    require(std::isfinite(beta_init) && beta_init != 0.0,
-            type() + ": beta_init = " + std::to_string(beta_init) +
-                ", expected a finite nonzero value (d|beta|/dbeta vanishes at 0, so beta would "
-                "never train)");
+    require(std::isfinite(beta_init) && beta_init != 0.0, [&] {
+      return type() + ": beta_init = " + std::to_string(beta_init) +
+             ", expected a finite nonzero value (d|beta|/dbeta vanishes at 0, so beta would "
+             "never train)";
+    });
   }
   const Index n = 2 * d;
   Index extra = 0;

@@ -11,8 +11,10 @@ namespace csympnet {
 namespace {
 
 std::vector<Index> map_net_sizes(Index d, Index width) {
-  require(d >= 1 && width >= 1, "map: d = " + std::to_string(d) +
-                                    ", width = " + std::to_string(width) + ", expected both >= 1");
+  require(d >= 1 && width >= 1, [&] {
+    return "map: d = " + std::to_string(d) + ", width = " + std::to_string(width) +
+           ", expected both >= 1";
+  });
   return {2 * d + 1, width, width, 2 * d};
 }
 

@@ -54,28 +54,35 @@ auto tanh_slope(const Matrix& a) {
 }
 
 void check_input(const Mlp& mlp, ConstParams theta, Index rows, const char* where) {
-  require(theta.size() == mlp.n_params(),
-          std::string("Mlp::") + where + ": theta has " + std::to_string(theta.size()) +
-              " entries, expected n_params() = " + std::to_string(mlp.n_params()));
-  require(rows == mlp.in_dim(), std::string("Mlp::") + where + ": input has " +
-                                    std::to_string(rows) +
-                                    " rows, expected in_dim() = " + std::to_string(mlp.in_dim()));
+  require(theta.size() == mlp.n_params(), [&] {
+    return std::string("Mlp::") + where + ": theta has " + std::to_string(theta.size()) +
+           " entries, expected n_params() = " + std::to_string(mlp.n_params());
+  });
+  require(rows == mlp.in_dim(), [&] {
+    return std::string("Mlp::") + where + ": input has " + std::to_string(rows) +
+           " rows, expected in_dim() = " + std::to_string(mlp.in_dim());
+  });
 }
 
 void check_scalar(const Mlp& mlp, const char* where) {
-  require(mlp.out_dim() == 1, std::string("Mlp::") + where +
-                                  ": defined for scalar networks only, but out_dim() = " +
-                                  std::to_string(mlp.out_dim()));
+  require(mlp.out_dim() == 1, [&] {
+    return std::string("Mlp::") + where +
+           ": defined for scalar networks only, but out_dim() = " + std::to_string(mlp.out_dim());
+  });
 }
 
 }  // namespace
 
 Mlp::Mlp(std::vector<Index> sizes) : sizes_(std::move(sizes)) {
-  require(sizes_.size() >= 2, "Mlp: needs at least an input and an output size, got " +
-                                  std::to_string(sizes_.size()) + " sizes");
+  require(sizes_.size() >= 2, [&] {
+    return "Mlp: needs at least an input and an output size, got " + std::to_string(sizes_.size()) +
+           " sizes";
+  });
   for (std::size_t l = 0; l < sizes_.size(); ++l) {
-    require(sizes_[l] >= 1, "Mlp: sizes[" + std::to_string(l) + "] = " + std::to_string(sizes_[l]) +
-                                ", expected >= 1");
+    require(sizes_[l] >= 1, [&] {
+      return "Mlp: sizes[" + std::to_string(l) + "] = " + std::to_string(sizes_[l]) +
+             ", expected >= 1";
+    });
   }
   n_params_ = weight_offset(sizes_, sizes_.size() - 1);
 }
@@ -94,8 +101,10 @@ const std::vector<Index>& Mlp::sizes() const {
 }
 
 void Mlp::init_params(Rng& rng, ParamsRef theta) const {
-  require(theta.size() == n_params_, "Mlp::init_params: theta has " + std::to_string(theta.size()) +
-                                         " entries, expected " + std::to_string(n_params_));
+  require(theta.size() == n_params_, [&] {
+    return "Mlp::init_params: theta has " + std::to_string(theta.size()) + " entries, expected " +
+           std::to_string(n_params_);
+  });
   // Draw order = θ order: W_l column-major, then b_l, layer by layer.
   Index k = 0;
   for (std::size_t l = 0; l + 1 < sizes_.size(); ++l) {
@@ -132,12 +141,15 @@ void Mlp::backward(ConstParams theta, const MlpCache& cache, const Matrix& dY, P
           "Mlp::backward: the cache holds no forward pass of this network (call forward with "
           "a cache first)");
   check_input(*this, theta, cache.acts[0].rows(), "backward");
-  require(dY.rows() == out_dim() && dY.cols() == cache.acts[0].cols(),
-          "Mlp::backward: dY is " + std::to_string(dY.rows()) + " x " + std::to_string(dY.cols()) +
-              ", expected " + std::to_string(out_dim()) + " x " +
-              std::to_string(cache.acts[0].cols()) + " (the forward batch)");
-  require(grad.size() == n_params_, "Mlp::backward: grad has " + std::to_string(grad.size()) +
-                                        " entries, expected " + std::to_string(n_params_));
+  require(dY.rows() == out_dim() && dY.cols() == cache.acts[0].cols(), [&] {
+    return "Mlp::backward: dY is " + std::to_string(dY.rows()) + " x " + std::to_string(dY.cols()) +
+           ", expected " + std::to_string(out_dim()) + " x " +
+           std::to_string(cache.acts[0].cols()) + " (the forward batch)";
+  });
+  require(grad.size() == n_params_, [&] {
+    return "Mlp::backward: grad has " + std::to_string(grad.size()) + " entries, expected " +
+           std::to_string(n_params_);
+  });
   // δ_L = dY;  ∂W_l += δ_l a_lᵀ,  ∂b_l += δ_l 1,  δ_{l−1} = (W_lᵀ δ_l) ⊙ (1 − a_l²).
   Matrix delta = dY;
   Matrix back;
@@ -235,9 +247,10 @@ Matrix Mlp::input_hessian(ConstParams theta, const Vector& x) const {
 
 void Mlp::input_gradient_backward(ConstParams theta, const Matrix& X, const Matrix& G,
                                   ParamsRef grad, Matrix* dX) const {
-  require(grad.size() == n_params_, "Mlp::input_gradient_backward: grad has " +
-                                        std::to_string(grad.size()) + " entries, expected " +
-                                        std::to_string(n_params_));
+  require(grad.size() == n_params_, [&] {
+    return "Mlp::input_gradient_backward: grad has " + std::to_string(grad.size()) +
+           " entries, expected " + std::to_string(n_params_);
+  });
   detail::scalar_mlp_rop(*this, theta, X, G, grad.data(), dX, nullptr);
 }
 
@@ -247,10 +260,11 @@ void scalar_mlp_rop(const Mlp& mlp, ConstParams theta, const Matrix& X, const Ma
                     double* grad, Matrix* dX, Matrix* input_grad) {
   check_scalar(mlp, "input_gradient_backward");
   check_input(mlp, theta, X.rows(), "input_gradient_backward");
-  require(G.rows() == X.rows() && G.cols() == X.cols(),
-          "Mlp::input_gradient_backward: G is " + std::to_string(G.rows()) + " x " +
-              std::to_string(G.cols()) + ", expected the shape of X (" + std::to_string(X.rows()) +
-              " x " + std::to_string(X.cols()) + ")");
+  require(G.rows() == X.rows() && G.cols() == X.cols(), [&] {
+    return "Mlp::input_gradient_backward: G is " + std::to_string(G.rows()) + " x " +
+           std::to_string(G.cols()) + ", expected the shape of X (" + std::to_string(X.rows()) +
+           " x " + std::to_string(X.cols()) + ")";
+  });
   const std::vector<Index>& sizes = mlp.sizes();
   const std::size_t n_layers = sizes.size() - 1;
   const Index n = X.cols();

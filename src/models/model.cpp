@@ -51,11 +51,12 @@ Model make_model(const nlohmann::json& spec) {
   // check must not end in std::bad_alloc later (a parameter vector, its AdamW moments and
   // gradients take several copies).
   const Index n = m.n_params();
-  require(n >= 0 && n <= kMaxModelParams,
-          "the model would have " + std::to_string(n) + " parameters, more than the " +
-              std::to_string(kMaxModelParams) +
-              " this tool holds in memory; expected smaller sizes (the core's layers, "
-              "sublayers or width, as in --core, the hidden widths, or d)");
+  require(n >= 0 && n <= kMaxModelParams, [&] {
+    return "the model would have " + std::to_string(n) + " parameters, more than the " +
+           std::to_string(kMaxModelParams) +
+           " this tool holds in memory; expected smaller sizes (the core's layers, "
+           "sublayers or width, as in --core, the hidden widths, or d)";
+  });
   return m;
 }
 

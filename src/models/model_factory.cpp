@@ -47,14 +47,17 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
   const std::string type = get_type(spec, where, kValidCoreTypes);
   if (spec.contains("d")) {
     const Index inner = get_count(spec, "d", where);
-    require(inner == d, where + ": key 'd' = " + std::to_string(inner) +
-                            " disagrees with the model's d = " + std::to_string(d));
+    require(inner == d, [&] {
+      return where + ": key 'd' = " + std::to_string(inner) +
+             " disagrees with the model's d = " + std::to_string(d);
+    });
   }
   if (type == "la") {
     reject_unknown_keys(spec, where, {"type", "d", "layers", "sublayers", "step_terms"});
     const Index step_terms = spec.contains("step_terms") ? get_count(spec, "step_terms", where) : 1;
-    require(step_terms == 1 || step_terms == 2,
-            where + ": key 'step_terms' = " + std::to_string(step_terms) + ", expected 1 or 2");
+    require(step_terms == 1 || step_terms == 2, [&] {
+      return where + ": key 'step_terms' = " + std::to_string(step_terms) + ", expected 1 or 2";
+    });
     return std::make_unique<LaSympNet>(d, get_count(spec, "layers", where),
                                        get_count(spec, "sublayers", where), step_terms);
   }
@@ -79,8 +82,9 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     return std::make_unique<NormalizedMap>(make_one_step_map(inner), std::move(n));
   }
   if (spec.contains("dof_scales")) {
-    require(spec.at("dof_scales") == "learned",
-            where + ".dof_scales: expected \"learned\" (per-dof momentum scales as parameters)");
+    require(spec.at("dof_scales") == "learned", [&] {
+      return where + ".dof_scales: expected \"learned\" (per-dof momentum scales as parameters)";
+    });
     nlohmann::json inner = spec;
     inner.erase("dof_scales");
     return std::make_unique<DofScaledMap>(make_one_step_map(inner));
@@ -95,8 +99,10 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
       reject_unknown_keys(spec, where, {"type", "d", "core"});
     }
     const Index d = get_count(spec, "d", where);
-    require(spec.contains("core"), where + ": missing key 'core' (expected e.g. {\"type\": " +
-                                       "\"la\", \"layers\": 5, \"sublayers\": 20})");
+    require(spec.contains("core"), [&] {
+      return where + ": missing key 'core' (expected e.g. {\"type\": " +
+             "\"la\", \"layers\": 5, \"sublayers\": 20})";
+    });
     auto core = make_core(spec.at("core"), d, where + ".core");
     if (!conformal) return std::make_unique<SympNet>(std::move(core));
     return std::make_unique<CSympNetId>(std::move(core),

@@ -8,9 +8,10 @@ NormalizedMap::NormalizedMap(std::unique_ptr<OneStepMap> inner, Normalization no
     : inner_(std::move(inner)), norm_(std::move(normalization)) {
   require(inner_ != nullptr, "normalized map: no inner model");
   norm_.validate("model spec.normalization");
-  require(2 * norm_.d() == inner_->dim(),
-          "model spec.normalization: has " + std::to_string(norm_.d()) +
-              " degrees of freedom, the model " + std::to_string(inner_->dim() / 2));
+  require(2 * norm_.d() == inner_->dim(), [&] {
+    return "model spec.normalization: has " + std::to_string(norm_.d()) +
+           " degrees of freedom, the model " + std::to_string(inner_->dim() / 2);
+  });
   unit_ = norm_.unit();
 }
 

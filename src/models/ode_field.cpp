@@ -8,8 +8,10 @@ namespace {
 
 // Sizes n → w → w → n, validated first so the error names the model's own arguments.
 std::vector<Index> field_net_sizes(Index d, Index width) {
-  require(d >= 1 && width >= 1, "ode: d = " + std::to_string(d) +
-                                    ", width = " + std::to_string(width) + ", expected both >= 1");
+  require(d >= 1 && width >= 1, [&] {
+    return "ode: d = " + std::to_string(d) + ", width = " + std::to_string(width) +
+           ", expected both >= 1";
+  });
   return {2 * d, width, width, 2 * d};
 }
 

@@ -6,7 +6,8 @@
 namespace csympnet {
 
 SymplecticCore::SymplecticCore(Index d) : d_(d) {
-  require(d >= 1, "symplectic core: d = " + std::to_string(d) + ", expected d >= 1");
+  require(d >= 1,
+          [&] { return "symplectic core: d = " + std::to_string(d) + ", expected d >= 1"; });
 }
 
 void SymplecticCore::reserve_slots(ForwardCache& cache, std::size_t n) {

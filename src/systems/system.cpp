@@ -20,8 +20,9 @@ std::string num(double x) {
 }
 
 void require_finite(double x, const char* field) {
-  require(std::isfinite(x),
-          std::string("system.") + field + " must be a finite number, got " + num(x));
+  require(std::isfinite(x), [&] {
+    return std::string("system.") + field + " must be a finite number, got " + num(x);
+  });
 }
 
 // ∇V for one column stored contiguously (q and g have length d). The batched and single-state
@@ -50,24 +51,29 @@ void grad_column(const SystemSpec& s, const double* q, double* g, Index d) {
 }
 
 void check_length(Index got, Index want, const char* where, const char* what) {
-  require(got == want, std::string("System::") + where + ": " + what + " has length " +
-                           std::to_string(got) + ", expected " + std::to_string(want));
+  require(got == want, [&] {
+    return std::string("System::") + where + ": " + what + " has length " + std::to_string(got) +
+           ", expected " + std::to_string(want);
+  });
 }
 
 }  // namespace
 
 void SystemSpec::validate() const {
-  require(kind == "oscillator" || kind == "chain" || kind == "cubic",
-          "system.kind must be one of " + std::string(kValidKinds) + "; got \"" + kind + "\"");
-  require(d >= 1, "system.d must be an integer >= 1, got " + std::to_string(d));
+  require(kind == "oscillator" || kind == "chain" || kind == "cubic", [&] {
+    return "system.kind must be one of " + std::string(kValidKinds) + "; got \"" + kind + "\"";
+  });
+  require(d >= 1, [&] { return "system.d must be an integer >= 1, got " + std::to_string(d); });
   require(std::isfinite(gamma) && gamma >= 0.0,
-          "system.gamma must be a finite number >= 0, got " + num(gamma));
+          [&] { return "system.gamma must be a finite number >= 0, got " + num(gamma); });
   require_finite(omega, "omega");
   require_finite(k, "k");
   require_finite(alpha, "alpha");
   if (kind != "chain")
-    require(omega > 0.0, "system.omega must be > 0 for kind \"" + kind + "\", got " + num(omega));
-  require(k >= 0.0, "system.k must be >= 0, got " + num(k));
+    require(omega > 0.0, [&] {
+      return "system.omega must be > 0 for kind \"" + kind + "\", got " + num(omega);
+    });
+  require(k >= 0.0, [&] { return "system.k must be >= 0, got " + num(k); });
 }
 
 void to_json(nlohmann::json& j, const SystemSpec& s) {
@@ -76,21 +82,24 @@ void to_json(nlohmann::json& j, const SystemSpec& s) {
 }
 
 void from_json(const nlohmann::json& j, SystemSpec& s) {
-  require(j.is_object(), "system: expected a JSON object, got " + std::string(j.type_name()));
+  require(j.is_object(),
+          [&] { return "system: expected a JSON object, got " + std::string(j.type_name()); });
   SystemSpec out;
   for (const auto& [key, value] : j.items()) {
     const std::string where = "system." + key;
     if (key == "kind") {
-      require(value.is_string(), where + " must be a string, got " + value.type_name());
+      require(value.is_string(),
+              [&] { return where + " must be a string, got " + value.type_name(); });
       out.kind = value.get<std::string>();
     } else if (key == "d") {
-      require(value.is_number_integer(), where + " must be an integer, got " + value.dump());
+      require(value.is_number_integer(),
+              [&] { return where + " must be an integer, got " + value.dump(); });
       const auto v = value.get<long long>();
       require(v >= 1 && v <= std::numeric_limits<int>::max(),
-              where + " must be an integer >= 1, got " + value.dump());
+              [&] { return where + " must be an integer >= 1, got " + value.dump(); });
       out.d = static_cast<int>(v);
     } else if (key == "gamma" || key == "omega" || key == "k" || key == "alpha") {
-      require(value.is_number(), where + " must be a number, got " + value.dump());
+      require(value.is_number(), [&] { return where + " must be a number, got " + value.dump(); });
       const double v = value.get<double>();
       if (key == "gamma") out.gamma = v;
       if (key == "omega") out.omega = v;
@@ -100,7 +109,8 @@ void from_json(const nlohmann::json& j, SystemSpec& s) {
       throw Error("system: unknown key \"" + key + "\" (allowed: kind, d, gamma, omega, k, alpha)");
     }
   }
-  require(j.contains("kind"), "system.kind is required (one of " + std::string(kValidKinds) + ")");
+  require(j.contains("kind"),
+          [&] { return "system.kind is required (one of " + std::string(kValidKinds) + ")"; });
   require(j.contains("d"), "system.d is required (an integer >= 1)");
   out.validate();
   s = std::move(out);
@@ -133,8 +143,10 @@ Vector System::grad_potential(const Vector& q) const {
 }
 
 Matrix System::grad_potential_batch(const Matrix& Q) const {
-  require(Q.rows() == d(), "System::grad_potential_batch: Q has " + std::to_string(Q.rows()) +
-                               " rows, expected d = " + std::to_string(d()));
+  require(Q.rows() == d(), [&] {
+    return "System::grad_potential_batch: Q has " + std::to_string(Q.rows()) +
+           " rows, expected d = " + std::to_string(d());
+  });
   Matrix G(d(), Q.cols());
   // Column-major storage: column j starts at data() + j d.
   for (Index j = 0; j < Q.cols(); ++j) grad_column(spec_, Q.col(j).data(), G.col(j).data(), d());
@@ -148,8 +160,10 @@ Matrix System::hess_potential(const Vector& q) const {
 
 Matrix System::hess_potential_times(const Vector& q, const Matrix& X) const {
   check_length(q.size(), d(), "hess_potential_times", "q");
-  require(X.rows() == d(), "System::hess_potential_times: X has " + std::to_string(X.rows()) +
-                               " rows, expected d = " + std::to_string(d()));
+  require(X.rows() == d(), [&] {
+    return "System::hess_potential_times: X has " + std::to_string(X.rows()) +
+           " rows, expected d = " + std::to_string(d());
+  });
   const Index n = d();
   if (spec_.kind == "chain") {
     // ∇²V = k L with L the path-graph Laplacian: (L X)_i = (X_i − X_{i−1}) − (X_{i+1} − X_i).
@@ -214,8 +228,10 @@ bool System::is_linear() const {
 }
 
 Matrix System::linear_generator() const {
-  require(is_linear(), "System::linear_generator: kind \"" + spec_.kind +
-                           "\" is nonlinear; only oscillator and chain have f(z) = A z");
+  require(is_linear(), [&] {
+    return "System::linear_generator: kind \"" + spec_.kind +
+           "\" is nonlinear; only oscillator and chain have f(z) = A z";
+  });
   // The Hessian of a quadratic V is constant, so the Jacobian at 0 is A.
   return vector_field_jacobian(Vector::Zero(dim()));
 }

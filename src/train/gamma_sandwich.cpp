@@ -28,8 +28,9 @@ void to_json(nlohmann::json& j, const SandwichInterval& s) {
 }
 
 void inflate_interval(SandwichInterval& s, double factor) {
-  require(std::isfinite(factor) && factor >= 1.0,
-          "inflate_interval: factor must be finite and >= 1, got " + std::to_string(factor));
+  require(std::isfinite(factor) && factor >= 1.0, [&] {
+    return "inflate_interval: factor must be finite and >= 1, got " + std::to_string(factor);
+  });
   s.std_error *= factor;
   s.low = s.gamma - factor * (s.gamma - s.low);
   s.high = s.gamma + factor * (s.high - s.gamma);

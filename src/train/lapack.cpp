@@ -33,7 +33,8 @@ namespace csympnet::lapack {
 
 namespace {
 int as_int(Index v, const char* what) {
-  require(v >= 0 && v <= INT_MAX, std::string("lapack: ") + what + " is out of BLAS's int range");
+  require(v >= 0 && v <= INT_MAX,
+          [&] { return std::string("lapack: ") + what + " is out of BLAS's int range"; });
   return static_cast<int>(v);
 }
 }  // namespace
@@ -85,7 +86,7 @@ bool cholesky(double* c, Index n) {
   const int ni = as_int(n, "n"), lda = ni > 0 ? ni : 1;
   int info = 0;
   dpotrf_("L", &ni, c, &lda, &info, 1);
-  require(info >= 0, "lapack: dpotrf rejected argument " + std::to_string(-info));
+  require(info >= 0, [&] { return "lapack: dpotrf rejected argument " + std::to_string(-info); });
   return info == 0;
 }
 
@@ -102,7 +103,7 @@ Factor cholesky_blocked(double* c, Index n, const std::function<bool()>& should_
     double* a11 = c + k + static_cast<std::size_t>(k) * lda;
     int info = 0;
     dpotrf_("L", &kb, a11, &lda, &info, 1);
-    require(info >= 0, "lapack: dpotrf rejected argument " + std::to_string(-info));
+    require(info >= 0, [&] { return "lapack: dpotrf rejected argument " + std::to_string(-info); });
     if (info > 0) return Factor::kNotPositiveDefinite;
     if (rest == 0) break;
     double* a21 = a11 + kb;
@@ -118,7 +119,7 @@ void cholesky_solve(const double* l, Index n, double* b) {
   const int ni = as_int(n, "n"), lda = ni > 0 ? ni : 1, one = 1;
   int info = 0;
   dpotrs_("L", &ni, &one, l, &lda, b, &lda, &info, 1);
-  require(info == 0, "lapack: dpotrs rejected argument " + std::to_string(-info));
+  require(info == 0, [&] { return "lapack: dpotrs rejected argument " + std::to_string(-info); });
 }
 
 }  // namespace csympnet::lapack

@@ -38,9 +38,10 @@ double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pa
                      ForwardCache* cache, const LossSplit& split) {
   if (!split.active()) return one_step_loss(map, theta, pairs, grad, cache);
   require(cache != nullptr, "one_step_loss: a split loss needs a cache");
-  require(split.ranges.back().end == pairs.size(),
-          "one_step_loss: the split was planned for " + std::to_string(split.ranges.back().end) +
-              " pairs, got " + std::to_string(pairs.size()));
+  require(split.ranges.back().end == pairs.size(), [&] {
+    return "one_step_loss: the split was planned for " + std::to_string(split.ranges.back().end) +
+           " pairs, got " + std::to_string(pairs.size());
+  });
   const ColumnSplitPasses& passes = *map.column_split();
   const auto& ranges = split.ranges;
   auto in_range = [&ranges](int part) { return static_cast<std::size_t>(part) < ranges.size(); };

@@ -14,9 +14,10 @@ MidpointData midpoint_data(const PairSet& pairs) {
 
 double midpoint_loss(const VectorFieldModel& model, ConstParams theta, const MidpointData& data,
                      Vector* grad) {
-  require(data.midpoints.rows() == model.dim(),
-          "midpoint loss: data dimension " + std::to_string(data.midpoints.rows()) +
-              " does not match the model's " + std::to_string(model.dim()));
+  require(data.midpoints.rows() == model.dim(), [&] {
+    return "midpoint loss: data dimension " + std::to_string(data.midpoints.rows()) +
+           " does not match the model's " + std::to_string(model.dim());
+  });
   const double n = static_cast<double>(data.midpoints.cols());
   const Matrix residual = model.field(theta, data.midpoints) - data.slopes;
   if (grad != nullptr) {

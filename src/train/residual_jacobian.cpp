@@ -9,11 +9,14 @@ namespace csympnet {
 namespace {
 void check_shapes(const OneStepMap& map, ConstParams theta, const PairSet& pairs) {
   pairs.validate("residual pairs");
-  require(pairs.dim() == map.dim(), "residuals: data dimension " + std::to_string(pairs.dim()) +
-                                        " does not match the model's " + std::to_string(map.dim()));
-  require(theta.size() == map.n_params(), "residuals: parameter vector has size " +
-                                              std::to_string(theta.size()) + ", expected " +
-                                              std::to_string(map.n_params()));
+  require(pairs.dim() == map.dim(), [&] {
+    return "residuals: data dimension " + std::to_string(pairs.dim()) +
+           " does not match the model's " + std::to_string(map.dim());
+  });
+  require(theta.size() == map.n_params(), [&] {
+    return "residuals: parameter vector has size " + std::to_string(theta.size()) + ", expected " +
+           std::to_string(map.n_params());
+  });
 }
 }  // namespace
 
@@ -28,8 +31,9 @@ void residual_jacobian(const OneStepMap& map, ConstParams theta, const PairSet& 
                        Eigen::Ref<RowMajorMatrix> jac, const std::function<bool()>& should_stop) {
   check_shapes(map, theta, pairs);
   const Index m = pairs.dim(), n = pairs.size(), p = map.n_params();
-  require(jac.rows() == n * m && jac.cols() == p,
-          "residual_jacobian: output must be " + std::to_string(n * m) + " x " + std::to_string(p));
+  require(jac.rows() == n * m && jac.cols() == p, [&] {
+    return "residual_jacobian: output must be " + std::to_string(n * m) + " x " + std::to_string(p);
+  });
   ForwardCache cache;
   Matrix z(m, 1);
   Vector h(1);

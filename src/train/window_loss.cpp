@@ -10,28 +10,30 @@
 namespace csympnet {
 
 void WindowSet::validate(const std::string& where) const {
-  require(m >= 1, where + ": a window needs at least one step");
+  require(m >= 1, [&] { return where + ": a window needs at least one step"; });
   require(z0.rows() > 0 && z0.rows() % 2 == 0,
-          where + ": states need an even number 2d > 0 of rows");
+          [&] { return where + ": states need an even number 2d > 0 of rows"; });
   require(zm.rows() == z0.rows() && zm.cols() == z0.cols(),
-          where + ": start and end states differ in shape");
-  require(h.rows() == m && h.cols() == z0.cols(),
-          where + ": steps must be " + std::to_string(m) + " x " + std::to_string(z0.cols()));
+          [&] { return where + ": start and end states differ in shape"; });
+  require(h.rows() == m && h.cols() == z0.cols(), [&] {
+    return where + ": steps must be " + std::to_string(m) + " x " + std::to_string(z0.cols());
+  });
   require(block.empty() || static_cast<Index>(block.size()) == z0.cols(),
-          where + ": need one block index per window");
-  require(z0.allFinite() && zm.allFinite() && h.allFinite(), where + ": non-finite value");
-  require((h.array() > 0.0).all(), where + ": every step must be > 0");
+          [&] { return where + ": need one block index per window"; });
+  require(z0.allFinite() && zm.allFinite() && h.allFinite(),
+          [&] { return where + ": non-finite value"; });
+  require((h.array() > 0.0).all(), [&] { return where + ": every step must be > 0"; });
 }
 
 WindowSet windows_from_trajectories(const std::vector<Trajectory>& trajs, Index m,
                                     const std::vector<Index>& block_of) {
-  require(m >= 1, "windows: m must be >= 1, got " + std::to_string(m));
+  require(m >= 1, [&] { return "windows: m must be >= 1, got " + std::to_string(m); });
   require(!trajs.empty(), "windows: no trajectories");
   require(block_of.empty() || block_of.size() == trajs.size(),
           "windows: need one block index per trajectory");
   Index n = 0;
   for (const Trajectory& t : trajs) n += std::max<Index>(0, t.steps() - m + 1);
-  require(n >= 1, "windows: no trajectory has " + std::to_string(m) + " steps");
+  require(n >= 1, [&] { return "windows: no trajectory has " + std::to_string(m) + " steps"; });
   const Index dim = trajs.front().z.rows();
   WindowSet w;
   w.m = m;
@@ -92,11 +94,14 @@ namespace {
 
 void check(const OneStepMap& map, ConstParams theta, const WindowSet& w) {
   w.validate("windows");
-  require(w.dim() == map.dim(), "windows: data dimension " + std::to_string(w.dim()) +
-                                    " does not match the model's " + std::to_string(map.dim()));
-  require(theta.size() == map.n_params(), "windows: parameter vector has size " +
-                                              std::to_string(theta.size()) + ", expected " +
-                                              std::to_string(map.n_params()));
+  require(w.dim() == map.dim(), [&] {
+    return "windows: data dimension " + std::to_string(w.dim()) + " does not match the model's " +
+           std::to_string(map.dim());
+  });
+  require(theta.size() == map.n_params(), [&] {
+    return "windows: parameter vector has size " + std::to_string(theta.size()) + ", expected " +
+           std::to_string(map.n_params());
+  });
 }
 
 // The balancing: γ̂ and sign(β) when it applies, else nothing.
@@ -192,9 +197,10 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
   const Index dim = w.dim(), d = dim / 2, p = map.n_params();
   require(first >= 0 && count >= 0 && first + count <= w.size(),
           "window_jacobian_rows: windows out of range");
-  require(jac.rows() == count * dim && jac.cols() == p && r.size() == count * dim,
-          "window_jacobian_rows: output must be " + std::to_string(count * dim) + " x " +
-              std::to_string(p));
+  require(jac.rows() == count * dim && jac.cols() == p && r.size() == count * dim, [&] {
+    return "window_jacobian_rows: output must be " + std::to_string(count * dim) + " x " +
+           std::to_string(p);
+  });
   const Balance bal = balance_of(map, theta, balanced);
   std::vector<ForwardCache> caches(static_cast<std::size_t>(w.m));
   Matrix dz_in;

@@ -5,6 +5,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace csympnet {
 
@@ -13,9 +14,26 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Throws Error(message) when `ok` is false.
+// Throws Error(message) when `ok` is false. Checks that run on every call of a hot path
+// (shape checks in forward/backward, per-pair data checks) pass a literal or a callable that
+// builds the message: the callable runs only when the check fails, so a passing check
+// allocates nothing. An already-built std::string is for checks at the boundary (options,
+// files), which run once.
+inline void require(bool ok, const char* message) {
+  if (!ok) [[unlikely]]
+    throw Error(message);
+}
+
 inline void require(bool ok, const std::string& message) {
-  if (!ok) throw Error(message);
+  if (!ok) [[unlikely]]
+    throw Error(message);
+}
+
+template <class MakeMessage>
+requires std::is_invocable_r_v<std::string, MakeMessage&>
+inline void require(bool ok, MakeMessage&& make_message) {
+  if (!ok) [[unlikely]]
+    throw Error(make_message());
 }
 
 // `text` with every byte outside printable ASCII shown as \xNN, for quoting input (a parser's

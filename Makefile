@@ -19,13 +19,16 @@ build: deps
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
-# The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (gcc), in $(ASAN_BUILD).
+# The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (gcc), in $(ASAN_BUILD),
+# at -O1 with line tables only (-g1): half the compile time of -O2 -g, and stack traces still
+# name file and line (docs/testing.md, "CI time").
 # ASAN_EXCLUDE (a ctest -E regex, empty by default: the whole suite runs) leaves out tests if
 # CI time ever needs it; docs/hardening.md says which are pure numerics covered by `make test`.
 ASAN_BUILD   ?= build-asan
 ASAN_EXCLUDE ?=
 test-asan: deps
 	@cmake -S . -B $(ASAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCSYMPNET_SANITIZE=ON \
+	  "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" \
 	  -DCSYMPNET_BUILD_PYTHON=OFF -DCSYMPNET_BUILD_BENCH=OFF >/dev/null
 	@cmake --build $(ASAN_BUILD) -j $(JOBS)
 	@cd $(ASAN_BUILD) && ASAN_OPTIONS=$(ASAN_OPTIONS_CI) UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \

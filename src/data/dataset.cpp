@@ -36,6 +36,15 @@ void require_state_rows(Index rows, const std::string& where, const std::string&
   });
 }
 
+// `n` pairs of dimension `dim`, to be filled by the caller.
+PairSet uninitialized_pairs(Index dim, Index n) {
+  PairSet out;
+  out.z0.resize(dim, n);
+  out.z1.resize(dim, n);
+  out.h.resize(n);
+  return out;
+}
+
 }  // namespace
 
 void PairSet::validate(const std::string& where) const {
@@ -64,11 +73,8 @@ PairSet select_pairs(const PairSet& pairs, const std::vector<Index>& idx) {
            shape(pairs.z1) + ", h " + std::to_string(pairs.h.size()) +
            "); expected matching shapes";
   });
-  PairSet out;
   const Index m = static_cast<Index>(idx.size());
-  out.z0.resize(pairs.dim(), m);
-  out.z1.resize(pairs.dim(), m);
-  out.h.resize(m);
+  PairSet out = uninitialized_pairs(pairs.dim(), m);
   for (Index k = 0; k < m; ++k) {
     const Index j = idx[static_cast<std::size_t>(k)];
     require(j >= 0 && j < n, [&] {
@@ -99,10 +105,7 @@ PairSet concat_pairs(const std::vector<PairSet>& parts) {
     });
     total += p.size();
   }
-  PairSet out;
-  out.z0.resize(dim, total);
-  out.z1.resize(dim, total);
-  out.h.resize(total);
+  PairSet out = uninitialized_pairs(dim, total);
   Index at = 0;
   for (const PairSet& p : parts) {
     out.z0.middleCols(at, p.size()) = p.z0;
@@ -154,10 +157,7 @@ PairSet pairs_from_trajectories(const std::vector<Trajectory>& trajs) {
            " trajectories have a single point, so there are no pairs; expected "
            "at least one trajectory with two or more points";
   });
-  PairSet out;
-  out.z0.resize(dim, total);
-  out.z1.resize(dim, total);
-  out.h.resize(total);
+  PairSet out = uninitialized_pairs(dim, total);
   Index at = 0;
   for (const Trajectory& tr : trajs) {
     const Index s = tr.steps();

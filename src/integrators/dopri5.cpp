@@ -78,11 +78,9 @@ struct AugmentedSystem {
   Vector* z;
   Vector* fz;
 
-  void operator()(const State& x, State& dxdt, double /*t*/) const {
+  void operator()(const State& x, State& dxdt, double t) const {
     const Index n = z->size();
-    *z = Eigen::Map<const Vector>(x.data(), n);
-    eval_field(*f, *z, *fz);
-    Eigen::Map<Vector>(dxdt.data(), n) = *fz;
+    PlainSystem{f, z, fz}(x, dxdt, t);  // the first n entries: dz/dt = f(z)
     const Matrix jac = (*df)(*z);
     require(jac.rows() == n && jac.cols() == n, [&] {
       return "dopri5_flow_jacobian: the field Jacobian is " + std::to_string(jac.rows()) + " x " +

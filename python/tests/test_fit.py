@@ -1,5 +1,6 @@
 """csympnet.fit, fit_trajectories and run: results, options, and agreement with the CLI."""
 
+import functools
 import json
 import os
 import signal
@@ -45,35 +46,37 @@ def test_fit_equals_cli_fit_bit_for_bit(tmp_path, run_cli, s1_pairs):
 
 
 def test_options_change_the_fit(s1_pairs):
-    base = csympnet.fit(*s1_pairs, epochs=100)
+    # The bootstrap interval does not touch the parameters compared here; it is left out.
+    fit = functools.partial(csympnet.fit, bootstrap=0)
+    base = fit(*s1_pairs, epochs=100)
     for kwargs in ({"seed": 1}, {"lr": 2e-3}, {"lr_schedule": "constant"}, {"warm_start": False},
                    {"beta_decay": False}, {"core": "la:2:3"}, {"weight_decay": 0.0},
                    {"refine": "none"}):
-        other = csympnet.fit(*s1_pairs, epochs=100, **kwargs)
+        other = fit(*s1_pairs, epochs=100, **kwargs)
         assert other.n_params != base.n_params or not np.array_equal(other.params, base.params), kwargs
     # beta_init is the start only without the warm start.
-    cold = csympnet.fit(*s1_pairs, epochs=100, warm_start=False)
+    cold = fit(*s1_pairs, epochs=100, warm_start=False)
     assert not np.array_equal(
-        csympnet.fit(*s1_pairs, epochs=100, warm_start=False, beta_init=-0.2).params, cold.params)
-    assert np.array_equal(csympnet.fit(*s1_pairs, epochs=100, beta_init=-0.2).params, base.params)
-    assert csympnet.fit(*s1_pairs, epochs=10, core="g:2:4").hyperparams["core"] == {
+        fit(*s1_pairs, epochs=100, warm_start=False, beta_init=-0.2).params, cold.params)
+    assert np.array_equal(fit(*s1_pairs, epochs=100, beta_init=-0.2).params, base.params)
+    assert fit(*s1_pairs, epochs=10, core="g:2:4").hyperparams["core"] == {
         "type": "g", "layers": 2, "width": 4}
-    assert csympnet.fit(*s1_pairs, epochs=10, core={"type": "la", "layers": 2, "sublayers": 3}
-                        ).n_params == csympnet.fit(*s1_pairs, epochs=10, core="la:2:3").n_params
+    assert fit(*s1_pairs, epochs=10, core={"type": "la", "layers": 2, "sublayers": 3}
+               ).n_params == fit(*s1_pairs, epochs=10, core="la:2:3").n_params
     # Step polynomials: one coefficient per linear sublayer (2 x 3) and activation module (1).
-    poly = csympnet.fit(*s1_pairs, epochs=10, core="la:2:3:h2")
+    poly = fit(*s1_pairs, epochs=10, core="la:2:3:h2")
     assert poly.hyperparams["core"]["step_terms"] == 2
-    assert poly.n_params == csympnet.fit(*s1_pairs, epochs=10, core="la:2:3").n_params + 7
+    assert poly.n_params == fit(*s1_pairs, epochs=10, core="la:2:3").n_params + 7
     for bad in ("g:2:4:h2", "la:2:3:h3"):
         with pytest.raises(ValueError, match="h2"):
-            csympnet.fit(*s1_pairs, epochs=10, core=bad)
+            fit(*s1_pairs, epochs=10, core=bad)
 
 
 def test_explicit_validation_set(s1_pairs):
     val = csympnet.generate("s1", "val")
-    model = csympnet.fit(*s1_pairs, epochs=50, validation=val)
+    model = csympnet.fit(*s1_pairs, epochs=50, validation=val, bootstrap=0)
     assert model.meta["pairs_train"] == 80 and model.meta["pairs_val"] == 20
-    split = csympnet.fit(*s1_pairs, epochs=50)
+    split = csympnet.fit(*s1_pairs, epochs=50, bootstrap=0)
     assert split.meta["pairs_train"] == 64 and split.meta["pairs_val"] == 16
 
 
@@ -155,11 +158,12 @@ def test_fit_trajectories_equals_cli_fit_of_the_csv(tmp_path, run_cli):
     trajs = _trajectories()
     path = tmp_path / "traj.csv"
     csympnet.write_csv(path, trajs)
-    run_cli("fit", path, "--recipe", "classic", "--epochs", 100, "--out", tmp_path / "out", "-q")
+    run_cli("fit", path, "--recipe", "classic", "--epochs", 100, "--bootstrap", 0,
+            "--out", tmp_path / "out", "-q")
     cli_model = csympnet.load(tmp_path / "out" / "model.json")
     t = [tr.t for tr in trajs]
     z = [tr.z for tr in trajs]
-    py_model = csympnet.fit_trajectories(t, z, epochs=100)
+    py_model = csympnet.fit_trajectories(t, z, epochs=100, bootstrap=0)
     assert np.array_equal(py_model.params, cli_model.params)
 
 
@@ -215,12 +219,12 @@ def test_threads_give_the_same_bits():
 
 def test_fit_trajectories_forms_agree():
     trajs = _trajectories(steps=10)
-    lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20)
+    lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20, bootstrap=0)
     labels = np.repeat([5, 2, 9], 11)
     flat = csympnet.fit_trajectories(np.concatenate([tr.t for tr in trajs]),
-                                     np.concatenate([tr.z for tr in trajs]), traj=labels, epochs=20)
+                                     np.concatenate([tr.z for tr in trajs]), traj=labels, epochs=20, bootstrap=0)
     stacked = csympnet.fit_trajectories(np.stack([tr.t for tr in trajs]),
-                                        np.stack([tr.z for tr in trajs]), epochs=20)
+                                        np.stack([tr.z for tr in trajs]), epochs=20, bootstrap=0)
     assert np.array_equal(lists.params, flat.params)
     assert np.array_equal(lists.params, stacked.params)
     # Pairs never span two trajectories: 3 trajectories of 10 steps give 30 pairs.
@@ -229,8 +233,8 @@ def test_fit_trajectories_forms_agree():
 
 def test_fit_trajectories_single_and_pairs_equivalence():
     tr = _trajectories(n=1)[0]
-    a = csympnet.fit_trajectories(tr.t, tr.z, epochs=20)
-    b = csympnet.fit(tr.z[:-1], tr.z[1:], np.diff(tr.t), epochs=20)
+    a = csympnet.fit_trajectories(tr.t, tr.z, epochs=20, bootstrap=0)
+    b = csympnet.fit(tr.z[:-1], tr.z[1:], np.diff(tr.t), epochs=20, bootstrap=0)
     assert np.array_equal(a.params, b.params)
 
 

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "../src/models/exact_product.hpp"  // which product kernels run, for the report
+#include "../src/kernels/product.hpp"  // which product kernels run, for the report
 #include "bench_train.hpp"
 #include "csympnet/core/error.hpp"
 #include "peer_export.hpp"
@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
   int rest_argc = static_cast<int>(rest.size());
   benchmark::Initialize(&rest_argc, rest.data());
   if (benchmark::ReportUnrecognizedArguments(rest_argc, rest.data())) return 2;
-  benchmark::AddCustomContext("exact_product", csympnet::detail::exact_product_isa());
+  benchmark::AddCustomContext("exact_product", csympnet::kernels::product_kernel_isa());
   csympnet::bench::register_benchmarks();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -1,4 +1,4 @@
-// Micro-benchmarks of the SympNet cores' exact-order products (src/models/exact_product.hpp)
+// Micro-benchmarks of the SympNet cores' exact-order products (src/kernels/product.hpp)
 // on the shapes the training presets run, called as the cores call them:
 //
 //   product/MxKxN/<epilogue>[/at][/bt]   C = A B (A m x k, B k x n) then the epilogue
@@ -15,13 +15,13 @@
 #include <random>
 #include <string>
 
-#include "../src/models/exact_product.hpp"
+#include "../src/kernels/product.hpp"
 
 namespace csympnet::bench {
 
 namespace {
 
-using detail::Epilogue;
+using kernels::Epilogue;
 
 Matrix random_matrix(std::mt19937_64& gen, Index rows, Index cols) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -61,12 +61,12 @@ void run_product(benchmark::State& state, const ProductCase& pc) {
       return b_store.leftCols(pc.n);
     }
   }();
-  if (!detail::exact_product(a, b, c.data(), pc.mode, h.data())) {
+  if (!kernels::sse2_order_product(a, b, c.data(), pc.mode, h.data())) {
     state.SkipWithError("exact_product declined this shape (Eigen would run)");
     return;
   }
   for (auto _ : state) {
-    detail::exact_product(a, b, c.data(), pc.mode, h.data());
+    kernels::sse2_order_product(a, b, c.data(), pc.mode, h.data());
     benchmark::DoNotOptimize(c.data());
     benchmark::ClobberMemory();
   }

@@ -19,7 +19,7 @@ bool parse_only() {
 
 void add_all_commands(CLI::App& app) {
   app.require_subcommand(1);
-  app.set_version_flag("--version", "csympnet 0.1.0");
+  app.set_version_flag("--version", [] { return "csympnet 0.1.0\n" + kernels_summary(); });
   add_run(app);
   add_describe(app);
   add_generate(app);
@@ -28,6 +28,7 @@ void add_all_commands(CLI::App& app) {
   add_evaluate(app);
   add_rollout(app);
   add_reproduce(app);
+  add_kernels(app);
 }
 
 }  // namespace csympnet::cli

@@ -2,6 +2,8 @@
 // parses nothing itself and calls the library. No numerics live here.
 #pragma once
 
+#include <string>
+
 #include <CLI/CLI.hpp>
 
 namespace csympnet::cli {
@@ -14,6 +16,10 @@ void add_fit(CLI::App& app);
 void add_evaluate(CLI::App& app);
 void add_rollout(CLI::App& app);
 void add_reproduce(CLI::App& app);
+void add_kernels(CLI::App& app);
+
+// One line on the SIMD kernels in use (cmd_kernels.cpp), printed after the version.
+std::string kernels_summary();
 
 // The whole command line: the app with every subcommand registered, as main() runs it.
 void add_all_commands(CLI::App& app);

@@ -2,11 +2,11 @@
 
 #include <cmath>
 
-#include "column_scaling.hpp"
-#include "conformal_rows.hpp"
+#include "../kernels/column_scaling.hpp"
+#include "../kernels/conformal_rows.hpp"
+#include "../kernels/scaled_exp.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/shape_checks.hpp"
-#include "exact_exp.hpp"
 
 namespace csympnet {
 
@@ -63,7 +63,7 @@ void split_rows(const Matrix& z, const Vector* a, Matrix& q, Matrix& p, Matrix* 
   double* raw = p_raw != nullptr ? p_raw->data() : nullptr;
   if (d == 1) {
     if (av != nullptr &&
-        detail::split_scaled_rows_simd(z.data(), z.cols(), av, q.data(), p.data(), raw)) {
+        kernels::split_scaled_rows_simd(z.data(), z.cols(), av, q.data(), p.data(), raw)) {
       return;
     }
     split_rows_d<1>(z.data(), z.cols(), d, av, q.data(), p.data(), raw);
@@ -90,7 +90,7 @@ void join_rows(const Matrix& q, const Matrix& p, const Vector& a, Matrix& out) {
   const Index d = q.rows();
   out.resize(2 * d, q.cols());
   if (d == 1) {
-    if (detail::join_scaled_rows_simd(q.data(), p.data(), a.data(), q.cols(), out.data())) return;
+    if (kernels::join_scaled_rows_simd(q.data(), p.data(), a.data(), q.cols(), out.data())) return;
     join_rows_impl<1>(q.data(), p.data(), a.data(), q.cols(), d, out.data());
   } else {
     join_rows_impl<0>(q.data(), p.data(), a.data(), q.cols(), d, out.data());
@@ -98,11 +98,11 @@ void join_rows(const Matrix& q, const Matrix& p, const Vector& a, Matrix& out) {
 }
 
 // a_j = exp(c h_j), c = −γ̂/2: the values of the Eigen expression `(c * h.array()).exp()`,
-// through the AVX-512 kernel where it runs (exact_exp.hpp).
+// through the AVX-512 kernel where it runs (src/kernels/scaled_exp.hpp).
 void conformal_factors(double gamma, const Vector& h, Vector& a) {
   const double c = -0.5 * gamma;
   a.resize(h.size());
-  if (detail::scaled_exp_simd(c, h.data(), a.data(), h.size())) return;
+  if (kernels::scaled_exp_simd(c, h.data(), a.data(), h.size())) return;
   a = (c * h.array()).exp().matrix();
 }
 
@@ -114,7 +114,7 @@ void conformal_factors(double gamma, const Vector& h, Vector& a, Columns cols) {
   const Index n = cols.size();
   double* out = a.data() + cols.begin;
   const double* hs = h.data() + cols.begin;
-  if (detail::scaled_exp_simd(c, hs, out, n)) return;
+  if (kernels::scaled_exp_simd(c, hs, out, n)) return;
   Eigen::Map<Vector>(out, n) = (c * Eigen::Map<const Vector>(hs, n).array()).exp().matrix();
 }
 
@@ -128,8 +128,8 @@ double scalar_damping_sum(const Matrix& dZout, const Matrix& p_core, const Matri
                           const Matrix& p_in, const Vector& h, const Vector& a, double* terms) {
   const Index n = dZout.cols();
   const double* g = dZout.data() + 1;
-  if (detail::damping_terms_simd(dZout.data(), p_core.data(), gp.data(), p_in.data(), h.data(),
-                                 a.data(), n, terms)) {
+  if (kernels::damping_terms_simd(dZout.data(), p_core.data(), gp.data(), p_in.data(), h.data(),
+                                  a.data(), n, terms)) {
     return Eigen::Map<const Vector>(terms, n).sum();
   }
   for (Index j = 0; j < n; ++j) {
@@ -231,7 +231,7 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
   } else {
     split_rows(dZout, nullptr, gq, gp, nullptr);
     grad_a = (gp.array() * p_core.array()).colwise().sum().transpose();
-    detail::scale_columns(gp, a.data());
+    kernels::scale_columns(gp, a.data());
   }
   core_->flow_backward(theta.head(nc), cache, kCoreSlot0, h, gq, gp, grad.head(nc));
   // Inner scaling p̃ = a ⊙ p_in:  dL/da_j += Σ_i G̃_ij p_in,ij,  dL/dp_in = a G̃.
@@ -318,7 +318,7 @@ void CSympNetId::backward_columns(ConstParams theta, const ForwardCache& cache, 
   split_rows_d<0>(dZout.data() + 2 * d * c0, n, d, nullptr, gq.data() + d * c0, gp.data() + d * c0,
                   nullptr);
   grad_a = (gpc.array() * cache.mats[1].middleCols(c0, n).array()).colwise().sum().transpose();
-  detail::scale_columns(gp.middleCols(c0, n), a.data() + c0);
+  kernels::scale_columns(gp.middleCols(c0, n), a.data() + c0);
   core_->backward_columns(theta.head(nc), cache, kCoreSlot0, h, gq, gp, cols);
   grad_a.array() +=
       (gpc.array() * cache.mats[0].middleCols(c0, n).array()).colwise().sum().transpose();

@@ -1,9 +1,9 @@
 #include "csympnet/models/g_sympnet.hpp"
 
-#include "column_scaling.hpp"
+#include "../kernels/column_scaling.hpp"
+#include "activation.hpp"
+#include "core_product.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/activation.hpp"
-#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -57,8 +57,8 @@ bool GSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const
   if (!ranges_tile(n, ranges)) return false;
   // The sweeps' products with the columns as their n: K X and Kᵀ U.
   auto covered = [this](Index cols) {
-    return detail::exact_product_covers(width_, d(), cols) &&
-           detail::exact_product_covers(d(), width_, cols);
+    return kernels::product_kernel_covers(width_, d(), cols) &&
+           kernels::product_kernel_covers(d(), width_, cols);
   };
   if (!covered(n)) return false;
   for (const Columns& c : ranges) {
@@ -84,17 +84,17 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
     const auto src = (kick ? q : p).middleCols(c0, n);
     auto dst = (kick ? p : q).middleCols(c0, n);
     const auto slot = slot0 + static_cast<std::size_t>(2 * k);
-    if (cache != nullptr) detail::copy_columns(src, cache->mats[slot].middleCols(c0, n));
+    if (cache != nullptr) kernels::copy_columns(src, cache->mats[slot].middleCols(c0, n));
     detail::core_product_to(kmat, src, u, scratch);
     u.array().colwise() += b;
     // u then holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
     if (cache != nullptr) {
       auto sig = cache->mats[slot + 1].middleCols(c0, n);
       sigmoid_to(u, sig);
-      detail::columns_times_scaled(sig, a.data(), h.data() + c0, u);
+      kernels::columns_times_scaled(sig, a.data(), h.data() + c0, u);
     } else {
       sigmoid_into(u, sig_local);
-      detail::columns_times_scaled(sig_local, a.data(), h.data() + c0, u);
+      kernels::columns_times_scaled(sig_local, a.data(), h.data() + c0, u);
     }
     detail::core_product_add(kmat.transpose(), u, dst, scratch);
   }
@@ -117,7 +117,7 @@ void GSympNet::sweep_module(ConstParams theta, Index k, const ForwardCache& cach
   // dst += Kᵀ y H:  dy = K (G_dst H);  y = a ⊙ σ(u):  du = dy ⊙ a ⊙ σ(1 − σ);
   // u = K src + b:  g_src += Kᵀ du.
   auto ghc = gh.middleCols(c0, n);
-  detail::columns_times(gdst, h.data() + c0, ghc);
+  kernels::columns_times(gdst, h.data() + c0, ghc);
   auto gyc = gy.middleCols(c0, n);
   detail::core_product_to(kmat, ghc, gyc, scratch);
   auto guc = gu.middleCols(c0, n);

@@ -2,8 +2,8 @@
 // M = J_θ, J_θ − LLᵀ or J_θ − γ̂ diag(0, I). Derivations: docs/derivations.md, "H-based fields".
 #include <cmath>
 
+#include "activation.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/activation.hpp"
 #include "csympnet/models/vector_field_models.hpp"
 #include "mlp_rop.hpp"
 #include "vector_field_checks.hpp"

@@ -2,13 +2,19 @@
 
 #include <vector>
 
+#include "../kernels/d1_sweeps.hpp"
+#include "../kernels/registry.hpp"
+#include "activation.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/activation.hpp"
-#include "la_scalar_sweep.hpp"
 
 namespace csympnet {
 
 namespace {
+
+// The d = 1 sweep kernels reproduce this model's own d = 1 loops, so their self-check comes from
+// here (la_d1_check.cpp), supplied to the registry before main().
+[[maybe_unused]] const bool kD1CheckSupplied =
+    kernels::supply_check(kernels::Family::kD1Sweeps, &detail::la_d1_kernels_agree);
 
 using ConstMatrixMap = Eigen::Map<const Matrix>;
 using MatrixMap = Eigen::Map<Matrix>;
@@ -113,7 +119,7 @@ std::size_t LaSympNet::cache_slots() const {
 void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
                      std::size_t slot0) const {
   if (d() == 1) {
-    flow_scalar(theta, q, p, h, cache, slot0);
+    flow_d1(theta, q, p, h, cache, slot0);
   } else {
     SymplecticCore::flow(theta, q, p, h, cache, slot0);
   }
@@ -122,45 +128,41 @@ void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, F
 void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
                               const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
   if (d() == 1) {
-    flow_backward_scalar(theta, cache, slot0, h, gq, gp, grad);
+    flow_backward_d1(theta, cache, slot0, h, gq, gp, grad);
   } else {
     flow_backward_batch(theta, cache, slot0, h, gq, gp, grad);
   }
 }
 
-detail::LaScalarCore LaSympNet::scalar_core() const {
+kernels::D1Core LaSympNet::d1_core() const {
   return {layers_, sublayers_, step_terms_ == 2, n_layer_params()};
 }
 
-void LaSympNet::flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                            ForwardCache* cache, std::size_t slot0) const {
+void LaSympNet::flow_d1(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                        ForwardCache* cache, std::size_t slot0) const {
   if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
-  if (scalar_simd_in_use() &&
-      detail::la_scalar_flow_simd(scalar_core(), theta.data(), q.data(), p.data(), h.data(),
-                                  q.cols(), cache != nullptr ? &cache->mats : nullptr, slot0)) {
+  if (kernels::d1_flow_simd(d1_core(), theta.data(), q.data(), p.data(), h.data(), q.cols(),
+                            cache != nullptr ? &cache->mats : nullptr, slot0)) {
     return;
   }
-  flow_scalar_portable(theta, q, p, h, cache, slot0);
+  flow_d1_rows(theta, q, p, h, cache, slot0);
 }
 
-void LaSympNet::flow_backward_scalar(ConstParams theta, const ForwardCache& cache,
-                                     std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
-                                     ParamsRef grad) const {
-  if (scalar_simd_in_use() &&
-      detail::la_scalar_backward_simd(scalar_core(), theta.data(), cache.mats, slot0, h.data(),
-                                      gq.cols(), gq.data(), gp.data(), grad.data())) {
+void LaSympNet::flow_backward_d1(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                                 const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
+  if (kernels::d1_backward_simd(d1_core(), theta.data(), cache.mats, slot0, h.data(), gq.cols(),
+                                gq.data(), gp.data(), grad.data())) {
     return;
   }
-  flow_backward_scalar_portable(theta, cache, slot0, h, gq, gp, grad);
+  flow_backward_d1_rows(theta, cache, slot0, h, gq, gp, grad);
 }
 
 // d = 1: each S is the scalar 2A and q, p are single rows of N values. The general path's
 // operations, per element and in the same order, without its d x d products and temporaries,
 // so the results are bit-identical to it.
-void LaSympNet::flow_scalar_portable(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                                     ForwardCache* cache, std::size_t slot0) const {
-  if (d() != 1)
-    throw Error("la::flow_scalar_portable: d = " + std::to_string(d()) + ", expected 1");
+void LaSympNet::flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                             ForwardCache* cache, std::size_t slot0) const {
+  if (d() != 1) throw Error("la::flow_d1_rows: d = " + std::to_string(d()) + ", expected 1");
   const Index n = q.cols();
   const auto hrow = ConstRowMap(h.data(), n).array();
   std::size_t slot = slot0;
@@ -196,11 +198,11 @@ void LaSympNet::flow_scalar_portable(ConstParams theta, Matrix& q, Matrix& p, co
   }
 }
 
-void LaSympNet::flow_backward_scalar_portable(ConstParams theta, const ForwardCache& cache,
-                                              std::size_t slot0, const Vector& h, Matrix& gq,
-                                              Matrix& gp, ParamsRef grad) const {
+void LaSympNet::flow_backward_d1_rows(ConstParams theta, const ForwardCache& cache,
+                                      std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
+                                      ParamsRef grad) const {
   if (d() != 1) {
-    throw Error("la::flow_backward_scalar_portable: d = " + std::to_string(d()) + ", expected 1");
+    throw Error("la::flow_backward_d1_rows: d = " + std::to_string(d()) + ", expected 1");
   }
   const Index n = gq.cols();
   const Index n_shears = layers_ * sublayers_;

@@ -5,11 +5,11 @@
 // (records in the cache, filled range by range) and when its parameter step runs.
 #include <vector>
 
-#include "column_scaling.hpp"
+#include "../kernels/column_scaling.hpp"
+#include "activation.hpp"
+#include "core_product.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/activation.hpp"
 #include "csympnet/models/la_sympnet.hpp"
-#include "exact_product.hpp"
 
 namespace csympnet {
 
@@ -79,9 +79,9 @@ void LaSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool
 bool LaSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const {
   if (d() == 1 || !ranges_tile(n, ranges)) return false;
   // The sweeps' only products with the columns as their n: S X (forward) and S G (backward).
-  if (!detail::exact_product_covers(d(), d(), n)) return false;
+  if (!kernels::product_kernel_covers(d(), d(), n)) return false;
   for (const Columns& c : ranges) {
-    if (!detail::exact_product_covers(d(), d(), c.size())) return false;
+    if (!kernels::product_kernel_covers(d(), d(), c.size())) return false;
   }
   return true;
 }
@@ -112,14 +112,14 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
       const bool kick = i % 2 == 0;
       const auto src = (kick ? q : p).middleCols(c0, n);
       auto dst = (kick ? p : q).middleCols(c0, n);
-      if (cache != nullptr) detail::copy_columns(src, cache->mats[slot++].middleCols(c0, n));
+      if (cache != nullptr) kernels::copy_columns(src, cache->mats[slot++].middleCols(c0, n));
       symmetric_from(theta, off, dd, s);
       const double* tau = unit_step_columns(theta, shear_coef(k, i), h, cols, tau_buf);
       detail::core_product_add_scaled(s, src, tau, dst,
                                       scratch);  // kick p += h S q / drift q += h S p
     }
-    detail::add_outer(theta.data() + off, h.data() + c0, p.middleCols(c0, n));  // p += h b_p
-    detail::add_outer(theta.data() + off + dd, h.data() + c0, q.middleCols(c0, n));
+    kernels::add_outer(theta.data() + off, h.data() + c0, p.middleCols(c0, n));  // p += h b_p
+    kernels::add_outer(theta.data() + off + dd, h.data() + c0, q.middleCols(c0, n));
     if (k + 1 < layers_) {
       const bool kick = k % 2 == 0;
       const auto src = (kick ? q : p).middleCols(c0, n);
@@ -130,10 +130,10 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
       if (cache != nullptr) {
         auto sig = cache->mats[slot++].middleCols(c0, n);
         sigmoid_to(src, sig);
-        detail::add_columns_times_scaled(sig, a.data(), tau, dst);
+        kernels::add_columns_times_scaled(sig, a.data(), tau, dst);
       } else {
         sigmoid_into(src, sig_local);
-        detail::add_columns_times_scaled(sig_local, a.data(), tau, dst);
+        kernels::add_columns_times_scaled(sig_local, a.data(), tau, dst);
       }
     }
   }
@@ -160,7 +160,7 @@ void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const ForwardCache&
   Vector tau_buf;
   const Index coef = act ? act_coef(u.k) : shear_coef(u.k, u.i);
   auto gh = out.gh->middleCols(c0, n);
-  detail::columns_times(gdst, unit_step_columns(theta, coef, h, cols, tau_buf), gh);
+  kernels::columns_times(gdst, unit_step_columns(theta, coef, h, cols, tau_buf), gh);
   if (act) {
     // dst += h a ⊙ σ(src):  g_src += h a ⊙ σ' ⊙ g_dst.
     const auto sig = cache.mats[u.slot].middleCols(c0, n);

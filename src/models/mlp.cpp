@@ -4,8 +4,8 @@
 #include <string>
 #include <utility>
 
+#include "activation.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/activation.hpp"
 #include "mlp_rop.hpp"
 
 namespace csympnet {

@@ -2,13 +2,13 @@
 // expressions they replace, bit for bit, on every column count and row count around the
 // kernels' registers (8 rows), for whole matrices and for blocks of columns; and the kernels
 // must run where AVX-512 does, or the comparisons say nothing about them.
-#include "../src/models/column_scaling.hpp"
+#include "../src/kernels/column_scaling.hpp"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "../src/models/exact_product.hpp"
+#include "../src/kernels/product.hpp"
 #include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
@@ -26,44 +26,44 @@ TEST(ColumnScaling, EqualsTheBroadcastExpressions) {
       const Matrix start = random_matrix(gen, m, n + 4);
       // Whole matrices.
       Matrix mine(m, n + 4);
-      detail::columns_times(x, h.data(), mine);
+      kernels::columns_times(x, h.data(), mine);
       EXPECT_TRUE(same_bits(Matrix((x.array().rowwise() * h.transpose().array()).matrix()), mine));
       mine = x;
-      detail::scale_columns(mine, h.data());
+      kernels::scale_columns(mine, h.data());
       EXPECT_TRUE(same_bits(Matrix((x.array().rowwise() * h.transpose().array()).matrix()), mine));
-      detail::columns_times_scaled(x, a.data(), h.data(), mine);
+      kernels::columns_times_scaled(x, a.data(), h.data(), mine);
       Matrix ref = ((x.array().colwise() * a.array()).rowwise() * h.transpose().array()).matrix();
       EXPECT_TRUE(same_bits(ref, mine));
       mine = start;
-      detail::add_columns_times_scaled(x, a.data(), h.data(), mine);
+      kernels::add_columns_times_scaled(x, a.data(), h.data(), mine);
       ref = start;
       ref.array() += (x.array().colwise() * a.array()).rowwise() * h.transpose().array();
       EXPECT_TRUE(same_bits(ref, mine));
       mine = start;
-      detail::add_outer(a.data(), h.data(), mine);
+      kernels::add_outer(a.data(), h.data(), mine);
       ref = start;
       ref.noalias() += a * h.transpose();
       EXPECT_TRUE(same_bits(ref, mine));
       mine = start;
-      detail::add_outer(a.data(), h.data() + 3, mine.middleCols(3, n));
+      kernels::add_outer(a.data(), h.data() + 3, mine.middleCols(3, n));
       ref = start;
       ref.middleCols(3, n).noalias() += a * h.segment(3, n).transpose();
       EXPECT_TRUE(same_bits(ref, mine));
       mine = start;
-      detail::copy_columns(x.middleCols(1, n), mine.middleCols(2, n));
+      kernels::copy_columns(x.middleCols(1, n), mine.middleCols(2, n));
       ref = start;
       ref.middleCols(2, n) = x.middleCols(1, n);
       EXPECT_TRUE(same_bits(ref, mine));
       // Blocks of columns, as the column-split passes use them; the columns around stay.
       mine = start;
-      detail::add_columns_times_scaled(x.middleCols(2, n), a.data(), h.data() + 2,
-                                       mine.middleCols(2, n));
+      kernels::add_columns_times_scaled(x.middleCols(2, n), a.data(), h.data() + 2,
+                                        mine.middleCols(2, n));
       ref = start;
       ref.middleCols(2, n).array() += (x.middleCols(2, n).array().colwise() * a.array()).rowwise() *
                                       h.segment(2, n).transpose().array();
       EXPECT_TRUE(same_bits(ref, mine));
       mine = start;
-      detail::columns_times(x.middleCols(1, n), h.data() + 1, mine.middleCols(1, n));
+      kernels::columns_times(x.middleCols(1, n), h.data() + 1, mine.middleCols(1, n));
       ref = start;
       ref.middleCols(1, n) =
           (x.middleCols(1, n).array().rowwise() * h.segment(1, n).transpose().array()).matrix();
@@ -73,12 +73,12 @@ TEST(ColumnScaling, EqualsTheBroadcastExpressions) {
 }
 
 TEST(ColumnScaling, KernelsRunWhereTheProductKernelsRunAvx512) {
-  if (std::string(detail::exact_product_isa()) != "avx512") GTEST_SKIP() << "no AVX-512 here";
+  if (std::string(kernels::product_kernel_isa()) != "avx512") GTEST_SKIP() << "no AVX-512 here";
   const double x[3] = {1.0, 2.0, 3.0}, h[1] = {0.5};
   double out[3];
-  EXPECT_TRUE(detail::columns_times_simd(3, 1, x, h, out));
-  EXPECT_TRUE(detail::columns_times_scaled_simd(3, 1, x, x, h, out, true));
-  EXPECT_TRUE(detail::add_outer_simd(3, 1, x, h, out));
+  EXPECT_TRUE(kernels::columns_times_simd(3, 1, x, h, out));
+  EXPECT_TRUE(kernels::columns_times_scaled_simd(3, 1, x, x, h, out, true));
+  EXPECT_TRUE(kernels::add_outer_simd(3, 1, x, h, out));
 }
 
 }  // namespace

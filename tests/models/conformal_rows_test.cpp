@@ -7,7 +7,7 @@
 #include <cstring>
 #include <random>
 
-#include "../src/models/conformal_rows.hpp"
+#include "../src/kernels/conformal_rows.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
@@ -30,7 +30,7 @@ TEST(ConformalRows, KernelsMatchTheScalarFormulas) {
     // Outputs start as a sentinel one past the batch, which the kernels must leave alone.
     const Matrix sentinel = Matrix::Constant(1, n + 1, -7.0);
     Matrix q = sentinel, p = sentinel, raw = sentinel;
-    if (!detail::split_scaled_rows_simd(z.data(), n, a.data(), q.data(), p.data(), raw.data())) {
+    if (!kernels::split_scaled_rows_simd(z.data(), n, a.data(), q.data(), p.data(), raw.data())) {
       EXPECT_TRUE(same_bits(q, sentinel) && same_bits(p, sentinel) && same_bits(raw, sentinel));
       GTEST_SKIP() << "the AVX-512 row kernels do not run on this machine";
     }
@@ -45,13 +45,13 @@ TEST(ConformalRows, KernelsMatchTheScalarFormulas) {
     EXPECT_TRUE(same_bits(raw, raw_ref));
     Matrix p2 = sentinel, q2 = sentinel;
     ASSERT_TRUE(
-        detail::split_scaled_rows_simd(z.data(), n, a.data(), q2.data(), p2.data(), nullptr));
+        kernels::split_scaled_rows_simd(z.data(), n, a.data(), q2.data(), p2.data(), nullptr));
     EXPECT_TRUE(same_bits(q2, q_ref));
     EXPECT_TRUE(same_bits(p2, p_ref));
 
     Matrix out = Matrix::Constant(2, n + 1, -7.0);
     Matrix out_ref = out;
-    ASSERT_TRUE(detail::join_scaled_rows_simd(q.data(), raw.data(), a.data(), n, out.data()));
+    ASSERT_TRUE(kernels::join_scaled_rows_simd(q.data(), raw.data(), a.data(), n, out.data()));
     for (Index j = 0; j < n; ++j) {
       out_ref(0, j) = q(0, j);
       out_ref(1, j) = raw(0, j) * a(0, j);
@@ -61,8 +61,8 @@ TEST(ConformalRows, KernelsMatchTheScalarFormulas) {
     const Matrix p_core = random_matrix(1, n, gen), gp = random_matrix(1, n, gen);
     const Matrix p_in = random_matrix(1, n, gen), h = random_matrix(1, n, gen);
     Matrix terms = sentinel, terms_ref = sentinel;
-    ASSERT_TRUE(detail::damping_terms_simd(z.data(), p_core.data(), gp.data(), p_in.data(),
-                                           h.data(), a.data(), n, terms.data()));
+    ASSERT_TRUE(kernels::damping_terms_simd(z.data(), p_core.data(), gp.data(), p_in.data(),
+                                            h.data(), a.data(), n, terms.data()));
     for (Index j = 0; j < n; ++j) {
       const double grad_a = z(1, j) * p_core(0, j) + gp(0, j) * p_in(0, j);
       terms_ref(0, j) = grad_a * h(0, j) * a(0, j);

@@ -10,8 +10,8 @@
 #include <memory>
 #include <random>
 
-#include "../src/models/exact_product.hpp"
-#include "csympnet/models/activation.hpp"
+#include "../src/models/activation.hpp"
+#include "../src/models/core_product.hpp"
 #include "csympnet/models/csympnet_id.hpp"
 #include "csympnet/models/g_sympnet.hpp"
 #include "csympnet/models/la_sympnet.hpp"
@@ -304,7 +304,7 @@ TEST(CoreColumns, SplitPassesEqualTheSerialPasses) {
     }
   }
   // Where the exact kernels run, most of these cases split (all but d < 8 and tiny ranges).
-  if (std::string(detail::exact_product_isa()) != "eigen") {
+  if (std::string(kernels::product_kernel_isa()) != "portable") {
     EXPECT_GE(compared, 120);
   }
 }
@@ -315,7 +315,7 @@ TEST(CoreColumns, SplitPassesEqualTheSerialPasses) {
 TEST(CoreColumns, PresetCoresSplitWhereTheKernelsRun) {
   const CSympNetId s1(std::make_unique<LaSympNet>(1, 5, 20));
   EXPECT_FALSE(s1.splits(80, column_ranges(80, 2)));
-  if (std::string(detail::exact_product_isa()) == "eigen") GTEST_SKIP() << "no exact kernels";
+  if (std::string(kernels::product_kernel_isa()) == "portable") GTEST_SKIP() << "no exact kernels";
   const CSympNetId s2(std::make_unique<LaSympNet>(10, 4, 10));
   const CSympNetId s3(std::make_unique<GSympNet>(10, 7, 50));
   const CSympNetId s2_100(std::make_unique<LaSympNet>(100, 4, 4));

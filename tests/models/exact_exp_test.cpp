@@ -1,5 +1,5 @@
-// scaled_exp_simd (src/models/exact_exp.cpp) must give, bit for bit, what the portable build's
-// Eigen expression `(c * h.array()).exp()` gives: on every batch size from 1 to 100 (the
+// scaled_exp_simd (src/kernels/scaled_exp_avx512.cpp) must give, bit for bit, what the portable
+// build's Eigen expression `(c * h.array()).exp()` gives: on every batch size from 1 to 100 (the
 // packet pairs and the odd last element), at arguments of both signs, up to and past the
 // ±700 bounds where lanes are handed to Eigen's routine, at ±0, ±∞ and NaN. On machines or
 // builds where the kernel does not run, it must say so and write nothing.
@@ -9,9 +9,9 @@
 #include <limits>
 #include <random>
 
-#include "../src/models/exact_exp.hpp"
-#include "../src/models/exact_product.hpp"
-#include "csympnet/models/activation.hpp"
+#include "../src/kernels/product.hpp"
+#include "../src/kernels/scaled_exp.hpp"
+#include "../src/models/activation.hpp"
 
 namespace csympnet::testing {
 namespace {
@@ -22,7 +22,7 @@ Vector eigen_exp(double c, const Vector& h) {
 
 void expect_same(double c, const Vector& h) {
   Vector out = Vector::Constant(h.size(), -1.0);
-  if (!detail::scaled_exp_simd(c, h.data(), out.data(), h.size())) {
+  if (!kernels::scaled_exp_simd(c, h.data(), out.data(), h.size())) {
     EXPECT_TRUE((out.array() == -1.0).all()) << "a declining kernel wrote output";
     return;
   }
@@ -72,13 +72,13 @@ TEST(ExactExp, MatchesEigenAtTheBoundsAndSpecialValues) {
 
 // The comparisons above pass vacuously when a kernel declines. Where the product kernels run
 // AVX-512 (so the build is the portable one and the CPU has it), the exp and σ kernels, which
-// share their Cephes exp (exact_simd.hpp), must run too, and so pass their self-checks.
+// share their Cephes exp (src/kernels/sse2_order.hpp), must run too, and so pass their self-checks.
 TEST(ExactExp, KernelsRunWhereTheProductKernelsDo) {
-  if (std::string(detail::exact_product_isa()) != "avx512") GTEST_SKIP() << "no AVX-512 here";
+  if (std::string(kernels::product_kernel_isa()) != "avx512") GTEST_SKIP() << "no AVX-512 here";
   const double h[3] = {0.1, -2.0, 3.5};
   double out[3];
-  EXPECT_TRUE(detail::scaled_exp_simd(-0.5, h, out, 3));
-  EXPECT_TRUE(detail::sigmoid_simd(h, out, 3));
+  EXPECT_TRUE(kernels::scaled_exp_simd(-0.5, h, out, 3));
+  EXPECT_TRUE(kernels::sigmoid_simd(h, out, 3));
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// The SIMD kernels of the SympNet cores (src/models/exact_product.cpp, exact_sigmoid.cpp) must
+// The SIMD kernels of the SympNet cores (src/kernels/product*.cpp, sigmoid_avx512.cpp) must
 // give Eigen's own results to the bit, so that optimised training reproduces earlier reports.
 // Compared here on random operands of many shapes, every operand layout and every epilogue,
 // including the shapes the presets use; on machines or builds where the kernels decline, the
@@ -12,8 +12,9 @@
 #include <string>
 #include <utility>
 
-#include "../src/models/exact_product.hpp"
-#include "csympnet/models/activation.hpp"
+#include "../src/kernels/targets.hpp"
+#include "../src/models/activation.hpp"
+#include "../src/models/core_product.hpp"
 #include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
@@ -94,10 +95,9 @@ TEST(ExactProduct, EpiloguesMatchEigenToTheBit) {
 }
 
 TEST(ExactProduct, ReportsWhatRuns) {
-  const std::string isa = detail::exact_product_isa();
-  EXPECT_TRUE(isa == "avx512" || isa == "avx" || isa == "eigen") << isa;
-  __builtin_cpu_init();
-  if (isa != "eigen" && __builtin_cpu_supports("avx512f")) {
+  const std::string isa = kernels::product_kernel_isa();
+  EXPECT_TRUE(isa == "avx512" || isa == "avx" || isa == "portable") << isa;
+  if (isa != "portable" && kernels::cpu().avx512f) {
     EXPECT_EQ(isa, "avx512");  // where the kernels are built, AVX-512 passes its self-check
   }
 }
@@ -112,16 +112,17 @@ struct RawProduct {
 };
 
 bool run_raw(const char* isa, const RawProduct& p, bool by_rows, Index j0, Index n,
-             detail::Epilogue mode, Matrix& c) {
+             kernels::Epilogue mode, Matrix& c) {
   const Index m = p.a.rows(), k = p.a.cols(), ldb = p.bt.rows();
   const double* b = by_rows ? p.bt.data() + j0 : p.b.data() + j0 * k;
   double* cj = c.data() + j0 * m;
   const Index bl = by_rows ? ldb : 1, bj = by_rows ? 1 : k;
   if (isa == nullptr) {
-    return detail::exact_product(m, n, k, p.a.data(), m, b, bl, bj, cj, mode, p.h.data() + j0);
+    return kernels::sse2_order_product(m, n, k, p.a.data(), m, b, bl, bj, cj, mode,
+                                       p.h.data() + j0);
   }
-  return detail::exact_product_using(isa, m, n, k, p.a.data(), m, b, bl, bj, cj, mode,
-                                     p.h.data() + j0);
+  return kernels::product_kernel_using(isa, m, n, k, p.a.data(), m, b, bl, bj, cj, mode,
+                                       p.h.data() + j0);
 }
 
 // Every kernel the machine can run, forced (not only the one chosen), on shapes that reach each
@@ -147,7 +148,7 @@ TEST(ExactProduct, EveryKernelAndTileMatchesEigenToTheBit) {
           for (int e = 0; e < 3; ++e) {
             for (const bool by_rows : {false, true}) {
               Matrix mine = d0;
-              if (!run_raw(isa, p, by_rows, 0, n, static_cast<detail::Epilogue>(e), mine)) break;
+              if (!run_raw(isa, p, by_rows, 0, n, static_cast<kernels::Epilogue>(e), mine)) break;
               ran_avx512 += std::string(isa) == "avx512";
               // The raw products claim Eigen's own `P = A * B` order (no lazy product here).
               Matrix eigen_t(m, n);
@@ -161,7 +162,7 @@ TEST(ExactProduct, EveryKernelAndTileMatchesEigenToTheBit) {
       }
     }
   }
-  if (std::string(detail::exact_product_isa()) == "avx512") {
+  if (std::string(kernels::product_kernel_isa()) == "avx512") {
     EXPECT_GT(ran_avx512, 0);
   }
 }
@@ -188,7 +189,7 @@ TEST(ExactProduct, ColumnRangesGiveTheBitsOfTheWhole) {
         for (const bool by_rows : {false, true}) {
           SCOPED_TRACE(::testing::Message() << s.m << " x " << s.k << " x " << s.n << " split at "
                                             << split << " epilogue " << e << " Bᵀ " << by_rows);
-          const auto mode = static_cast<detail::Epilogue>(e);
+          const auto mode = static_cast<kernels::Epilogue>(e);
           Matrix whole = d0, parts = d0;
           const bool ran = run_raw(nullptr, p, by_rows, 0, s.n, mode, whole);
           const bool ran1 = run_raw(nullptr, p, by_rows, 0, split, mode, parts);

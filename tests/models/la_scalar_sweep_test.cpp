@@ -1,4 +1,4 @@
-// The AVX-512 d = 1 LA-SympNet sweeps (src/models/la_scalar_sweep.cpp) must give the portable
+// The AVX-512 d = 1 LA-SympNet sweeps (src/kernels/d1_*_avx512.cpp) must give the portable
 // d = 1 code's results to the bit (q, p, everything recorded in the cache, the input gradients
 // and dL/dθ), so that training with them reproduces earlier reports. Compared at random
 // parameters and batch sizes on both sides of the kernels' 80-sample blocks, with and without
@@ -10,8 +10,10 @@
 #include <limits>
 #include <random>
 
-#include "../src/models/exact_product.hpp"
-#include "../src/models/la_scalar_sweep.hpp"
+#include "../src/kernels/d1_sweeps.hpp"
+#include "../src/kernels/product.hpp"
+#include "../src/kernels/registry.hpp"
+#include "../src/kernels/targets.hpp"
 #include "csympnet/models/la_sympnet.hpp"
 #include "support/same_bits.hpp"
 
@@ -85,10 +87,13 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
 
   Matrix q_ref = pr.q, p_ref = pr.p;
   ForwardCache cache_ref;
-  net.flow_scalar_portable(pr.theta, q_ref, p_ref, pr.h, &cache_ref, kSlot0);
   Matrix gq_ref = pr.gq, gp_ref = pr.gp;
   Vector grad_ref = pr.grad0;
-  net.flow_backward_scalar_portable(pr.theta, cache_ref, kSlot0, pr.h, gq_ref, gp_ref, grad_ref);
+  {
+    const kernels::ForcePortable portable;  // the d = 1 loops in Eigen expressions
+    net.flow(pr.theta, q_ref, p_ref, pr.h, &cache_ref, kSlot0);
+    net.flow_backward(pr.theta, cache_ref, kSlot0, pr.h, gq_ref, gp_ref, grad_ref);
+  }
   if (!specials) {
     ASSERT_TRUE(q_ref.allFinite() && p_ref.allFinite() && grad_ref.allFinite());
   }
@@ -119,31 +124,30 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
     EXPECT_TRUE(same_bits(p2, p_ref));
   }
 
-  if (!detail::la_scalar_simd_supported()) return;
-  const detail::LaScalarCore core{c.layers, c.sublayers, c.step_terms == 2,
-                                  c.layers * (c.sublayers + 3) - 1};
+  if (!kernels::use(kernels::Family::kD1Sweeps)) return;
+  const kernels::D1Core core{c.layers, c.sublayers, c.step_terms == 2,
+                             c.layers * (c.sublayers + 3) - 1};
   Matrix q = pr.q, p = pr.p, gq = pr.gq, gp = pr.gp;
   Vector grad = pr.grad0;
   ForwardCache cache;
   cache.mats.resize(kSlot0 + net.cache_slots());
-  ASSERT_TRUE(detail::la_scalar_flow_simd(core, pr.theta.data(), q.data(), p.data(), pr.h.data(),
-                                          c.n, &cache.mats, kSlot0));
+  ASSERT_TRUE(kernels::d1_flow_simd(core, pr.theta.data(), q.data(), p.data(), pr.h.data(), c.n,
+                                    &cache.mats, kSlot0));
   EXPECT_TRUE(same_bits(q, q_ref));
   EXPECT_TRUE(same_bits(p, p_ref));
   expect_cache(cache);
-  ASSERT_TRUE(detail::la_scalar_backward_simd(core, pr.theta.data(), cache.mats, kSlot0,
-                                              pr.h.data(), c.n, gq.data(), gp.data(), grad.data()));
+  ASSERT_TRUE(kernels::d1_backward_simd(core, pr.theta.data(), cache.mats, kSlot0, pr.h.data(), c.n,
+                                        gq.data(), gp.data(), grad.data()));
   EXPECT_TRUE(same_bits(gq, gq_ref));
   EXPECT_TRUE(same_bits(gp, gp_ref));
   EXPECT_TRUE(same_bits(grad, grad_ref));
 }
 
 TEST(LaScalarSweep, RunsWhereTheProductKernelsRun) {
-  // Both need AVX-512F and the portable (SSE2, no FMA) build; the sweeps must also have passed
-  // their own check, or flow() would silently fall back to the portable code.
-  if (std::string(detail::exact_product_isa()) == "avx512") {
-    EXPECT_TRUE(detail::la_scalar_simd_supported());
-    EXPECT_TRUE(LaSympNet::scalar_simd_in_use());
+  // Both need AVX-512F and the portable (SSE2, no FMA) build; the sweeps (AVX-512VL too) must
+  // also have passed their own check, or flow() would silently fall back to the portable code.
+  if (std::string(kernels::product_kernel_isa()) == "avx512" && kernels::cpu().avx512vl) {
+    EXPECT_TRUE(kernels::use(kernels::Family::kD1Sweeps));
   }
 }
 

@@ -1,8 +1,9 @@
-// AdamW::step()'s AVX-512 kernel (src/train/adamw.cpp) must give step_portable()'s results (the
-// Eigen expressions) to the bit: θ, and the moments through later steps. Compared over every
-// length 1 … 250 (whole registers and masked tails), with the damping parameter excluded from
-// the decay at positions across lane boundaries, and on edge values: zeros of both signs,
-// denormals, huge and tiny gradients, and a zero gradient history (√v = 0, the eps guard).
+// AdamW::step()'s AVX-512 kernel (src/kernels/adamw_update.cpp) must give the portable update's
+// results (the Eigen expressions, forced by kernels::ForcePortable) to the bit: θ, and the moments
+// through later steps. Compared over every length 1 … 250 (whole registers and masked tails), with
+// the damping parameter excluded from the decay at positions across lane boundaries, and on edge
+// values: zeros of both signs, denormals, huge and tiny gradients, and a zero gradient history (√v
+// = 0, the eps guard).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -11,7 +12,8 @@
 #include <random>
 #include <string>
 
-#include "../src/models/exact_product.hpp"
+#include "../src/kernels/product.hpp"
+#include "../src/kernels/registry.hpp"
 #include "csympnet/train/adamw.hpp"
 #include "support/same_bits.hpp"
 
@@ -39,7 +41,10 @@ void expect_same_steps(Index n, const AdamWOptions& o, std::optional<Index> damp
       if (step == 0) theta_k(n - 1) = theta_p(n - 1) = -0.0;
     }
     kernel.step(theta_k, g);
-    portable.step_portable(theta_p, g);
+    {
+      const kernels::ForcePortable force;  // Eigen's expressions
+      portable.step(theta_p, g);
+    }
     ASSERT_TRUE(same_bits(theta_k, theta_p)) << "step " << step;
   }
   EXPECT_EQ(kernel.steps_taken(), portable.steps_taken());
@@ -48,8 +53,8 @@ void expect_same_steps(Index n, const AdamWOptions& o, std::optional<Index> damp
 TEST(AdamWKernel, RunsOnAvx512Machines) {
   // The kernel needs AVX-512F and the portable (SSE2, no FMA) build, as the product kernels
   // do; there it must also have passed its own check, or step() would silently fall back.
-  if (std::string(detail::exact_product_isa()) == "avx512") {
-    EXPECT_TRUE(AdamW::simd_in_use());
+  if (std::string(kernels::product_kernel_isa()) == "avx512") {
+    EXPECT_TRUE(kernels::use(kernels::Family::kAdamW));
   }
 }
 
@@ -93,7 +98,10 @@ TEST(AdamWKernel, ZeroGradientsKeepTheEpsGuard) {
   const Vector g = Vector::Zero(19);
   for (int step = 0; step < 3; ++step) {
     kernel.step(theta_k, g);
-    portable.step_portable(theta_p, g);
+    {
+      const kernels::ForcePortable force;  // Eigen's expressions
+      portable.step(theta_p, g);
+    }
     ASSERT_TRUE(same_bits(theta_k, theta_p));
   }
 }

@@ -5,7 +5,7 @@
 #include <memory>
 #include <random>
 
-#include "../src/models/exact_product.hpp"
+#include "../src/kernels/product.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/models/csympnet_id.hpp"
@@ -19,7 +19,7 @@ namespace csympnet::testing {
 namespace {
 
 bool kernels_run() {
-  return std::string(detail::exact_product_isa()) != "eigen";
+  return std::string(kernels::product_kernel_isa()) != "portable";
 }
 
 TEST(SplitLoss, EqualsTheSerialLossAndGradientToTheBit) {

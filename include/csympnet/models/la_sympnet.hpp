@@ -27,8 +27,11 @@
 
 namespace csympnet {
 
+namespace kernels {
+struct D1Core;  // src/kernels/d1_sweeps.hpp
+}
 namespace detail {
-struct LaScalarCore;  // src/models/la_scalar_sweep.hpp
+bool la_d1_kernels_agree();  // src/models/la_d1_check.cpp
 }
 
 class LaSympNet final : public SymplecticCore {
@@ -44,7 +47,7 @@ class LaSympNet final : public SymplecticCore {
   nlohmann::json core_spec() const override;
   std::size_t cache_slots() const override;
 
-  // d = 1 runs single-row sweeps (below); d > 1 the column passes of la_sympnet_sweeps.cpp.
+  // d = 1 runs single-row sweeps (flow_d1); d > 1 the column passes of la_sympnet_sweeps.cpp.
   void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
             std::size_t slot0) const override;
   void flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
@@ -68,26 +71,21 @@ class LaSympNet final : public SymplecticCore {
   Index sublayers() const { return sublayers_; }
   Index step_terms() const { return step_terms_; }
 
-  // Whether flow() and flow_backward() run the AVX-512 kernels at d = 1: the machine has
-  // AVX-512F, the build is the portable one, and the kernels reproduced the portable code on
-  // random values (checked once per process).
-  static bool scalar_simd_in_use();
-  // flow() and flow_backward() for d = 1 without the AVX-512 kernels of
-  // src/models/la_scalar_sweep.cpp: what runs where they do not, and the reference they must
-  // equal to the bit (tests/models/la_scalar_sweep_test.cpp). Throw Error unless d = 1.
-  void flow_scalar_portable(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                            ForwardCache* cache, std::size_t slot0) const;
-  void flow_backward_scalar_portable(ConstParams theta, const ForwardCache& cache,
-                                     std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
-                                     ParamsRef grad) const;
-
  private:
-  // flow() and flow_backward() for d = 1: the kernels where they run, else the portable code.
-  void flow_scalar(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-                   std::size_t slot0) const;
-  void flow_backward_scalar(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                            const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
-  detail::LaScalarCore scalar_core() const;
+  // flow() and flow_backward() for d = 1: the d = 1 sweep kernels (src/kernels/d1_sweeps.hpp)
+  // where they run, else the single-row loops below.
+  void flow_d1(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
+               std::size_t slot0) const;
+  void flow_backward_d1(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                        const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  // The d = 1 loops in Eigen expressions, what runs where the kernels do not, and the reference
+  // of their self-check (la_d1_check.cpp).
+  void flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
+                    std::size_t slot0) const;
+  void flow_backward_d1_rows(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+                             const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  kernels::D1Core d1_core() const;
+  friend bool detail::la_d1_kernels_agree();
 
   // The backward sweep at d > 1 as a sequence of units (la_sympnet_sweeps.cpp): for k = L−1
   // … 0, the activation module after linear module k (k < L − 1), the biases of module k, then

@@ -31,14 +31,9 @@ class AdamW {
  public:
   // `damping_index`: position of β in θ, excluded from decay when !decay_damping.
   AdamW(Index n_params, AdamWOptions options, std::optional<Index> damping_index = {});
-  // One update of theta in place with gradient g.
+  // One update of theta in place with gradient g (src/kernels/adamw_update.hpp: the same
+  // bits whether its AVX-512 kernel or the portable code runs).
   void step(ParamsRef theta, const Vector& g);
-  // step() through Eigen's expressions only: the reference that step()'s AVX-512 kernel
-  // reproduces to the bit (the same IEEE operations per element, in the same order).
-  void step_portable(ParamsRef theta, const Vector& g);
-  // Whether step() runs the AVX-512 kernel here (AVX-512F, the portable SSE2 build, and a
-  // once-per-process check against step_portable()).
-  static bool simd_in_use();
   long steps_taken() const { return t_; }
   // Changes the learning rate for the following steps (for schedules).
   void set_lr(double lr) { opt_.lr = lr; }

@@ -1,13 +1,13 @@
-// The AVX (256-bit) kernel of the exact-order products, for x86-64 machines without
-// AVX-512, and the SSE2 tail rows (exact_product_kernels.hpp). Every entry in the order stated
-// at the top of exact_product.cpp.
-#include "exact_simd.hpp"
+// The AVX (256-bit) kernel of the SSE2-order products, for x86-64 machines without
+// AVX-512, and the SSE2 tail rows (product_targets.hpp). Every entry in the order stated
+// at the top of product.cpp.
+#include "sse2_order.hpp"
 //
-#include "exact_product_kernels.hpp"
+#include "product_targets.hpp"
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 namespace {
 
@@ -134,6 +134,6 @@ __attribute__((target("avx"))) void product_avx(const ProductArgs& p) {
   if (p.m - m4 == 2) tail_rows_sse2(p);
 }
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels
 
-#endif  // CSYMPNET_EXACT_SIMD
+#endif  // CSYMPNET_SSE2_ORDER_KERNELS

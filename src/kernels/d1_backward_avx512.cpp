@@ -1,25 +1,26 @@
-// The AVX-512 d = 1 LA-SympNet backward sweep of la_scalar_sweep.hpp.
+// The AVX-512 d = 1 LA-SympNet backward sweep of d1_sweeps.hpp.
 //
 // Samples go in blocks of 40 (five registers per row): the block's gradients of q and p and its
 // steps h stay in registers through every unit. Blocks run first to last, since the parameter
 // gradients' running sums (column_sums.hpp) continue from one block to the next in sample order.
 // Forty rather than eighty samples: with h in registers too, eighty would not fit the 32
 // registers, and the sums' buffer of 48 columns of 40 stays in the L1 cache.
-#include "la_scalar_sweep.hpp"
+#include "d1_sweeps.hpp"
 
 #include "column_sums.hpp"
+#include "registry.hpp"
 
-#include "exact_simd.hpp"
+#include "sse2_order.hpp"
 
-#include "la_scalar_block.hpp"  // after exact_simd.hpp, whose CSYMPNET_EXACT_SIMD it needs
+#include "d1_block.hpp"  // after sse2_order.hpp, whose CSYMPNET_SSE2_ORDER_KERNELS it needs
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
 namespace {
 
-using namespace la_block;
+using namespace d1_block;
 
 constexpr Index kBlock = kColumnSumsBlock;           // samples per block
 constexpr int kRegs = static_cast<int>(kBlock / 8);  // registers per row
@@ -27,7 +28,7 @@ constexpr int kRegs = static_cast<int>(kBlock / 8);  // registers per row
 using ConstRowMap = Eigen::Map<const RowVector>;
 
 // Columns of the gradient sums: per module, its activation (if any), b_p, b_q, its shears.
-Index n_columns(const LaScalarCore& c) {
+Index n_columns(const D1Core& c) {
   return n_units(c) + 2 * c.layers;
 }
 
@@ -39,7 +40,7 @@ struct BackwardScratch {
   double* upstream = nullptr;
   std::unique_ptr<double[]> storage;
 
-  BackwardScratch(const LaScalarCore& core, Index n) : sums(n_columns(core)) {
+  BackwardScratch(const D1Core& core, Index n) : sums(n_columns(core)) {
     if (!core.poly) return;
     ld = (n + 7) / 8 * 8;
     storage.reset(new double[static_cast<std::size_t>(n_units(core) * ld)]);
@@ -92,11 +93,11 @@ __attribute__((target("avx512f,avx512vl"), always_inline)) inline void activatio
   }
 }
 
-// One block of la_scalar_backward_simd()'s sweep: samples [j0, j0 + cnt) of gq, gp; the
+// One block of d1_backward_simd()'s sweep: samples [j0, j0 + cnt) of gq, gp; the
 // products of every gradient column for these samples go to their running sums.
 template <bool kFull, bool kPoly>
 __attribute__((target("avx512f,avx512vl"))) void backward_block(
-    const LaScalarCore& core, const double* theta, const Matrix* rec, const double* h_row, Index j0,
+    const D1Core& core, const double* theta, const Matrix* rec, const double* h_row, Index j0,
     Index cnt, double* gq_row, double* gp_row, BackwardScratch& scratch) {
   const BlockOf<kFull, kPoly> b(h_row, j0, cnt);
   Regs<kRegs> gq, gp;
@@ -166,10 +167,17 @@ double poly_sum(const double* g, const double* x, const Vector& h2, Index n) {
 
 }  // namespace
 
-bool la_scalar_backward_simd(const LaScalarCore& core, const double* theta,
-                             const std::vector<Matrix>& mats, std::size_t slot0, const double* h,
-                             Index n, double* gq, double* gp, double* grad) {
-  if (n < 1 || !la_scalar_simd_supported()) return false;
+bool d1_backward_simd(const D1Core& core, const double* theta, const std::vector<Matrix>& mats,
+                      std::size_t slot0, const double* h, Index n, double* gq, double* gp,
+                      double* grad) {
+  if (n < 1 || !use(Family::kD1Sweeps)) return false;
+  return d1_backward_kernel(core, theta, mats, slot0, h, n, gq, gp, grad);
+}
+
+bool d1_backward_kernel(const D1Core& core, const double* theta, const std::vector<Matrix>& mats,
+                        std::size_t slot0, const double* h, Index n, double* gq, double* gp,
+                        double* grad) {
+  if (n < 1) return false;
   BackwardScratch scratch(core, n);
   const Matrix* rec = mats.data() + slot0;
   for (Index j0 = 0; j0 < n; j0 += kBlock) {
@@ -215,11 +223,16 @@ bool la_scalar_backward_simd(const LaScalarCore& core, const double* theta,
 
 #else
 
-bool la_scalar_backward_simd(const LaScalarCore&, const double*, const std::vector<Matrix>&,
-                             std::size_t, const double*, Index, double*, double*, double*) {
+bool d1_backward_simd(const D1Core&, const double*, const std::vector<Matrix>&, std::size_t,
+                      const double*, Index, double*, double*, double*) {
+  return false;
+}
+
+bool d1_backward_kernel(const D1Core&, const double*, const std::vector<Matrix>&, std::size_t,
+                        const double*, Index, double*, double*, double*) {
   return false;
 }
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,16 +1,16 @@
-// Internal to the exact-order products (exact_product.cpp): what the kernel files share.
-// exact_product_avx512.cpp holds the AVX-512 kernel, exact_product_avx.cpp the AVX one and
-// the SSE2 tail rows; exact_product.cpp checks and dispatches them. The order every kernel
-// reproduces is stated at the top of exact_product.cpp.
+// Internal to the SSE2-order products (product.cpp): what the kernel files share.
+// product_avx512.cpp holds the AVX-512 kernel, product_avx.cpp the AVX one and
+// the SSE2 tail rows; product.cpp checks and dispatches them. The order every kernel
+// reproduces is stated at the top of product.cpp.
 //
-// Include exact_simd.hpp before this file: its pragma keeps multiplies and adds separate.
+// Include sse2_order.hpp before this file: its pragma keeps multiplies and adds separate.
 #pragma once
 
-#include "exact_product.hpp"
+#include "product.hpp"
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 // One product's operands: A(i, l) = a[i + l*lda], B(l, j) = b[l*bl + j*bj], C(i, j) =
 // c[i + j*ldc], h_j = h[j] (any array of n doubles when the epilogue reads no h).
@@ -26,7 +26,7 @@ struct ProductArgs {
   const double* h;
 };
 
-// A kernel computes every entry of the product in the order of exact_product.cpp's top.
+// A kernel computes every entry of the product in the order of product.cpp's top.
 using ProductKernel = void (*)(const ProductArgs&);
 
 void product_avx512(const ProductArgs& p);
@@ -61,6 +61,6 @@ __attribute__((target("avx"), always_inline)) inline void put256(double* p, __m2
   }
 }
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels
 
-#endif  // CSYMPNET_EXACT_SIMD
+#endif  // CSYMPNET_SSE2_ORDER_KERNELS

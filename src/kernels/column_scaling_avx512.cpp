@@ -5,23 +5,19 @@
 // Why no masked tail: on Zen 4 a masked 512-bit store followed by a load of the next column,
 // whose bytes it spans, waits for the store to complete (measured alone, m = 10, n = 400: 3.7 µs
 // with masked tails, 0.6 µs without).
-#include "exact_simd.hpp"  // first: no FMA contraction in this file
+#include "sse2_order.hpp"  // first: no FMA contraction in this file
 
 #include "column_scaling.hpp"
 
-namespace csympnet::detail {
+#include <cstring>
 
-#ifdef CSYMPNET_EXACT_SIMD
+#include "registry.hpp"
+
+namespace csympnet::kernels {
+
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
 namespace {
-
-bool avx512() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") != 0;
-  }();
-  return has;
-}
 
 #define CSYMPNET_LANES __attribute__((target("avx512f"), always_inline)) static inline
 
@@ -141,21 +137,55 @@ __attribute__((target("avx512f"))) void outer_avx512(Index m, Index n, const dou
 
 }  // namespace
 
+// The kernels against the formulas of the Eigen expressions they replace (column_scaling.hpp),
+// element by element, for every row count up to two registers and a tail of each width.
+bool column_scaling_self_check() {
+  constexpr Index kM = 23, kN = 3;
+  double x[kM * kN], a[kM], h[kN], base[kM * kN];
+  for (Index i = 0; i < kM * kN; ++i) {
+    x[i] = 0.29 * static_cast<double>(i % 13) - 1.7;
+    base[i] = 0.5 - 0.037 * static_cast<double>(i % 17);
+  }
+  for (Index i = 0; i < kM; ++i) a[i] = 0.8 + 0.019 * static_cast<double>(i);
+  for (Index j = 0; j < kN; ++j) h[j] = 0.01 + 0.3 * static_cast<double>(j);
+  auto same = [](double u, double v) { return std::memcmp(&u, &v, sizeof(double)) == 0; };
+  for (Index m = 1; m <= kM; ++m) {
+    double t[kM * kN], s0[kM * kN], s1[kM * kN], o[kM * kN];
+    std::memcpy(s1, base, sizeof(base));
+    std::memcpy(o, base, sizeof(base));
+    times_avx512(m, kN, x, h, t);
+    times_scaled_avx512<false>(m, kN, x, a, h, s0);
+    times_scaled_avx512<true>(m, kN, x, a, h, s1);
+    outer_avx512(m, kN, a, h, o);
+    for (Index j = 0; j < kN; ++j) {
+      for (Index i = 0; i < m; ++i) {
+        const Index e = i + j * m;
+        const double scaled = (x[e] * a[i]) * h[j];
+        if (!same(t[e], x[e] * h[j]) || !same(s0[e], scaled) || !same(s1[e], base[e] + scaled) ||
+            !same(o[e], base[e] + h[j] * a[i])) {
+          return false;
+        }
+      }
+    }
+  }
+  return true;
+}
+
 bool add_outer_simd(Index m, Index n, const double* b, const double* h, double* out) {
-  if (!avx512()) return false;
+  if (!use(Family::kColumnScaling)) return false;
   outer_avx512(m, n, b, h, out);
   return true;
 }
 
 bool columns_times_simd(Index m, Index n, const double* x, const double* h, double* out) {
-  if (!avx512()) return false;
+  if (!use(Family::kColumnScaling)) return false;
   times_avx512(m, n, x, h, out);
   return true;
 }
 
 bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* a, const double* h,
                                double* out, bool accumulate) {
-  if (!avx512()) return false;
+  if (!use(Family::kColumnScaling)) return false;
   if (accumulate) {
     times_scaled_avx512<true>(m, n, x, a, h, out);
   } else {
@@ -165,6 +195,10 @@ bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* 
 }
 
 #else
+
+bool column_scaling_self_check() {
+  return false;
+}
 
 bool add_outer_simd(Index, Index, const double*, const double*, double*) {
   return false;
@@ -180,4 +214,4 @@ bool columns_times_scaled_simd(Index, Index, const double*, const double*, const
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,6 +1,6 @@
-// Internal to exact_product_avx512.cpp: its register tiles. Each computes its entries in the
-// order stated at the top of exact_product.cpp; the tiles differ only in which entries share
-// a register. Include after exact_simd.hpp (no FMA contraction).
+// Internal to product_avx512.cpp: its register tiles. Each computes its entries in the
+// order stated at the top of product.cpp; the tiles differ only in which entries share
+// a register. Include after sse2_order.hpp (no FMA contraction).
 //
 // Costs on AMD Zen 4, which runs a 512-bit operation as two 256-bit halves (1 multiply and
 // 1 add per cycle at 512 bits, 2 of each at 256 or 128 bits), measured on this project's
@@ -13,11 +13,11 @@
 //     stores, +3 as single doubles, +6 through `vmovhpd` stores (which take a pipe slot).
 #pragma once
 
-#include "exact_product_kernels.hpp"
+#include "product_targets.hpp"
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace csympnet::detail::tiles512 {
+namespace csympnet::kernels::tiles512 {
 
 #define CSYMPNET_AVX512_INLINE __attribute__((target("avx512f"), always_inline)) inline
 
@@ -339,6 +339,6 @@ CSYMPNET_AVX512_INLINE void tail_tile128(Index k, const double* at, Index lda, c
 
 #undef CSYMPNET_AVX512_INLINE
 
-}  // namespace csympnet::detail::tiles512
+}  // namespace csympnet::kernels::tiles512
 
-#endif  // CSYMPNET_EXACT_SIMD
+#endif  // CSYMPNET_SSE2_ORDER_KERNELS

@@ -1,9 +1,10 @@
-// Small helpers shared by the SympNet cores: the sigmoid activation and the per-column
-// step scaling through which h enters every increment.
+// Internal to src/models: small helpers shared by the SympNet cores (the sigmoid activation,
+// the per-column step scaling through which h enters every increment, the products).
 #pragma once
 
 #include <cmath>
 
+#include "../kernels/sigmoid.hpp"
 #include "csympnet/core/types.hpp"
 
 namespace csympnet {
@@ -17,14 +18,9 @@ inline double sigmoid(double x) {
 }
 
 namespace detail {
-// σ of the n contiguous values at x into out (storage of an Eigen Matrix), to the bit as the
-// Eigen path of sigmoid_into() computes them, with AVX-512 where the machine has it.
-// Returns false (writing nothing) when no such kernel runs here (src/models/exact_sigmoid.cpp).
-bool sigmoid_simd(const double* x, double* out, Index n);
-
-// Whether sigmoid_into() may hand x of type In to sigmoid_simd(): the kernel assumes Eigen's
-// linear traversal (packets from element 0, an odd last element alone), which Eigen uses when
-// x's *evaluator* allows linear access (matrices, maps, whole columns). The expression's own
+// Whether sigmoid_into() may hand x of type In to kernels::sigmoid_simd(): the kernel assumes
+// Eigen's linear traversal (packets from element 0, an odd last element alone), which Eigen uses
+// when x's *evaluator* allows linear access (matrices, maps, whole columns). The expression's own
 // Flags never carry LinearAccessBit, so they cannot be used for this test.
 template <typename In>
 constexpr bool sigmoid_kernel_applies() {
@@ -60,7 +56,7 @@ void sigmoid_to(const Eigen::MatrixBase<In>& x, const Eigen::MatrixBase<Out>& ou
       (kOutFlags & Eigen::DirectAccessBit) && !(kOutFlags & Eigen::RowMajorBit);
   if constexpr (detail::sigmoid_kernel_applies<In>() && kDirect) {
     if (detail::contiguous(x) && detail::contiguous(out) &&
-        detail::sigmoid_simd(xe.data(), out.data(), out.size())) {
+        kernels::sigmoid_simd(xe.data(), out.data(), out.size())) {
       return;
     }
   }

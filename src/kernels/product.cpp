@@ -1,4 +1,4 @@
-// The exact-order product kernels of exact_product.hpp.
+// The SSE2-order product kernels of product.hpp.
 //
 // The order, per entry C(i, j) of C = A B (k = inner dimension), that Eigen 3.4's GEMM uses
 // in the SSE2 build when its blocking does not split the inner dimension (kc >= k):
@@ -8,26 +8,27 @@
 //       for l = k8..k−1;  other columns: the plain running sum;
 //   * then C(i, j) = 0 + s (the destination is zeroed and the block added to it).
 // Odd m, a split inner dimension, lazy (tiny) products and builds whose Eigen uses other
-// packets or FMA are not covered: exact_product() returns false there.
+// packets or FMA are not covered: sse2_order_product() returns false there.
 //
 // An entry's arithmetic depends only on (i, l, m, k) and, for the two tail rows, on whether
 // its column lies before 4⌊n/4⌋; so a product computed as calls on column ranges split at a
 // multiple of 4 gives the same bits as one call. This file checks the kernels and picks one;
-// exact_product_avx512.cpp and exact_product_avx.cpp hold them.
-#include "exact_product.hpp"
+// product_avx512.cpp and product_avx.cpp hold them.
+#include "product.hpp"
 
 #include <cstring>
 #include <random>
 
-#include "exact_simd.hpp"
+#include "sse2_order.hpp"
 //
-#include "exact_product_kernels.hpp"
+#include "product_targets.hpp"
+#include "registry.hpp"
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 namespace {
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
 // Eigen blocks a product by its cache-size heuristic. Blocks of rows and columns in multiples
 // of its micro-tile (4 x 4) leave every entry's arithmetic as above; a split of the inner
@@ -38,7 +39,7 @@ bool eigen_order_is_known(Index m, Index n, Index k) {
   return kc >= k && (mc >= m || mc % 4 == 0) && (nc >= n || nc % 4 == 0);
 }
 
-// The shapes exact_product() hands to a kernel: Eigen's lazy product (tiny sizes), its GEMV
+// The shapes sse2_order_product() hands to a kernel: Eigen's lazy product (tiny sizes), its GEMV
 // fallbacks (a single row or column), odd row counts and blocked shapes follow other orders.
 // The kernels read B by columns (bl = 1) or by rows (bj = 1), as every Eigen operand is stored.
 bool covered(Index m, Index n, Index k, Index bl, Index bj) {
@@ -92,46 +93,33 @@ bool agrees_with_eigen(ProductKernel kernel) {
   return true;
 }
 
-bool supports(const char* isa) {
-  __builtin_cpu_init();
-  if (std::strcmp(isa, "avx512") == 0) return __builtin_cpu_supports("avx512f");
-  if (std::strcmp(isa, "avx") == 0) return __builtin_cpu_supports("avx");
-  return false;
-}
-
 ProductKernel kernel_named(const char* isa) {
   if (std::strcmp(isa, "avx512") == 0) return product_avx512;
   if (std::strcmp(isa, "avx") == 0) return product_avx;
   return nullptr;
 }
 
-struct Choice {
-  ProductKernel kernel = nullptr;
-  const char* isa = "eigen";
-};
-
-Choice choose() {
-  for (const char* isa : {"avx512", "avx"}) {
-    if (supports(isa) && agrees_with_eigen(kernel_named(isa))) return {kernel_named(isa), isa};
-  }
-  return {};
+Family family_named(const char* isa) {
+  return std::strcmp(isa, "avx512") == 0 ? Family::kProductAvx512 : Family::kProductAvx;
 }
 
-const Choice& chosen() {
-  static const Choice c = choose();  // thread-safe one-time initialisation
-  return c;
+// The kernel that runs now (the registry's rule: AVX-512 first, then AVX), or none.
+ProductKernel chosen() {
+  if (use(Family::kProductAvx512)) return product_avx512;
+  if (use(Family::kProductAvx)) return product_avx;
+  return nullptr;
 }
 
-#endif  // CSYMPNET_EXACT_SIMD
+#endif  // CSYMPNET_SSE2_ORDER_KERNELS
 
 }  // namespace
 
-bool exact_product(Index m, Index n, Index k, const double* a, Index lda, const double* b, Index bl,
-                   Index bj, double* c, Epilogue mode, const double* h) {
-#ifdef CSYMPNET_EXACT_SIMD
-  const Choice& ch = chosen();
-  if (ch.kernel == nullptr || !covered(m, n, k, bl, bj)) return false;
-  run(ch.kernel, m, n, k, a, lda, b, bl, bj, c, mode, h);
+bool sse2_order_product(Index m, Index n, Index k, const double* a, Index lda, const double* b,
+                        Index bl, Index bj, double* c, Epilogue mode, const double* h) {
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
+  const ProductKernel kernel = chosen();
+  if (kernel == nullptr || !covered(m, n, k, bl, bj)) return false;
+  run(kernel, m, n, k, a, lda, b, bl, bj, c, mode, h);
   return true;
 #else
   (void)m, (void)n, (void)k, (void)a, (void)lda, (void)b, (void)bl, (void)bj, (void)c, (void)mode,
@@ -140,12 +128,12 @@ bool exact_product(Index m, Index n, Index k, const double* a, Index lda, const 
 #endif
 }
 
-bool exact_product_using(const char* isa, Index m, Index n, Index k, const double* a, Index lda,
-                         const double* b, Index bl, Index bj, double* c, Epilogue mode,
-                         const double* h) {
-#ifdef CSYMPNET_EXACT_SIMD
+bool product_kernel_using(const char* isa, Index m, Index n, Index k, const double* a, Index lda,
+                          const double* b, Index bl, Index bj, double* c, Epilogue mode,
+                          const double* h) {
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
   const ProductKernel kernel = kernel_named(isa);
-  if (kernel == nullptr || !supports(isa) || !covered(m, n, k, bl, bj)) return false;
+  if (kernel == nullptr || !available(family_named(isa)) || !covered(m, n, k, bl, bj)) return false;
   run(kernel, m, n, k, a, lda, b, bl, bj, c, mode, h);
   return true;
 #else
@@ -155,22 +143,39 @@ bool exact_product_using(const char* isa, Index m, Index n, Index k, const doubl
 #endif
 }
 
-const char* exact_product_isa() {
-#ifdef CSYMPNET_EXACT_SIMD
-  return chosen().isa;
+const char* product_kernel_isa() {
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
+  const ProductKernel kernel = chosen();
+  return kernel == product_avx512 ? "avx512" : kernel == product_avx ? "avx" : "portable";
 #else
-  return "eigen";
+  return "portable";
 #endif
 }
 
-bool exact_product_covers(Index m, Index k, Index n) {
+bool product_avx512_self_check() {
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
+  return agrees_with_eigen(product_avx512);
+#else
+  return false;
+#endif
+}
+
+bool product_avx_self_check() {
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
+  return agrees_with_eigen(product_avx);
+#else
+  return false;
+#endif
+}
+
+bool product_kernel_covers(Index m, Index k, Index n) {
   if (m < 1 || k < 1 || n < 1) return false;
-  // The decision is the one the cores' calls meet: exact_product() declines without writing
+  // The decision is the one the cores' calls meet: sse2_order_product() declines without writing
   // when the kernels do not cover the shape, whatever the values.
   const Matrix a = Matrix::Zero(m, k);
   const Matrix b = Matrix::Zero(k, n);
   Matrix c(m, n);
-  return exact_product(a, b, c.data(), Epilogue::kStore, nullptr);
+  return sse2_order_product(a, b, c.data(), Epilogue::kStore, nullptr);
 }
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -12,7 +12,7 @@
 #include <immintrin.h>
 #endif
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 ColumnSums::ColumnSums(Index columns) {
   const Index cols8 = (columns + 7) / 8 * 8;  // whole groups of 8 lanes
@@ -122,4 +122,4 @@ void ColumnSums::flush(Index) {}  // not reached: the backward sweep needs AVX-5
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,28 +1,29 @@
-// The AVX-512 d = 1 LA-SympNet forward sweep of la_scalar_sweep.hpp (the backward sweep is
-// la_scalar_backward.cpp).
+// The AVX-512 d = 1 LA-SympNet forward sweep of d1_sweeps.hpp (the backward sweep is
+// d1_backward_avx512.cpp).
 //
 // Samples go in blocks of 80 (ten registers per row; one s1 batch): the block's q, p and steps
 // h stay in registers through every unit, so a unit costs its arithmetic and the recording of
 // one row. σ is computed in registers too (activation_forward). Blocks run last to first: the
 // backward sweep reads the records first to last, so what it reads first was written last and
 // is more likely still in the L1 cache.
-#include "la_scalar_sweep.hpp"
+#include "d1_sweeps.hpp"
 
 #include <memory>
 
-#include "csympnet/models/activation.hpp"
+#include "registry.hpp"
+#include "sigmoid.hpp"
 
-#include "exact_simd.hpp"
+#include "sse2_order.hpp"
 
-#include "la_scalar_block.hpp"  // after exact_simd.hpp, whose CSYMPNET_EXACT_SIMD it needs
+#include "d1_block.hpp"  // after sse2_order.hpp, whose CSYMPNET_SSE2_ORDER_KERNELS it needs
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
 namespace {
 
-using namespace la_block;
+using namespace d1_block;
 
 constexpr int kRegs = 10;            // registers per row
 constexpr Index kBlock = 8 * kRegs;  // samples per block
@@ -70,7 +71,7 @@ __attribute__((target("avx512f,avx512vl"), always_inline)) inline void shear_for
 // which its kernel hands to Eigen's routine. Out of line and cold, so that the sweep's registers
 // are saved around the call only here.
 __attribute__((noinline, cold)) void sigmoid_group(const double* src, double* sig) {
-  sigmoid_simd(src, sig, 8);
+  sigmoid_kernel(src, sig, 8);
 }
 
 // Activation module, forward: dst += (σ(src) a) τ, σ written to sig (cnt values). σ of a block
@@ -109,7 +110,7 @@ __attribute__((target("avx512f,avx512vl"), always_inline)) inline void activatio
     alignas(64) double src_buf[kBlock];
 #pragma GCC unroll 16
     for (int r = 0; r < kRegs; ++r) _mm512_store_pd(src_buf + 8 * r, src[r]);
-    sigmoid_simd(src_buf, sig, cnt);
+    sigmoid_kernel(src_buf, sig, cnt);
 #pragma GCC unroll 16
     for (int r = 0; r < kRegs; ++r) {
       dst[r] =
@@ -118,14 +119,13 @@ __attribute__((target("avx512f,avx512vl"), always_inline)) inline void activatio
   }
 }
 
-// One block of la_scalar_flow_simd(): samples [j0, j0 + cnt) of q, p; rec (null: nothing
+// One block of d1_flow_simd(): samples [j0, j0 + cnt) of q, p; rec (null: nothing
 // recorded) holds the record rows of every unit.
 template <bool kFull, bool kPoly>
-__attribute__((target("avx512f,avx512vl"))) void flow_block(const LaScalarCore& core,
-                                                            const double* theta, double* q_row,
-                                                            double* p_row, const double* h_row,
-                                                            Index j0, Index cnt,
-                                                            double* const* rec) {
+__attribute__((target("avx512f,avx512vl"))) void flow_block(const D1Core& core, const double* theta,
+                                                            double* q_row, double* p_row,
+                                                            const double* h_row, Index j0,
+                                                            Index cnt, double* const* rec) {
   const Block<kRegs, kFull, kPoly> b(h_row, j0, cnt);
   Regs<kRegs> q, p;
 #pragma GCC unroll 16
@@ -176,20 +176,15 @@ __attribute__((target("avx512f,avx512vl"))) void flow_block(const LaScalarCore& 
 
 }  // namespace
 
-bool la_scalar_simd_supported() {
-  static const bool supported = [] {
-    __builtin_cpu_init();
-    // AVX-512VL too: the backward's column sums use its 32 registers in 256-bit form.
-    if (!__builtin_cpu_supports("avx512f") || !__builtin_cpu_supports("avx512vl")) return false;
-    double x[2] = {0.5, -0.5}, s[2];
-    return sigmoid_simd(x, s, 2);  // its kernel is part of the forward sweep
-  }();
-  return supported;
+bool d1_flow_simd(const D1Core& core, const double* theta, double* q, double* p, const double* h,
+                  Index n, std::vector<Matrix>* mats, std::size_t slot0) {
+  if (n < 1 || !use(Family::kD1Sweeps)) return false;
+  return d1_flow_kernel(core, theta, q, p, h, n, mats, slot0);
 }
 
-bool la_scalar_flow_simd(const LaScalarCore& core, const double* theta, double* q, double* p,
-                         const double* h, Index n, std::vector<Matrix>* mats, std::size_t slot0) {
-  if (n < 1 || !la_scalar_simd_supported()) return false;
+bool d1_flow_kernel(const D1Core& core, const double* theta, double* q, double* p, const double* h,
+                    Index n, std::vector<Matrix>* mats, std::size_t slot0) {
+  if (n < 1) return false;
   RecordRows rows(mats != nullptr ? n_units(core) : 0);
   double* const* rec = nullptr;
   if (mats != nullptr) {
@@ -215,15 +210,16 @@ bool la_scalar_flow_simd(const LaScalarCore& core, const double* theta, double* 
 
 #else
 
-bool la_scalar_simd_supported() {
+bool d1_flow_simd(const D1Core&, const double*, double*, double*, const double*, Index,
+                  std::vector<Matrix>*, std::size_t) {
   return false;
 }
 
-bool la_scalar_flow_simd(const LaScalarCore&, const double*, double*, double*, const double*, Index,
-                         std::vector<Matrix>*, std::size_t) {
+bool d1_flow_kernel(const D1Core&, const double*, double*, double*, const double*, Index,
+                    std::vector<Matrix>*, std::size_t) {
   return false;
 }
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,10 +1,10 @@
 // What the AVX-512 kernels that reproduce the portable build to the bit share
-// (exact_product.cpp, exact_sigmoid.cpp, exact_exp.cpp, la_scalar_sweep.cpp). Include it
+// (product.cpp, sigmoid_avx512.cpp, scaled_exp_avx512.cpp, d1_forward_avx512.cpp). Include it
 // first among a kernel file's own code: its pragma applies to everything that follows.
 //
 // The portable build is x86-64 with Eigen on SSE2 and no FMA. A kernel matches it only if it
 // multiplies and adds separately, so contraction into FMA is off in these files, and the
-// kernels exist only when Eigen itself is on that SSE2 path (CSYMPNET_EXACT_SIMD); each
+// kernels exist only when Eigen itself is on that SSE2 path (CSYMPNET_SSE2_ORDER_KERNELS); each
 // kernel also checks itself against Eigen at run time before it is used.
 #pragma once
 
@@ -23,10 +23,10 @@
 #if (defined(__x86_64__) || defined(__i386__)) && defined(__GNUC__) && !defined(__clang__) && \
     defined(EIGEN_VECTORIZE_SSE2) && !defined(EIGEN_VECTORIZE_AVX) &&                         \
     !defined(EIGEN_VECTORIZE_FMA)
-#define CSYMPNET_EXACT_SIMD 1
+#define CSYMPNET_SSE2_ORDER_KERNELS 1
 #include <immintrin.h>
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 // e^x in every lane, with the operations of Eigen's pexp_double (the Cephes approximation),
 // in its order, eight lanes at a time. Valid for lanes in [−700, 700]; callers hand other
@@ -58,6 +58,6 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d cephes_exp512(_
   return _mm512_mask_scalef_pd(e, 0xFF, e, fx);  // e · 2^fx, exact: 2^fx and e·2^fx are normal
 }
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels
 
 #endif

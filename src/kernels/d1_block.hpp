@@ -1,24 +1,24 @@
-// Internal to la_scalar_sweep.cpp and la_scalar_backward.cpp (include after exact_simd.hpp):
+// Internal to d1_forward_avx512.cpp and d1_backward_avx512.cpp (include after sse2_order.hpp):
 // what the d = 1 forward and backward sweeps share: θ's layout, and the block of samples a sweep
 // holds in registers with its steps.
 #pragma once
 
-#include "la_scalar_sweep.hpp"
+#include "d1_sweeps.hpp"
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace csympnet::detail::la_block {
+namespace csympnet::kernels::d1_block {
 
-inline Index module_offset(const LaScalarCore& c, Index k) {
+inline Index module_offset(const D1Core& c, Index k) {
   return k * (c.sublayers + 3);
 }
-inline Index shear_coef(const LaScalarCore& c, Index k, Index i) {
+inline Index shear_coef(const D1Core& c, Index k, Index i) {
   return c.coef0 + k * c.sublayers + i;
 }
-inline Index act_coef(const LaScalarCore& c, Index k) {
+inline Index act_coef(const D1Core& c, Index k) {
   return c.coef0 + c.layers * c.sublayers + k;
 }
-inline Index n_units(const LaScalarCore& c) {
+inline Index n_units(const D1Core& c) {
   return c.layers * c.sublayers + c.layers - 1;
 }
 
@@ -80,6 +80,6 @@ __attribute__((target("avx512f,avx512vl"), always_inline)) inline __m512d step(
   }
 }
 
-}  // namespace csympnet::detail::la_block
+}  // namespace csympnet::kernels::d1_block
 
 #endif

@@ -6,6 +6,10 @@
 // is compiled with fp-contract off, so that none is fused into an FMA).
 #include "conformal_rows.hpp"
 
+#include <cstring>
+
+#include "registry.hpp"
+
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC optimize("fp-contract=off")  // multiplies and adds stay separate, as in SSE2
 #endif
@@ -18,19 +22,11 @@
 #include <immintrin.h>
 #endif
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 #ifdef CSYMPNET_CONFORMAL_ROWS_SIMD
 
 namespace {
-
-bool avx512_usable() {
-  static const bool usable = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") != 0;
-  }();
-  return usable;
-}
 
 // Masks for `count` (1..8) samples from column j: one lane per sample, and the two registers'
 // lanes of the interleaved 2 x n storage.
@@ -105,16 +101,51 @@ __attribute__((target("avx512f"))) void terms_avx512(const double* dz, const dou
 
 }  // namespace
 
+bool conformal_rows_built() {
+  return true;
+}
+
+// The kernels against the portable loops' formulas (csympnet_id.cpp), element by element, for
+// every sample count up to three registers' worth (every masked tail).
+bool conformal_rows_self_check() {
+  constexpr Index kMax = 27;
+  double z[2 * kMax], a[kMax], h[kMax], pc[kMax], gp[kMax], pin[kMax];
+  for (Index i = 0; i < 2 * kMax; ++i) z[i] = 0.37 * static_cast<double>(i % 11) - 1.3;
+  for (Index j = 0; j < kMax; ++j) {
+    a[j] = 0.9 + 0.013 * static_cast<double>(j);
+    h[j] = 0.1 + 0.007 * static_cast<double>(j % 5);
+    pc[j] = 1.7 - 0.11 * static_cast<double>(j);
+    gp[j] = -0.3 + 0.05 * static_cast<double>(j % 7);
+    pin[j] = 0.21 * static_cast<double>(j % 3) - 0.4;
+  }
+  auto same = [](double x, double y) { return std::memcmp(&x, &y, sizeof(double)) == 0; };
+  for (Index n = 1; n <= kMax; ++n) {
+    double q[kMax], p[kMax], raw[kMax], out[2 * kMax], terms[kMax];
+    split_avx512(z, n, a, q, p, raw);
+    join_avx512(q, raw, a, n, out);
+    terms_avx512(z, pc, gp, pin, h, a, n, terms);
+    for (Index j = 0; j < n; ++j) {
+      const double p_ref = z[2 * j + 1] * a[j];
+      const double t_ref = ((z[2 * j + 1] * pc[j] + gp[j] * pin[j]) * h[j]) * a[j];
+      if (!same(q[j], z[2 * j]) || !same(p[j], p_ref) || !same(raw[j], z[2 * j + 1]) ||
+          !same(out[2 * j], z[2 * j]) || !same(out[2 * j + 1], p_ref) || !same(terms[j], t_ref)) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
 bool split_scaled_rows_simd(const double* z, Index n, const double* a, double* q, double* p,
                             double* p_raw) {
-  if (!avx512_usable()) return false;
+  if (!use(Family::kConformalRows)) return false;
   split_avx512(z, n, a, q, p, p_raw);
   return true;
 }
 
 bool join_scaled_rows_simd(const double* q, const double* p, const double* a, Index n,
                            double* out) {
-  if (!avx512_usable()) return false;
+  if (!use(Family::kConformalRows)) return false;
   join_avx512(q, p, a, n, out);
   return true;
 }
@@ -122,12 +153,20 @@ bool join_scaled_rows_simd(const double* q, const double* p, const double* a, In
 bool damping_terms_simd(const double* dz, const double* p_core, const double* gp,
                         const double* p_in, const double* h, const double* a, Index n,
                         double* terms) {
-  if (!avx512_usable()) return false;
+  if (!use(Family::kConformalRows)) return false;
   terms_avx512(dz, p_core, gp, p_in, h, a, n, terms);
   return true;
 }
 
 #else
+
+bool conformal_rows_built() {
+  return false;
+}
+
+bool conformal_rows_self_check() {
+  return false;
+}
 
 bool split_scaled_rows_simd(const double*, Index, const double*, double*, double*, double*) {
   return false;
@@ -144,4 +183,4 @@ bool damping_terms_simd(const double*, const double*, const double*, const doubl
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,6 +1,6 @@
-// scaled_exp_simd() (exact_exp.hpp): exp(c h_j), the same values to the bit as the portable
+// scaled_exp_simd() (scaled_exp.hpp): exp(c h_j), the same values to the bit as the portable
 // build's Eigen expression `(c * h.array()).exp()`, eight elements per instruction instead of
-// two. The approach of exact_sigmoid.cpp, for arguments of either sign.
+// two. The approach of sigmoid_avx512.cpp, for arguments of either sign.
 //
 // Why the bits agree: Eigen's packet exp (pexp_double) is a fixed sequence of IEEE operations
 // (Cephes' method: n = ⌊x log2(e) + ½⌋, g = x − n·C1 − n·C2, a rational approximation of e^g,
@@ -10,16 +10,18 @@
 // clamping is inactive, 2^n and the result are normal numbers, so the scaling is exact however
 // it is split, and the guard max(e^x, x) returns e^x; lanes outside that range (or NaN) are
 // handed to Eigen's own routine.
-#include "exact_exp.hpp"
+#include "scaled_exp.hpp"
+
+#include "registry.hpp"
 
 #include <cmath>
 #include <cstring>
 
-#include "exact_simd.hpp"
+#include "sse2_order.hpp"
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
 namespace {
 
@@ -54,38 +56,33 @@ __attribute__((target("avx512f"))) void exp_avx512(double c, const double* h, do
   }
 }
 
-bool avx512_usable() {
-  static const bool usable = [] {
-    __builtin_cpu_init();
-    if (!__builtin_cpu_supports("avx512f")) return false;
-    // Once per process: the kernel must reproduce Eigen on this machine, else it is not used.
-    // Arguments of both signs up to the bounds, and tiny ones around 0.
-    constexpr Index kN = 64;
-    double h[kN], mine[kN], ref[kN];
-    for (Index i = 0; i < kN; ++i) {
-      h[i] = (static_cast<double>(i) - 31.5) * 22.2 + 1e-3 * static_cast<double>(i % 7);
-    }
-    h[5] = -0.0;
-    h[9] = 0.0;
-    h[10] = 1e-300;
-    h[11] = -3e-17;
-    h[12] = 699.999;
-    h[13] = -699.999;
-    const double c = -0.999;
-    exp_avx512(c, h, mine, kN);
-    exp_pairs_eigen(c, h, ref, 0, kN);
-    for (Index i = 0; i < kN; ++i) {
-      if (std::memcmp(&mine[i], &ref[i], sizeof(double)) != 0) return false;
-    }
-    return true;
-  }();
-  return usable;
-}
-
 }  // namespace
 
+bool scaled_exp_self_check() {
+  // The kernel must reproduce Eigen on this machine, else it is not used. Arguments of both
+  // signs up to the bounds, and tiny ones around 0.
+  constexpr Index kN = 64;
+  double h[kN], mine[kN], ref[kN];
+  for (Index i = 0; i < kN; ++i) {
+    h[i] = (static_cast<double>(i) - 31.5) * 22.2 + 1e-3 * static_cast<double>(i % 7);
+  }
+  h[5] = -0.0;
+  h[9] = 0.0;
+  h[10] = 1e-300;
+  h[11] = -3e-17;
+  h[12] = 699.999;
+  h[13] = -699.999;
+  const double c = -0.999;
+  exp_avx512(c, h, mine, kN);
+  exp_pairs_eigen(c, h, ref, 0, kN);
+  for (Index i = 0; i < kN; ++i) {
+    if (std::memcmp(&mine[i], &ref[i], sizeof(double)) != 0) return false;
+  }
+  return true;
+}
+
 bool scaled_exp_simd(double c, const double* h, double* out, Index n) {
-  if (!avx512_usable()) return false;
+  if (!use(Family::kScaledExp)) return false;
   const Index n2 = n - n % 2;  // Eigen's packet region; an odd last element is scalar
   exp_avx512(c, h, out, n2);
   if (n2 < n) out[n2] = std::exp(c * h[n2]);
@@ -94,10 +91,14 @@ bool scaled_exp_simd(double c, const double* h, double* out, Index n) {
 
 #else
 
+bool scaled_exp_self_check() {
+  return false;
+}
+
 bool scaled_exp_simd(double, const double*, double*, Index) {
   return false;
 }
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

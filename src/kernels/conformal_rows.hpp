@@ -1,5 +1,5 @@
-// Internal to src/models: CSympNet-ID's elementwise passes over the rows of a d = 1 batch, with
-// AVX-512 where the machine has it (src/models/conformal_rows.cpp). Each output element is one
+// Internal to src: CSympNet-ID's elementwise passes over the rows of a d = 1 batch, with
+// AVX-512 where it runs (src/kernels/conformal_rows_avx512.cpp). Each output element is one
 // copy or the same IEEE products and sums, in the same order, as the portable loops of
 // csympnet_id.cpp, so results are bit-identical; only the number of elements per instruction
 // changes. Each returns false, writing nothing, when the kernels do not run here.
@@ -7,7 +7,7 @@
 
 #include "csympnet/core/types.hpp"
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 // z is 2 x n (column-major): q_j = z(0, j), p_j = z(1, j) · a_j and, if p_raw is not null,
 // p_raw_j = z(1, j).
@@ -23,4 +23,4 @@ bool damping_terms_simd(const double* dz, const double* p_core, const double* gp
                         const double* p_in, const double* h, const double* a, Index n,
                         double* terms);
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

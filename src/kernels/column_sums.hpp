@@ -1,4 +1,4 @@
-// Internal to src/models: the running sums Σ_j x_c,j over samples j = 0, 1, ... of many columns
+// Internal to src: the running sums Σ_j x_c,j over samples j = 0, 1, ... of many columns
 // c at once, each summed left to right from x_c,0 (the order of a sequential dot product, and of
 // Eigen's inner product of two 1 x N rows), four columns per 256-bit instruction.
 //
@@ -9,7 +9,7 @@
 // added, twelve sums of four columns at a time. The buffer of kFlushColumns rows (15 KB) stays in
 // the L1 cache, where a table of every column would not (the s1 backward sweep has 114 columns).
 //
-// Used by the AVX-512 backward sweep (la_scalar_backward.cpp) only: flush() needs AVX-512F and
+// Used by the AVX-512 backward sweep (d1_backward_avx512.cpp) only: flush() needs AVX-512F and
 // VL (256-bit operations on 32 registers).
 #pragma once
 
@@ -17,7 +17,7 @@
 
 #include "csympnet/core/types.hpp"
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 // Samples per block: a row of the buffer.
 constexpr Index kColumnSumsBlock = 40;
@@ -60,4 +60,4 @@ class ColumnSums {
   bool fresh_ = true;                    // in the first block: the sums are not yet stored
 };
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,6 +1,6 @@
-// The AVX-512 kernel of the exact-order products (exact_product_kernels.hpp): every entry in
-// the order stated at the top of exact_product.cpp, with the register tiles of
-// exact_product_tiles512.hpp.
+// The AVX-512 kernel of the SSE2-order products (product_targets.hpp): every entry in
+// the order stated at the top of product.cpp, with the register tiles of
+// product_tiles512.hpp.
 //
 // The columns are swept in panels of 16 (then one each of 12, 10, 8, 6, 4, 2, 1 for the rest,
 // so that every tile keeps several sums in flight). Within a panel, every 8-row block of the
@@ -15,13 +15,13 @@
 // Each way fills all 8 lanes, where a 128-bit register per column costs a 512-bit operation's
 // pipe slot for a quarter of the entries. The last n mod 4 columns' tail rows (one running sum
 // each) ride along in the last main block in 128-bit registers.
-#include "exact_simd.hpp"
+#include "sse2_order.hpp"
 //
-#include "exact_product_tiles512.hpp"
+#include "product_tiles512.hpp"
 
-#ifdef CSYMPNET_EXACT_SIMD
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 namespace {
 
@@ -137,7 +137,7 @@ void tail_pass(const ProductArgs& p) {
 void product_avx512(const ProductArgs& p) {
   const Index m4 = p.m & ~Index{3};
   const bool tail = p.m - m4 == 2;
-  const bool by_rows = p.bl != 1;  // else bj = 1: exact_product() hands no other layout
+  const bool by_rows = p.bl != 1;  // else bj = 1: sse2_order_product() hands no other layout
   if (tail && m4 == 0) {
     if (by_rows) {
       tail_pass<BLayout::kRows>(p);
@@ -161,6 +161,6 @@ void product_avx512(const ProductArgs& p) {
   }
 }
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels
 
-#endif  // CSYMPNET_EXACT_SIMD
+#endif  // CSYMPNET_SSE2_ORDER_KERNELS

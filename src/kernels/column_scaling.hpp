@@ -1,10 +1,10 @@
-// Internal to src/models: the per-column scalings through which a sample's step h_j (or its
+// Internal to src: the per-column scalings through which a sample's step h_j (or its
 // conformal factor a_j) enters the cores. Each element gets the IEEE operations, in the
 // order, of the Eigen broadcast expression named beside each function; they are single
 // multiplies and adds, so the result does not depend on how elements are grouped into
 // registers. Why not the expressions: Eigen's `.rowwise() * hᵀ` broadcasts have no packet
 // access and run element by element, and per column (10 rows at d = 10) the loop overhead
-// outweighs the arithmetic; the AVX-512 kernels of column_scaling.cpp handle a column in one
+// outweighs the arithmetic; the AVX-512 kernels of column_scaling_avx512.cpp handle a column in one
 // or two registers. Blocks must be whole columns of a column-major matrix (outer stride =
 // rows); others take the per-column Eigen loop.
 #pragma once
@@ -13,10 +13,11 @@
 
 #include "csympnet/core/types.hpp"
 
-namespace csympnet::detail {
+namespace csympnet::kernels {
 
 // Raw kernels on m x n column-major arrays with leading dimension m (a: m values, h: n
-// values); false when they do not run on this machine (nothing written).
+// values); false when the column_scaling family does not run now (registry.hpp; nothing
+// written).
 bool columns_times_simd(Index m, Index n, const double* x, const double* h, double* out);
 bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* a, const double* h,
                                double* out, bool accumulate);
@@ -98,4 +99,4 @@ void add_columns_times_scaled(const Eigen::MatrixBase<X>& x, const double* a, co
   columns_times_scaled(x, a, h, out, true);
 }
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -14,13 +14,15 @@
 #include <cmath>
 #include <cstring>
 
-#include "csympnet/models/activation.hpp"
+#include "sigmoid.hpp"
 
-#include "exact_simd.hpp"
+#include "registry.hpp"
 
-namespace csympnet::detail {
+#include "sse2_order.hpp"
 
-#ifdef CSYMPNET_EXACT_SIMD
+namespace csympnet::kernels {
+
+#ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
 namespace {
 
@@ -61,42 +63,47 @@ __attribute__((target("avx512f"))) void sigmoid_avx512(const double* x, double* 
   }
 }
 
-bool avx512_usable() {
-  static const bool usable = [] {
-    __builtin_cpu_init();
-    if (!__builtin_cpu_supports("avx512f")) return false;
-    // Once per process: the kernel must reproduce Eigen on this machine, else it is not used.
-    constexpr Index kN = 64;
-    double x[kN], mine[kN], ref[kN];
-    for (Index i = 0; i < kN; ++i) {
-      x[i] = (static_cast<double>(i) - 31.5) * 0.37 + 1e-3 * static_cast<double>(i % 7);
-    }
-    x[5] = -0.0;
-    x[9] = 0.0;
-    sigmoid_avx512(x, mine, kN);
-    sigmoid_pairs_eigen(x, ref, 0, kN);
-    for (Index i = 0; i < kN; ++i) {
-      if (std::memcmp(&mine[i], &ref[i], sizeof(double)) != 0) return false;
-    }
-    return true;
-  }();
-  return usable;
-}
-
 }  // namespace
 
-bool sigmoid_simd(const double* x, double* out, Index n) {
-  if (!avx512_usable()) return false;
+bool sigmoid_self_check() {
+  // The kernel must reproduce Eigen on this machine, else it is not used.
+  constexpr Index kN = 64;
+  double x[kN], mine[kN], ref[kN];
+  for (Index i = 0; i < kN; ++i) {
+    x[i] = (static_cast<double>(i) - 31.5) * 0.37 + 1e-3 * static_cast<double>(i % 7);
+  }
+  x[5] = -0.0;
+  x[9] = 0.0;
+  sigmoid_avx512(x, mine, kN);
+  sigmoid_pairs_eigen(x, ref, 0, kN);
+  for (Index i = 0; i < kN; ++i) {
+    if (std::memcmp(&mine[i], &ref[i], sizeof(double)) != 0) return false;
+  }
+  return true;
+}
+
+void sigmoid_kernel(const double* x, double* out, Index n) {
   const Index n2 = n - n % 2;  // Eigen's packet region; an odd last element is scalar
   sigmoid_avx512(x, out, n2);
   if (n2 < n) {
     const double e = std::exp(-std::abs(x[n2]));
     out[n2] = (x[n2] >= 0.0 ? 1.0 : e) / (1.0 + e);
   }
+}
+
+bool sigmoid_simd(const double* x, double* out, Index n) {
+  if (!use(Family::kSigmoid)) return false;
+  sigmoid_kernel(x, out, n);
   return true;
 }
 
 #else
+
+bool sigmoid_self_check() {
+  return false;
+}
+
+void sigmoid_kernel(const double*, double*, Index) {}
 
 bool sigmoid_simd(const double*, double*, Index) {
   return false;
@@ -104,4 +111,4 @@ bool sigmoid_simd(const double*, double*, Index) {
 
 #endif
 
-}  // namespace csympnet::detail
+}  // namespace csympnet::kernels

@@ -1,0 +1,192 @@
+#include "registry.hpp"
+
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+
+#include "targets.hpp"
+
+namespace csympnet::kernels {
+
+// The self-checks, each in its family's kernel file: the kernel against the portable code on
+// values of every kind it handles, bit for bit. Each returns false where it is not built.
+bool product_avx512_self_check();
+bool product_avx_self_check();
+bool sigmoid_self_check();
+bool scaled_exp_self_check();
+bool conformal_rows_self_check();
+bool column_scaling_self_check();
+bool adamw_self_check();
+bool conformal_rows_built();  // built on any x86 GCC or clang build (no Eigen order involved)
+
+namespace internal {
+std::atomic<int> g_forced{0};
+std::atomic<signed char> g_state[static_cast<int>(Family::kCount)] = {};
+}  // namespace internal
+
+namespace {
+
+constexpr int kFamilies = static_cast<int>(Family::kCount);
+
+struct Row {
+  const char* name;
+  const char* isa;
+  bool (*built)();
+  bool (*cpu_has)(const CpuFeatures&);
+};
+
+bool avx512f(const CpuFeatures& c) {
+  return c.avx512f;
+}
+bool avx(const CpuFeatures& c) {
+  return c.avx;
+}
+bool avx512f_vl(const CpuFeatures& c) {
+  return c.avx512f && c.avx512vl;
+}
+
+// In Family order.
+const Row kRows[kFamilies] = {
+    {"product", "avx512f", kernels_built, avx512f},
+    {"product", "avx", kernels_built, avx},
+    {"sigmoid", "avx512f", kernels_built, avx512f},
+    {"scaled_exp", "avx512f", kernels_built, avx512f},
+    {"d1_sweeps", "avx512f+avx512vl", kernels_built, avx512f_vl},
+    {"conformal_rows", "avx512f", conformal_rows_built, avx512f},
+    {"column_scaling", "avx512f", kernels_built, avx512f},
+    {"adamw", "avx512f", kernels_built, avx512f},
+};
+
+std::atomic<bool (*)()> g_supplied[kFamilies] = {};
+
+bool (*check_of(Family f))() {
+  switch (f) {
+    case Family::kProductAvx512:
+      return product_avx512_self_check;
+    case Family::kProductAvx:
+      return product_avx_self_check;
+    case Family::kSigmoid:
+      return sigmoid_self_check;
+    case Family::kScaledExp:
+      return scaled_exp_self_check;
+    case Family::kConformalRows:
+      return conformal_rows_self_check;
+    case Family::kColumnScaling:
+      return column_scaling_self_check;
+    case Family::kAdamW:
+      return adamw_self_check;
+    default:
+      return g_supplied[static_cast<int>(f)].load(std::memory_order_acquire);
+  }
+}
+
+// Why a family does not run, once settled ("" when it does, forced or not).
+const char* g_why[kFamilies] = {};
+std::once_flag g_once[kFamilies];
+std::once_flag g_env_once;
+bool g_env_forced = false;
+
+void read_environment() {
+  std::call_once(g_env_once, [] {
+    const char* v = std::getenv("CSYMPNET_KERNELS");
+    g_env_forced = v != nullptr && std::strcmp(v, "portable") == 0;
+    if (g_env_forced) internal::g_forced.fetch_add(1, std::memory_order_relaxed);
+  });
+}
+
+void settle_once(Family f) {
+  const int i = static_cast<int>(f);
+  std::call_once(g_once[i], [f, i] {
+    const Row& r = kRows[i];
+    const char* why = "";
+    if (!r.built()) {
+      why = "not built (this build's Eigen is not the SSE2 path without FMA, or not GCC on x86)";
+    } else if (!r.cpu_has(cpu())) {
+      why = "the CPU lacks it";
+    } else if (check_of(f) == nullptr) {
+      why = "no self-check supplied (its model is not linked)";
+    } else if (!check_of(f)()) {
+      why = "its self-check differed from the portable code";
+    }
+    g_why[i] = why;
+    internal::g_state[i].store(why[0] == '\0' ? 1 : -1, std::memory_order_release);
+  });
+}
+
+}  // namespace
+
+namespace internal {
+bool settle(Family f) {
+  read_environment();
+  settle_once(f);
+  return g_state[static_cast<int>(f)].load(std::memory_order_acquire) > 0 &&
+         g_forced.load(std::memory_order_relaxed) == 0;
+}
+}  // namespace internal
+
+bool available(Family f) {
+  read_environment();
+  settle_once(f);
+  return internal::g_state[static_cast<int>(f)].load(std::memory_order_acquire) > 0;
+}
+
+bool portable_forced() {
+  read_environment();
+  return internal::g_forced.load(std::memory_order_relaxed) > 0;
+}
+
+bool portable_forced_by_environment() {
+  read_environment();
+  return g_env_forced;
+}
+
+ForcePortable::ForcePortable() {
+  read_environment();
+  internal::g_forced.fetch_add(1, std::memory_order_relaxed);
+}
+
+ForcePortable::~ForcePortable() {
+  internal::g_forced.fetch_sub(1, std::memory_order_relaxed);
+}
+
+bool supply_check(Family f, bool (*check)()) {
+  g_supplied[static_cast<int>(f)].store(check, std::memory_order_release);
+  return true;
+}
+
+std::vector<KernelStatus> report() {
+  std::vector<KernelStatus> out;
+  for (int i = 0; i < kFamilies; ++i) {
+    const auto f = static_cast<Family>(i);
+    KernelStatus s;
+    s.name = kRows[i].name;
+    s.isa = kRows[i].isa;
+    const bool ok = available(f);
+    s.runs = ok && !portable_forced();
+    if (s.runs && f == Family::kProductAvx && use(Family::kProductAvx512)) {
+      s.runs = false;  // the products take the AVX-512 kernel first
+      s.why = "not chosen: the avx512f product kernel runs";
+    } else if (s.runs) {
+      s.why = "runs";
+    } else if (!ok) {
+      s.why = g_why[i];
+    } else if (portable_forced_by_environment()) {
+      s.why = "forced portable (CSYMPNET_KERNELS=portable)";
+    } else {
+      s.why = "forced portable (ForcePortable)";
+    }
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+std::string report_text() {
+  std::string text;
+  for (const KernelStatus& s : report()) {
+    text += s.name + " " + s.isa + ": " + (s.runs ? std::string("runs") : "portable, " + s.why);
+    text += '\n';
+  }
+  return text;
+}
+
+}  // namespace csympnet::kernels

@@ -1,0 +1,82 @@
+// The registry of the kernels layer: every SIMD kernel family, the instruction set it needs,
+// and the rule that decides whether it runs. A family's kernel is used only when
+//   * this build compiled it (targets.hpp: kernels_built()),
+//   * the CPU has its instruction set (targets.hpp: cpu(), the one probe),
+//   * its self-check, run once per process, gave the portable code's results to the bit, and
+//   * the portable path is not forced: CSYMPNET_KERNELS=portable in the environment (read once)
+//     or a ForcePortable guard alive in this process.
+// Everywhere else the portable code (Eigen's own expressions, SSE2 without FMA) runs; both give
+// the same bits, so a forced or declined kernel costs time, never results.
+//
+// The first three are settled once per family and cached; use() reads two atomics after that.
+#pragma once
+
+#include <atomic>
+#include <string>
+#include <vector>
+
+namespace csympnet::kernels {
+
+enum class Family : int {
+  kProductAvx512,  // the cores' matrix products in Eigen's SSE2 summation order (product.hpp)
+  kProductAvx,     // the same with 256-bit registers, where AVX-512 is missing
+  kSigmoid,        // σ over a contiguous array (sigmoid.hpp)
+  kScaledExp,      // exp(c h_j), CSympNet-ID's conformal factors (scaled_exp.hpp)
+  kD1Sweeps,       // LA-SympNet's d = 1 forward and backward sweeps (d1_sweeps.hpp)
+  kConformalRows,  // CSympNet-ID's d = 1 row split, join and β terms (conformal_rows.hpp)
+  kColumnScaling,  // per-column scalings by h and bias outer products (column_scaling.hpp)
+  kAdamW,          // AdamW's elementwise update (adamw_update.hpp)
+  kCount
+};
+
+namespace internal {
+// > 0 while the portable path is forced (the environment counts once, each guard once).
+extern std::atomic<int> g_forced;
+// Per family: 0 not settled yet, 1 built, supported and checked, −1 not.
+extern std::atomic<signed char> g_state[static_cast<int>(Family::kCount)];
+bool settle(Family f);  // settles f (once) and answers use(f)
+}  // namespace internal
+
+// Whether f's kernel runs now. Cheap: the settled state and the forced count, both cached.
+inline bool use(Family f) {
+  const signed char s = internal::g_state[static_cast<int>(f)].load(std::memory_order_acquire);
+  if (s == 0) return internal::settle(f);
+  return s > 0 && internal::g_forced.load(std::memory_order_relaxed) == 0;
+}
+
+// Whether f's kernel is built, supported and checked, forced or not (for kernels made of other
+// families' kernels, and for tests).
+bool available(Family f);
+
+// Whether the portable path is forced now (environment or guard).
+bool portable_forced();
+// Whether CSYMPNET_KERNELS=portable was in the environment when the process first asked.
+bool portable_forced_by_environment();
+
+// Forces the portable path for the guard's lifetime, in every thread (for tests and tools that
+// compare both paths). Guards nest.
+class ForcePortable {
+ public:
+  ForcePortable();
+  ~ForcePortable();
+  ForcePortable(const ForcePortable&) = delete;
+  ForcePortable& operator=(const ForcePortable&) = delete;
+};
+
+// A family whose portable reference lives above this layer (the d = 1 sweeps: LA-SympNet's own
+// loops) has its self-check supplied from there, before its first use. Returns true.
+bool supply_check(Family f, bool (*check)());
+
+struct KernelStatus {
+  std::string name;  // the family
+  std::string isa;   // the instruction set its kernel needs
+  bool runs = false;
+  std::string why;  // "runs", or why the portable code runs instead
+};
+
+// Every family, in Family order, settled (self-checks run) if they were not yet.
+std::vector<KernelStatus> report();
+// report() as text, one line per family: "name  isa  runs" or "name  isa  portable: why".
+std::string report_text();
+
+}  // namespace csympnet::kernels

@@ -1,0 +1,63 @@
+// The self-check of the d = 1 sweep kernels (src/kernels/d1_sweeps.hpp), which la_sympnet.cpp
+// supplies to the kernels registry: the kernels are used only if, on this machine, they
+// reproduce LA-SympNet's own d = 1 loops to the bit on random values, so that a compiler or a
+// CPU that evaluated some operation differently costs speed, not results.
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "../kernels/d1_sweeps.hpp"
+#include "../kernels/registry.hpp"
+#include "csympnet/models/la_sympnet.hpp"
+
+namespace csympnet::detail {
+
+bool la_d1_kernels_agree() {
+  // σ's kernel is part of the forward sweep: without it the sweeps do not run.
+  if (!kernels::available(kernels::Family::kSigmoid)) return false;
+  // On random values, both sweeps with and without step polynomials.
+  std::mt19937_64 gen(20261123);
+  std::normal_distribution<double> normal;
+  auto fill = [&](double* x, Index n, double scale) {
+    for (Index i = 0; i < n; ++i) x[i] = scale * normal(gen);
+  };
+  auto same = [](const Matrix& a, const Matrix& b) {
+    return a.size() == b.size() &&
+           std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) ==
+               0;
+  };
+  constexpr Index kN = 91;  // one full block and an odd remainder
+  for (const Index terms : {Index{1}, Index{2}}) {
+    const LaSympNet net(1, 3, 5, terms);
+    Vector theta(net.n_params()), h(kN);
+    fill(theta.data(), theta.size(), 0.5);
+    for (Index j = 0; j < kN; ++j) h(j) = 0.05 + 0.3 * std::abs(normal(gen));
+    Matrix q(1, kN), p(1, kN), gq(1, kN), gp(1, kN);
+    fill(q.data(), kN, 1.0);
+    fill(p.data(), kN, 1.0);
+    fill(gq.data(), kN, 1.0);
+    fill(gp.data(), kN, 1.0);
+    Matrix q2 = q, p2 = p, gq2 = gq, gp2 = gp;
+    ForwardCache c1, c2;
+    LaSympNet::reserve_slots(c2, net.cache_slots());
+    net.flow_d1_rows(theta, q, p, h, &c1, 0);
+    if (!kernels::d1_flow_kernel(net.d1_core(), theta.data(), q2.data(), p2.data(), h.data(), kN,
+                                 &c2.mats, 0) ||
+        !same(q, q2) || !same(p, p2) || c1.mats.size() != c2.mats.size()) {
+      return false;
+    }
+    for (std::size_t i = 0; i < c1.mats.size(); ++i) {
+      if (!same(c1.mats[i], c2.mats[i])) return false;
+    }
+    Vector g1 = Vector::Constant(net.n_params(), 0.25), g2 = g1;
+    net.flow_backward_d1_rows(theta, c1, 0, h, gq, gp, g1);
+    if (!kernels::d1_backward_kernel(net.d1_core(), theta.data(), c1.mats, 0, h.data(), kN,
+                                     gq2.data(), gp2.data(), g2.data()) ||
+        !same(gq, gq2) || !same(gp, gp2) || !same(g1, g2)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace csympnet::detail

@@ -51,10 +51,26 @@ void from_json(const nlohmann::json& j, TrainOptions& o) {
   o.lr_final_fraction = j.value("lr_final_fraction", o.lr_final_fraction);
 }
 
+const std::vector<std::string>& stop_reason_names() {
+  static const std::vector<std::string> names = {"budget", "callback", "diverged"};
+  return names;
+}
+
+std::string to_string(StopReason r) {
+  return stop_reason_names().at(static_cast<std::size_t>(r));
+}
+
+StopReason parse_stop_reason(const std::string& text, const std::string& option) {
+  const auto& names = stop_reason_names();
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (names[i] == text) return static_cast<StopReason>(i);
+  throw Error(option + " must be 'budget', 'callback' or 'diverged', got '" + text + "'");
+}
+
 std::string TrainSummary::brief_report() const {
   std::ostringstream s;
   s << "trained " << epochs_run << " epochs in " << seconds << " s; best validation loss "
-    << best_val_loss << " at epoch " << best_epoch << " (" << stop_reason << ")";
+    << best_val_loss << " at epoch " << best_epoch << " (" << to_string(stop_reason) << ")";
   return s.str();
 }
 
@@ -64,7 +80,7 @@ void to_json(nlohmann::json& j, const TrainSummary& s) {
        {"best_val_loss", s.best_val_loss},
        {"final_train_loss", s.final_train_loss},
        {"seconds", s.seconds},
-       {"stop_reason", s.stop_reason}};
+       {"stop_reason", to_string(s.stop_reason)}};
 }
 
 TrainSummary train_parameters(const Objective& objective, Vector& theta,
@@ -81,7 +97,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   Vector grad(objective.n_params);
 
   TrainSummary summary;
-  summary.stop_reason = "budget";
+  summary.stop_reason = StopReason::kBudget;
   Vector best = theta;
   summary.best_val_loss = objective.val_loss(theta);
   summary.best_epoch = 0;
@@ -91,7 +107,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
     train_loss = objective.train_loss(theta, grad);
     if (!std::isfinite(train_loss) || !grad.allFinite()) {
       // Keep the best checkpoint; the caller decides how loudly to report it.
-      summary.stop_reason = "diverged";
+      summary.stop_reason = StopReason::kDiverged;
       break;
     }
     if (options.lr_schedule != "constant") opt.set_lr(options.lr_at(epoch));
@@ -117,7 +133,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
       p.gamma_hat = gamma.value_or(std::numeric_limits<double>::quiet_NaN());
       p.seconds = seconds();
       if (!progress(p)) {
-        summary.stop_reason = "callback";
+        summary.stop_reason = StopReason::kCallback;
         break;
       }
     }

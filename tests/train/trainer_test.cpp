@@ -39,7 +39,7 @@ TEST(Trainer, KeepsTheBestValidationCheckpoint) {
         return true;
       });
   EXPECT_EQ(s.epochs_run, 300);
-  EXPECT_EQ(s.stop_reason, "budget");
+  EXPECT_EQ(s.stop_reason, StopReason::kBudget);
   // Validations at 7, 14, ..., 294 and at the final epoch 300.
   EXPECT_EQ(seen.size(), 300u / 7 + 1);
   const double best_seen = *std::min_element(seen.begin(), seen.end());
@@ -74,7 +74,7 @@ TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
   const PairSet train = toy_pairs(20, 1), val = toy_pairs(5, 2);
   const TrainSummary s = train_one_step_map(*map, theta, train, val, o,
                                             [](const TrainProgress& p) { return p.epoch < 50; });
-  EXPECT_EQ(s.stop_reason, "callback");
+  EXPECT_EQ(s.stop_reason, StopReason::kCallback);
   EXPECT_EQ(s.epochs_run, 50);
 
   PairSet bad = train;
@@ -84,7 +84,7 @@ TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
   map->init_params(rng2, t2);
   const Vector before = t2;
   const TrainSummary s2 = train_one_step_map(*map, t2, bad, val, o);
-  EXPECT_EQ(s2.stop_reason, "diverged");
+  EXPECT_EQ(s2.stop_reason, StopReason::kDiverged);
   EXPECT_EQ(t2, before);  // the best checkpoint (the initial one) is kept
 }
 
@@ -146,6 +146,21 @@ TEST(TrainOptionsJson, RoundTripsEveryField) {
   TrainOptions other = o;
   other.lr_schedule = "constant";
   EXPECT_NE(nlohmann::json(other), j);
+}
+
+TEST(Trainer, StopReasonsRoundTripThroughTheirSpellings) {
+  const std::vector<std::string> names = {"budget", "callback", "diverged"};
+  EXPECT_EQ(stop_reason_names(), names);
+  for (StopReason r : {StopReason::kBudget, StopReason::kCallback, StopReason::kDiverged})
+    EXPECT_EQ(parse_stop_reason(to_string(r)), r);
+  try {
+    parse_stop_reason("interrupted", "training.stop_reason");
+    FAIL() << "accepted 'interrupted'";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "training.stop_reason must be 'budget', 'callback' or 'diverged', got "
+              "'interrupted'");
+  }
 }
 
 }  // namespace

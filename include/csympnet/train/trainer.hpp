@@ -5,6 +5,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -45,13 +46,21 @@ struct TrainProgress {
   double seconds = 0.0;    // wall time so far
 };
 
+// Why training ended: its epoch budget ran out, the progress callback asked to stop, or the
+// loss or gradient became non-finite. Spelt "budget", "callback", "diverged" in reports.
+enum class StopReason { kBudget, kCallback, kDiverged };
+std::string to_string(StopReason r);
+const std::vector<std::string>& stop_reason_names();  // in enum order
+// Refuses any other text with an Error naming `option` and the accepted spellings.
+StopReason parse_stop_reason(const std::string& text, const std::string& option = "stop_reason");
+
 struct TrainSummary {
   long epochs_run = 0;
   long best_epoch = 0;  // epoch whose parameters were kept (0 = initial parameters)
   double best_val_loss = 0.0;
   double final_train_loss = 0.0;
   double seconds = 0.0;
-  std::string stop_reason;  // "budget", "callback" or "diverged" (non-finite loss)
+  StopReason stop_reason = StopReason::kBudget;
   std::string brief_report() const;
 };
 void to_json(nlohmann::json& j, const TrainSummary& s);

@@ -97,7 +97,7 @@ void add_run(CLI::App& app) {
       ->check(kFiniteNumber)
       ->check(in_range(1e-12, 10.0));
   cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
-      ->check(one_of({"constant", "cosine"}));
+      ->check(one_of(lr_schedule_names()));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
       ->check(in_range(1L, 100000000L));
@@ -145,7 +145,7 @@ void add_run(CLI::App& app) {
     if (args->recipe == "paper") c.train = paper_recipe(c.train.epochs);
     if (args->epochs) c.train.epochs = *args->epochs;
     if (args->lr) c.train.adamw.lr = *args->lr;
-    if (args->lr_schedule) c.train.lr_schedule = *args->lr_schedule;
+    if (args->lr_schedule) c.train.lr_schedule = parse_lr_schedule(*args->lr_schedule);
     c.train.val_every = args->val_every;
     c.train.threads = args->threads;
     c.train.adamw.decay_damping = !args->no_beta_decay;

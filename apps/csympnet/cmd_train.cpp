@@ -64,7 +64,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(kFiniteNumber)
       ->check(in_range(1e-12, 10.0));
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
-      ->check(one_of({"constant", "cosine"}));
+      ->check(one_of(lr_schedule_names()));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
       ->check(in_range(1L, 100000000L));

@@ -13,6 +13,9 @@ from ._model import Model
 
 # The models fit_pairs() trains (experiments/fit.hpp); csympnet.run trains every model type.
 FIT_MODELS = tuple(_core.fit_models())
+# The library's spellings (train/trainer.hpp), in the order Python's messages have named them:
+# ("cosine", "constant").
+LR_SCHEDULES = tuple(sorted(_core.lr_schedules(), reverse=True))
 # ThreadTeam::kMaxThreads (include/csympnet/core/thread_team.hpp).
 MAX_THREADS = 256
 
@@ -149,7 +152,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if not isinstance(beta_decay, (bool, np.bool_)):
         raise TypeError(f"beta_decay: expected True or False, got {type(beta_decay).__name__}")
     lr = _checks.learning_rate("lr", lr)
-    _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
+    _checks.choice("lr_schedule", lr_schedule, LR_SCHEDULES)
     lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction, positive=True)
     weight_decay = _checks.real("weight_decay", weight_decay, nonnegative=True)
     val_every = _checks.integer("val_every", val_every, minimum=1)
@@ -274,7 +277,7 @@ def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="de
     if lr is not None:
         lr = _checks.learning_rate("lr", lr)
     if lr_schedule is not None:
-        _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
+        _checks.choice("lr_schedule", lr_schedule, LR_SCHEDULES)
     val_every = _checks.integer("val_every", val_every, minimum=1)
     beta_init = _checks.real("beta_init", beta_init)
     if beta_init == 0:

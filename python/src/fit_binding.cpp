@@ -119,8 +119,7 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
   auto out = std::make_unique<PyModel>();
   out->training = r.training;
   if (r.interval) out->gamma_interval = std::pair{r.interval->low, r.interval->high};
-  nlohmann::json train_json = r.config.train;
-  train_json["lr_schedule"] = r.config.train.lr_schedule;
+  const nlohmann::json train_json = r.config.train;
   out->meta = {{"source", "python fit"},        {"seed", r.config.seed},
                {"train", train_json},           {"config", r.config},
                {"pairs_train", r.train.size()}, {"pairs_val", r.val.size()}};
@@ -163,7 +162,7 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   }
   if (a.epochs) c.train.epochs = *a.epochs;
   if (a.lr) c.train.adamw.lr = *a.lr;
-  if (a.lr_schedule) c.train.lr_schedule = *a.lr_schedule;
+  if (a.lr_schedule) c.train.lr_schedule = parse_lr_schedule(*a.lr_schedule);
   c.train.val_every = a.val_every;
   c.train.threads = a.threads;
   c.train.adamw.decay_damping = a.decay_damping;
@@ -249,6 +248,7 @@ void bind_fit(py::module_& m) {
   m.def("refine_methods", &refine_method_names);
   m.def("linear_solvers", &linear_solver_names);
   m.def("fit_models", &fit_model_names);
+  m.def("lr_schedules", &lr_schedule_names);
   // The recipe csympnet.fit's defaults mirror, as JSON text (tests/test_fit.py compares them).
   m.def("fit_recipe_json", [] { return nlohmann::json(FitConfig::identification()).dump(); });
   m.def(

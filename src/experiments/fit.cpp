@@ -80,7 +80,7 @@ FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
   if (s.lr) c.train.adamw.lr = *s.lr;
   if (s.weight_decay) c.train.adamw.weight_decay = *s.weight_decay;
   if (s.decay_damping) c.train.adamw.decay_damping = *s.decay_damping;
-  if (s.lr_schedule) c.train.lr_schedule = *s.lr_schedule;
+  if (s.lr_schedule) c.train.lr_schedule = parse_lr_schedule(*s.lr_schedule);
   if (s.lr_final_fraction) c.train.lr_final_fraction = *s.lr_final_fraction;
   if (s.warm_start) c.warm_start = *s.warm_start;
   if (s.refine) {

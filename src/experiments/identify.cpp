@@ -335,7 +335,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     t.epochs = epochs_for(x);
     t.adamw.lr = c.lr;
     t.adamw.decay_damping = false;  // no pull of γ̂ towards 0
-    t.lr_schedule = "cosine";
+    t.lr_schedule = LrSchedule::kCosine;
     t.threads = c.threads;
     ProgressCallback cb = [&](const TrainProgress& p) {
       if (stop()) return false;

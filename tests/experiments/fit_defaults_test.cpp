@@ -54,7 +54,7 @@ TEST(FitRecipes, IdentificationLeavesTheSizeDependentChoicesToTheFit) {
   EXPECT_FALSE(c.refine_method.has_value());
   EXPECT_FALSE(c.bootstrap_replicates.has_value());
   EXPECT_FALSE(c.replicate_refine.has_value());
-  EXPECT_EQ(c.train.lr_schedule, "cosine");
+  EXPECT_EQ(c.train.lr_schedule, LrSchedule::kCosine);
   EXPECT_EQ(c.train.epochs, 0);
   EXPECT_EQ(c.train.val_every, 10);
   EXPECT_EQ(c.train.adamw.lr, 1e-3);
@@ -71,7 +71,7 @@ TEST(FitRecipes, AdamwOnlyHasNoSecondStageNoIntervalNoWarmStart) {
   EXPECT_FALSE(c.warm_start);
   EXPECT_EQ(c.refine_method, RefineMethod::kNone);
   EXPECT_EQ(c.bootstrap_replicates, 0);
-  EXPECT_EQ(c.train.lr_schedule, "cosine");
+  EXPECT_EQ(c.train.lr_schedule, LrSchedule::kCosine);
   EXPECT_EQ(nlohmann::json(c)["refine"]["method"], "none");
   c.validate();
 }

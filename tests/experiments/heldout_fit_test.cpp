@@ -71,7 +71,7 @@ FitConfig small_budget() {
   // The default core for d = 1, LA(5, 20).
   c.train.epochs = 20000;
   c.train.adamw.lr = 1e-2;
-  c.train.lr_schedule = "cosine";
+  c.train.lr_schedule = LrSchedule::kCosine;
   c.warm_start = true;      // the recommended identification settings (identification.md)
   c.refine_method.reset();  // chosen by size
   c.refine.iterations = 200;

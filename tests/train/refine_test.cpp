@@ -97,7 +97,7 @@ Trained adamw_start() {
   TrainOptions o;
   o.epochs = 500;
   o.adamw.lr = 1e-2;
-  o.lr_schedule = "cosine";
+  o.lr_schedule = LrSchedule::kCosine;
   train_one_step_map(*t.map, t.theta, t.train, t.val, o);
   return t;
 }
@@ -113,7 +113,7 @@ TEST_P(RefineLm, GoesFarBelowMoreAdamW) {
   TrainOptions o2;
   o2.epochs = 2000;
   o2.adamw.lr = 1e-3;
-  o2.lr_schedule = "cosine";
+  o2.lr_schedule = LrSchedule::kCosine;
   train_one_step_map(*more.map, more.theta, more.train, more.val, o2);
   const double adamw_loss = one_step_loss(*more.map, more.theta, more.train);
 

@@ -111,14 +111,24 @@ TEST(TrainOptions, CosineScheduleRunsFromLrToTheFinalFraction) {
   o.adamw.lr = 2e-3;
   EXPECT_EQ(o.lr_at(1), 2e-3);  // constant: the paper's recipe
   EXPECT_EQ(o.lr_at(101), 2e-3);
-  o.lr_schedule = "cosine";
+  o.lr_schedule = LrSchedule::kCosine;
   o.lr_final_fraction = 1e-3;
   EXPECT_DOUBLE_EQ(o.lr_at(1), 2e-3);
   EXPECT_DOUBLE_EQ(o.lr_at(101), 2e-6);
   EXPECT_DOUBLE_EQ(o.lr_at(51), 2e-3 * (1e-3 + (1 - 1e-3) * 0.5));  // halfway: cos = 0
   for (long e = 2; e <= 101; ++e) EXPECT_LT(o.lr_at(e), o.lr_at(e - 1));
-  o.lr_schedule = "linear";
-  EXPECT_THROW(o.validate(), Error);
+  EXPECT_THROW(parse_lr_schedule("linear"), Error);
+  EXPECT_THROW(nlohmann::json({{"lr_schedule", "linear"}}).get<TrainOptions>(), Error);
+  for (LrSchedule s : {LrSchedule::kConstant, LrSchedule::kCosine})
+    EXPECT_EQ(parse_lr_schedule(to_string(s)), s);
+  const std::vector<std::string> names = {"constant", "cosine"};
+  EXPECT_EQ(lr_schedule_names(), names);
+  try {
+    parse_lr_schedule("linear");
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "train.lr_schedule must be 'constant' or 'cosine', got 'linear'");
+  }
 }
 
 }  // namespace
@@ -136,7 +146,7 @@ TEST(TrainOptionsJson, RoundTripsEveryField) {
   o.adamw.lr = 3e-3;
   o.adamw.weight_decay = 1e-5;
   o.adamw.decay_damping = false;
-  o.lr_schedule = "cosine";
+  o.lr_schedule = LrSchedule::kCosine;
   o.lr_final_fraction = 0.25;
   const nlohmann::json j = o;
   EXPECT_EQ(j["lr_schedule"], "cosine");
@@ -144,7 +154,7 @@ TEST(TrainOptionsJson, RoundTripsEveryField) {
   const TrainOptions back = j.get<TrainOptions>();
   EXPECT_EQ(nlohmann::json(back), j);
   TrainOptions other = o;
-  other.lr_schedule = "constant";
+  other.lr_schedule = LrSchedule::kConstant;
   EXPECT_NE(nlohmann::json(other), j);
 }
 

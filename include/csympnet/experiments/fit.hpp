@@ -44,7 +44,7 @@ struct FitConfig {
   TrainOptions train = [] {
     TrainOptions t;
     t.epochs = 0;
-    t.lr_schedule = "cosine";
+    t.lr_schedule = LrSchedule::kCosine;
     return t;
   }();
   double beta_init = 0.1;  // CSympNet-ID: initial β, nonzero (unless warm_start)

@@ -15,14 +15,21 @@
 
 namespace csympnet {
 
+// The learning rate over the budget: constant (the paper's recipe) or cosine, which anneals
+// it from adamw.lr to lr_final_fraction·adamw.lr (a switchable improvement: it removes the
+// late oscillation of a constant rate; docs/training.md). Spelt "constant", "cosine".
+enum class LrSchedule { kConstant, kCosine };
+std::string to_string(LrSchedule s);
+const std::vector<std::string>& lr_schedule_names();  // in enum order
+// Refuses any other text with an Error naming `option` and the accepted spellings.
+LrSchedule parse_lr_schedule(const std::string& text,
+                             const std::string& option = "train.lr_schedule");
+
 struct TrainOptions {
   long epochs = 20000;  // epoch budget (one full-batch AdamW step per epoch)
   long val_every = 10;  // evaluate the validation loss every this many epochs (and at the end)
   AdamWOptions adamw;   // optimiser settings (defaults: docs/protocol.md, "Training")
-  // Learning-rate schedule: "constant" (the paper's recipe) or "cosine", which anneals the
-  // rate from adamw.lr to lr_final_fraction·adamw.lr over the budget (a switchable
-  // improvement: it removes the late oscillation of a constant rate; docs/training.md).
-  std::string lr_schedule = "constant";
+  LrSchedule lr_schedule = LrSchedule::kConstant;
   double lr_final_fraction = 1e-3;
   // Threads for the training loss of models with column-split passes (CSympNet-ID with a core
   // of d > 1: column_split.hpp); other models train on one. Results are the same to the bit

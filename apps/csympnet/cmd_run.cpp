@@ -44,7 +44,8 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
               args.sigma, static_cast<long long>(r.model.n_params()), r.training.epochs_run,
               r.training.seconds);
   std::printf("  recipe %s\n", r.report["recipe"].get<std::string>().c_str());
-  if (r.refine.method != "none") std::printf("  %s\n", r.refine.brief_report().c_str());
+  if (r.refine.method != RefineMethod::kNone)
+    std::printf("  %s\n", r.refine.brief_report().c_str());
   std::printf("  %-26s %-14s %s\n", "quantity", "ours", "paper (seed 42, sigma 0)");
   auto row = [](const char* name, double ours, std::optional<double> theirs) {
     if (theirs)
@@ -96,7 +97,7 @@ void add_run(CLI::App& app) {
       ->check(kFiniteNumber)
       ->check(in_range(1e-12, 10.0));
   cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
-      ->check(one_of({"constant", "cosine"}));
+      ->check(one_of(lr_schedule_names()));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
       ->check(in_range(1L, 100000000L));
@@ -113,7 +114,7 @@ void add_run(CLI::App& app) {
   cmd->add_option("--refine", args->refine,
                   "Second stage after AdamW for map models: none (default, the paper's "
                   "recipe), lm (Levenberg-Marquardt) or lbfgs")
-      ->check(one_of({"none", "lm", "lbfgs"}));
+      ->check(one_of(refine_method_names()));
   cmd->add_option("--refine-iterations", args->refine_iterations,
                   "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
@@ -122,7 +123,7 @@ void add_run(CLI::App& app) {
                   "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
                   "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
                   "many parameters) (default: dense_qr)")
-      ->check(one_of({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
+      ->check(one_of(linear_solver_names()));
   cmd->add_option("--core", args->core,
                   "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)")
       ->check(kCoreSpec);
@@ -144,15 +145,15 @@ void add_run(CLI::App& app) {
     if (args->recipe == "paper") c.train = paper_recipe(c.train.epochs);
     if (args->epochs) c.train.epochs = *args->epochs;
     if (args->lr) c.train.adamw.lr = *args->lr;
-    if (args->lr_schedule) c.train.lr_schedule = *args->lr_schedule;
+    if (args->lr_schedule) c.train.lr_schedule = parse_lr_schedule(*args->lr_schedule);
     c.train.val_every = args->val_every;
     c.train.threads = args->threads;
     c.train.adamw.decay_damping = !args->no_beta_decay;
     c.reference.method = parse_reference(args->reference);
     c.beta_init = args->beta_init;
-    c.refine.method = args->refine;
+    c.refine.method = parse_refine_method(args->refine);
     if (args->refine_iterations) c.refine.iterations = *args->refine_iterations;
-    if (args->refine_solver) c.refine.linear_solver = *args->refine_solver;
+    if (args->refine_solver) c.refine.linear_solver = parse_linear_solver(*args->refine_solver);
     c.warm_start = args->warm_start;
     RunResult r;
     {
@@ -161,9 +162,8 @@ void add_run(CLI::App& app) {
                          [] { return interrupted(); });
     }
     out_dir.commit(run_output_files(r));
-    const auto& rep = r.report;
     if (!args->quiet) print_run_summary(*args, r);
-    if (rep["stop_reason"] == "diverged")
+    if (r.training.stop_reason == StopReason::kDiverged)
       throw Error("training diverged at epoch " + std::to_string(r.training.epochs_run + 1) +
                   " (non-finite loss or gradient); the best checkpoint (epoch " +
                   std::to_string(r.training.best_epoch) + ") was kept in " + args->out);

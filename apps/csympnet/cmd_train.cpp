@@ -25,21 +25,23 @@
 namespace csympnet::cli {
 
 namespace {
+// The options as given; those not given are left to the recipe (FitConfig's, or
+// IdentifyConfig's for fit's default recipe).
 struct FitArgs {
-  std::string data, val, out, model = "csympnet", core, lr_schedule = "cosine";
-  double lr = 1e-3;
-  std::uint64_t seed = 42;
-  long epochs = 0;
-  long val_every = 10;
-  double val_fraction = 0.2, beta_init = 0.1;
-  bool no_beta_decay = false, quiet = false, force = false, warm_start = false;
-  std::string refine = "none";
-  long bootstrap_default = 0;  // when --bootstrap is not given; < 0 = FitConfig's "auto"
-  std::optional<long> refine_iterations, bootstrap;
-  std::optional<std::string> refine_solver;
+  explicit FitArgs(FitConfig r) : classic(std::move(r)), warm_start(classic.warm_start) {}
+  // The recipe of `train` (FitConfig::adamw_only) or of `fit --recipe classic`
+  // (FitConfig::identification): one-step loss, second stage, bootstrap.
+  FitConfig classic;
+  std::string data, val, out, core;
+  std::optional<std::string> model, lr_schedule, refine, refine_solver;
+  std::optional<double> lr, val_fraction, beta_init;
+  std::optional<std::uint64_t> seed;
+  std::optional<long> epochs, val_every, refine_iterations, bootstrap;
+  bool no_beta_decay = false, quiet = false, force = false;
+  bool warm_start;
   int threads = 1;
-  // fit's identification recipe (experiments/identify.hpp); "classic" is the recipe of
-  // FitConfig (one-step loss, bootstrap), which `train` always uses.
+  // fit's identification recipe (experiments/identify.hpp), or "classic" (`classic` above),
+  // which `train` always uses.
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;
   std::string loss = "balanced", dof_scales = "auto";
@@ -48,8 +50,9 @@ struct FitArgs {
 };
 
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
+  const FitConfig& recipe = a.classic;
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
-      ->check(one_of({"csympnet", "sympnet"}));
+      ->check(one_of(fit_model_names()));
   cmd.add_option("--core", a.core,
                  "Symplectic core: la:L:m or g:L:w (default: fit chooses by validation between "
                  "an LA and a G core; train takes one by dimension)")
@@ -61,7 +64,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(kFiniteNumber)
       ->check(in_range(1e-12, 10.0));
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
-      ->check(one_of({"constant", "cosine"}));
+      ->check(one_of(lr_schedule_names()));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
       ->check(in_range(1L, 100000000L));
@@ -80,11 +83,13 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       "--warm-start,!--no-warm-start", a.warm_start,
       std::string("Start beta at the closed-form estimate of gamma from the data (") +
           (a.warm_start ? "default; --no-warm-start: start at --beta-init)" : "default: off)"));
+  std::vector<std::string> refine_names = {"auto"};
+  for (const std::string& name : refine_method_names()) refine_names.push_back(name);
   cmd.add_option("--refine", a.refine,
                  "Second stage after AdamW: none (the paper's recipe), lm, lbfgs, or auto (lm, "
                  "or lbfgs for large models) (default: " +
-                     a.refine + ")")
-      ->check(one_of({"auto", "none", "lm", "lbfgs"}));
+                     (recipe.refine_method ? to_string(*recipe.refine_method) : "auto") + ")")
+      ->check(one_of(refine_names));
   cmd.add_option("--refine-iterations", a.refine_iterations,
                  "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
@@ -94,11 +99,13 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
                  "many parameters) (default: dense_qr; --refine auto takes "
                  "blas_normal_cholesky above 1000 parameters)")
-      ->check(one_of({"dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"}));
+      ->check(one_of(linear_solver_names()));
   cmd.add_option("--bootstrap", a.bootstrap,
-                 std::string("Bootstrap replicates for an interval of gamma_hat (0: none; >= 10) "
-                             "(default: ") +
-                     (a.bootstrap_default < 0 ? "100 up to 1000 parameters, else none)" : "0)"))
+                 "Bootstrap replicates for an interval of gamma_hat (0: none; >= 10) (default: " +
+                     (recipe.bootstrap_replicates
+                          ? std::to_string(*recipe.bootstrap_replicates) + ")"
+                          : std::to_string(kAutoBootstrapReplicates) + " up to " +
+                                std::to_string(kMaxLmParams) + " parameters, else none)"))
       ->check(kWholeNumber)
       ->check(in_range(0L, 1000000L))
       ->check(CLI::Validator(
@@ -119,8 +126,26 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
 }
 
 void run_fit(const FitArgs& a, bool verbose_summary) {
+  FitSettings s;
+  s.model = a.model;
+  if (!a.core.empty()) s.core = parse_core(a.core);
+  s.seed = a.seed;
+  s.val_fraction = a.val_fraction;
+  s.beta_init = a.beta_init;
+  s.epochs = a.epochs;
+  s.val_every = a.val_every;
+  s.threads = a.threads;
+  s.lr = a.lr;
+  s.lr_schedule = a.lr_schedule;
+  if (a.no_beta_decay) s.decay_damping = false;
+  s.warm_start = a.warm_start;
+  s.refine = a.refine;
+  s.refine_iterations = a.refine_iterations;
+  s.refine_solver = a.refine_solver;
+  s.bootstrap = a.bootstrap;
+  const FitConfig c = make_fit_config(a.classic, s);
   // auto picks the solver with the method; an explicit one would be overridden silently.
-  if (a.refine == "auto" && a.refine_solver) {
+  if (a.refine_solver && !c.refine_method) {
     throw CLI::ValidationError("--refine-solver",
                                "needs --refine lm: --refine auto (fit's default) chooses the "
                                "solver by the model's size");
@@ -146,67 +171,16 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                   std::to_string(2 * val->d()) + " state columns) but " + input.name + " has d = " +
                   std::to_string(data.d()) + "; expected validation data of the same system");
   }
-  FitConfig c;
-  c.model = a.model;
-  if (!a.core.empty()) c.core = parse_core(a.core);
-  c.seed = a.seed;
-  c.val_fraction = a.val_fraction;
-  c.beta_init = a.beta_init;
-  c.train.epochs = a.epochs;
-  c.train.val_every = a.val_every;
-  c.train.threads = a.threads;
-  c.train.adamw.lr = a.lr;
-  c.train.lr_schedule = a.lr_schedule;
-  c.train.adamw.decay_damping = !a.no_beta_decay;
-  c.warm_start = a.warm_start;
-  c.refine.method = a.refine;
-  if (a.refine_iterations) c.refine.iterations = *a.refine_iterations;
-  if (a.refine_solver) c.refine.linear_solver = *a.refine_solver;
-  c.bootstrap.replicates = a.bootstrap.value_or(a.bootstrap_default);
   FitResult r;
   {
     ProgressLine progress(a.quiet);
     r = fit_pairs(data, val, c, progress.callback(), groups, [] { return interrupted(); });
   }
   const auto gamma = r.model.damping_rate(r.theta);
-  const FitQuality quality = fit_quality(r.model, r.theta, r.train, r.val);
-  const double train_loss = quality.train_loss;
-  nlohmann::json report = {
-      {"model", r.config.model},
-      {"data", a.data},
-      {"validation", a.val.empty() ? nlohmann::json("split") : nlohmann::json(a.val)},
-      {"d", data.d()},
-      {"pairs_train", r.train.size()},
-      {"pairs_val", r.val.size()},
-      {"h_min", data.h.minCoeff()},
-      {"h_max", data.h.maxCoeff()},
-      {"params", r.model.n_params()},
-      {"seed", a.seed},
-      {"epochs", r.training.epochs_run},
-      {"train_seconds", r.training.seconds},
-      {"best_val_loss", quality.val_loss},
-      {"train_loss", train_loss},
-      {"gamma_hat", gamma ? nlohmann::json(*gamma) : nlohmann::json(nullptr)},
-      {"gamma_ci_low", r.interval ? nlohmann::json(r.interval->low) : nlohmann::json(nullptr)},
-      {"gamma_ci_high", r.interval ? nlohmann::json(r.interval->high) : nlohmann::json(nullptr)},
-      {"gamma_ci_level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
-      {"gamma_ci_method", r.interval
-                              ? nlohmann::json("percentile bootstrap over " + r.interval->resample)
-                              : nlohmann::json(nullptr)},
-      {"gamma_ci_replicates", r.interval ? r.interval->replicates : 0},
-      {"bootstrap", r.interval ? nlohmann::json(*r.interval) : nlohmann::json(nullptr)},
-      {"warm_start", r.warm_start
-                         ? nlohmann::json({{"gamma", r.warm_start->gamma},
-                                           {"method", r.warm_start->method},
-                                           {"groups", r.warm_start->groups}})
-                         : nlohmann::json(r.warm_start_note.empty() ? "off" : r.warm_start_note)},
-      {"quality", quality},
-      {"training", r.training},
-      {"refine", r.refine},
-      {"config", r.config},
-      {"architecture", r.model.hyperparams()}};
-  if (gamma && !r.interval_note.empty()) report["gamma_ci_note"] = r.interval_note;
-  if (r.stopped) report["interrupted"] = true;  // a partial result: see training/refine
+  nlohmann::json report = fit_report(r);
+  report["data"] = a.data;
+  if (!a.val.empty()) report["validation"] = a.val;
+  const auto quality = [&report](const char* key) { return report["quality"][key].get<double>(); };
   // One set: the report, the wall times (apart, so the report stays bit-identical run to
   // run) and the model, committed together.
   out_dir.commit(
@@ -217,7 +191,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                         {"bootstrap_seconds", r.interval ? r.interval->seconds : 0.0}})},
        {"model.json",
         model_file_text(r.model, r.theta,
-                        {{"data", a.data}, {"seed", a.seed}, {"train", r.config.train}})}});
+                        {{"data", a.data}, {"seed", r.config.seed}, {"train", r.config.train}})}});
   if (gamma && r.interval)
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% %s)\n", *gamma,
                 0.5 * (r.interval->high - r.interval->low), r.interval->low, r.interval->high,
@@ -228,7 +202,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     std::printf("gamma_hat = %.10g\n", *gamma);
   if (verbose_summary || !a.quiet) {
     std::printf("%s, d = %lld, %lld training / %lld validation pairs, %lld params\n",
-                r.config.model.c_str(), static_cast<long long>(data.d()),
+                r.config.model.c_str(), static_cast<long long>(r.train.d()),
                 static_cast<long long>(r.train.size()), static_cast<long long>(r.val.size()),
                 static_cast<long long>(r.model.n_params()));
     if (r.warm_start)
@@ -236,26 +210,27 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                   r.warm_start->method.c_str());
     else if (!r.warm_start_note.empty())
       std::printf("no warm start (%s); beta started at %g\n", r.warm_start_note.c_str(),
-                  a.beta_init);
+                  r.config.beta_init);
     std::printf("%s\n", r.training.brief_report().c_str());
-    if (r.refine.method != "none") std::printf("%s\n", r.refine.brief_report().c_str());
+    if (r.refine.method != RefineMethod::kNone)
+      std::printf("%s\n", r.refine.brief_report().c_str());
     std::printf("train loss %.3e, validation loss %.3e, unexplained share of a step %.2e\n",
-                train_loss, quality.val_loss, quality.val_relative_residual);
+                quality("train_loss"), quality("val_loss"), quality("val_relative_residual"));
     std::printf(
         "structure residual mean %.2e, max %.2e; wrote %s/{report.json,model.json,timings.json}\n",
-        quality.structure_residual_mean, quality.structure_residual_max, a.out.c_str());
+        quality("structure_residual_mean"), quality("structure_residual_max"), a.out.c_str());
   }
-  if (r.training.stop_reason == "diverged")
+  if (r.training.stop_reason == StopReason::kDiverged)
     throw Error("training diverged at epoch " + std::to_string(r.training.epochs_run + 1) +
                 " (non-finite loss or gradient); the best checkpoint (epoch " +
                 std::to_string(r.training.best_epoch) + ") was kept in " + a.out);
   if (interrupted()) {
     if (r.refine.stopped)
-      throw Interrupted("stopped in the second stage (" + r.config.refine.method + ") after " +
-                        std::to_string(r.refine.iterations) + " iterations; the best iterate (" +
-                        std::to_string(r.refine.best_iteration) + ") and its report are in " +
-                        a.out);
-    if (r.stopped && r.training.stop_reason == "budget")
+      throw Interrupted(
+          "stopped in the second stage (" + to_string(r.config.refine.method) + ") after " +
+          std::to_string(r.refine.iterations) + " iterations; the best iterate (" +
+          std::to_string(r.refine.best_iteration) + ") and its report are in " + a.out);
+    if (r.stopped && r.training.stop_reason == StopReason::kBudget)
       throw Interrupted("stopped during the bootstrap (" + r.interval_note +
                         "); the refined model and its report are in " + a.out);
     if (!r.stopped) throw Interrupted("the fit had finished; its complete result is in " + a.out);
@@ -296,15 +271,15 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
   IdentifyConfig c;
   if (!a.core.empty()) c.core = parse_core(a.core);
-  c.seed = a.seed;
+  c.seed = a.seed.value_or(c.seed);
   c.window = a.window;
   c.balanced = a.loss == "balanced";
   c.normalize = !a.no_normalize;
   c.dof_scales = a.dof_scales;
-  c.epochs = a.epochs;
-  c.lr = a.lr;
+  c.epochs = a.epochs.value_or(c.epochs);
+  c.lr = a.lr.value_or(c.lr);
   c.lm_iterations = a.lm_iterations;
-  c.val_fraction = a.val_fraction;
+  c.val_fraction = a.val_fraction.value_or(c.val_fraction);
   c.target_blocks = a.blocks;
   c.level = a.level;
   c.threads = a.threads;
@@ -338,13 +313,14 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
-  out_dir.commit({{"report.json", json_file_text(report)},
-                  {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
-                                                   {"lm_seconds", r.lm_seconds},
-                                                   {"interval_seconds", r.interval_seconds}})},
-                  {"model.json",
-                   model_file_text(r.model, r.theta,
-                                   {{"data", a.data}, {"seed", a.seed}, {"recipe", "identify"}})}});
+  out_dir.commit(
+      {{"report.json", json_file_text(report)},
+       {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
+                                        {"lm_seconds", r.lm_seconds},
+                                        {"interval_seconds", r.interval_seconds}})},
+       {"model.json",
+        model_file_text(r.model, r.theta,
+                        {{"data", a.data}, {"seed", r.config.seed}, {"recipe", "identify"}})}});
   if (r.identified) {
     const SandwichInterval& s = *r.interval;
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% interval, %s, %ld blocks)\n",
@@ -379,7 +355,8 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
 }  // namespace
 
 void add_train(CLI::App& app) {
-  auto a = std::make_shared<FitArgs>();
+  // train: AdamW alone unless told otherwise (FitConfig::adamw_only).
+  auto a = std::make_shared<FitArgs>(FitConfig::adamw_only());
   CLI::App* cmd = app.add_subcommand("train", "Train a model on pairs (or trajectories) CSV");
   cmd->add_option("--data", a->data, "Training CSV (pairs or trajectories); - for stdin")
       ->required()
@@ -394,12 +371,9 @@ void add_train(CLI::App& app) {
 }
 
 void add_fit(CLI::App& app) {
-  auto a = std::make_shared<FitArgs>();
-  // fit identifies γ: FitConfig's defaults, the identification recipe (docs/identification.md).
-  const FitConfig defaults;
-  a->warm_start = defaults.warm_start;
-  a->refine = defaults.refine.method;
-  a->bootstrap_default = defaults.bootstrap.replicates;
+  // fit identifies γ: with --recipe classic, FitConfig's identification recipe
+  // (docs/identification.md).
+  auto a = std::make_shared<FitArgs>(FitConfig::identification());
   CLI::App* cmd = app.add_subcommand(
       "fit", "Fit CSympNet-ID to your own pairs or trajectories and print gamma_hat");
   cmd->add_option("data", a->data, "CSV of pairs or trajectories; - for standard input")
@@ -438,7 +412,7 @@ void add_fit(CLI::App& app) {
   CLI::App* self = cmd;
   cmd->callback([a, self] {
     if (parse_only()) return;
-    if (a->recipe == "identify" && a->model == "csympnet")
+    if (a->recipe == "identify" && a->model.value_or(a->classic.model) == "csympnet")
       run_identify(*a, *self);
     else
       run_fit(*a, true);

@@ -12,7 +12,10 @@ from ._data import REFERENCES, Trajectory, _system_overrides, systems, trajector
 from ._model import Model
 
 # The models fit_pairs() trains (experiments/fit.hpp); csympnet.run trains every model type.
-FIT_MODELS = ("csympnet", "sympnet")
+FIT_MODELS = tuple(_core.fit_models())
+# The library's spellings (train/trainer.hpp), in the order Python's messages have named them:
+# ("cosine", "constant").
+LR_SCHEDULES = tuple(sorted(_core.lr_schedules(), reverse=True))
 # ThreadTeam::kMaxThreads (include/csympnet/core/thread_team.hpp).
 MAX_THREADS = 256
 
@@ -94,7 +97,8 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     beta_init: initial β (γ̂ = |β|), nonzero. beta_decay: apply weight decay to β too.
     lr, lr_schedule ("cosine" or "constant"), lr_final_fraction, weight_decay, val_every:
         the optimiser (docs/training.md).
-    The defaults are the identification recipe (docs/identification.md); for the paper's
+    The defaults are the identification recipe (docs/identification.md), the library's
+    FitConfig::identification() (tests/test_fit.py keeps them equal); for the paper's
     recipe pass warm_start=False, refine="none", bootstrap=0.
     warm_start: start β at the closed-form estimate of γ from the data (csympnet only).
     refine: second stage after AdamW: "none" (the paper's recipe), "lm"
@@ -135,7 +139,9 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
                 f"validation z0: states have {val[0].shape[1]} components, expected "
                 f"{a0.shape[1]} (as the training pairs)"
             )
-    epochs = 0 if epochs is None else _checks.integer("epochs", epochs, minimum=1)
+    # None (epochs, bootstrap, refine_iterations, refine_solver): the library chooses.
+    if epochs is not None:
+        epochs = _checks.integer("epochs", epochs, minimum=1)
     seed = _checks.seed("seed", seed)
     val_fraction = _checks.real("val_fraction", val_fraction)
     if not 0 < val_fraction < 1:
@@ -146,22 +152,23 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if not isinstance(beta_decay, (bool, np.bool_)):
         raise TypeError(f"beta_decay: expected True or False, got {type(beta_decay).__name__}")
     lr = _checks.learning_rate("lr", lr)
-    _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
+    _checks.choice("lr_schedule", lr_schedule, LR_SCHEDULES)
     lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction, positive=True)
     weight_decay = _checks.real("weight_decay", weight_decay, nonnegative=True)
     val_every = _checks.integer("val_every", val_every, minimum=1)
     if not isinstance(warm_start, (bool, np.bool_)):
         raise TypeError(f"warm_start: expected True or False, got {type(warm_start).__name__}")
-    _checks.choice("refine", refine, ("none", "lm", "lbfgs", "auto"))
+    # The spellings are the library's (train/refine.hpp); "auto" leaves the choice to it.
+    _checks.choice("refine", refine, (*_core.refine_methods(), "auto"))
     if refine_iterations is not None:
         refine_iterations = _checks.integer("refine_iterations", refine_iterations, minimum=1)
     if refine_solver is not None:
-        _checks.choice("refine_solver", refine_solver,
-                       ("dense_qr", "dense_normal_cholesky", "blas_normal_cholesky"))
+        _checks.choice("refine_solver", refine_solver, tuple(_core.linear_solvers()))
         if refine == "auto":
             raise ValueError("refine_solver: needs refine=\"lm\"; refine=\"auto\" (the default) "
                              "chooses the solver by the model's size")
-    bootstrap = -1 if bootstrap is None else _checks.integer("bootstrap", bootstrap, minimum=0)
+    if bootstrap is not None:
+        bootstrap = _checks.integer("bootstrap", bootstrap, minimum=0)
     threads = _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS)
     groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):
@@ -270,7 +277,7 @@ def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="de
     if lr is not None:
         lr = _checks.learning_rate("lr", lr)
     if lr_schedule is not None:
-        _checks.choice("lr_schedule", lr_schedule, ("cosine", "constant"))
+        _checks.choice("lr_schedule", lr_schedule, LR_SCHEDULES)
     val_every = _checks.integer("val_every", val_every, minimum=1)
     beta_init = _checks.real("beta_init", beta_init)
     if beta_init == 0:

@@ -87,20 +87,10 @@ PairSet pairs_from(const DArray& z0, const DArray& z1, const DArray& h, const st
   return p;
 }
 
+// The options of csympnet.fit as given (None: the recipe's).
 struct FitArgs {
-  std::string model, core_json, lr_schedule;
-  std::uint64_t seed;
-  double val_fraction, beta_init, lr, lr_final_fraction, weight_decay;
-  long epochs, val_every;
-  bool decay_damping;
-  // Identification beyond the paper's recipe (the options of `csympnet fit`).
-  bool warm_start;
-  std::string refine;
-  std::optional<long> refine_iterations;
-  std::optional<std::string> refine_solver;
-  long bootstrap;
+  FitSettings settings;
   std::vector<Index> groups;  // trajectory of each training pair, or empty
-  int threads;
 };
 
 std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h,
@@ -113,25 +103,8 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
     val_pairs = pairs_from((*val)[0].cast<DArray>(), (*val)[1].cast<DArray>(),
                            (*val)[2].cast<DArray>(), "validation pairs");
   }
-  FitConfig c;
-  c.model = a.model;
-  c.core = parse_json(a.core_json, "core");
-  c.seed = a.seed;
-  c.val_fraction = a.val_fraction;
-  c.beta_init = a.beta_init;
-  c.train.epochs = a.epochs;
-  c.train.val_every = a.val_every;
-  c.train.threads = a.threads;
-  c.train.adamw.lr = a.lr;
-  c.train.adamw.weight_decay = a.weight_decay;
-  c.train.adamw.decay_damping = a.decay_damping;
-  c.train.lr_schedule = a.lr_schedule;
-  c.train.lr_final_fraction = a.lr_final_fraction;
-  c.warm_start = a.warm_start;
-  c.refine.method = a.refine;
-  if (a.refine_iterations) c.refine.iterations = *a.refine_iterations;
-  if (a.refine_solver) c.refine.linear_solver = *a.refine_solver;
-  c.bootstrap.replicates = a.bootstrap;
+  // csympnet.fit runs `csympnet fit --recipe classic`: the identification recipe.
+  const FitConfig c = make_fit_config(FitConfig::identification(), a.settings);
   require(a.groups.empty() || static_cast<Index>(a.groups.size()) == train.size(),
           "groups: expected one trajectory label per training pair");
 
@@ -146,8 +119,7 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
   auto out = std::make_unique<PyModel>();
   out->training = r.training;
   if (r.interval) out->gamma_interval = std::pair{r.interval->low, r.interval->high};
-  nlohmann::json train_json = r.config.train;
-  train_json["lr_schedule"] = r.config.train.lr_schedule;
+  const nlohmann::json train_json = r.config.train;
   out->meta = {{"source", "python fit"},        {"seed", r.config.seed},
                {"train", train_json},           {"config", r.config},
                {"pairs_train", r.train.size()}, {"pairs_val", r.val.size()}};
@@ -190,7 +162,7 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   }
   if (a.epochs) c.train.epochs = *a.epochs;
   if (a.lr) c.train.adamw.lr = *a.lr;
-  if (a.lr_schedule) c.train.lr_schedule = *a.lr_schedule;
+  if (a.lr_schedule) c.train.lr_schedule = parse_lr_schedule(*a.lr_schedule);
   c.train.val_every = a.val_every;
   c.train.threads = a.threads;
   c.train.adamw.decay_damping = a.decay_damping;
@@ -272,34 +244,46 @@ void bind_fit(py::module_& m) {
   m.def("identify", &identify_trajectories, py::arg("trajectories"), py::arg("pairs_only"),
         py::arg("config_json"), py::arg("progress"),
         "identify() of experiments/identify.hpp (wrapped by csympnet.identify).");
+  // The spellings of the second stage's methods and LM's solvers (train/refine.hpp).
+  m.def("refine_methods", &refine_method_names);
+  m.def("linear_solvers", &linear_solver_names);
+  m.def("fit_models", &fit_model_names);
+  m.def("lr_schedules", &lr_schedule_names);
+  // The recipe csympnet.fit's defaults mirror, as JSON text (tests/test_fit.py compares them).
+  m.def("fit_recipe_json", [] { return nlohmann::json(FitConfig::identification()).dump(); });
   m.def(
       "fit_pairs",
       [](const DArray& z0, const DArray& z1, const DArray& h, const std::optional<py::tuple>& val,
-         const std::string& model, const std::string& core_json, std::uint64_t seed,
-         double val_fraction, double beta_init, long epochs, long val_every, double lr,
-         const std::string& lr_schedule, double lr_final_fraction, double weight_decay,
-         bool decay_damping, bool warm_start, const std::string& refine,
-         std::optional<long> refine_iterations, std::optional<std::string> refine_solver,
-         long bootstrap, std::vector<Index> groups, int threads, const py::object& progress) {
-        const FitArgs a{model,
-                        core_json,
-                        lr_schedule,
-                        seed,
-                        val_fraction,
-                        beta_init,
-                        lr,
-                        lr_final_fraction,
-                        weight_decay,
-                        epochs,
-                        val_every,
-                        decay_damping,
-                        warm_start,
-                        refine,
-                        refine_iterations,
-                        std::move(refine_solver),
-                        bootstrap,
-                        std::move(groups),
-                        threads};
+         std::optional<std::string> model, const std::string& core_json,
+         std::optional<std::uint64_t> seed, std::optional<double> val_fraction,
+         std::optional<double> beta_init, std::optional<long> epochs, std::optional<long> val_every,
+         std::optional<double> lr, std::optional<std::string> lr_schedule,
+         std::optional<double> lr_final_fraction, std::optional<double> weight_decay,
+         std::optional<bool> decay_damping, std::optional<bool> warm_start,
+         std::optional<std::string> refine, std::optional<long> refine_iterations,
+         std::optional<std::string> refine_solver, std::optional<long> bootstrap,
+         std::vector<Index> groups, std::optional<int> threads, const py::object& progress) {
+        FitArgs a;
+        FitSettings& s = a.settings;
+        s.model = std::move(model);
+        s.core = parse_json(core_json, "core");
+        s.seed = seed;
+        s.val_fraction = val_fraction;
+        s.beta_init = beta_init;
+        s.epochs = epochs;
+        s.val_every = val_every;
+        s.lr = lr;
+        s.lr_schedule = std::move(lr_schedule);
+        s.lr_final_fraction = lr_final_fraction;
+        s.weight_decay = weight_decay;
+        s.decay_damping = decay_damping;
+        s.warm_start = warm_start;
+        s.refine = std::move(refine);
+        s.refine_iterations = refine_iterations;
+        s.refine_solver = std::move(refine_solver);
+        s.bootstrap = bootstrap;
+        s.threads = threads;
+        a.groups = std::move(groups);
         return fit(z0, z1, h, val, a, progress);
       },
       py::arg("z0"), py::arg("z1"), py::arg("h"), py::arg("val"), py::arg("model"),

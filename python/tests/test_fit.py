@@ -23,6 +23,30 @@ def test_fit_identifies_gamma_on_s1(s1_pairs):
     assert 0 <= t["best_epoch"] <= 2000 and t["best_val_loss"] < 1e-6
 
 
+def test_fit_defaults_are_the_librarys_identification_recipe():
+    """csympnet.fit's signature shows the defaults of FitConfig::identification()."""
+    import inspect
+    from csympnet import _core
+    recipe = json.loads(_core.fit_recipe_json())
+    d = {k: p.default for k, p in inspect.signature(csympnet.fit).parameters.items()}
+    train = recipe["train"]
+    assert d["model"] == recipe["model"]
+    assert d["seed"] == recipe["seed"]
+    assert d["val_fraction"] == recipe["val_fraction"]
+    assert d["beta_init"] == recipe["beta_init"]
+    assert d["warm_start"] == recipe["warm_start"]
+    assert d["lr"] == train["adamw"]["lr"]
+    assert d["weight_decay"] == train["adamw"]["weight_decay"]
+    assert d["beta_decay"] == train["adamw"]["decay_damping"]
+    assert d["lr_schedule"] == train["lr_schedule"]
+    assert d["lr_final_fraction"] == train["lr_final_fraction"]
+    assert d["val_every"] == train["val_every"]
+    assert train["epochs"] == 0 and d["epochs"] is None  # by dimension
+    assert d["refine"] == recipe["refine"]["method"] == "auto"
+    assert d["bootstrap"] is None and recipe["bootstrap"]["replicates"] == "auto"
+    assert d["refine_iterations"] is None and d["refine_solver"] is None
+
+
 def test_sympnet_has_no_gamma(s1_pairs):
     model = csympnet.fit(*s1_pairs, model="sympnet", epochs=50)
     assert model.type == "sympnet" and model.gamma is None and model.n_params == 114

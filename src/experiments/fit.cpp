@@ -12,8 +12,26 @@
 
 namespace csympnet {
 
+const std::vector<std::string>& fit_model_names() {
+  static const std::vector<std::string> names = {"csympnet", "sympnet"};
+  return names;
+}
+
+FitConfig FitConfig::identification() {
+  return FitConfig{};
+}
+
+FitConfig FitConfig::adamw_only() {
+  FitConfig c;
+  c.warm_start = false;
+  c.refine_method = RefineMethod::kNone;
+  c.bootstrap_replicates = 0;
+  return c;
+}
+
 void FitConfig::validate() const {
-  require(model == "csympnet" || model == "sympnet",
+  const auto& models = fit_model_names();
+  require(std::find(models.begin(), models.end(), model) != models.end(),
           "--model must be 'csympnet' or 'sympnet', got '" + model + "'");
   require(std::isfinite(val_fraction) && val_fraction > 0.0 && val_fraction < 1.0,
           "--val-fraction must be in (0, 1), got " + std::to_string(val_fraction));
@@ -21,18 +39,23 @@ void FitConfig::validate() const {
   TrainOptions t = train;
   if (t.epochs <= 0) t.epochs = 0;
   t.validate();
-  RefineOptions r = refine;
-  if (r.method == "auto") r.method = "lm";
-  r.validate();
+  refine.validate();
   BootstrapOptions b = bootstrap;
-  if (b.replicates < 0) b.replicates = 0;
-  if (b.refine.method == "auto") b.refine.method = "lm";
+  b.replicates = bootstrap_replicates.value_or(0);
+  if (replicate_refine) b.refine = *replicate_refine;
   b.validate();
   require(b.replicates == 0 || model == "csympnet",
           "--bootstrap needs --model csympnet (the only model here with a damping rate)");
 }
 
 void to_json(nlohmann::json& j, const FitConfig& c) {
+  nlohmann::json refine = c.refine;
+  refine["method"] = c.refine_method ? to_string(*c.refine_method) : "auto";
+  nlohmann::json bootstrap = c.bootstrap;
+  bootstrap["replicates"] =
+      c.bootstrap_replicates ? nlohmann::json(*c.bootstrap_replicates) : nlohmann::json("auto");
+  bootstrap["refine"] =
+      c.replicate_refine ? nlohmann::json(*c.replicate_refine) : nlohmann::json("auto");
   j = {{"model", c.model},
        {"core", c.core},
        {"seed", c.seed},
@@ -40,8 +63,36 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
        {"train", c.train},
        {"beta_init", c.beta_init},
        {"warm_start", c.warm_start},
-       {"refine", c.refine},
-       {"bootstrap", c.bootstrap}};
+       {"refine", refine},
+       {"bootstrap", bootstrap}};
+}
+
+FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
+  FitConfig c = recipe;
+  if (s.model) c.model = *s.model;
+  if (!s.core.is_null()) c.core = s.core;
+  if (s.seed) c.seed = *s.seed;
+  if (s.val_fraction) c.val_fraction = *s.val_fraction;
+  if (s.beta_init) c.beta_init = *s.beta_init;
+  if (s.epochs) c.train.epochs = *s.epochs;
+  if (s.val_every) c.train.val_every = *s.val_every;
+  if (s.threads) c.train.threads = *s.threads;
+  if (s.lr) c.train.adamw.lr = *s.lr;
+  if (s.weight_decay) c.train.adamw.weight_decay = *s.weight_decay;
+  if (s.decay_damping) c.train.adamw.decay_damping = *s.decay_damping;
+  if (s.lr_schedule) c.train.lr_schedule = parse_lr_schedule(*s.lr_schedule);
+  if (s.lr_final_fraction) c.train.lr_final_fraction = *s.lr_final_fraction;
+  if (s.warm_start) c.warm_start = *s.warm_start;
+  if (s.refine) {
+    if (*s.refine == "auto")
+      c.refine_method.reset();
+    else
+      c.refine_method = parse_refine_method(*s.refine);
+  }
+  if (s.refine_iterations) c.refine.iterations = *s.refine_iterations;
+  if (s.refine_solver) c.refine.linear_solver = parse_linear_solver(*s.refine_solver);
+  if (s.bootstrap) c.bootstrap_replicates = *s.bootstrap;
+  return c;
 }
 
 void resolve_auto_refine(RefineOptions& refine, Index n_pairs, Index dim, Index n_params) {
@@ -49,13 +100,14 @@ void resolve_auto_refine(RefineOptions& refine, Index n_pairs, Index dim, Index 
       static_cast<double>(n_pairs) * static_cast<double>(dim) * static_cast<double>(n_params);
   const Index residuals = n_pairs * dim;
   if (entries <= kMaxJacobianEntries && n_params <= kMaxLmParams &&
-      ceres_iteration_flops("dense_qr", residuals, n_params) <= kMaxCeresIterationFlops) {
-    refine.method = "lm";
+      ceres_iteration_flops(LinearSolver::kDenseQr, residuals, n_params) <=
+          kMaxCeresIterationFlops) {
+    refine.method = RefineMethod::kLm;
   } else if (entries <= kMaxNormalLmJacobianEntries && n_params <= kMaxNormalLmParams) {
-    refine.method = "lm";
-    refine.linear_solver = "blas_normal_cholesky";
+    refine.method = RefineMethod::kLm;
+    refine.linear_solver = LinearSolver::kBlasNormalCholesky;
   } else {
-    refine.method = "lbfgs";
+    refine.method = RefineMethod::kLbfgs;
   }
 }
 
@@ -64,12 +116,12 @@ RefineOptions default_replicate_refine_for(const RefineOptions& refine) {
   // Replicates start at θ̂ and keep their last iterate: with the best-validation rule they
   // would mostly keep θ̂ itself, and the interval would collapse to a point (measured).
   r.keep_best_validation = false;
-  if (refine.method == "lm") {
-    r.method = "lm";
+  if (refine.method == RefineMethod::kLm) {
+    r.method = RefineMethod::kLm;
     r.linear_solver = refine.linear_solver;
     r.iterations = 10;
   } else {
-    r.method = "lbfgs";
+    r.method = RefineMethod::kLbfgs;
     r.iterations = 100;
   }
   return r;
@@ -164,6 +216,7 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   if (r.config.core.is_null()) r.config.core = default_core_for(train.d());
   if (r.config.train.epochs <= 0) r.config.train.epochs = default_epochs_for(train.d());
 
+  r.val_split = !val.has_value();
   if (val) {
     r.train = train;
     r.val = *val;
@@ -198,9 +251,14 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   Rng init_rng(config.seed, "init");
   r.model.init_params(init_rng, r.theta);
   r.config.bootstrap.seed = config.seed;
-  if (r.config.refine.method == "auto")
+  if (config.refine_method)
+    r.config.refine.method = *config.refine_method;
+  else
     resolve_auto_refine(r.config.refine, r.train.size(), r.train.dim(), r.model.n_params());
-  if (r.config.bootstrap.replicates < 0) {
+  r.config.refine_method = r.config.refine.method;
+  if (config.bootstrap_replicates) {
+    r.config.bootstrap.replicates = *config.bootstrap_replicates;
+  } else {
     r.config.bootstrap.replicates = 0;
     if (config.model == "csympnet" && r.model.n_params() <= kMaxLmParams) {
       r.config.bootstrap.replicates = kAutoBootstrapReplicates;
@@ -211,16 +269,19 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
                         "(Python: bootstrap=N)";
     }
   }
-  if (r.config.bootstrap.refine.method == "auto")
-    r.config.bootstrap.refine = default_replicate_refine_for(r.config.refine);
+  r.config.bootstrap_replicates = r.config.bootstrap.replicates;
+  r.config.bootstrap.refine = config.replicate_refine
+                                  ? *config.replicate_refine
+                                  : default_replicate_refine_for(r.config.refine);
+  r.config.replicate_refine = r.config.bootstrap.refine;
   // A second stage that could not be interrupted is refused before any training.
   check_refine_fits(r.config.refine, r.train.size() * r.train.dim(), r.model.n_params());
   if (r.config.bootstrap.replicates > 0)
     check_refine_fits(r.config.bootstrap.refine, r.train.size() * r.train.dim(),
                       r.model.n_params());
   r.training = train_model(r.model, r.theta, r.train, r.val, r.config.train, progress);
-  if (r.training.stop_reason != "budget") {  // diverged or stopped: no second stage
-    r.stopped = r.training.stop_reason == "callback";
+  if (r.training.stop_reason != StopReason::kBudget) {  // diverged or stopped: no second stage
+    r.stopped = r.training.stop_reason == StopReason::kCallback;
     return r;
   }
   r.refine =
@@ -244,6 +305,55 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
     }
   }
   return r;
+}
+
+nlohmann::json fit_report(const FitResult& r) {
+  const auto gamma = r.model.damping_rate(r.theta);
+  const FitQuality quality = fit_quality(r.model, r.theta, r.train, r.val);
+  // The pairs given for training: the training pairs, and the validation pairs when they
+  // were split off them.
+  double h_min = r.train.h.minCoeff(), h_max = r.train.h.maxCoeff();
+  if (r.val_split) {
+    h_min = std::min(h_min, r.val.h.minCoeff());
+    h_max = std::max(h_max, r.val.h.maxCoeff());
+  }
+  const std::optional<GammaInterval>& g = r.interval;
+  nlohmann::json report = {
+      {"model", r.config.model},
+      {"data", nullptr},
+      {"validation", r.val_split ? nlohmann::json("split") : nlohmann::json(nullptr)},
+      {"d", r.train.d()},
+      {"pairs_train", r.train.size()},
+      {"pairs_val", r.val.size()},
+      {"h_min", h_min},
+      {"h_max", h_max},
+      {"params", r.model.n_params()},
+      {"seed", r.config.seed},
+      {"epochs", r.training.epochs_run},
+      {"train_seconds", r.training.seconds},
+      {"best_val_loss", quality.val_loss},
+      {"train_loss", quality.train_loss},
+      {"gamma_hat", gamma ? nlohmann::json(*gamma) : nlohmann::json(nullptr)},
+      {"gamma_ci_low", g ? nlohmann::json(g->low) : nlohmann::json(nullptr)},
+      {"gamma_ci_high", g ? nlohmann::json(g->high) : nlohmann::json(nullptr)},
+      {"gamma_ci_level", g ? nlohmann::json(g->level) : nlohmann::json(nullptr)},
+      {"gamma_ci_method",
+       g ? nlohmann::json("percentile bootstrap over " + g->resample) : nlohmann::json(nullptr)},
+      {"gamma_ci_replicates", g ? g->replicates : 0},
+      {"bootstrap", g ? nlohmann::json(*g) : nlohmann::json(nullptr)},
+      {"warm_start", r.warm_start
+                         ? nlohmann::json({{"gamma", r.warm_start->gamma},
+                                           {"method", r.warm_start->method},
+                                           {"groups", r.warm_start->groups}})
+                         : nlohmann::json(r.warm_start_note.empty() ? "off" : r.warm_start_note)},
+      {"quality", quality},
+      {"training", r.training},
+      {"refine", r.refine},
+      {"config", r.config},
+      {"architecture", r.model.hyperparams()}};
+  if (gamma && !r.interval_note.empty()) report["gamma_ci_note"] = r.interval_note;
+  if (r.stopped) report["interrupted"] = true;  // a partial result: see training/refine
+  return report;
 }
 
 }  // namespace csympnet

@@ -335,7 +335,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     t.epochs = epochs_for(x);
     t.adamw.lr = c.lr;
     t.adamw.decay_damping = false;  // no pull of γ̂ towards 0
-    t.lr_schedule = "cosine";
+    t.lr_schedule = LrSchedule::kCosine;
     t.threads = c.threads;
     ProgressCallback cb = [&](const TrainProgress& p) {
       if (stop()) return false;
@@ -365,7 +365,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   };
   bool stopped = false;
   auto run_lm = [&](Candidate& x, long budget, const std::string& label) {
-    if (stopped || stop() || x.training.stop_reason == "diverged" || budget <= 0) return;
+    if (stopped || stop() || x.training.stop_reason == StopReason::kDiverged || budget <= 0) return;
     stage(label);
     const OneStepMap& map = *x.inner.map;
     const Index n_params = x.inner.n_params();
@@ -536,7 +536,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   r.gamma = gamma_n / tau;
   r.quality.train_loss = window_loss(map, r.theta, train, bal);
   r.quality.val_loss = window_loss(map, r.theta, val, bal);
-  if (!r.stopped && lm_fits && r.training.stop_reason != "diverged") {
+  if (!r.stopped && lm_fits && r.training.stop_reason != StopReason::kDiverged) {
     stage("interval");
     const auto t_interval = std::chrono::steady_clock::now();
     const NormalEquations ne = window_normal_equations(map, r.theta, train, bal, scale, true, stop);
@@ -604,7 +604,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   // 8. The verdict.
   auto reason = [&](const std::string& s) { r.reasons.push_back(s); };
-  if (r.training.stop_reason == "diverged")
+  if (r.training.stop_reason == StopReason::kDiverged)
     reason("training diverged (non-finite loss or gradient)");
   if (!std::isfinite(r.gamma)) reason("gamma_hat is not finite");
   if (!lm_fits) reason("the model has more than 6000 parameters: no interval can be formed");

@@ -28,7 +28,7 @@ constexpr long kLargeBaselineEpochs = 3000;
 // The paper's optimiser with a cosine-annealed rate (switch back with paper_recipe()).
 TrainOptions improved_recipe(long epochs) {
   TrainOptions t = paper_recipe(epochs);
-  t.lr_schedule = "cosine";
+  t.lr_schedule = LrSchedule::kCosine;
   return t;
 }
 
@@ -91,7 +91,7 @@ TrainOptions paper_recipe(long epochs) {
   TrainOptions t;
   t.epochs = epochs;
   t.adamw = AdamWOptions{};
-  t.lr_schedule = "constant";
+  t.lr_schedule = LrSchedule::kConstant;
   return t;
 }
 
@@ -99,7 +99,7 @@ std::string describe_recipe(const TrainOptions& t) {
   const AdamWOptions paper{};
   std::string changes;
   auto add = [&](const std::string& c) { changes += (changes.empty() ? "" : ",") + c; };
-  if (t.lr_schedule != "constant") add(t.lr_schedule + "-lr");
+  if (t.lr_schedule != LrSchedule::kConstant) add(to_string(t.lr_schedule) + "-lr");
   auto num = [](double x) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%g", x);

@@ -84,7 +84,7 @@ json execute_run(const SuiteRun& run, const std::function<bool()>& stop) {
     ProgressCallback keep_going;
     if (stop) keep_going = [&stop](const TrainProgress&) { return !stop(); };
     RunResult r = run_experiment(run.config, keep_going, /*evaluate_if_stopped=*/false, stop);
-    if (r.training.stop_reason == "callback" || r.refine.stopped) {
+    if (r.training.stop_reason == StopReason::kCallback || r.refine.stopped) {
       rec["status"] = "interrupted";  // never cached: the run starts afresh next time
       return rec;
     }

@@ -26,7 +26,7 @@ void RunConfig::validate() const {
   reference.validate();
   ode.validate();
   refine.validate();
-  require(refine.method == "none" || !is_vector_field_type(model),
+  require(refine.method == RefineMethod::kNone || !is_vector_field_type(model),
           "--refine applies to map models (csympnet, sympnet, map), not to '" + model + "'");
   require(!warm_start || model == "csympnet", "--warm-start applies to --model csympnet only");
   model_spec_for(preset, model);  // validates the model name
@@ -57,7 +57,7 @@ void to_json(nlohmann::json& j, const RunConfig& c) {
        {"loss", is_vector_field_type(c.model)
                     ? "midpoint: mean over pairs of |(z1 - z0)/h - f((z0 + z1)/2)|^2"
                     : "one-step: mean over pairs of |z1 - Phi_h(z0)|^2"}};
-  if (c.refine.method != "none") j["refine"] = c.refine;
+  if (c.refine.method != RefineMethod::kNone) j["refine"] = c.refine;
   if (c.warm_start) j["warm_start"] = true;
 }
 
@@ -108,7 +108,7 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   if (r.model.is_map())  // a second stage that could not be interrupted: refused up front
     check_refine_fits(c.refine, r.data.train.size() * r.data.train.dim(), r.model.n_params());
   r.training = train_model(r.model, r.theta, r.data.train, r.data.val, c.train, progress);
-  const bool stopped = r.training.stop_reason == "callback";
+  const bool stopped = r.training.stop_reason == StopReason::kCallback;
   if (stopped && !evaluate_if_stopped) return r;
   if (r.model.is_map() && !stopped)
     r.refine =
@@ -130,7 +130,7 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   rep["sigma"] = c.sigma;
   rep["epochs"] = r.training.epochs_run;
   rep["best_epoch"] = r.training.best_epoch;
-  rep["stop_reason"] = r.training.stop_reason;
+  rep["stop_reason"] = to_string(r.training.stop_reason);
   rep["train_seconds"] = r.training.seconds;
   // Results do not depend on it; only a run that asked for more than one says so.
   if (c.train.threads > 1) rep["train_threads"] = c.train.threads;
@@ -143,11 +143,11 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   rep["test_trajectories"] = r.data.test.trajectories.size();
   rep["test_redraws"] = r.data.test.redraws;
   rep["recipe"] = describe_recipe(c.train);
-  if (c.refine.method != "none") {
-    rep["recipe"] = rep["recipe"].get<std::string>() + "+" + c.refine.method;
+  if (c.refine.method != RefineMethod::kNone) {
+    rep["recipe"] = rep["recipe"].get<std::string>() + "+" + to_string(c.refine.method);
     rep["refine"] = r.refine;  // method "none": skipped because training was stopped
     rep["refine_seconds"] = r.refine.seconds;
-    if (r.refine.method != "none") rep["best_val_loss"] = r.refine.val_loss_after;
+    if (r.refine.method != RefineMethod::kNone) rep["best_val_loss"] = r.refine.val_loss_after;
   }
   if (r.warm_start)
     rep["warm_start"] = {{"gamma", r.warm_start->gamma},

@@ -20,7 +20,7 @@ void BootstrapOptions::validate() const {
   require(std::isfinite(level) && level > 0.0 && level < 1.0,
           "bootstrap.level must be in (0, 1), got " + std::to_string(level));
   refine.validate();
-  require(refine.method != "none", "bootstrap.refine.method must be 'lm' or 'lbfgs'");
+  require(refine.method != RefineMethod::kNone, "bootstrap.refine.method must be 'lm' or 'lbfgs'");
 }
 
 void to_json(nlohmann::json& j, const BootstrapOptions& o) {

@@ -15,16 +15,54 @@
 
 namespace csympnet {
 
+namespace {
+// "'a', 'b' or 'c'"
+std::string quoted_alternatives(const std::vector<std::string>& names) {
+  std::string s;
+  for (std::size_t i = 0; i < names.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + ("'" + names[i] + "'");
+  return s;
+}
+
+template <typename Enum>
+Enum parse_name(const std::vector<std::string>& names, const std::string& text,
+                const std::string& option) {
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (names[i] == text) return static_cast<Enum>(i);
+  throw Error(option + " must be " + quoted_alternatives(names) + ", got '" + text + "'");
+}
+}  // namespace
+
+const std::vector<std::string>& refine_method_names() {
+  static const std::vector<std::string> names = {"none", "lm", "lbfgs"};
+  return names;
+}
+
+const std::vector<std::string>& linear_solver_names() {
+  static const std::vector<std::string> names = {"dense_qr", "dense_normal_cholesky",
+                                                 "blas_normal_cholesky"};
+  return names;
+}
+
+std::string to_string(RefineMethod m) {
+  return refine_method_names().at(static_cast<std::size_t>(m));
+}
+
+std::string to_string(LinearSolver s) {
+  return linear_solver_names().at(static_cast<std::size_t>(s));
+}
+
+RefineMethod parse_refine_method(const std::string& text, const std::string& option) {
+  return parse_name<RefineMethod>(refine_method_names(), text, option);
+}
+
+LinearSolver parse_linear_solver(const std::string& text, const std::string& option) {
+  return parse_name<LinearSolver>(linear_solver_names(), text, option);
+}
+
 void RefineOptions::validate() const {
-  require(method == "none" || method == "lm" || method == "lbfgs",
-          "refine.method (--refine) must be 'none', 'lm' or 'lbfgs', got '" + method + "'");
   require(iterations >= 1, "refine.iterations (--refine-iterations) must be >= 1, got " +
                                std::to_string(iterations));
-  require(linear_solver == "dense_qr" || linear_solver == "dense_normal_cholesky" ||
-              linear_solver == "blas_normal_cholesky",
-          "refine.linear_solver (--refine-solver) must be 'dense_qr', 'dense_normal_cholesky' or "
-          "'blas_normal_cholesky', got '" +
-              linear_solver + "'");
   auto tol_ok = [](double x) { return std::isfinite(x) && x >= 0.0; };
   require(tol_ok(function_tolerance), "refine.function_tolerance must be a finite number >= 0");
   require(tol_ok(gradient_tolerance), "refine.gradient_tolerance must be a finite number >= 0");
@@ -32,27 +70,30 @@ void RefineOptions::validate() const {
   require(lbfgs_rank >= 1, "refine.lbfgs_rank must be >= 1, got " + std::to_string(lbfgs_rank));
 }
 
-double ceres_iteration_flops(const std::string& linear_solver, Index n_residuals, Index n_params) {
+double ceres_iteration_flops(LinearSolver linear_solver, Index n_residuals, Index n_params) {
   const double m = static_cast<double>(n_residuals), n = static_cast<double>(n_params);
-  return linear_solver == "dense_qr" ? 2.0 * m * n * n : m * n * n + n * n * n / 3.0;
+  return linear_solver == LinearSolver::kDenseQr ? 2.0 * m * n * n : m * n * n + n * n * n / 3.0;
 }
 
 void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_params) {
-  if (options.method != "lm" || options.linear_solver == "blas_normal_cholesky") return;
+  if (options.method != RefineMethod::kLm ||
+      options.linear_solver == LinearSolver::kBlasNormalCholesky)
+    return;
   const double flops = ceres_iteration_flops(options.linear_solver, n_residuals, n_params);
   if (flops <= kMaxCeresIterationFlops) return;
-  throw Error("--refine-solver " + options.linear_solver + " with " + std::to_string(n_params) +
-              " parameters and " + std::to_string(n_residuals) + " residuals takes " +
-              number_text(flops) + " operations per LM iteration in one Ceres call that Ctrl-C " +
+  throw Error("--refine-solver " + to_string(options.linear_solver) + " with " +
+              std::to_string(n_params) + " parameters and " + std::to_string(n_residuals) +
+              " residuals takes " + number_text(flops) +
+              " operations per LM iteration in one Ceres call that Ctrl-C " +
               "cannot stop; expected at most " + number_text(kMaxCeresIterationFlops) +
               ": use --refine-solver blas_normal_cholesky (csympnet's LM, which stops promptly), " +
               "or --refine auto");
 }
 
 void to_json(nlohmann::json& j, const RefineOptions& o) {
-  j = {{"method", o.method},
+  j = {{"method", to_string(o.method)},
        {"iterations", o.iterations},
-       {"linear_solver", o.linear_solver},
+       {"linear_solver", to_string(o.linear_solver)},
        {"function_tolerance", o.function_tolerance},
        {"gradient_tolerance", o.gradient_tolerance},
        {"parameter_tolerance", o.parameter_tolerance},
@@ -61,9 +102,10 @@ void to_json(nlohmann::json& j, const RefineOptions& o) {
 }
 
 void from_json(const nlohmann::json& j, RefineOptions& o) {
-  o.method = j.value("method", o.method);
+  if (j.contains("method")) o.method = parse_refine_method(j.at("method").get<std::string>());
   o.iterations = j.value("iterations", o.iterations);
-  o.linear_solver = j.value("linear_solver", o.linear_solver);
+  if (j.contains("linear_solver"))
+    o.linear_solver = parse_linear_solver(j.at("linear_solver").get<std::string>());
   o.function_tolerance = j.value("function_tolerance", o.function_tolerance);
   o.gradient_tolerance = j.value("gradient_tolerance", o.gradient_tolerance);
   o.parameter_tolerance = j.value("parameter_tolerance", o.parameter_tolerance);
@@ -73,7 +115,7 @@ void from_json(const nlohmann::json& j, RefineOptions& o) {
 
 std::string RefineSummary::brief_report() const {
   std::ostringstream s;
-  s << "refine " << method << ": " << iterations << " iterations in " << seconds
+  s << "refine " << to_string(method) << ": " << iterations << " iterations in " << seconds
     << " s; train loss " << train_loss_before << " -> " << train_loss_after << ", validation loss "
     << val_loss_before << " -> " << val_loss_after << " (iterate " << best_iteration << "; "
     << termination << ")";
@@ -81,14 +123,10 @@ std::string RefineSummary::brief_report() const {
 }
 
 void to_json(nlohmann::json& j, const RefineSummary& s) {
-  j = {{"method", s.method},
-       {"iterations", s.iterations},
-       {"best_iteration", s.best_iteration},
-       {"train_loss_before", s.train_loss_before},
-       {"train_loss_after", s.train_loss_after},
-       {"val_loss_before", s.val_loss_before},
-       {"val_loss_after", s.val_loss_after},
-       {"termination", s.termination}};
+  j = {{"method", to_string(s.method)},          {"iterations", s.iterations},
+       {"best_iteration", s.best_iteration},     {"train_loss_before", s.train_loss_before},
+       {"train_loss_after", s.train_loss_after}, {"val_loss_before", s.val_loss_before},
+       {"val_loss_after", s.val_loss_after},     {"termination", s.termination}};
 }
 
 namespace {
@@ -248,7 +286,7 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
   s.method = options.method;
   s.train_loss_before = one_step_loss(map, theta, train);
   s.val_loss_before = one_step_loss(map, theta, val);
-  if (options.method == "none") {
+  if (options.method == RefineMethod::kNone) {
     s.train_loss_after = s.train_loss_before;
     s.val_loss_after = s.val_loss_before;
     s.termination = "no second stage";
@@ -258,7 +296,8 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
   const Vector initial = theta;
   BestValidation best(map, val, theta.data(), initial, s.val_loss_before);
   const StopPoll stop(should_stop);
-  if (options.method == "lm" && options.linear_solver == "blas_normal_cholesky") {
+  if (options.method == RefineMethod::kLm &&
+      options.linear_solver == LinearSolver::kBlasNormalCholesky) {
     LmSettings ls;
     ls.max_iterations = options.iterations;
     ls.function_tolerance = options.function_tolerance;
@@ -270,7 +309,7 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
         levenberg_marquardt(problem, theta, ls, [&best](long it) { best.consider(it); });
     s.iterations = lr.iterations;
     s.termination = lr.message;
-  } else if (options.method == "lm") {
+  } else if (options.method == RefineMethod::kLm) {
     ceres::Problem::Options po;
     po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(po);
@@ -279,8 +318,9 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     ceres::Solver::Options so;
     so.minimizer_type = ceres::TRUST_REGION;
     so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-    so.linear_solver_type =
-        options.linear_solver == "dense_qr" ? ceres::DENSE_QR : ceres::DENSE_NORMAL_CHOLESKY;
+    so.linear_solver_type = options.linear_solver == LinearSolver::kDenseQr
+                                ? ceres::DENSE_QR
+                                : ceres::DENSE_NORMAL_CHOLESKY;
     so.max_num_iterations = static_cast<int>(options.iterations);
     so.function_tolerance = options.function_tolerance;
     so.gradient_tolerance = options.gradient_tolerance;

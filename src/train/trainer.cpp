@@ -15,8 +15,6 @@ void TrainOptions::validate() const {
   require(epochs >= 0, "train.epochs must be >= 0, got " + std::to_string(epochs));
   require(val_every >= 1, "train.val_every must be >= 1, got " + std::to_string(val_every));
   adamw.validate();
-  require(lr_schedule == "constant" || lr_schedule == "cosine",
-          "train.lr_schedule must be 'constant' or 'cosine', got '" + lr_schedule + "'");
   require(std::isfinite(lr_final_fraction) && lr_final_fraction > 0.0 && lr_final_fraction <= 1.0,
           "train.lr_final_fraction must be in (0, 1]");
   require(threads >= 1 && threads <= ThreadTeam::kMaxThreads,
@@ -25,7 +23,7 @@ void TrainOptions::validate() const {
 }
 
 double TrainOptions::lr_at(long epoch) const {
-  if (lr_schedule == "constant" || epochs <= 1) return adamw.lr;
+  if (lr_schedule == LrSchedule::kConstant || epochs <= 1) return adamw.lr;
   // Cosine from lr (epoch 1) to lr·f (last epoch).
   const double x = static_cast<double>(epoch - 1) / static_cast<double>(epochs - 1);
   const double f = lr_final_fraction;
@@ -37,7 +35,7 @@ void to_json(nlohmann::json& j, const TrainOptions& o) {
        {"epochs", o.epochs},
        {"val_every", o.val_every},
        {"adamw", o.adamw},
-       {"lr_schedule", o.lr_schedule},
+       {"lr_schedule", to_string(o.lr_schedule)},
        {"lr_final_fraction", o.lr_final_fraction},
        {"batch", "full"},
        {"checkpoint", "best-validation"}};
@@ -47,14 +45,47 @@ void from_json(const nlohmann::json& j, TrainOptions& o) {
   o.epochs = j.value("epochs", o.epochs);
   o.val_every = j.value("val_every", o.val_every);
   if (j.contains("adamw")) o.adamw = j.at("adamw").get<AdamWOptions>();
-  o.lr_schedule = j.value("lr_schedule", o.lr_schedule);
+  if (j.contains("lr_schedule"))
+    o.lr_schedule = parse_lr_schedule(j.at("lr_schedule").get<std::string>());
   o.lr_final_fraction = j.value("lr_final_fraction", o.lr_final_fraction);
+}
+
+const std::vector<std::string>& lr_schedule_names() {
+  static const std::vector<std::string> names = {"constant", "cosine"};
+  return names;
+}
+
+std::string to_string(LrSchedule s) {
+  return lr_schedule_names().at(static_cast<std::size_t>(s));
+}
+
+LrSchedule parse_lr_schedule(const std::string& text, const std::string& option) {
+  const auto& names = lr_schedule_names();
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (names[i] == text) return static_cast<LrSchedule>(i);
+  throw Error(option + " must be 'constant' or 'cosine', got '" + text + "'");
+}
+
+const std::vector<std::string>& stop_reason_names() {
+  static const std::vector<std::string> names = {"budget", "callback", "diverged"};
+  return names;
+}
+
+std::string to_string(StopReason r) {
+  return stop_reason_names().at(static_cast<std::size_t>(r));
+}
+
+StopReason parse_stop_reason(const std::string& text, const std::string& option) {
+  const auto& names = stop_reason_names();
+  for (std::size_t i = 0; i < names.size(); ++i)
+    if (names[i] == text) return static_cast<StopReason>(i);
+  throw Error(option + " must be 'budget', 'callback' or 'diverged', got '" + text + "'");
 }
 
 std::string TrainSummary::brief_report() const {
   std::ostringstream s;
   s << "trained " << epochs_run << " epochs in " << seconds << " s; best validation loss "
-    << best_val_loss << " at epoch " << best_epoch << " (" << stop_reason << ")";
+    << best_val_loss << " at epoch " << best_epoch << " (" << to_string(stop_reason) << ")";
   return s.str();
 }
 
@@ -64,7 +95,7 @@ void to_json(nlohmann::json& j, const TrainSummary& s) {
        {"best_val_loss", s.best_val_loss},
        {"final_train_loss", s.final_train_loss},
        {"seconds", s.seconds},
-       {"stop_reason", s.stop_reason}};
+       {"stop_reason", to_string(s.stop_reason)}};
 }
 
 TrainSummary train_parameters(const Objective& objective, Vector& theta,
@@ -81,7 +112,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   Vector grad(objective.n_params);
 
   TrainSummary summary;
-  summary.stop_reason = "budget";
+  summary.stop_reason = StopReason::kBudget;
   Vector best = theta;
   summary.best_val_loss = objective.val_loss(theta);
   summary.best_epoch = 0;
@@ -91,10 +122,10 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
     train_loss = objective.train_loss(theta, grad);
     if (!std::isfinite(train_loss) || !grad.allFinite()) {
       // Keep the best checkpoint; the caller decides how loudly to report it.
-      summary.stop_reason = "diverged";
+      summary.stop_reason = StopReason::kDiverged;
       break;
     }
-    if (options.lr_schedule != "constant") opt.set_lr(options.lr_at(epoch));
+    if (options.lr_schedule != LrSchedule::kConstant) opt.set_lr(options.lr_at(epoch));
     opt.step(theta, grad);
     summary.epochs_run = epoch;
     if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
@@ -117,7 +148,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
       p.gamma_hat = gamma.value_or(std::numeric_limits<double>::quiet_NaN());
       p.seconds = seconds();
       if (!progress(p)) {
-        summary.stop_reason = "callback";
+        summary.stop_reason = StopReason::kCallback;
         break;
       }
     }

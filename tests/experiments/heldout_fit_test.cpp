@@ -71,9 +71,9 @@ FitConfig small_budget() {
   // The default core for d = 1, LA(5, 20).
   c.train.epochs = 20000;
   c.train.adamw.lr = 1e-2;
-  c.train.lr_schedule = "cosine";
-  c.warm_start = true;  // the recommended identification settings (identification.md)
-  c.refine.method = "auto";
+  c.train.lr_schedule = LrSchedule::kCosine;
+  c.warm_start = true;      // the recommended identification settings (identification.md)
+  c.refine_method.reset();  // chosen by size
   c.refine.iterations = 200;
   return c;
 }
@@ -81,9 +81,9 @@ FitConfig small_budget() {
 TEST(HeldOutSystem, PendulumGammaToRelativeErrorOneInAThousand) {
   const auto [pairs, groups] = pendulum_data(0.0, 1);
   FitConfig c = small_budget();
-  c.bootstrap.replicates = 0;
+  c.bootstrap_replicates = 0;
   const FitResult r = fit_pairs(pairs, std::nullopt, c, {}, groups);
-  EXPECT_EQ(r.config.refine.method, "lm");  // the default for a model this size
+  EXPECT_EQ(r.config.refine.method, RefineMethod::kLm);  // the default for a model this size
   ASSERT_TRUE(r.warm_start.has_value());
   EXPECT_EQ(r.warm_start->method, "midpoint");  // irregular steps
   const double gamma = *r.model.damping_rate(r.theta);
@@ -93,7 +93,7 @@ TEST(HeldOutSystem, PendulumGammaToRelativeErrorOneInAThousand) {
 TEST(HeldOutSystem, NoisyPendulumIntervalCoversTheTruth) {
   const auto [pairs, groups] = pendulum_data(1e-2, 2);
   FitConfig c = small_budget();
-  c.bootstrap.replicates = 20;
+  c.bootstrap_replicates = 20;
   const FitResult r = fit_pairs(pairs, std::nullopt, c, {}, groups);
   ASSERT_TRUE(r.interval.has_value());
   EXPECT_EQ(r.interval->resample, "trajectories");
@@ -108,7 +108,7 @@ TEST(HeldOutSystem, BootstrapIsDeterministic) {
   FitConfig c = small_budget();
   c.train.epochs = 300;
   c.refine.iterations = 10;
-  c.bootstrap.replicates = 10;
+  c.bootstrap_replicates = 10;
   const FitResult a = fit_pairs(pairs, std::nullopt, c, {}, groups);
   const FitResult b = fit_pairs(pairs, std::nullopt, c, {}, groups);
   EXPECT_EQ(a.interval->gammas, b.interval->gammas);

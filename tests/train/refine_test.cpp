@@ -97,7 +97,7 @@ Trained adamw_start() {
   TrainOptions o;
   o.epochs = 500;
   o.adamw.lr = 1e-2;
-  o.lr_schedule = "cosine";
+  o.lr_schedule = LrSchedule::kCosine;
   train_one_step_map(*t.map, t.theta, t.train, t.val, o);
   return t;
 }
@@ -113,13 +113,13 @@ TEST_P(RefineLm, GoesFarBelowMoreAdamW) {
   TrainOptions o2;
   o2.epochs = 2000;
   o2.adamw.lr = 1e-3;
-  o2.lr_schedule = "cosine";
+  o2.lr_schedule = LrSchedule::kCosine;
   train_one_step_map(*more.map, more.theta, more.train, more.val, o2);
   const double adamw_loss = one_step_loss(*more.map, more.theta, more.train);
 
   RefineOptions o;
-  o.method = "lm";
-  o.linear_solver = GetParam();
+  o.method = RefineMethod::kLm;
+  o.linear_solver = parse_linear_solver(GetParam());
   o.iterations = 50;
   const RefineSummary s = refine_one_step_map(*t.map, t.theta, t.train, t.val, o);
   EXPECT_GT(s.iterations, 0);
@@ -133,7 +133,7 @@ TEST_P(RefineLm, GoesFarBelowMoreAdamW) {
 TEST(Refine, LbfgsLowersTheLoss) {
   Trained t = adamw_start();
   RefineOptions o;
-  o.method = "lbfgs";
+  o.method = RefineMethod::kLbfgs;
   o.iterations = 200;
   const RefineSummary s = refine_one_step_map(*t.map, t.theta, t.train, t.val, o);
   EXPECT_GT(s.iterations, 0);
@@ -144,14 +144,14 @@ TEST(Refine, LbfgsLowersTheLoss) {
 TEST_P(RefineLm, IsDeterministicAndNoneLeavesThetaAlone) {
   Trained a = adamw_start(), b = adamw_start();
   RefineOptions o;
-  o.method = "lm";
-  o.linear_solver = GetParam();
+  o.method = RefineMethod::kLm;
+  o.linear_solver = parse_linear_solver(GetParam());
   o.iterations = 10;
   refine_one_step_map(*a.map, a.theta, a.train, a.val, o);
   refine_one_step_map(*b.map, b.theta, b.train, b.val, o);
   EXPECT_EQ(a.theta, b.theta);
   const Vector before = a.theta;
-  o.method = "none";
+  o.method = RefineMethod::kNone;
   const RefineSummary s = refine_one_step_map(*a.map, a.theta, a.train, a.val, o);
   EXPECT_EQ(a.theta, before);
   EXPECT_EQ(s.iterations, 0);
@@ -164,8 +164,8 @@ TEST_P(RefineLm, KeepsTheBestValidationIterate) {
   PairSet other = rotation_pairs(10, 2);
   other.z1 *= 1.01;
   RefineOptions o;
-  o.method = "lm";
-  o.linear_solver = GetParam();
+  o.method = RefineMethod::kLm;
+  o.linear_solver = parse_linear_solver(GetParam());
   o.iterations = 30;
   const RefineSummary s = refine_one_step_map(*t.map, t.theta, t.train, other, o);
   EXPECT_LE(s.val_loss_after, s.val_loss_before);
@@ -182,11 +182,11 @@ TEST(Refine, BothLevenbergMarquardtsReachTheSameFloor) {
   // Jacobian's columns): from the same start both reach the loss floor, and the same γ̂.
   Trained a = adamw_start(), b = adamw_start();
   RefineOptions o;
-  o.method = "lm";
+  o.method = RefineMethod::kLm;
   o.iterations = 200;
   o.keep_best_validation = false;
   const RefineSummary sa = refine_one_step_map(*a.map, a.theta, a.train, a.val, o);
-  o.linear_solver = "blas_normal_cholesky";
+  o.linear_solver = LinearSolver::kBlasNormalCholesky;
   const RefineSummary sb = refine_one_step_map(*b.map, b.theta, b.train, b.val, o);
   EXPECT_LT(sb.train_loss_after, 2.0 * sa.train_loss_after) << sa.brief_report() << "\n"
                                                             << sb.brief_report();
@@ -195,20 +195,61 @@ TEST(Refine, BothLevenbergMarquardtsReachTheSameFloor) {
 }
 
 TEST(Refine, RejectsBadOptionsByName) {
-  RefineOptions o;
-  o.method = "newton";
   try {
-    o.validate();
+    parse_refine_method("newton");
     FAIL() << "accepted method 'newton'";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("--refine"), std::string::npos) << e.what();
   }
-  o = RefineOptions{};
+  RefineOptions o;
   o.iterations = 0;
   EXPECT_THROW(o.validate(), Error);
-  o = RefineOptions{};
-  o.linear_solver = "sparse";
-  EXPECT_THROW(o.validate(), Error);
+  EXPECT_THROW(parse_linear_solver("sparse"), Error);
+}
+
+// Every value has one spelling, read back to itself; any other text is refused with a
+// message naming the option and every accepted spelling.
+TEST(Refine, EnumsRoundTripThroughTheirSpellings) {
+  const std::vector<std::string> methods = {"none", "lm", "lbfgs"};
+  EXPECT_EQ(refine_method_names(), methods);
+  for (RefineMethod m : {RefineMethod::kNone, RefineMethod::kLm, RefineMethod::kLbfgs})
+    EXPECT_EQ(parse_refine_method(to_string(m)), m);
+  const std::vector<std::string> solvers = {"dense_qr", "dense_normal_cholesky",
+                                            "blas_normal_cholesky"};
+  EXPECT_EQ(linear_solver_names(), solvers);
+  for (LinearSolver s : {LinearSolver::kDenseQr, LinearSolver::kDenseNormalCholesky,
+                         LinearSolver::kBlasNormalCholesky})
+    EXPECT_EQ(parse_linear_solver(to_string(s)), s);
+  // A JSON options block reads back to the same options.
+  RefineOptions o;
+  o.method = RefineMethod::kLbfgs;
+  o.linear_solver = LinearSolver::kDenseNormalCholesky;
+  o.iterations = 7;
+  const RefineOptions back = nlohmann::json(o).get<RefineOptions>();
+  EXPECT_EQ(back.method, o.method);
+  EXPECT_EQ(back.linear_solver, o.linear_solver);
+  EXPECT_EQ(back.iterations, 7);
+}
+
+TEST(Refine, RefusesEveryOtherSpellingNamingTheOption) {
+  for (const char* bad : {"", "auto", "LM", "newton", " lm"}) {
+    try {
+      parse_refine_method(bad, "refine");
+      FAIL() << "accepted method '" << bad << "'";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()),
+                std::string("refine must be 'none', 'lm' or 'lbfgs', got '") + bad + "'");
+    }
+  }
+  try {
+    parse_linear_solver("sparse");
+    FAIL() << "accepted solver 'sparse'";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "refine.linear_solver (--refine-solver) must be 'dense_qr', "
+              "'dense_normal_cholesky' or 'blas_normal_cholesky', got 'sparse'");
+  }
+  EXPECT_THROW(nlohmann::json({{"method", "auto"}}).get<RefineOptions>(), Error);
 }
 
 }  // namespace

@@ -39,7 +39,7 @@ TEST(Trainer, KeepsTheBestValidationCheckpoint) {
         return true;
       });
   EXPECT_EQ(s.epochs_run, 300);
-  EXPECT_EQ(s.stop_reason, "budget");
+  EXPECT_EQ(s.stop_reason, StopReason::kBudget);
   // Validations at 7, 14, ..., 294 and at the final epoch 300.
   EXPECT_EQ(seen.size(), 300u / 7 + 1);
   const double best_seen = *std::min_element(seen.begin(), seen.end());
@@ -74,7 +74,7 @@ TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
   const PairSet train = toy_pairs(20, 1), val = toy_pairs(5, 2);
   const TrainSummary s = train_one_step_map(*map, theta, train, val, o,
                                             [](const TrainProgress& p) { return p.epoch < 50; });
-  EXPECT_EQ(s.stop_reason, "callback");
+  EXPECT_EQ(s.stop_reason, StopReason::kCallback);
   EXPECT_EQ(s.epochs_run, 50);
 
   PairSet bad = train;
@@ -84,7 +84,7 @@ TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
   map->init_params(rng2, t2);
   const Vector before = t2;
   const TrainSummary s2 = train_one_step_map(*map, t2, bad, val, o);
-  EXPECT_EQ(s2.stop_reason, "diverged");
+  EXPECT_EQ(s2.stop_reason, StopReason::kDiverged);
   EXPECT_EQ(t2, before);  // the best checkpoint (the initial one) is kept
 }
 
@@ -111,14 +111,24 @@ TEST(TrainOptions, CosineScheduleRunsFromLrToTheFinalFraction) {
   o.adamw.lr = 2e-3;
   EXPECT_EQ(o.lr_at(1), 2e-3);  // constant: the paper's recipe
   EXPECT_EQ(o.lr_at(101), 2e-3);
-  o.lr_schedule = "cosine";
+  o.lr_schedule = LrSchedule::kCosine;
   o.lr_final_fraction = 1e-3;
   EXPECT_DOUBLE_EQ(o.lr_at(1), 2e-3);
   EXPECT_DOUBLE_EQ(o.lr_at(101), 2e-6);
   EXPECT_DOUBLE_EQ(o.lr_at(51), 2e-3 * (1e-3 + (1 - 1e-3) * 0.5));  // halfway: cos = 0
   for (long e = 2; e <= 101; ++e) EXPECT_LT(o.lr_at(e), o.lr_at(e - 1));
-  o.lr_schedule = "linear";
-  EXPECT_THROW(o.validate(), Error);
+  EXPECT_THROW(parse_lr_schedule("linear"), Error);
+  EXPECT_THROW(nlohmann::json({{"lr_schedule", "linear"}}).get<TrainOptions>(), Error);
+  for (LrSchedule s : {LrSchedule::kConstant, LrSchedule::kCosine})
+    EXPECT_EQ(parse_lr_schedule(to_string(s)), s);
+  const std::vector<std::string> names = {"constant", "cosine"};
+  EXPECT_EQ(lr_schedule_names(), names);
+  try {
+    parse_lr_schedule("linear");
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "train.lr_schedule must be 'constant' or 'cosine', got 'linear'");
+  }
 }
 
 }  // namespace
@@ -136,7 +146,7 @@ TEST(TrainOptionsJson, RoundTripsEveryField) {
   o.adamw.lr = 3e-3;
   o.adamw.weight_decay = 1e-5;
   o.adamw.decay_damping = false;
-  o.lr_schedule = "cosine";
+  o.lr_schedule = LrSchedule::kCosine;
   o.lr_final_fraction = 0.25;
   const nlohmann::json j = o;
   EXPECT_EQ(j["lr_schedule"], "cosine");
@@ -144,8 +154,23 @@ TEST(TrainOptionsJson, RoundTripsEveryField) {
   const TrainOptions back = j.get<TrainOptions>();
   EXPECT_EQ(nlohmann::json(back), j);
   TrainOptions other = o;
-  other.lr_schedule = "constant";
+  other.lr_schedule = LrSchedule::kConstant;
   EXPECT_NE(nlohmann::json(other), j);
+}
+
+TEST(Trainer, StopReasonsRoundTripThroughTheirSpellings) {
+  const std::vector<std::string> names = {"budget", "callback", "diverged"};
+  EXPECT_EQ(stop_reason_names(), names);
+  for (StopReason r : {StopReason::kBudget, StopReason::kCallback, StopReason::kDiverged})
+    EXPECT_EQ(parse_stop_reason(to_string(r)), r);
+  try {
+    parse_stop_reason("interrupted", "training.stop_reason");
+    FAIL() << "accepted 'interrupted'";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "training.stop_reason must be 'budget', 'callback' or 'diverged', got "
+              "'interrupted'");
+  }
 }
 
 }  // namespace

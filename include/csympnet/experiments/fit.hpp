@@ -29,39 +29,72 @@ constexpr double kMaxBetaInitTimesStep = 50.0;
 // would then be reported unchanged as γ̂.
 void check_beta_start(double beta, double h_max, bool from_warm_start);
 
+// The models fit_pairs trains: "csympnet" (CSympNet-ID) and "sympnet".
+const std::vector<std::string>& fit_model_names();
+
+// What fit_pairs does, and the recipes the front ends start from. Options that the library
+// chooses by the problem's size are std::optional: nullopt lets fit_pairs choose, and
+// FitResult::config holds what it chose. A default FitConfig is identification().
 struct FitConfig {
   std::string model = "csympnet";  // "csympnet" or "sympnet"
   nlohmann::json core;             // symplectic core; null → default_core_for(d)
   std::uint64_t seed = 42;         // validation split and initialisation
   double val_fraction = 0.2;       // share of pairs held out when no validation set is given
-  TrainOptions train;              // epochs <= 0 → default_epochs_for(d)
-  double beta_init = 0.1;          // CSympNet-ID: initial β, nonzero (unless warm_start)
-  // The defaults below are the identification recipe of docs/identification.md: warm start,
-  // a second stage chosen by size, and a bootstrap interval for γ̂. `csympnet fit` and the
-  // Python `fit` share them (and agree to the bit); `csympnet train` and FitConfig users who
-  // want the paper's recipe set warm_start = false, refine.method = "none", replicates = 0.
+  // AdamW with the cosine-annealed rate (docs/training.md); epochs <= 0 → default_epochs_for(d).
+  TrainOptions train = [] {
+    TrainOptions t;
+    t.epochs = 0;
+    t.lr_schedule = LrSchedule::kCosine;
+    return t;
+  }();
+  double beta_init = 0.1;  // CSympNet-ID: initial β, nonzero (unless warm_start)
   // CSympNet-ID: initial β from the closed-form estimate γ₀ of the data (gamma_warm_start);
   // beta_init is then unused. Falls back to beta_init when the estimate cannot be formed.
   bool warm_start = true;
-  // Second stage after AdamW: none, lm, lbfgs, or "auto" → resolve_auto_refine(...).
-  RefineOptions refine = [] {
-    RefineOptions r;
-    r.method = "auto";
-    return r;
-  }();
-  // Interval for γ̂ (CSympNet-ID): 0 replicates = off, < 0 = "auto": kAutoBootstrapReplicates
-  // for CSympNet-ID with at most kMaxLmParams parameters (each replicate is a few LM
-  // iterations: seconds in all), else none, and FitResult::interval_note says why.
-  // refine.method "auto" → default_replicate_refine_for(...).
-  BootstrapOptions bootstrap = [] {
-    BootstrapOptions b;
-    b.replicates = -1;
-    b.refine.method = "auto";
-    return b;
-  }();
+  // Second stage after AdamW; nullopt → resolve_auto_refine(...). `refine` holds the rest of
+  // it (iterations, linear solver, tolerances); fit_pairs sets refine.method.
+  std::optional<RefineMethod> refine_method;
+  RefineOptions refine;
+  // Replicates of the bootstrap interval for γ̂ (CSympNet-ID), 0 = off; nullopt →
+  // kAutoBootstrapReplicates for CSympNet-ID with at most kMaxLmParams parameters (each
+  // replicate is a few LM iterations: seconds in all), else none, and
+  // FitResult::interval_note says why.
+  std::optional<long> bootstrap_replicates;
+  // Each replicate's second stage; nullopt → default_replicate_refine_for(refine).
+  std::optional<RefineOptions> replicate_refine;
+  // The interval's level; fit_pairs sets its replicates, refine and seed from the above.
+  BootstrapOptions bootstrap;
+
+  // The recipes (docs/identification.md). identification(): warm start, a second stage and
+  // a bootstrap interval chosen by size; what `csympnet fit --recipe classic` and Python's
+  // `fit` run. adamw_only(): AdamW alone, from beta_init, no interval; what `csympnet train`
+  // runs unless told otherwise.
+  static FitConfig identification();
+  static FitConfig adamw_only();
+
+  // Refuses an option out of its range, naming it (as the CLI spells it) and what was
+  // expected; fit_pairs calls it.
   void validate() const;
 };
+// The configuration as reports write it; an option left to fit_pairs reads "auto".
 void to_json(nlohmann::json& j, const FitConfig& c);
+
+// What a front end (the CLI, Python) was given, as plain values: each option set only if the
+// user gave it. Text options take the spellings of to_string (refine: also "auto").
+struct FitSettings {
+  std::optional<std::string> model;
+  nlohmann::json core;  // null: the recipe's
+  std::optional<std::uint64_t> seed;
+  std::optional<double> val_fraction, beta_init, lr, lr_final_fraction, weight_decay;
+  std::optional<long> epochs, val_every, refine_iterations, bootstrap;
+  std::optional<int> threads;
+  std::optional<std::string> lr_schedule, refine, refine_solver;
+  std::optional<bool> decay_damping, warm_start;
+};
+// `recipe` with the settings given applied: the one place a FitConfig is built from a front
+// end's values. Refuses a misspelt option value (naming the option); ranges are checked by
+// FitConfig::validate when fit_pairs runs.
+FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& settings);
 
 // The presets' cores, chosen by dimension: LA(5,20) for d = 1, LA(4,10) up to d = 20,
 // LA(4,4) beyond.
@@ -78,8 +111,8 @@ constexpr double kMaxJacobianEntries = 2.5e7;
 constexpr Index kMaxLmParams = 1000;
 constexpr double kMaxNormalLmJacobianEntries = 5e7;
 constexpr Index kMaxNormalLmParams = 6000;
-// What `--refine auto` becomes: "lm" within kMaxJacobianEntries and kMaxLmParams; "lm" with
-// linear_solver "blas_normal_cholesky" within the kMaxNormalLm limits; else "lbfgs". Sets
+// What `--refine auto` becomes: lm within kMaxJacobianEntries and kMaxLmParams; lm with
+// linear solver blas_normal_cholesky within the kMaxNormalLm limits; else lbfgs. Sets
 // refine.method, and refine.linear_solver in the middle case only.
 void resolve_auto_refine(RefineOptions& refine, Index n_pairs, Index dim, Index n_params);
 // The second stage of each bootstrap replicate, started from the fitted θ̂ and keeping its
@@ -116,12 +149,13 @@ struct FitResult {
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;  // why no warm start was used, when config asked for one
   std::optional<GammaInterval> interval;
-  std::string interval_note;  // why there is no interval, when the "auto" bootstrap skipped it
+  std::string interval_note;  // why there is no interval, when the chosen bootstrap skipped it
   PairSet train;
   std::vector<Index> train_groups;  // trajectory of each training pair (empty: unknown)
   PairSet val;
-  FitConfig config;      // with the defaults filled in
-  bool stopped = false;  // a stage ended early because the caller asked
+  bool val_split = false;  // `val` was split off the training pairs (no validation set given)
+  FitConfig config;        // with every choice made (no nullopt left)
+  bool stopped = false;    // a stage ended early because the caller asked
 };
 
 // Trains on `train`; validates on `val` if given, else on a split of `train`. `groups`, when
@@ -133,5 +167,10 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
                     const FitConfig& config, const ProgressCallback& progress = {},
                     const std::vector<Index>& groups = {},
                     const std::function<bool()>& should_stop = {});
+
+// The report of a fit (report.json of `csympnet fit --recipe classic` and `csympnet train`):
+// every field but wall times. "data" is null and "validation" is "split" or null: a caller
+// that read the pairs from files sets them to the file names.
+nlohmann::json fit_report(const FitResult& r);
 
 }  // namespace csympnet

@@ -28,7 +28,7 @@ struct BootstrapOptions {
   std::uint64_t seed = 42;     // resampling stream Rng(seed, "bootstrap")
   RefineOptions refine = [] {  // second stage of each replicate (lm, 10 iterations, last)
     RefineOptions r;
-    r.method = "lm";
+    r.method = RefineMethod::kLm;
     r.iterations = 10;
     r.keep_best_validation = false;
     return r;

@@ -11,6 +11,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -19,17 +20,34 @@
 
 namespace csympnet {
 
+// The second stage: none (the paper's recipe: AdamW only), lm (Levenberg–Marquardt on the
+// residuals with their exact Jacobian) or lbfgs (L-BFGS with a Wolfe line search on the loss).
+enum class RefineMethod { kNone, kLm, kLbfgs };
+// LM's linear solver: Ceres' dense_qr (the better conditioned) or dense_normal_cholesky (forms
+// JᵀJ; faster for many residuals, squares the condition), or blas_normal_cholesky: csympnet's
+// LM (train/levenberg_marquardt.hpp), JᵀJ formed once per Jacobian with BLAS; the fastest for
+// thousands of parameters.
+enum class LinearSolver { kDenseQr, kDenseNormalCholesky, kBlasNormalCholesky };
+
+// The one spelling of each value ("none", "lm", "lbfgs"; "dense_qr", "dense_normal_cholesky",
+// "blas_normal_cholesky"), in reports, model files, the CLI and Python; the names lists are in
+// enum order.
+std::string to_string(RefineMethod m);
+std::string to_string(LinearSolver s);
+const std::vector<std::string>& refine_method_names();
+const std::vector<std::string>& linear_solver_names();
+// The value spelt `text`; anything else is refused with an Error naming `option` and the
+// accepted spellings.
+RefineMethod parse_refine_method(const std::string& text,
+                                 const std::string& option = "refine.method (--refine)");
+LinearSolver parse_linear_solver(
+    const std::string& text, const std::string& option = "refine.linear_solver (--refine-solver)");
+
 struct RefineOptions {
-  // "none" (the paper's recipe: AdamW only), "lm" (Levenberg–Marquardt on the residuals
-  // with their exact Jacobian) or "lbfgs" (L-BFGS with a Wolfe line search on the loss).
-  std::string method = "none";
+  RefineMethod method = RefineMethod::kNone;
   // Iteration budget (trial steps, accepted or not, for lm; gradient iterations for lbfgs).
   long iterations = 300;
-  // LM's linear solver: Ceres' "dense_qr" (default, the better conditioned) or
-  // "dense_normal_cholesky" (forms JᵀJ; faster for many residuals, squares the condition), or
-  // "blas_normal_cholesky": csympnet's LM (train/levenberg_marquardt.hpp), JᵀJ formed once
-  // per Jacobian with BLAS; the fastest for thousands of parameters.
-  std::string linear_solver = "dense_qr";
+  LinearSolver linear_solver = LinearSolver::kDenseQr;  // lm only
   // Stop when the relative change of the loss falls below this (Ceres function_tolerance).
   double function_tolerance = 1e-15;
   // Stop when the max-norm of the gradient falls below this (Ceres gradient_tolerance).
@@ -46,7 +64,7 @@ void to_json(nlohmann::json& j, const RefineOptions& o);
 void from_json(const nlohmann::json& j, RefineOptions& o);
 
 struct RefineSummary {
-  std::string method = "none";
+  RefineMethod method = RefineMethod::kNone;
   long iterations = 0;             // iterations the optimiser ran
   long best_iteration = 0;         // iterate kept (0 = the starting point)
   double train_loss_before = 0.0;  // one-step loss (mean over pairs) on the training pairs
@@ -64,11 +82,11 @@ void to_json(nlohmann::json& j, const RefineSummary& s);
 // The most floating-point work one Ceres LM iteration may take (3e9, about 0.3 s on one core
 // here): Ceres factors the whole Jacobian in one call that cannot be interrupted, so a larger
 // problem would not stop within a second of Ctrl-C. csympnet's own LM
-// ("blas_normal_cholesky") polls between blocks of its work and has no such limit.
+// (blas_normal_cholesky) polls between blocks of its work and has no such limit.
 inline constexpr double kMaxCeresIterationFlops = 3e9;
 // The work of one LM iteration with Ceres' `linear_solver` on an m × n Jacobian: 2mn² for
 // dense_qr, mn² + n³/3 for dense_normal_cholesky.
-double ceres_iteration_flops(const std::string& linear_solver, Index n_residuals, Index n_params);
+double ceres_iteration_flops(LinearSolver linear_solver, Index n_residuals, Index n_params);
 // Refuses a Ceres linear solver for a problem past kMaxCeresIterationFlops, naming
 // --refine-solver and the solver that fits; call before training, so no work is lost.
 void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_params);

@@ -5,6 +5,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -14,14 +15,21 @@
 
 namespace csympnet {
 
+// The learning rate over the budget: constant (the paper's recipe) or cosine, which anneals
+// it from adamw.lr to lr_final_fraction·adamw.lr (a switchable improvement: it removes the
+// late oscillation of a constant rate; docs/training.md). Spelt "constant", "cosine".
+enum class LrSchedule { kConstant, kCosine };
+std::string to_string(LrSchedule s);
+const std::vector<std::string>& lr_schedule_names();  // in enum order
+// Refuses any other text with an Error naming `option` and the accepted spellings.
+LrSchedule parse_lr_schedule(const std::string& text,
+                             const std::string& option = "train.lr_schedule");
+
 struct TrainOptions {
   long epochs = 20000;  // epoch budget (one full-batch AdamW step per epoch)
   long val_every = 10;  // evaluate the validation loss every this many epochs (and at the end)
   AdamWOptions adamw;   // optimiser settings (defaults: docs/protocol.md, "Training")
-  // Learning-rate schedule: "constant" (the paper's recipe) or "cosine", which anneals the
-  // rate from adamw.lr to lr_final_fraction·adamw.lr over the budget (a switchable
-  // improvement: it removes the late oscillation of a constant rate; docs/training.md).
-  std::string lr_schedule = "constant";
+  LrSchedule lr_schedule = LrSchedule::kConstant;
   double lr_final_fraction = 1e-3;
   // Threads for the training loss of models with column-split passes (CSympNet-ID with a core
   // of d > 1: column_split.hpp); other models train on one. Results are the same to the bit
@@ -45,13 +53,21 @@ struct TrainProgress {
   double seconds = 0.0;    // wall time so far
 };
 
+// Why training ended: its epoch budget ran out, the progress callback asked to stop, or the
+// loss or gradient became non-finite. Spelt "budget", "callback", "diverged" in reports.
+enum class StopReason { kBudget, kCallback, kDiverged };
+std::string to_string(StopReason r);
+const std::vector<std::string>& stop_reason_names();  // in enum order
+// Refuses any other text with an Error naming `option` and the accepted spellings.
+StopReason parse_stop_reason(const std::string& text, const std::string& option = "stop_reason");
+
 struct TrainSummary {
   long epochs_run = 0;
   long best_epoch = 0;  // epoch whose parameters were kept (0 = initial parameters)
   double best_val_loss = 0.0;
   double final_train_loss = 0.0;
   double seconds = 0.0;
-  std::string stop_reason;  // "budget", "callback" or "diverged" (non-finite loss)
+  StopReason stop_reason = StopReason::kBudget;
   std::string brief_report() const;
 };
 void to_json(nlohmann::json& j, const TrainSummary& s);

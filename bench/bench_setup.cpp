@@ -1,12 +1,12 @@
 #include "bench_setup.hpp"
 
+#include "../src/models/csympnet_id.hpp"
+#include "../src/models/g_sympnet.hpp"
+#include "../src/models/la_sympnet.hpp"
+#include "../src/models/sympnet.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/generate.hpp"
 #include "csympnet/experiments/run.hpp"
-#include "csympnet/models/csympnet_id.hpp"
-#include "csympnet/models/g_sympnet.hpp"
-#include "csympnet/models/la_sympnet.hpp"
-#include "csympnet/models/sympnet.hpp"
 
 namespace csympnet::bench {
 

@@ -18,10 +18,10 @@
 
 #include <benchmark/benchmark.h>
 
+#include "../src/models/mlp.hpp"
 #include "bench_setup.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
-#include "csympnet/models/mlp.hpp"
 #include "csympnet/train/adamw.hpp"
 #include "csympnet/train/objective.hpp"
 

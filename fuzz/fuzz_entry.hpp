@@ -18,7 +18,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 
 namespace csympnet::fuzz {
 

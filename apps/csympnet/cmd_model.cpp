@@ -15,7 +15,7 @@
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 #include "interrupt.hpp"
 #include "system_options.hpp"
 
@@ -76,9 +76,10 @@ void add_evaluate(CLI::App& app) {
     const SavedModel saved = load_model(a->model);
     RunConfig c = default_run_config(a->preset.empty() ? "s1" : a->preset, "csympnet");
     if (a->preset.empty()) {
-      require(saved.meta.contains("system"),
-              "--preset is required: " + a->model +
-                  " does not record its system; expected --preset s1|s2|s3|s2-100|s3-100");
+      require(saved.meta.contains("system"), [&] {
+        return "--preset is required: " + a->model +
+               " does not record its system; expected --preset s1|s2|s3|s2-100|s3-100";
+      });
       try {
         c.preset.system = saved.meta["system"].get<SystemSpec>();
       } catch (const std::exception& e) {  // Error or nlohmann::json::exception
@@ -89,27 +90,31 @@ void add_evaluate(CLI::App& app) {
     a->system.apply(c.preset);
     if (a->h_test) c.preset.h_test = *a->h_test;
     const System sys(c.preset.system);
-    require(sys.dim() == saved.model.dim(),
-            "the model's dimension " + std::to_string(saved.model.dim()) +
-                " does not match the system's " + std::to_string(sys.dim()));
+    require(sys.dim() == saved.model.dim(), [&] {
+      return "the model's dimension " + std::to_string(saved.model.dim()) +
+             " does not match the system's " + std::to_string(sys.dim());
+    });
     std::vector<Trajectory> tests;
     if (!a->data.empty()) {
       tests = read_trajectories_csv(a->data);
       // Reading accepts single-point trajectories (they are valid data); a rollout needs two.
       for (std::size_t k = 0; k < tests.size(); ++k) {
-        require(tests[k].z.rows() == saved.model.dim(),
-                a->data + ": the trajectories have " + std::to_string(tests[k].z.rows() / 2) +
-                    " degrees of freedom; expected d = " + std::to_string(saved.model.dim() / 2) +
-                    " like the model " + a->model);
+        require(tests[k].z.rows() == saved.model.dim(), [&] {
+          return a->data + ": the trajectories have " + std::to_string(tests[k].z.rows() / 2) +
+                 " degrees of freedom; expected d = " + std::to_string(saved.model.dim() / 2) +
+                 " like the model " + a->model;
+        });
         // The L2 error squares differences of states; beyond 1e150 they overflow.
-        require(tests[k].z.cwiseAbs().maxCoeff() <= 1e150,
-                a->data + ": trajectory " + std::to_string(k + 1) +
-                    " has a state value beyond 1e150 in magnitude (its square overflows "
-                    "double); expected |value| <= 1e150");
-        require(tests[k].steps() >= 1,
-                a->data + ": trajectory " + std::to_string(k + 1) + " of " +
-                    std::to_string(tests.size()) +
-                    " has a single point; expected at least two points per test trajectory");
+        require(tests[k].z.cwiseAbs().maxCoeff() <= 1e150, [&] {
+          return a->data + ": trajectory " + std::to_string(k + 1) +
+                 " has a state value beyond 1e150 in magnitude (its square overflows "
+                 "double); expected |value| <= 1e150";
+        });
+        require(tests[k].steps() >= 1, [&] {
+          return a->data + ": trajectory " + std::to_string(k + 1) + " of " +
+                 std::to_string(tests.size()) +
+                 " has a single point; expected at least two points per test trajectory";
+        });
       }
     } else {
       require(!a->preset.empty(), "--data or --preset is required to know the test set");

@@ -60,9 +60,11 @@ std::vector<std::string> suite_names(const std::string& arg) {
   std::string item;
   for (std::size_t i = 0; i <= arg.size(); ++i) {
     if (i == arg.size() || arg[i] == ',') {
-      require(!item.empty(), "--suite '" + arg +
-                                 "': empty name; expected quick, full or NAME[,NAME] (e.g. "
-                                 "table2,noise)");
+      require(!item.empty(), [&] {
+        return "--suite '" + arg +
+               "': empty name; expected quick, full or NAME[,NAME] (e.g. "
+               "table2,noise)";
+      });
       names.push_back(item);
       item.clear();
     } else {
@@ -136,12 +138,15 @@ bool draw_figures(const Args& a) {
   pid_t pid = 0;
   const int err = posix_spawn(&pid, py.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
-  require(err == 0, "reproduce: could not start " + py + " " + script + ": " + std::strerror(err) +
-                        "; rerun with --no-figures to skip the figures");
+  require(err == 0, [&] {
+    return "reproduce: could not start " + py + " " + script + ": " + std::strerror(err) +
+           "; rerun with --no-figures to skip the figures";
+  });
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
-    require(errno == EINTR,
-            std::string("reproduce: waiting for the figure script: ") + std::strerror(errno));
+    require(errno == EINTR, [&] {
+      return std::string("reproduce: waiting for the figure script: ") + std::strerror(errno);
+    });
   }
   if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return true;
   if (interrupted()) throw Interrupted("the figure script was stopped; the tables are in " + a.out);
@@ -175,12 +180,14 @@ void reproduce(const Args& a) {
   for (const auto& name : suite_names(a.suite)) {
     const std::string path = (fs::path(a.suites_dir) / (name + ".json")).string();
     std::error_code ec;
-    require(fs::exists(path, ec), "--suite: no suite '" + name + "' (looked for " + path +
-                                      "); expected quick, full, or names of files in " +
-                                      a.suites_dir);
+    require(fs::exists(path, ec), [&] {
+      return "--suite: no suite '" + name + "' (looked for " + path +
+             "); expected quick, full, or names of files in " + a.suites_dir;
+    });
     suites.push_back(load_suite(path));
-    require(suites.back().name == name,
-            path + ": key 'name' = '" + suites.back().name + "', expected '" + name + "'");
+    require(suites.back().name == name, [&] {
+      return path + ": key 'name' = '" + suites.back().name + "', expected '" + name + "'";
+    });
     for (auto& r : expand_suite(suites.back()))
       if (seen.insert(r.key).second) runs.push_back(std::move(r));
   }
@@ -195,9 +202,10 @@ void reproduce(const Args& a) {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     std::error_code ec;
     while (!fs::exists(fs::path(a.out) / kMarker, ec)) {
-      require(std::chrono::steady_clock::now() < deadline,
-              "rank " + std::to_string(rank.rank) + ": rank 0 did not prepare " + a.out +
-                  " within 120 s (is it refused? see rank 0's message)");
+      require(std::chrono::steady_clock::now() < deadline, [&] {
+        return "rank " + std::to_string(rank.rank) + ": rank 0 did not prepare " + a.out +
+               " within 120 s (is it refused? see rank 0's message)";
+      });
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
   }

@@ -16,7 +16,7 @@
 #include "csympnet/experiments/identify.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/io/files.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 #include "csympnet/train/loss.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"

@@ -50,7 +50,7 @@ struct GenerateArgs {
 // (t, z) and the redraw count for test.
 py::object generate(const GenerateArgs& a) {
   require(a.split == "train" || a.split == "val" || a.split == "test",
-          "split: expected 'train', 'val' or 'test', got '" + a.split + "'");
+          [&] { return "split: expected 'train', 'val' or 'test', got '" + a.split + "'"; });
   RunConfig c = default_run_config(a.preset, "csympnet");
   c.preset.system = merged_system(c.preset, a.system_json);
   c.reference.method = parse_reference(a.reference);
@@ -59,7 +59,7 @@ py::object generate(const GenerateArgs& a) {
   const bool test = a.split == "test";
   c.test_seed = a.seed_given ? a.seed : 0;
   if (a.n) {
-    require(*a.n >= 1, "n: expected an integer >= 1, got " + std::to_string(*a.n));
+    require(*a.n >= 1, [&] { return "n: expected an integer >= 1, got " + std::to_string(*a.n); });
     (test ? c.preset.n_test : (a.split == "train" ? c.preset.n_train : c.preset.n_val)) = *a.n;
   }
   if (a.h) c.preset.train_steps = {a.h->first, a.h->second};

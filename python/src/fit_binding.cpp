@@ -158,7 +158,8 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   if (a.recipe == "paper") {
     c.train = paper_recipe(c.train.epochs);
   } else {
-    require(a.recipe == "default", "recipe: expected 'default' or 'paper', got '" + a.recipe + "'");
+    require(a.recipe == "default",
+            [&] { return "recipe: expected 'default' or 'paper', got '" + a.recipe + "'"; });
   }
   if (a.epochs) c.train.epochs = *a.epochs;
   if (a.lr) c.train.adamw.lr = *a.lr;

@@ -13,7 +13,7 @@
 #include "convert.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 #include "csympnet/systems/system.hpp"
 
 namespace csympnet::py_binding {
@@ -110,9 +110,10 @@ py::tuple structure(const PyModel& m, const DArray& z, const DArray& h,
 py::tuple evaluate_model(const PyModel& m, const std::string& system_json,
                          const py::sequence& tests, double h_test) {
   const System sys(parse_json(system_json, "system").get<SystemSpec>());
-  require(sys.dim() == m.model.dim(), "system: phase-space dimension " + std::to_string(sys.dim()) +
-                                          " does not match the model's " +
-                                          std::to_string(m.model.dim()));
+  require(sys.dim() == m.model.dim(), [&] {
+    return "system: phase-space dimension " + std::to_string(sys.dim()) +
+           " does not match the model's " + std::to_string(m.model.dim());
+  });
   const std::vector<Trajectory> trajs = trajectories_from(tests, "tests");
   Diagnostics d;
   {

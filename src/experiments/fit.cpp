@@ -32,9 +32,9 @@ FitConfig FitConfig::adamw_only() {
 void FitConfig::validate() const {
   const auto& models = fit_model_names();
   require(std::find(models.begin(), models.end(), model) != models.end(),
-          "--model must be 'csympnet' or 'sympnet', got '" + model + "'");
+          [&] { return "--model must be 'csympnet' or 'sympnet', got '" + model + "'"; });
   require(std::isfinite(val_fraction) && val_fraction > 0.0 && val_fraction < 1.0,
-          "--val-fraction must be in (0, 1), got " + std::to_string(val_fraction));
+          [&] { return "--val-fraction must be in (0, 1), got " + std::to_string(val_fraction); });
   require(std::isfinite(beta_init) && beta_init != 0.0, "--beta-init must be finite and nonzero");
   TrainOptions t = train;
   if (t.epochs <= 0) t.epochs = 0;
@@ -170,8 +170,10 @@ namespace {
 // (training indices, validation indices) of a deterministic split.
 std::pair<std::vector<Index>, std::vector<Index>> split_indices(Index n, double val_fraction,
                                                                 Rng& rng) {
-  require(n >= 2, "need at least 2 pairs to hold out a validation set, got " + std::to_string(n) +
-                      "; expected more pairs, or a separate validation file (--val FILE)");
+  require(n >= 2, [&] {
+    return "need at least 2 pairs to hold out a validation set, got " + std::to_string(n) +
+           "; expected more pairs, or a separate validation file (--val FILE)";
+  });
   std::vector<Index> idx(static_cast<std::size_t>(n));
   std::iota(idx.begin(), idx.end(), Index{0});
   // Fisher–Yates with our own RNG, so the split is the same on every platform.
@@ -192,16 +194,16 @@ std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction,
 }
 
 void check_beta_start(double beta, double h_max, bool from_warm_start) {
-  require(
-      std::abs(beta) * h_max <= kMaxBetaInitTimesStep,
-      std::string(from_warm_start ? "the warm start's gamma " : "--beta-init ") +
-          number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
-          " shrinks every state by exp(-|beta| h) = " +
-          number_text(std::exp(-std::abs(beta) * h_max)) +
-          " per step, so training could not move it; expected |beta_init| * h <= " +
-          number_text(kMaxBetaInitTimesStep) +
-          " (|beta_init| <= " + number_text(kMaxBetaInitTimesStep / h_max) + " here)" +
-          (from_warm_start ? "; the data decay too fast for their steps to identify gamma" : ""));
+  require(std::abs(beta) * h_max <= kMaxBetaInitTimesStep, [&] {
+    return std::string(from_warm_start ? "the warm start's gamma " : "--beta-init ") +
+           number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
+           " shrinks every state by exp(-|beta| h) = " +
+           number_text(std::exp(-std::abs(beta) * h_max)) +
+           " per step, so training could not move it; expected |beta_init| * h <= " +
+           number_text(kMaxBetaInitTimesStep) +
+           " (|beta_init| <= " + number_text(kMaxBetaInitTimesStep / h_max) + " here)" +
+           (from_warm_start ? "; the data decay too fast for their steps to identify gamma" : "");
+  });
 }
 
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,

@@ -17,8 +17,9 @@
 namespace csympnet {
 
 void IdentifyConfig::validate() const {
-  require(window >= 0 && window <= 64,
-          "--window must be in [0, 64] (0: automatic), got " + std::to_string(window));
+  require(window >= 0 && window <= 64, [&] {
+    return "--window must be in [0, 64] (0: automatic), got " + std::to_string(window);
+  });
   require(epochs >= 0, "--epochs must be >= 0 (0: automatic)");
   require(lm_iterations >= 0, "--lm-iterations must be >= 0 (0: automatic)");
   require(std::isfinite(lr) && lr > 0.0 && lr <= 10.0, "--lr must be in (0, 10]");
@@ -28,7 +29,7 @@ void IdentifyConfig::validate() const {
   require(std::isfinite(level) && level >= 0.5 && level < 1.0, "--level must be in [0.5, 1)");
   require(threads >= 1, "--threads must be >= 1");
   require(dof_scales == "auto" || dof_scales == "learned" || dof_scales == "fixed",
-          "--dof-scales must be auto, learned or fixed, got '" + dof_scales + "'");
+          [&] { return "--dof-scales must be auto, learned or fixed, got '" + dof_scales + "'"; });
 }
 
 void to_json(nlohmann::json& j, const IdentifyConfig& c) {
@@ -183,8 +184,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   }
   require(!steps.empty(), "fit: the data have no step (every trajectory has a single point)");
   for (double h : steps)
-    require(std::isfinite(h) && h >= std::numeric_limits<double>::min(),
-            "fit: a step of " + fmt(h) + " is below the smallest normal double; rescale time");
+    require(std::isfinite(h) && h >= std::numeric_limits<double>::min(), [&] {
+      return "fit: a step of " + fmt(h) + " is below the smallest normal double; rescale time";
+    });
   std::vector<double> sorted = steps;
   std::sort(sorted.begin(), sorted.end());
   const double h_min = sorted.front(), h_max = sorted.back();
@@ -209,8 +211,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   Index m = config.window > 0 ? config.window : (pairs_only ? 1 : 4);
   std::vector<Trajectory> blocks;
   if (pairs_only) {
-    require(config.window <= 1, "--window " + std::to_string(config.window) +
-                                    " needs trajectories; a pairs file gives one-step windows");
+    require(config.window <= 1, [&] {
+      return "--window " + std::to_string(config.window) +
+             " needs trajectories; a pairs file gives one-step windows";
+    });
     m = 1;
     blocks = nt;
   } else {
@@ -225,10 +229,11 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     blocks = make_blocks(nt, config.target_blocks, std::max<Index>(2 * m, 6));
   }
   const Index n_blocks = static_cast<Index>(blocks.size());
-  require(n_blocks >= 3,
-          "fit: need at least 3 blocks to validate and to estimate an interval; "
-          "the data give " +
-              std::to_string(n_blocks) + " (give more trajectories, or a longer one)");
+  require(n_blocks >= 3, [&] {
+    return "fit: need at least 3 blocks to validate and to estimate an interval; "
+           "the data give " +
+           std::to_string(n_blocks) + " (give more trajectories, or a longer one)";
+  });
   Index n_val =
       static_cast<Index>(std::llround(config.val_fraction * static_cast<double>(n_blocks)));
   n_val = std::clamp<Index>(n_val, 1, n_blocks - 2);

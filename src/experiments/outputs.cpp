@@ -5,7 +5,7 @@
 
 #include "csympnet/data/csv.hpp"
 #include "csympnet/io/files.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 
 namespace csympnet {
 

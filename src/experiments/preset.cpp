@@ -124,7 +124,7 @@ int baseline_width(int d) {
 nlohmann::json model_spec_for(const Preset& p, const std::string& model) {
   const auto types = model_types();
   require(std::find(types.begin(), types.end(), model) != types.end(),
-          "unknown model '" + model + "'; expected one of: " + join(types));
+          [&] { return "unknown model '" + model + "'; expected one of: " + join(types); });
   if (model == "csympnet" || model == "sympnet")
     return {{"type", model}, {"d", p.system.d}, {"core", p.core}};
   return {{"type", model}, {"d", p.system.d}, {"width", baseline_width(p.system.d)}};

@@ -26,9 +26,10 @@ int env_int(const char* name, int fallback) {
   if (v == nullptr || *v == '\0') return fallback;
   char* end = nullptr;
   const long x = std::strtol(v, &end, 10);
-  require(end != nullptr && *end == '\0' && x >= 0 && x < 1000000,
-          std::string("environment variable ") + name + " = '" + v +
-              "', expected a non-negative integer");
+  require(end != nullptr && *end == '\0' && x >= 0 && x < 1000000, [&] {
+    return std::string("environment variable ") + name + " = '" + v +
+           "', expected a non-negative integer";
+  });
   return static_cast<int>(x);
 }
 
@@ -69,9 +70,10 @@ RankInfo rank_from_environment() {
   RankInfo r;
   r.rank = env_int("OMPI_COMM_WORLD_RANK", env_int("PMI_RANK", 0));
   r.size = env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", 1));
-  require(r.size >= 1 && r.rank < r.size, "MPI environment gives rank " + std::to_string(r.rank) +
-                                              " of size " + std::to_string(r.size) +
-                                              ", expected 0 <= rank < size");
+  require(r.size >= 1 && r.rank < r.size, [&] {
+    return "MPI environment gives rank " + std::to_string(r.rank) + " of size " +
+           std::to_string(r.size) + ", expected 0 <= rank < size";
+  });
   return r;
 }
 
@@ -134,7 +136,7 @@ ExecuteStats execute_runs(const std::vector<SuiteRun>& runs, const std::string& 
                           RankInfo rank,
                           const std::function<void(const ExecuteProgress&)>& progress,
                           const std::function<bool()>& stop) {
-  require(jobs >= 1, "--jobs must be >= 1, got " + std::to_string(jobs));
+  require(jobs >= 1, [&] { return "--jobs must be >= 1, got " + std::to_string(jobs); });
   std::filesystem::create_directories(runs_dir);
   const auto t0 = std::chrono::steady_clock::now();
   ExecuteStats stats;

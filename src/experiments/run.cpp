@@ -19,15 +19,16 @@ void RunConfig::validate() const {
   require(preset.n_val >= 1, "n_val must be >= 1");
   require(std::isfinite(preset.h_test) && preset.h_test > 0.0, "h_test must be > 0");
   require(std::isfinite(sigma) && sigma >= 0.0,
-          "--sigma must be a finite number >= 0, got " + std::to_string(sigma));
+          [&] { return "--sigma must be a finite number >= 0, got " + std::to_string(sigma); });
   require(std::isfinite(beta_init) && beta_init != 0.0,
           "beta_init must be finite and nonzero (the gradient of |beta| vanishes at 0)");
   train.validate();
   reference.validate();
   ode.validate();
   refine.validate();
-  require(refine.method == RefineMethod::kNone || !is_vector_field_type(model),
-          "--refine applies to map models (csympnet, sympnet, map), not to '" + model + "'");
+  require(refine.method == RefineMethod::kNone || !is_vector_field_type(model), [&] {
+    return "--refine applies to map models (csympnet, sympnet, map), not to '" + model + "'";
+  });
   require(!warm_start || model == "csympnet", "--warm-start applies to --model csympnet only");
   model_spec_for(preset, model);  // validates the model name
 }

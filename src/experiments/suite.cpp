@@ -34,8 +34,9 @@ void reject_unknown_keys(const json& doc, const std::string& where,
   for (const auto& item : doc.items()) {
     bool known = false;
     for (const auto& a : allowed) known = known || a == item.key();
-    require(known,
-            where + ": unknown key '" + item.key() + "'; expected only the keys " + join(allowed));
+    require(known, [&] {
+      return where + ": unknown key '" + item.key() + "'; expected only the keys " + join(allowed);
+    });
   }
 }
 
@@ -45,26 +46,33 @@ template <class T>
 void reject_repeats(const std::vector<T>& items, const std::string& where, const std::string& key) {
   for (std::size_t i = 0; i < items.size(); ++i)
     for (std::size_t j = 0; j < i; ++j)
-      require(!(items[i] == items[j]), where + ": key '" + key + "' lists " +
-                                           json(items[i]).dump() +
-                                           " twice; expected each entry at most once");
+      require(!(items[i] == items[j]), [&] {
+        return where + ": key '" + key + "' lists " + json(items[i]).dump() +
+               " twice; expected each entry at most once";
+      });
 }
 
 std::vector<std::string> string_list(const json& doc, const char* key, const std::string& where,
                                      const std::vector<std::string>& valid) {
-  require(doc.contains(key),
-          where + ": missing key '" + key + "' (expected a list of: " + join(valid) + ")");
+  require(doc.contains(key), [&] {
+    return where + ": missing key '" + key + "' (expected a list of: " + join(valid) + ")";
+  });
   const json& v = doc.at(key);
-  require(v.is_array() && !v.empty(),
-          where + ": key '" + key + "' = " + v.dump() + ", expected a non-empty list");
+  require(v.is_array() && !v.empty(), [&] {
+    return where + ": key '" + key + "' = " + v.dump() + ", expected a non-empty list";
+  });
   std::vector<std::string> out;
   for (const auto& item : v) {
-    require(item.is_string(), where + ": key '" + key + "' holds " + item.dump() +
-                                  ", expected strings (one of: " + join(valid) + ")");
+    require(item.is_string(), [&] {
+      return where + ": key '" + key + "' holds " + item.dump() +
+             ", expected strings (one of: " + join(valid) + ")";
+    });
     const auto s = item.get<std::string>();
     bool ok = false;
     for (const auto& name : valid) ok = ok || name == s;
-    require(ok, where + ": key '" + key + "' holds '" + s + "', expected one of: " + join(valid));
+    require(ok, [&] {
+      return where + ": key '" + key + "' holds '" + s + "', expected one of: " + join(valid);
+    });
     out.push_back(s);
   }
   reject_repeats(out, where, key);
@@ -73,16 +81,19 @@ std::vector<std::string> string_list(const json& doc, const char* key, const std
 
 std::vector<double> number_list(const json& v, const std::string& where, const std::string& key,
                                 double lo, bool lo_open) {
-  require(v.is_array() && !v.empty(),
-          where + ": key '" + key + "' = " + v.dump() + ", expected a non-empty list of numbers");
+  require(v.is_array() && !v.empty(), [&] {
+    return where + ": key '" + key + "' = " + v.dump() + ", expected a non-empty list of numbers";
+  });
   std::vector<double> out;
   for (const auto& item : v) {
-    require(item.is_number(),
-            where + ": key '" + key + "' holds " + item.dump() + ", expected numbers");
+    require(item.is_number(), [&] {
+      return where + ": key '" + key + "' holds " + item.dump() + ", expected numbers";
+    });
     const double x = item.get<double>();
-    require(std::isfinite(x) && (lo_open ? x > lo : x >= lo),
-            where + ": key '" + key + "' holds " + item.dump() + ", expected finite numbers " +
-                (lo_open ? "> " : ">= ") + std::to_string(lo));
+    require(std::isfinite(x) && (lo_open ? x > lo : x >= lo), [&] {
+      return where + ": key '" + key + "' holds " + item.dump() + ", expected finite numbers " +
+             (lo_open ? "> " : ">= ") + std::to_string(lo);
+    });
     out.push_back(x);
   }
   reject_repeats(out, where, key);
@@ -112,7 +123,7 @@ std::string compact(double x) {
 }  // namespace
 
 SuiteSpec parse_suite(const json& doc, const std::string& where) {
-  require(doc.is_object(), where + ": expected a JSON object describing a suite");
+  require(doc.is_object(), [&] { return where + ": expected a JSON object describing a suite"; });
   reject_unknown_keys(
       doc, where,
       {"name", "title", "kind", "vary", "columns", "presets", "models", "seeds", "sigmas",
@@ -120,52 +131,62 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
   SuiteSpec s;
   require(doc.contains("name") && doc.at("name").is_string() &&
               !doc.at("name").get<std::string>().empty(),
-          where + ": missing key 'name' (expected a non-empty string)");
+          [&] { return where + ": missing key 'name' (expected a non-empty string)"; });
   s.name = doc.at("name").get<std::string>();
   for (const char c : s.name)
-    require(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_',
-            where + ": name '" + s.name + "' may hold only letters, digits, '-' and '_'");
+    require(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_', [&] {
+      return where + ": name '" + s.name + "' may hold only letters, digits, '-' and '_'";
+    });
   for (const char* key : {"title", "kind", "vary", "comment"})
     if (doc.contains(key) && !doc.at(key).is_string())
       throw Error(where + ": key '" + key + "' = " + doc.at(key).dump().substr(0, 80) +
                   ", expected a string");
   s.title = doc.value("title", s.name);
   s.kind = doc.value("kind", std::string("table"));
-  require(s.kind == "table" || s.kind == "grid",
-          where + ": key 'kind' = '" + s.kind + "', expected \"table\" or \"grid\"");
+  require(s.kind == "table" || s.kind == "grid", [&] {
+    return where + ": key 'kind' = '" + s.kind + "', expected \"table\" or \"grid\"";
+  });
   s.presets = string_list(doc, "presets", where, preset_names());
   s.models = string_list(doc, "models", where, model_types());
-  require(doc.contains("seeds"), where + ": missing key 'seeds' (expected a list of integers)");
+  require(doc.contains("seeds"),
+          [&] { return where + ": missing key 'seeds' (expected a list of integers)"; });
   for (const auto& v : doc.at("seeds")) {
     require(v.is_number_integer() && v.get<std::int64_t>() >= 0,
-            where + ": key 'seeds' holds " + v.dump() + ", expected integers >= 0");
+            [&] { return where + ": key 'seeds' holds " + v.dump() + ", expected integers >= 0"; });
     s.seeds.push_back(v.get<std::uint64_t>());
   }
-  require(!s.seeds.empty(), where + ": key 'seeds' is empty, expected at least one seed");
+  require(!s.seeds.empty(),
+          [&] { return where + ": key 'seeds' is empty, expected at least one seed"; });
   reject_repeats(s.seeds, where, "seeds");
   if (doc.contains("sigmas")) s.sigmas = number_list(doc.at("sigmas"), where, "sigmas", 0, false);
   if (doc.contains("h_tests"))
     s.h_tests = number_list(doc.at("h_tests"), where, "h_tests", 0, true);
   if (doc.contains("extra_jacobians")) {
-    require(doc.at("extra_jacobians").is_boolean(),
-            where + ": key 'extra_jacobians' = " + doc.at("extra_jacobians").dump() +
-                ", expected true or false");
+    require(doc.at("extra_jacobians").is_boolean(), [&] {
+      return where + ": key 'extra_jacobians' = " + doc.at("extra_jacobians").dump() +
+             ", expected true or false";
+    });
     s.extra_jacobians = doc.at("extra_jacobians").get<bool>();
   }
   if (doc.contains("n_train")) {
     s.n_train = doc.at("n_train");
-    require(s.n_train.is_object(), where + ": key 'n_train' = " + s.n_train.dump() +
-                                       ", expected {\"preset\": [sizes], ...}");
+    require(s.n_train.is_object(), [&] {
+      return where + ": key 'n_train' = " + s.n_train.dump() +
+             ", expected {\"preset\": [sizes], ...}";
+    });
     for (const auto& [preset, sizes] : s.n_train.items()) {
       preset_by_name(preset);
-      require(sizes.is_array() && !sizes.empty(),
-              where + ": n_train." + preset + " = " + sizes.dump() + ", expected a list");
+      require(sizes.is_array() && !sizes.empty(), [&] {
+        return where + ": n_train." + preset + " = " + sizes.dump() + ", expected a list";
+      });
       std::vector<std::int64_t> ns;
       for (const auto& n : sizes) {
         require(n.is_number_integer() && n.get<std::int64_t>() >= 4 &&
                     n.get<std::int64_t>() <= kMaxSuiteNTrain,
-                where + ": n_train." + preset + " holds " + n.dump() +
-                    ", expected integers in [4, 1e7] (validation pairs are N/4)");
+                [&] {
+                  return where + ": n_train." + preset + " holds " + n.dump() +
+                         ", expected integers in [4, 1e7] (validation pairs are N/4)";
+                });
         ns.push_back(n.get<std::int64_t>());
       }
       reject_repeats(ns, where, "n_train." + preset);
@@ -174,9 +195,10 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
   if (doc.contains("reference")) {
     s.reference = doc.at("reference");
     auto check = [&](const json& v, const std::string& at) {
-      require(
-          v.is_string() && (v == "splitting" || v == "expm" || v == "rk"),
-          where + ": " + at + " = " + v.dump() + ", expected \"splitting\", \"expm\" or \"rk\"");
+      require(v.is_string() && (v == "splitting" || v == "expm" || v == "rk"), [&] {
+        return where + ": " + at + " = " + v.dump() +
+               ", expected \"splitting\", \"expm\" or \"rk\"";
+      });
     };
     if (s.reference.is_object()) {
       for (const auto& [preset, v] : s.reference.items()) {
@@ -189,29 +211,38 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
   }
   if (doc.contains("epochs")) {
     s.epochs = doc.at("epochs");
-    require(s.epochs.is_object(), where + ": key 'epochs' = " + s.epochs.dump() +
-                                      ", expected {\"preset or *\": {\"model or *\": E}}");
+    require(s.epochs.is_object(), [&] {
+      return where + ": key 'epochs' = " + s.epochs.dump() +
+             ", expected {\"preset or *\": {\"model or *\": E}}";
+    });
     for (const auto& [preset, by_model] : s.epochs.items()) {
       if (preset != "*") preset_by_name(preset);
-      require(by_model.is_object(), where + ": epochs." + preset + " = " + by_model.dump() +
-                                        ", expected {\"model or *\": E}");
+      require(by_model.is_object(), [&] {
+        return where + ": epochs." + preset + " = " + by_model.dump() +
+               ", expected {\"model or *\": E}";
+      });
       for (const auto& [model, e] : by_model.items()) {
         if (model != "*") model_spec_for(preset_by_name("s1"), model);
         require(e.is_number_integer() && e.get<std::int64_t>() >= 0 &&
                     e.get<std::int64_t>() <= 100000000LL,
-                where + ": epochs." + preset + "." + model + " = " + e.dump() +
-                    ", expected an integer in [0, 1e8]");
+                [&] {
+                  return where + ": epochs." + preset + "." + model + " = " + e.dump() +
+                         ", expected an integer in [0, 1e8]";
+                });
       }
     }
   }
   if (s.kind == "grid") {
-    require(doc.contains("vary") && doc.at("vary").is_string(),
-            where + ": a grid suite needs key 'vary' (\"sigma\", \"n_train\" or \"h_test\")");
+    require(doc.contains("vary") && doc.at("vary").is_string(), [&] {
+      return where + ": a grid suite needs key 'vary' (\"sigma\", \"n_train\" or \"h_test\")";
+    });
     s.vary = doc.at("vary").get<std::string>();
-    require(s.vary == "sigma" || s.vary == "n_train" || s.vary == "h_test",
-            where + ": key 'vary' = '" + s.vary + "', expected sigma, n_train or h_test");
+    require(s.vary == "sigma" || s.vary == "n_train" || s.vary == "h_test", [&] {
+      return where + ": key 'vary' = '" + s.vary + "', expected sigma, n_train or h_test";
+    });
   } else {
-    require(!doc.contains("vary"), where + ": key 'vary' belongs to grid suites only");
+    require(!doc.contains("vary"),
+            [&] { return where + ": key 'vary' belongs to grid suites only"; });
     const std::vector<std::string> metrics = {
         "l2_error",  "residual_mean", "residual_max",           "lambda_abs_err_mean",
         "gamma_hat", "gamma_abs_err", "structure_residual_max", "params"};
@@ -219,9 +250,11 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
                 (s.n_train.is_null() ||
                  std::all_of(s.n_train.begin(), s.n_train.end(),
                              [](const json& sizes) { return sizes.size() == 1; })),
-            where +
-                ": a table suite has one run per (preset, model): one seed, one sigma, "
-                "one n_train and one h_test (use \"kind\": \"grid\" to vary them)");
+            [&] {
+              return where +
+                     ": a table suite has one run per (preset, model): one seed, one sigma, "
+                     "one n_train and one h_test (use \"kind\": \"grid\" to vary them)";
+            });
     s.columns = doc.contains("columns") ? string_list(doc, "columns", where, metrics)
                                         : std::vector<std::string>{"l2_error"};
   }
@@ -234,10 +267,11 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
                  ? static_cast<double>(s.n_train.at(preset).size())
                  : 1.0;
   runs *= sizes;
-  require(runs <= kMaxSuiteRuns,
-          where + ": the suite has " + std::to_string(static_cast<long long>(runs)) +
-              " runs (presets x n_train sizes x sigmas x models x seeds); expected at most " +
-              std::to_string(static_cast<long long>(kMaxSuiteRuns)));
+  require(runs <= kMaxSuiteRuns, [&] {
+    return where + ": the suite has " + std::to_string(static_cast<long long>(runs)) +
+           " runs (presets x n_train sizes x sigmas x models x seeds); expected at most " +
+           std::to_string(static_cast<long long>(kMaxSuiteRuns));
+  });
   return s;
 }
 

@@ -166,7 +166,8 @@ json summarize(const std::vector<SuiteSpec>& suites, const RecordLookup& record_
     std::map<std::string, std::map<std::string, std::vector<Cell>>> cells;
     for (const SuiteRun& run : runs) {
       const auto rec = record_of(run);
-      require(rec.has_value(), "suite " + s.name + ": run " + run.key + " has no record");
+      require(rec.has_value(),
+              [&] { return "suite " + s.name + ": run " + run.key + " has no record"; });
       const std::string& preset = run.config.preset.name;
       const std::string& model = run.config.model;
       if (s.kind == "table") {

@@ -1,4 +1,4 @@
-#include "csympnet/models/csympnet_id.hpp"
+#include "csympnet_id.hpp"
 
 #include <cmath>
 
@@ -6,7 +6,7 @@
 #include "../kernels/conformal_rows.hpp"
 #include "../kernels/scaled_exp.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/shape_checks.hpp"
+#include "shape_checks.hpp"
 
 namespace csympnet {
 

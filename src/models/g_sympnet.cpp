@@ -1,4 +1,4 @@
-#include "csympnet/models/g_sympnet.hpp"
+#include "g_sympnet.hpp"
 
 #include "../kernels/column_scaling.hpp"
 #include "activation.hpp"

@@ -4,9 +4,9 @@
 
 #include "activation.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/vector_field_models.hpp"
 #include "mlp_rop.hpp"
 #include "vector_field_checks.hpp"
+#include "vector_field_models.hpp"
 
 namespace csympnet {
 

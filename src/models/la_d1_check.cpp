@@ -8,7 +8,7 @@
 
 #include "../kernels/d1_sweeps.hpp"
 #include "../kernels/registry.hpp"
-#include "csympnet/models/la_sympnet.hpp"
+#include "la_sympnet.hpp"
 
 namespace csympnet::detail {
 

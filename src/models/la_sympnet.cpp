@@ -1,4 +1,4 @@
-#include "csympnet/models/la_sympnet.hpp"
+#include "la_sympnet.hpp"
 
 #include <vector>
 
@@ -62,10 +62,13 @@ void sequential_dot4(const double* const x[4], const double* const y[4], Index n
 
 LaSympNet::LaSympNet(Index d, Index layers, Index sublayers, Index step_terms)
     : SymplecticCore(d), layers_(layers), sublayers_(sublayers), step_terms_(step_terms) {
-  require(layers >= 1, "la core: layers = " + std::to_string(layers) + ", expected >= 1");
-  require(sublayers >= 1, "la core: sublayers = " + std::to_string(sublayers) + ", expected >= 1");
-  require(step_terms == 1 || step_terms == 2,
-          "la core: step_terms = " + std::to_string(step_terms) + ", expected 1 or 2");
+  require(layers >= 1,
+          [&] { return "la core: layers = " + std::to_string(layers) + ", expected >= 1"; });
+  require(sublayers >= 1,
+          [&] { return "la core: sublayers = " + std::to_string(sublayers) + ", expected >= 1"; });
+  require(step_terms == 1 || step_terms == 2, [&] {
+    return "la core: step_terms = " + std::to_string(step_terms) + ", expected 1 or 2";
+  });
 }
 
 Index LaSympNet::n_layer_params() const {
@@ -90,8 +93,10 @@ double LaSympNet::unit_step(ConstParams theta, Index coef, double h) const {
 }
 
 void LaSympNet::init_params(Rng& rng, ParamsRef theta) const {
-  require(theta.size() == n_params(), "la::init_params: theta has " + std::to_string(theta.size()) +
-                                          " entries, expected " + std::to_string(n_params()));
+  require(theta.size() == n_params(), [&] {
+    return "la::init_params: theta has " + std::to_string(theta.size()) + " entries, expected " +
+           std::to_string(n_params());
+  });
   const Index dd = d();
   Index off = 0;
   for (Index k = 0; k < layers_; ++k) {

@@ -9,7 +9,7 @@
 #include "activation.hpp"
 #include "core_product.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/la_sympnet.hpp"
+#include "la_sympnet.hpp"
 
 namespace csympnet {
 

@@ -1,10 +1,10 @@
-#include "csympnet/models/map_baseline.hpp"
+#include "map_baseline.hpp"
 
 #include <string>
 #include <utility>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/shape_checks.hpp"
+#include "shape_checks.hpp"
 
 namespace csympnet {
 

@@ -1,4 +1,4 @@
-#include "csympnet/models/mlp.hpp"
+#include "mlp.hpp"
 
 #include <cmath>
 #include <string>

@@ -2,7 +2,7 @@
 // shared by Mlp::input_gradient_backward, Mlp::input_hessian and the H-based vector fields.
 #pragma once
 
-#include "csympnet/models/mlp.hpp"
+#include "mlp.hpp"
 
 namespace csympnet::detail {
 

@@ -20,15 +20,15 @@
 #include <string>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/csympnet_id.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
-#include "csympnet/models/g_sympnet.hpp"
-#include "csympnet/models/la_sympnet.hpp"
-#include "csympnet/models/map_baseline.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/models/one_step_map.hpp"
-#include "csympnet/models/sympnet.hpp"
+#include "csympnet_id.hpp"
+#include "g_sympnet.hpp"
+#include "la_sympnet.hpp"
+#include "map_baseline.hpp"
 #include "spec_reading.hpp"
+#include "sympnet.hpp"
 
 namespace csympnet {
 

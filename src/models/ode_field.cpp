@@ -1,6 +1,6 @@
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/vector_field_models.hpp"
 #include "vector_field_checks.hpp"
+#include "vector_field_models.hpp"
 
 namespace csympnet {
 

@@ -16,7 +16,7 @@
 namespace csympnet::specs {
 
 inline void require_object(const nlohmann::json& spec, const std::string& where) {
-  require(spec.is_object(), where + ": expected a JSON object, got " + spec.dump());
+  require(spec.is_object(), [&] { return where + ": expected a JSON object, got " + spec.dump(); });
 }
 
 inline void reject_unknown_keys(const nlohmann::json& spec, const std::string& where,
@@ -33,29 +33,36 @@ inline void reject_unknown_keys(const nlohmann::json& spec, const std::string& w
 
 inline std::string get_type(const nlohmann::json& spec, const std::string& where,
                             const char* valid) {
-  require(spec.contains("type"),
-          where + ": missing key 'type' (expected one of: " + std::string(valid) + ")");
-  require(spec.at("type").is_string(), where + ": key 'type' = " + spec.at("type").dump() +
-                                           ", expected a string (one of: " + valid + ")");
+  require(spec.contains("type"), [&] {
+    return where + ": missing key 'type' (expected one of: " + std::string(valid) + ")";
+  });
+  require(spec.at("type").is_string(), [&] {
+    return where + ": key 'type' = " + spec.at("type").dump() +
+           ", expected a string (one of: " + valid + ")";
+  });
   return spec.at("type").get<std::string>();
 }
 
 inline Index get_count(const nlohmann::json& spec, const char* key, const std::string& where) {
-  require(spec.contains(key), where + ": missing key '" + key + "' (expected an integer >= 1)");
+  require(spec.contains(key),
+          [&] { return where + ": missing key '" + key + "' (expected an integer >= 1)"; });
   const nlohmann::json& value = spec.at(key);
-  require(value.is_number_integer(),
-          where + ": key '" + key + "' = " + value.dump() + ", expected an integer >= 1");
+  require(value.is_number_integer(), [&] {
+    return where + ": key '" + key + "' = " + value.dump() + ", expected an integer >= 1";
+  });
   const auto count = value.get<std::int64_t>();
-  require(count >= 1,
-          where + ": key '" + key + "' = " + std::to_string(count) + ", expected an integer >= 1");
+  require(count >= 1, [&] {
+    return where + ": key '" + key + "' = " + std::to_string(count) + ", expected an integer >= 1";
+  });
   return static_cast<Index>(count);
 }
 
 inline bool get_flag(const nlohmann::json& spec, const char* key, const std::string& where) {
   if (!spec.contains(key)) return false;
   const nlohmann::json& value = spec.at(key);
-  require(value.is_boolean(),
-          where + ": key '" + key + "' = " + value.dump() + ", expected true or false");
+  require(value.is_boolean(), [&] {
+    return where + ": key '" + key + "' = " + value.dump() + ", expected true or false";
+  });
   return value.get<bool>();
 }
 
@@ -63,12 +70,14 @@ inline bool get_flag(const nlohmann::json& spec, const char* key, const std::str
 inline double get_beta_init(const nlohmann::json& spec, const std::string& where, double fallback) {
   if (!spec.contains("beta_init")) return fallback;
   const nlohmann::json& value = spec.at("beta_init");
-  require(value.is_number(),
-          where + ": key 'beta_init' = " + value.dump() + ", expected a nonzero number");
+  require(value.is_number(), [&] {
+    return where + ": key 'beta_init' = " + value.dump() + ", expected a nonzero number";
+  });
   const double beta = value.get<double>();
-  require(std::isfinite(beta) && beta != 0.0,
-          where + ": key 'beta_init' = " + value.dump() +
-              ", expected a finite nonzero number (d|beta|/dbeta vanishes at 0)");
+  require(std::isfinite(beta) && beta != 0.0, [&] {
+    return where + ": key 'beta_init' = " + value.dump() +
+           ", expected a finite nonzero number (d|beta|/dbeta vanishes at 0)";
+  });
   return beta;
 }
 

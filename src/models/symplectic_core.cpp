@@ -1,7 +1,7 @@
-#include "csympnet/models/symplectic_core.hpp"
+#include "symplectic_core.hpp"
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/shape_checks.hpp"
+#include "shape_checks.hpp"
 
 namespace csympnet {
 

@@ -1,4 +1,4 @@
-#include "csympnet/models/sympnet.hpp"
+#include "sympnet.hpp"
 
 #include "csympnet/core/error.hpp"
 

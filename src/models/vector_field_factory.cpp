@@ -11,8 +11,8 @@
 #include <string>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/vector_field_models.hpp"
 #include "spec_reading.hpp"
+#include "vector_field_models.hpp"
 
 namespace csympnet {
 

@@ -11,14 +11,16 @@
 namespace csympnet {
 
 void BootstrapOptions::validate() const {
-  require(replicates >= 0,
-          "bootstrap.replicates (--bootstrap) must be >= 0, got " + std::to_string(replicates));
-  require(replicates == 0 || replicates >= 10,
-          "bootstrap.replicates (--bootstrap) must be 0 (off) or >= 10 for a percentile "
-          "interval, got " +
-              std::to_string(replicates));
+  require(replicates >= 0, [&] {
+    return "bootstrap.replicates (--bootstrap) must be >= 0, got " + std::to_string(replicates);
+  });
+  require(replicates == 0 || replicates >= 10, [&] {
+    return "bootstrap.replicates (--bootstrap) must be 0 (off) or >= 10 for a percentile "
+           "interval, got " +
+           std::to_string(replicates);
+  });
   require(std::isfinite(level) && level > 0.0 && level < 1.0,
-          "bootstrap.level must be in (0, 1), got " + std::to_string(level));
+          [&] { return "bootstrap.level must be in (0, 1), got " + std::to_string(level); });
   refine.validate();
   require(refine.method != RefineMethod::kNone, "bootstrap.refine.method must be 'lm' or 'lbfgs'");
 }
@@ -52,9 +54,10 @@ GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const 
                               const std::vector<Index>& groups,
                               const std::function<bool()>& should_stop) {
   options.validate();
-  require(map.damping_rate(theta).has_value(), "bootstrap interval for gamma_hat: the model '" +
-                                                   map.type() +
-                                                   "' has no damping rate (use --model csympnet)");
+  require(map.damping_rate(theta).has_value(), [&] {
+    return "bootstrap interval for gamma_hat: the model '" + map.type() +
+           "' has no damping rate (use --model csympnet)";
+  });
   require(groups.empty() || static_cast<Index>(groups.size()) == train.size(),
           "bootstrap: need one trajectory index per training pair");
   const auto start = std::chrono::steady_clock::now();

@@ -20,9 +20,10 @@ Matrix affine_fit(const Matrix& x, const Matrix& y, const std::string& what) {
   design.leftCols(m) = x.transpose();
   design.col(m).setOnes();
   const Eigen::ColPivHouseholderQR<Matrix> qr(design);
-  require(qr.rank() == m + 1, what + ": the states do not span phase space (rank " +
-                                  std::to_string(qr.rank()) + " of " + std::to_string(m + 1) +
-                                  "); need more varied pairs");
+  require(qr.rank() == m + 1, [&] {
+    return what + ": the states do not span phase space (rank " + std::to_string(qr.rank()) +
+           " of " + std::to_string(m + 1) + "); need more varied pairs";
+  });
   return qr.solve(y.transpose()).transpose();  // m × (m+1)
 }
 
@@ -60,8 +61,10 @@ GammaWarmStart by_det(const PairSet& pairs, const std::vector<std::vector<Index>
     den += weight * h * h;
     ++w.groups;
   }
-  require(w.groups > 0, "gamma warm start (det): no group of at least " + std::to_string(min_size) +
-                            " pairs with one step and a positive determinant");
+  require(w.groups > 0, [&] {
+    return "gamma warm start (det): no group of at least " + std::to_string(min_size) +
+           " pairs with one step and a positive determinant";
+  });
   w.gamma = -num / (static_cast<double>(d) * den);
   return w;
 }
@@ -79,12 +82,15 @@ GammaWarmStart by_midpoint(const PairSet& pairs) {
 }  // namespace
 
 GammaWarmStart gamma_warm_start(const PairSet& pairs, const std::string& method) {
-  require(method == "auto" || method == "det" || method == "midpoint",
-          "gamma warm start: method must be 'auto', 'det' or 'midpoint', got '" + method + "'");
+  require(method == "auto" || method == "det" || method == "midpoint", [&] {
+    return "gamma warm start: method must be 'auto', 'det' or 'midpoint', got '" + method + "'";
+  });
   pairs.validate("warm-start pairs");
   const Index min_size = 2 * (pairs.dim() + 1);
-  require(pairs.size() >= min_size, "gamma warm start: needs at least " + std::to_string(min_size) +
-                                        " pairs, got " + std::to_string(pairs.size()));
+  require(pairs.size() >= min_size, [&] {
+    return "gamma warm start: needs at least " + std::to_string(min_size) + " pairs, got " +
+           std::to_string(pairs.size());
+  });
   if (method == "midpoint") return by_midpoint(pairs);
   const auto groups = step_groups(pairs);
   if (method == "det") return by_det(pairs, groups, min_size);

@@ -10,9 +10,10 @@ Objective make_objective(const Model& model, const PairSet& train, const PairSet
                          int threads) {
   train.validate("training pairs");
   val.validate("validation pairs");
-  require(train.dim() == model.dim() && val.dim() == model.dim(),
-          "train: data dimension " + std::to_string(train.dim()) +
-              " does not match the model's phase-space dimension " + std::to_string(model.dim()));
+  require(train.dim() == model.dim() && val.dim() == model.dim(), [&] {
+    return "train: data dimension " + std::to_string(train.dim()) +
+           " does not match the model's phase-space dimension " + std::to_string(model.dim());
+  });
   Objective o;
   o.n_params = model.n_params();
   o.damping_index = model.damping_param_index();

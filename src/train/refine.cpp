@@ -61,13 +61,16 @@ LinearSolver parse_linear_solver(const std::string& text, const std::string& opt
 }
 
 void RefineOptions::validate() const {
-  require(iterations >= 1, "refine.iterations (--refine-iterations) must be >= 1, got " +
-                               std::to_string(iterations));
+  require(iterations >= 1, [&] {
+    return "refine.iterations (--refine-iterations) must be >= 1, got " +
+           std::to_string(iterations);
+  });
   auto tol_ok = [](double x) { return std::isfinite(x) && x >= 0.0; };
   require(tol_ok(function_tolerance), "refine.function_tolerance must be a finite number >= 0");
   require(tol_ok(gradient_tolerance), "refine.gradient_tolerance must be a finite number >= 0");
   require(tol_ok(parameter_tolerance), "refine.parameter_tolerance must be a finite number >= 0");
-  require(lbfgs_rank >= 1, "refine.lbfgs_rank must be >= 1, got " + std::to_string(lbfgs_rank));
+  require(lbfgs_rank >= 1,
+          [&] { return "refine.lbfgs_rank must be >= 1, got " + std::to_string(lbfgs_rank); });
 }
 
 double ceres_iteration_flops(LinearSolver linear_solver, Index n_residuals, Index n_params) {

@@ -12,14 +12,16 @@
 namespace csympnet {
 
 void TrainOptions::validate() const {
-  require(epochs >= 0, "train.epochs must be >= 0, got " + std::to_string(epochs));
-  require(val_every >= 1, "train.val_every must be >= 1, got " + std::to_string(val_every));
+  require(epochs >= 0, [&] { return "train.epochs must be >= 0, got " + std::to_string(epochs); });
+  require(val_every >= 1,
+          [&] { return "train.val_every must be >= 1, got " + std::to_string(val_every); });
   adamw.validate();
   require(std::isfinite(lr_final_fraction) && lr_final_fraction > 0.0 && lr_final_fraction <= 1.0,
           "train.lr_final_fraction must be in (0, 1]");
-  require(threads >= 1 && threads <= ThreadTeam::kMaxThreads,
-          "train.threads must be between 1 and " + std::to_string(ThreadTeam::kMaxThreads) +
-              ", got " + std::to_string(threads));
+  require(threads >= 1 && threads <= ThreadTeam::kMaxThreads, [&] {
+    return "train.threads must be between 1 and " + std::to_string(ThreadTeam::kMaxThreads) +
+           ", got " + std::to_string(threads);
+  });
 }
 
 double TrainOptions::lr_at(long epoch) const {
@@ -164,9 +166,10 @@ TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const Pair
                                 const ProgressCallback& progress) {
   train.validate("training pairs");
   val.validate("validation pairs");
-  require(train.dim() == map.dim() && val.dim() == map.dim(),
-          "train: data dimension " + std::to_string(train.dim()) +
-              " does not match the model's phase-space dimension " + std::to_string(map.dim()));
+  require(train.dim() == map.dim() && val.dim() == map.dim(), [&] {
+    return "train: data dimension " + std::to_string(train.dim()) +
+           " does not match the model's phase-space dimension " + std::to_string(map.dim());
+  });
   ForwardCache cache;
   Objective objective;
   objective.n_params = map.n_params();

@@ -17,7 +17,7 @@
 
 #include "cli/cli_support.hpp"
 #include "csympnet/io/files.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 
 namespace csympnet {
 namespace {

@@ -35,7 +35,7 @@
 #include "cli/cli_support.hpp"
 #include "csympnet/core/types.hpp"
 #include "csympnet/io/files.hpp"
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 
 namespace csympnet {
 namespace {

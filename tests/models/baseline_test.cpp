@@ -5,11 +5,11 @@
 
 #include <string>
 
+#include "../src/models/map_baseline.hpp"
+#include "../src/models/mlp.hpp"
+#include "../src/models/vector_field_models.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/map_baseline.hpp"
-#include "csympnet/models/mlp.hpp"
 #include "csympnet/models/model.hpp"
-#include "csympnet/models/vector_field_models.hpp"
 #include "support/gradient_check.hpp"
 #include "support/model_fixtures.hpp"
 

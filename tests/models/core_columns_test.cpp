@@ -12,9 +12,9 @@
 
 #include "../src/models/activation.hpp"
 #include "../src/models/core_product.hpp"
-#include "csympnet/models/csympnet_id.hpp"
-#include "csympnet/models/g_sympnet.hpp"
-#include "csympnet/models/la_sympnet.hpp"
+#include "../src/models/csympnet_id.hpp"
+#include "../src/models/g_sympnet.hpp"
+#include "../src/models/la_sympnet.hpp"
 #include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 

@@ -14,7 +14,7 @@
 #include "../src/kernels/product.hpp"
 #include "../src/kernels/registry.hpp"
 #include "../src/kernels/targets.hpp"
-#include "csympnet/models/la_sympnet.hpp"
+#include "../src/models/la_sympnet.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {

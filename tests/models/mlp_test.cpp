@@ -5,8 +5,8 @@
 
 #include <vector>
 
+#include "../src/models/mlp.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/mlp.hpp"
 #include "support/gradient_check.hpp"
 
 namespace csympnet::testing {

@@ -2,10 +2,10 @@
 // and the factory's and models' input validation.
 #include <gtest/gtest.h>
 
+#include "../src/models/csympnet_id.hpp"
+#include "../src/models/g_sympnet.hpp"
+#include "../src/models/la_sympnet.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/csympnet_id.hpp"
-#include "csympnet/models/g_sympnet.hpp"
-#include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/models/model.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "support/model_fixtures.hpp"

@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-#include "csympnet/models/csympnet_id.hpp"
+#include "../src/models/csympnet_id.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "support/model_fixtures.hpp"
 

@@ -12,10 +12,10 @@
 #include <memory>
 #include <random>
 
+#include "../src/models/csympnet_id.hpp"
+#include "../src/models/g_sympnet.hpp"
+#include "../src/models/la_sympnet.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/models/csympnet_id.hpp"
-#include "csympnet/models/g_sympnet.hpp"
-#include "csympnet/models/la_sympnet.hpp"
 #include "csympnet/train/adamw.hpp"
 #include "support/random_data.hpp"
 #include "support/same_bits.hpp"

@@ -9,8 +9,8 @@
 // n_params = (2d + 2) w + (w + 1) w + (w + 1) 2d. init_params: PyTorch's nn.Linear default.
 #pragma once
 
-#include "csympnet/models/mlp.hpp"
 #include "csympnet/models/one_step_map.hpp"
+#include "mlp.hpp"
 
 namespace csympnet {
 

@@ -9,7 +9,7 @@
 
 #include <memory>
 
-#include "csympnet/models/symplectic_core.hpp"
+#include "symplectic_core.hpp"
 
 namespace csympnet {
 

@@ -1,4 +1,4 @@
-#include "csympnet/io/model_file.hpp"
+#include "csympnet/models/model_file.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -19,7 +19,7 @@
 
 #include <memory>
 
-#include "csympnet/models/symplectic_core.hpp"
+#include "symplectic_core.hpp"
 
 namespace csympnet {
 

@@ -23,7 +23,7 @@
 // draws (τ = h exactly, so the map at initialisation is the step_terms = 1 map).
 #pragma once
 
-#include "csympnet/models/symplectic_core.hpp"
+#include "symplectic_core.hpp"
 
 namespace csympnet {
 

@@ -13,7 +13,7 @@
 // kInitStddev = 0.01); b is set to 0 without consuming draws.
 #pragma once
 
-#include "csympnet/models/symplectic_core.hpp"
+#include "symplectic_core.hpp"
 
 namespace csympnet {
 

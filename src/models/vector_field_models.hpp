@@ -18,8 +18,8 @@
 
 #include <string>
 
-#include "csympnet/models/mlp.hpp"
 #include "csympnet/models/vector_field_model.hpp"
+#include "mlp.hpp"
 
 namespace csympnet {
 

@@ -9,13 +9,7 @@
 #include <cstring>
 
 #include "registry.hpp"
-
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC optimize("fp-contract=off")  // multiplies and adds stay separate, as in SSE2
-#endif
-#if defined(__clang__)
-#pragma clang fp contract(off)
-#endif
+#include "sse2_order.hpp"  // first of this file's own code: fp-contract off, under gcc and clang
 
 #if (defined(__x86_64__) || defined(__i386__)) && (defined(__GNUC__) || defined(__clang__))
 #define CSYMPNET_CONFORMAL_ROWS_SIMD 1

@@ -271,6 +271,21 @@ LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs
   return p;
 }
 
+// What Ceres' LM and L-BFGS options share: the budget and tolerances, silence, and the
+// best-validation callback, which needs the iterate after every step.
+template <class SolverOptions>
+void set_common_options(SolverOptions& so, const RefineOptions& options,
+                        CeresBestValidation& callback) {
+  so.max_num_iterations = static_cast<int>(options.iterations);
+  so.function_tolerance = options.function_tolerance;
+  so.gradient_tolerance = options.gradient_tolerance;
+  so.parameter_tolerance = options.parameter_tolerance;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  so.update_state_every_iteration = true;
+  so.callbacks.push_back(&callback);
+}
+
 }  // namespace
 
 RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
@@ -324,16 +339,9 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     so.linear_solver_type = options.linear_solver == LinearSolver::kDenseQr
                                 ? ceres::DENSE_QR
                                 : ceres::DENSE_NORMAL_CHOLESKY;
-    so.max_num_iterations = static_cast<int>(options.iterations);
-    so.function_tolerance = options.function_tolerance;
-    so.gradient_tolerance = options.gradient_tolerance;
-    so.parameter_tolerance = options.parameter_tolerance;
     so.num_threads = 1;  // same seed, same bits
-    so.logging_type = ceres::SILENT;
-    so.minimizer_progress_to_stdout = false;
-    so.update_state_every_iteration = true;
     CeresBestValidation callback(best, stop);
-    so.callbacks.push_back(&callback);
+    set_common_options(so, options, callback);
     ceres::Solver::Summary cs;
     ceres::Solve(so, &problem, &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;
@@ -344,15 +352,8 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     so.line_search_direction_type = ceres::LBFGS;
     so.line_search_type = ceres::WOLFE;
     so.max_lbfgs_rank = options.lbfgs_rank;
-    so.max_num_iterations = static_cast<int>(options.iterations);
-    so.function_tolerance = options.function_tolerance;
-    so.gradient_tolerance = options.gradient_tolerance;
-    so.parameter_tolerance = options.parameter_tolerance;
-    so.logging_type = ceres::SILENT;
-    so.minimizer_progress_to_stdout = false;
-    so.update_state_every_iteration = true;
     CeresBestValidation callback(best, stop);
-    so.callbacks.push_back(&callback);
+    set_common_options(so, options, callback);
     ceres::GradientProblemSolver::Summary cs;
     ceres::Solve(so, problem, theta.data(), &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;

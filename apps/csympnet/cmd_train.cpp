@@ -269,20 +269,20 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   } else {
     trajs = parse_trajectories_csv(input.text, input.name);
   }
-  IdentifyConfig c;
-  if (!a.core.empty()) c.core = parse_core(a.core);
-  c.seed = a.seed.value_or(c.seed);
-  c.window = a.window;
-  c.balanced = a.loss == "balanced";
-  c.normalize = !a.no_normalize;
-  c.dof_scales = a.dof_scales;
-  c.epochs = a.epochs.value_or(c.epochs);
-  c.lr = a.lr.value_or(c.lr);
-  c.lm_iterations = a.lm_iterations;
-  c.val_fraction = a.val_fraction.value_or(c.val_fraction);
-  c.target_blocks = a.blocks;
-  c.level = a.level;
-  c.threads = a.threads;
+  nlohmann::json settings = {{"window", a.window},
+                             {"balanced", a.loss == "balanced"},
+                             {"normalize", !a.no_normalize},
+                             {"dof_scales", a.dof_scales},
+                             {"lm_iterations", a.lm_iterations},
+                             {"blocks", a.blocks},
+                             {"level", a.level},
+                             {"threads", a.threads}};
+  if (!a.core.empty()) settings["core"] = parse_core(a.core);
+  if (a.seed) settings["seed"] = *a.seed;
+  if (a.epochs) settings["epochs"] = *a.epochs;
+  if (a.lr) settings["lr"] = *a.lr;
+  if (a.val_fraction) settings["val_fraction"] = *a.val_fraction;
+  const IdentifyConfig c = make_identify_config(settings);
   IdentifyHooks hooks;
   hooks.should_stop = [] { return interrupted(); };
   const bool talk = !a.quiet;

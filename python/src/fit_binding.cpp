@@ -198,20 +198,7 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
                                 const std::string& config_json, const py::object& progress) {
   const std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
   const nlohmann::json cj = parse_json(config_json, "config");
-  IdentifyConfig c;
-  if (cj.contains("core")) c.core = cj.at("core");
-  c.seed = cj.value("seed", c.seed);
-  c.window = cj.value("window", c.window);
-  c.balanced = cj.value("balanced", c.balanced);
-  c.normalize = cj.value("normalize", c.normalize);
-  c.epochs = cj.value("epochs", c.epochs);
-  c.lr = cj.value("lr", c.lr);
-  c.lm_iterations = cj.value("lm_iterations", c.lm_iterations);
-  c.val_fraction = cj.value("val_fraction", c.val_fraction);
-  c.target_blocks = cj.value("blocks", c.target_blocks);
-  c.level = cj.value("level", c.level);
-  c.threads = cj.value("threads", c.threads);
-  c.dof_scales = cj.value("dof_scales", c.dof_scales);
+  const IdentifyConfig c = make_identify_config(cj);
   PythonProgress watch(progress);
   IdentifyHooks hooks;
   hooks.adamw = watch.callback();

@@ -47,6 +47,34 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"dof_scales", c.dof_scales}};
 }
 
+IdentifyConfig make_identify_config(const nlohmann::json& settings) {
+  require(settings.is_object(),
+          [&] { return "identify settings: expected a JSON object, got " + settings.dump(); });
+  static const char* const kKeys[] = {
+      "core", "seed",          "window",       "balanced", "normalize", "dof_scales", "epochs",
+      "lr",   "lm_iterations", "val_fraction", "blocks",   "level",     "threads"};
+  for (const auto& item : settings.items()) {
+    const bool known = std::any_of(std::begin(kKeys), std::end(kKeys),
+                                   [&](const char* k) { return item.key() == k; });
+    require(known, [&] { return "identify settings: unknown key '" + item.key() + "'"; });
+  }
+  IdentifyConfig c;
+  if (settings.contains("core")) c.core = settings.at("core");
+  c.seed = settings.value("seed", c.seed);
+  c.window = settings.value("window", c.window);
+  c.balanced = settings.value("balanced", c.balanced);
+  c.normalize = settings.value("normalize", c.normalize);
+  c.dof_scales = settings.value("dof_scales", c.dof_scales);
+  c.epochs = settings.value("epochs", c.epochs);
+  c.lr = settings.value("lr", c.lr);
+  c.lm_iterations = settings.value("lm_iterations", c.lm_iterations);
+  c.val_fraction = settings.value("val_fraction", c.val_fraction);
+  c.target_blocks = settings.value("blocks", c.target_blocks);
+  c.level = settings.value("level", c.level);
+  c.threads = settings.value("threads", c.threads);
+  return c;
+}
+
 void to_json(nlohmann::json& j, const IdentifyQuality& q) {
   j = {{"train_loss", q.train_loss},
        {"val_loss", q.val_loss},

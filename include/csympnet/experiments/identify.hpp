@@ -55,6 +55,13 @@ struct IdentifyConfig {
 };
 void to_json(nlohmann::json& j, const IdentifyConfig& c);
 
+// The one place an IdentifyConfig is built from a front end's settings (the CLI's options,
+// Python's `identify` keywords): the defaults above, overridden by each key given. Keys:
+// core, seed, window, balanced, normalize, dof_scales, epochs, lr, lm_iterations,
+// val_fraction, blocks, level, threads. A key not in that list is refused by name. Ranges are
+// checked by IdentifyConfig::validate(), which identify() calls.
+IdentifyConfig make_identify_config(const nlohmann::json& settings);
+
 // What the fit did at each stage; `stage` is called as each begins ("warm start", "AdamW",
 // "LM", "LM on longer windows …", "interval"), `lm` after each accepted LM step, and
 // `should_stop` is polled by AdamW (each validation) and LM (each iteration): an interrupt.

@@ -3,7 +3,8 @@
 `csympnet train` moved nothing: runs both commands with two binaries (before and after) on the
 same small data and options, and compares report.json (every field but wall times), model.json
 (byte for byte), what they print, and the message and exit status of refused options. With
---python-before/--python-after it also compares `csympnet.fit` (parameters, meta, errors).
+--python-before/--python-after it also compares `csympnet.fit` (parameters, meta, errors)
+and `csympnet.identify` (parameters, γ̂, interval, errors).
 
     bench/compare_fit_reports.py --before OLD/csympnet --after build/bin/csympnet
         [--python-before OLD_PYTHON_DIR --python-after build/python]
@@ -42,6 +43,12 @@ FITS = [
     ("fit s1 trajectories", "fit", "s1traj",
      ["--recipe", "classic", "--epochs", "200", "--refine-iterations", "10", "--bootstrap",
       "10"]),
+    ("fit s1 identify options", "fit", "s1traj",
+     ["--epochs", "60", "--seed", "3", "--lr", "2e-3", "--val-fraction", "0.3", "--blocks", "5",
+      "--level", "0.9", "--lm-iterations", "5"]),
+    ("fit s1 identify one-step", "fit", "s1traj",
+     ["--epochs", "40", "--window", "2", "--loss", "one-step", "--no-normalize", "--dof-scales",
+      "fixed", "--lm-iterations", "4", "--core", "la:2:3"]),
     ("train s1", "train", "s1", ["--epochs", "300"]),
     ("train s1 val", "train", "s1", ["--epochs", "300", "--val", "{s1val}", "--lr", "3e-3",
                                      "--lr-schedule", "constant", "--val-every", "7"]),
@@ -55,6 +62,9 @@ FITS = [
 
 # Refused options: (command, arguments after the data); message and exit status must match.
 BAD = [
+    ("fit", ["--blocks", "2"]),
+    ("fit", ["--level", "1.5"]),
+    ("fit", ["--window", "99"]),
     ("fit", ["--recipe", "classic", "--refine", "bogus"]),
     ("fit", ["--recipe", "classic", "--refine-solver", "bogus"]),
     ("fit", ["--recipe", "classic", "--refine-solver", "dense_qr"]),
@@ -192,6 +202,45 @@ PY_CASES = [
 ]
 
 
+# Python's identify on a damped oscillator built here, with these keywords.
+PY_ID_SNIPPET = r"""
+import json, sys, warnings
+import numpy as np
+import csympnet
+t = np.linspace(0.0, 20.0, 201)
+z = np.stack([np.exp(-0.05 * t) * np.cos(t), -np.exp(-0.05 * t) * np.sin(t)], axis=1)
+out = []
+for kw in json.loads(sys.argv[1]):
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = csympnet.identify(z, t, **kw)
+        out.append({"theta": [repr(float(x)) for x in r.model.params], "gamma": repr(r.gamma),
+                    "interval": repr(getattr(r, "interval", None))})
+    except Exception as e:
+        out.append({"error": type(e).__name__ + ": " + str(e)})
+print(json.dumps(out, sort_keys=True, default=str))
+"""
+
+PY_ID_CASES = [
+    {"epochs": 40},
+    {"epochs": 40, "seed": 5, "blocks": 6, "level": 0.9, "lm_iterations": 3, "window": 2,
+     "loss": "one-step"},
+    {"epochs": 30, "normalize": False, "core": "la:2:3", "dof_scales": "fixed"},
+    {"epochs": 10, "blocks": 2},
+    {"epochs": 10, "level": 2.0},
+]
+
+
+def run_python_identify(pydir):
+    env = dict(os.environ, PYTHONPATH=pydir)
+    p = subprocess.run(["nice", "-n", "19", "/usr/bin/python3", "-c", PY_ID_SNIPPET,
+                        json.dumps(PY_ID_CASES)], capture_output=True, text=True, env=env)
+    if p.returncode != 0:
+        return [{"crash": p.stderr[-2000:]}]
+    return json.loads(p.stdout)
+
+
 def run_python(pydir, data):
     env = dict(os.environ, PYTHONPATH=pydir)
     p = subprocess.run(["nice", "-n", "19", "/usr/bin/python3", "-c", PY_SNIPPET, data,
@@ -244,6 +293,18 @@ def main():
             after = run_python(args.python_after, data["s1"])
             for i, (b, a) in enumerate(zip(before, after)):
                 label = "python " + json.dumps(PY_CASES[i]) if i < len(PY_CASES) else "python"
+                diffs = list(differences(b, a))
+                print(f"{label[:60]:60s} {'identical' if not diffs else 'DIFFERENT'}",
+                      flush=True)
+                for d in diffs[:8]:
+                    print("    " + d[:400])
+                bad += bool(diffs)
+        if args.python_before and args.python_after:
+            before = run_python_identify(args.python_before)
+            after = run_python_identify(args.python_after)
+            for i, (b, a) in enumerate(zip(before, after)):
+                label = ("python identify " + json.dumps(PY_ID_CASES[i])
+                         if i < len(PY_ID_CASES) else "python identify")
                 diffs = list(differences(b, a))
                 print(f"{label[:60]:60s} {'identical' if not diffs else 'DIFFERENT'}",
                       flush=True)

@@ -21,6 +21,8 @@ import subprocess
 import sys
 import tempfile
 
+from compare_reports import differences, strip_timing  # the same rules as for `run`
+
 # (name, data file key, arguments after the data)
 FITS = [
     ("fit s1 identify", "fit", "s1", ["--epochs", "300", "--lm-iterations", "20"]),
@@ -93,26 +95,6 @@ BAD = [
     ("fit", ["--model", "sympnet", "--refine", "lm", "--refine-solver", "dense_qr",
              "--epochs", "20", "--refine-iterations", "3"]),
 ]
-
-
-def is_timing(key):
-    return key.endswith("seconds") or key == "train_threads"
-
-
-def strip_timing(value):
-    if isinstance(value, dict):
-        return {k: strip_timing(v) for k, v in value.items() if not is_timing(k)}
-    if isinstance(value, list):
-        return [strip_timing(v) for v in value]
-    return value
-
-
-def differences(a, b, path=""):
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in sorted(set(a) | set(b)):
-            yield from differences(a.get(k), b.get(k), f"{path}.{k}" if path else k)
-    elif a != b:
-        yield f"{path}: {a!r} != {b!r}"
 
 
 def untimed(text, out_dir):
@@ -250,6 +232,19 @@ def run_python(pydir, data):
     return json.loads(p.stdout)
 
 
+def compare_python(name, cases, before, after):
+    """Prints one line per case; returns how many differ (a crash on either side differs)."""
+    bad = 0
+    for i, (b, a) in enumerate(zip(before, after)):
+        label = f"{name} {json.dumps(cases[i])}" if i < len(cases) else name
+        diffs = list(differences(b, a))
+        print(f"{label[:60]:60s} {'identical' if not diffs else 'DIFFERENT'}", flush=True)
+        for d in diffs[:8]:
+            print("    " + d[:400])
+        bad += bool(diffs)
+    return bad + abs(len(before) - len(after))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--before", required=True, help="csympnet binary built from the old code")
@@ -289,28 +284,12 @@ def main():
                             os.path.join(tmp, "eb", str(i)))
             bad += compare(label, before, after)
         if args.python_before and args.python_after:
-            before = run_python(args.python_before, data["s1"])
-            after = run_python(args.python_after, data["s1"])
-            for i, (b, a) in enumerate(zip(before, after)):
-                label = "python " + json.dumps(PY_CASES[i]) if i < len(PY_CASES) else "python"
-                diffs = list(differences(b, a))
-                print(f"{label[:60]:60s} {'identical' if not diffs else 'DIFFERENT'}",
-                      flush=True)
-                for d in diffs[:8]:
-                    print("    " + d[:400])
-                bad += bool(diffs)
-        if args.python_before and args.python_after:
-            before = run_python_identify(args.python_before)
-            after = run_python_identify(args.python_after)
-            for i, (b, a) in enumerate(zip(before, after)):
-                label = ("python identify " + json.dumps(PY_ID_CASES[i])
-                         if i < len(PY_ID_CASES) else "python identify")
-                diffs = list(differences(b, a))
-                print(f"{label[:60]:60s} {'identical' if not diffs else 'DIFFERENT'}",
-                      flush=True)
-                for d in diffs[:8]:
-                    print("    " + d[:400])
-                bad += bool(diffs)
+            bad += compare_python("python", PY_CASES,
+                                  run_python(args.python_before, data["s1"]),
+                                  run_python(args.python_after, data["s1"]))
+            bad += compare_python("python identify", PY_ID_CASES,
+                                  run_python_identify(args.python_before),
+                                  run_python_identify(args.python_after))
     print("all fit/train results identical (timing fields aside)" if not bad
           else f"{bad} case(s) differ")
     sys.exit(1 if bad else 0)

@@ -161,25 +161,12 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   return summary;
 }
 
-TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
-                                const PairSet& val, const TrainOptions& options,
-                                const ProgressCallback& progress) {
-  train.validate("training pairs");
-  val.validate("validation pairs");
-  require(train.dim() == map.dim() && val.dim() == map.dim(), [&] {
-    return "train: data dimension " + std::to_string(train.dim()) +
-           " does not match the model's phase-space dimension " + std::to_string(map.dim());
-  });
-  ForwardCache cache;
-  Objective objective;
-  objective.n_params = map.n_params();
-  objective.damping_index = map.damping_param_index();
-  objective.train_loss = [&](const Vector& th, Vector& grad) {
-    return one_step_loss(map, th, train, &grad, &cache);
-  };
-  objective.val_loss = [&](const Vector& th) { return one_step_loss(map, th, val); };
-  objective.damping_rate = [&](const Vector& th) { return map.damping_rate(th); };
-  return train_parameters(objective, theta, options, progress);
+TrainSummary train_model(const Model& model, Vector& theta, const PairSet& train,
+                         const PairSet& val, const TrainOptions& options,
+                         const ProgressCallback& progress) {
+  options.validate();
+  return train_parameters(make_objective(model, train, val, options.threads), theta, options,
+                          progress);
 }
 
 }  // namespace csympnet

@@ -4,6 +4,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/train/loss.hpp"
+#include "csympnet/train/objective.hpp"
 #include "csympnet/train/residual_jacobian.hpp"
 #include "csympnet/train/trainer.hpp"
 #include "support/gradient_check.hpp"
@@ -98,7 +99,7 @@ Trained adamw_start() {
   o.epochs = 500;
   o.adamw.lr = 1e-2;
   o.lr_schedule = LrSchedule::kCosine;
-  train_one_step_map(*t.map, t.theta, t.train, t.val, o);
+  train_parameters(make_one_step_objective(*t.map, t.train, t.val), t.theta, o);
   return t;
 }
 
@@ -114,7 +115,7 @@ TEST_P(RefineLm, GoesFarBelowMoreAdamW) {
   o2.epochs = 2000;
   o2.adamw.lr = 1e-3;
   o2.lr_schedule = LrSchedule::kCosine;
-  train_one_step_map(*more.map, more.theta, more.train, more.val, o2);
+  train_parameters(make_one_step_objective(*more.map, more.train, more.val), more.theta, o2);
   const double adamw_loss = one_step_loss(*more.map, more.theta, more.train);
 
   RefineOptions o;

@@ -1,4 +1,5 @@
 #include "csympnet/train/trainer.hpp"
+#include "csympnet/train/objective.hpp"
 
 #include <gtest/gtest.h>
 
@@ -33,11 +34,11 @@ TEST(Trainer, KeepsTheBestValidationCheckpoint) {
   const PairSet train = toy_pairs(40, 1), val = toy_pairs(10, 2);
   const double initial_val = one_step_loss(*map, theta, val);
   std::vector<double> seen;
-  const TrainSummary s =
-      train_one_step_map(*map, theta, train, val, o, [&](const TrainProgress& p) {
-        seen.push_back(p.val_loss);
-        return true;
-      });
+  const TrainSummary s = train_parameters(make_one_step_objective(*map, train, val), theta, o,
+                                          [&](const TrainProgress& p) {
+                                            seen.push_back(p.val_loss);
+                                            return true;
+                                          });
   EXPECT_EQ(s.epochs_run, 300);
   EXPECT_EQ(s.stop_reason, StopReason::kBudget);
   // Validations at 7, 14, ..., 294 and at the final epoch 300.
@@ -58,8 +59,8 @@ TEST(Trainer, SameInputsGiveBitIdenticalParameters) {
   Rng r1(5, "init"), r2(5, "init");
   map->init_params(r1, a);
   map->init_params(r2, b);
-  train_one_step_map(*map, a, train, val, o);
-  train_one_step_map(*map, b, train, val, o);
+  train_parameters(make_one_step_objective(*map, train, val), a, o);
+  train_parameters(make_one_step_objective(*map, train, val), b, o);
   EXPECT_EQ(a, b);
 }
 
@@ -72,8 +73,8 @@ TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
   o.epochs = 1000;
   o.val_every = 10;
   const PairSet train = toy_pairs(20, 1), val = toy_pairs(5, 2);
-  const TrainSummary s = train_one_step_map(*map, theta, train, val, o,
-                                            [](const TrainProgress& p) { return p.epoch < 50; });
+  const TrainSummary s = train_parameters(make_one_step_objective(*map, train, val), theta, o,
+                                          [](const TrainProgress& p) { return p.epoch < 50; });
   EXPECT_EQ(s.stop_reason, StopReason::kCallback);
   EXPECT_EQ(s.epochs_run, 50);
 
@@ -83,7 +84,7 @@ TEST(Trainer, CallbackCanStopAndDivergenceIsCaught) {
   Rng rng2(1, "init");
   map->init_params(rng2, t2);
   const Vector before = t2;
-  const TrainSummary s2 = train_one_step_map(*map, t2, bad, val, o);
+  const TrainSummary s2 = train_parameters(make_one_step_objective(*map, bad, val), t2, o);
   EXPECT_EQ(s2.stop_reason, StopReason::kDiverged);
   EXPECT_EQ(t2, before);  // the best checkpoint (the initial one) is kept
 }
@@ -96,7 +97,7 @@ TEST(Trainer, RejectsMismatchedData) {
   p.z0 = Matrix::Zero(4, 3);
   p.z1 = Matrix::Zero(4, 3);
   p.h = Vector::Constant(3, 0.1);
-  EXPECT_THROW(train_one_step_map(*map, theta, p, p, {}), Error);
+  EXPECT_THROW(train_parameters(make_one_step_objective(*map, p, p), theta, {}), Error);
 }
 
 }  // namespace

@@ -10,8 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include "csympnet/data/dataset.hpp"
-#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/models/model.hpp"
 #include "csympnet/train/adamw.hpp"
+#include "csympnet/train/objective.hpp"
 
 namespace csympnet {
 
@@ -75,24 +76,14 @@ void to_json(nlohmann::json& j, const TrainSummary& s);
 // Returns false to stop training early.
 using ProgressCallback = std::function<bool(const TrainProgress&)>;
 
-// What the training loop needs of a model and its data: a training loss with gradient, a
-// validation loss, and optionally the damping rate for progress reports.
-struct Objective {
-  Index n_params = 0;
-  std::optional<Index> damping_index;  // excluded from weight decay when asked
-  std::function<double(const Vector& theta, Vector& grad)> train_loss;  // overwrites grad
-  std::function<double(const Vector& theta)> val_loss;
-  std::function<std::optional<double>(const Vector& theta)> damping_rate;
-};
-
 // Full-batch AdamW on `objective`, keeping the best-validation parameters: on return theta
 // holds them.
 TrainSummary train_parameters(const Objective& objective, Vector& theta,
                               const TrainOptions& options, const ProgressCallback& progress = {});
 
-// The one-step loss of a map model on (train, val).
-TrainSummary train_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
-                                const PairSet& val, const TrainOptions& options,
-                                const ProgressCallback& progress = {});
+// Trains theta in place with the model's own loss (make_objective).
+TrainSummary train_model(const Model& model, Vector& theta, const PairSet& train,
+                         const PairSet& val, const TrainOptions& options,
+                         const ProgressCallback& progress = {});
 
 }  // namespace csympnet

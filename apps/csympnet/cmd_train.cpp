@@ -2,6 +2,7 @@
 #include <unistd.h>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -290,21 +291,25 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     if (talk)
       std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
   };
-  // LM: one line a second at most (on a terminal, redrawn in place), and the last one.
-  auto last = std::make_shared<std::chrono::steady_clock::time_point>();
-  const bool tty = isatty(STDERR_FILENO) == 1;
-  hooks.lm = [talk, last, tty](long it, long budget, double val) {
-    if (!talk) return;
-    const auto now = std::chrono::steady_clock::now();
-    if (it < budget && now - *last < std::chrono::seconds(1)) return;
-    *last = now;
-    std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "", it,
-                 budget, val, tty ? "" : "\n");
-  };
   IdentifyResult r;
   {
     ProgressLine progress(a.quiet);
-    hooks.adamw = progress.callback();
+    // AdamW on the progress line; LM one line a second at most (on a terminal, redrawn in
+    // place), and the last one.
+    const ProgressCallback adamw_line = progress.callback();
+    auto last = std::make_shared<std::chrono::steady_clock::time_point>();
+    const bool tty = isatty(STDERR_FILENO) == 1;
+    hooks.progress = [adamw_line, talk, last, tty](const TrainProgress& p) {
+      if (std::strcmp(p.stage, "lm") != 0) return adamw_line(p);
+      if (!talk) return true;
+      const auto now = std::chrono::steady_clock::now();
+      if (p.epoch < p.epochs && now - *last < std::chrono::seconds(1)) return true;
+      *last = now;
+      std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "",
+                   p.epoch, p.epochs, p.val_loss, tty ? "" : "\n");
+      return true;  // an interrupt reaches LM through should_stop
+    };
+
     try {
       r = identify(trajs, pairs_only, c, hooks);
     } catch (const Error& e) {

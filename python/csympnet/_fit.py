@@ -115,8 +115,11 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     Add core="la:5:20:h2" when the steps vary (docs/identification.md).
     threads: threads for each training epoch of CSympNet-ID with d > 1 (other models train
         on one); the results are the same to the bit for any value.
-    progress: optional callable, called after each validation with a dict (epoch, epochs,
-        train_loss, val_loss, best_val_loss, gamma, seconds); returning False stops training.
+    progress: optional callable, called after each AdamW validation and each accepted step
+        of the second stage with a dict: stage ("adamw", "lm" or "lbfgs"), epoch and epochs
+        (iterations and budget for lm and lbfgs), train_loss (None where the optimiser does not
+        say), val_loss, best_val_loss, gamma, seconds (of that stage); returning False ends the
+        fit, keeping the best parameters so far.
     meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
 
     Returns a Model holding the best-validation parameters; its `gamma` is γ̂. Training runs

@@ -34,9 +34,10 @@ class PythonProgress {
         if (PyErr_CheckSignals() != 0) throw py::error_already_set();
         if (callback_.is_none()) return true;
         py::dict info;
+        info["stage"] = p.stage;
         info["epoch"] = p.epoch;
         info["epochs"] = p.epochs;
-        info["train_loss"] = p.train_loss;
+        info["train_loss"] = std::isnan(p.train_loss) ? py::none() : py::cast(p.train_loss);
         info["val_loss"] = p.val_loss;
         info["best_val_loss"] = p.best_val_loss;
         info["gamma"] = std::isnan(p.gamma_hat) ? py::none() : py::cast(p.gamma_hat);
@@ -201,8 +202,8 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   const IdentifyConfig c = make_identify_config(cj);
   PythonProgress watch(progress);
   IdentifyHooks hooks;
-  hooks.adamw = watch.callback();
-  // LM and the interval poll for Ctrl-C through the same watcher (with no training progress).
+  hooks.progress = watch.callback();  // AdamW and LM
+  // LM and the interval poll for Ctrl-C through the same watcher.
   hooks.should_stop = watch.should_stop();
   IdentifyResult r;
   {

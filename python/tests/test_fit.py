@@ -114,9 +114,16 @@ def test_scalar_h_means_one_step_for_all(s1_pairs):
 
 def test_progress_callback_sees_training_and_can_stop(s1_pairs):
     seen = []
-    csympnet.fit(*s1_pairs, epochs=100, val_every=20, progress=seen.append)
-    assert [p["epoch"] for p in seen] == [20, 40, 60, 80, 100]
-    assert all(p["epochs"] == 100 and p["gamma"] > 0 for p in seen)
+    csympnet.fit(*s1_pairs, epochs=100, val_every=20, refine="lm", refine_iterations=30,
+                 bootstrap=0, progress=seen.append)
+    adamw = [p for p in seen if p["stage"] == "adamw"]
+    assert [p["epoch"] for p in adamw] == [20, 40, 60, 80, 100]
+    assert all(p["epochs"] == 100 and p["gamma"] > 0 for p in adamw)
+    # The second stage reports through the same callback, after AdamW, in its own stage.
+    lm = seen[len(adamw):]
+    assert lm and all(p["stage"] == "lm" and p["epochs"] == 30 for p in lm)
+    assert all(a["epoch"] < b["epoch"] for a, b in zip(lm, lm[1:]))
+    assert all(b["best_val_loss"] <= a["best_val_loss"] for a, b in zip(lm, lm[1:]))
     stopped = csympnet.fit(*s1_pairs, epochs=1000, progress=lambda p: p["epoch"] < 30)
     assert stopped.training["stop_reason"] == "callback" and stopped.training["epochs_run"] == 30
 

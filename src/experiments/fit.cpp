@@ -287,7 +287,8 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
     return r;
   }
   r.refine =
-      refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine, should_stop);
+      refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine,
+                          {progress, should_stop});
   if (r.refine.stopped) {
     r.stopped = true;
     if (r.config.bootstrap.replicates > 0)

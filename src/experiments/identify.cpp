@@ -372,7 +372,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     t.threads = c.threads;
     ProgressCallback cb = [&](const TrainProgress& p) {
       if (stop()) return false;
-      return hooks.adamw ? hooks.adamw(p) : true;
+      return hooks.progress ? hooks.progress(p) : true;
     };
     x.training = train_parameters(o, x.theta, t, cb);
   };
@@ -416,33 +416,25 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
       a = std::move(ne.a);
       g = std::move(ne.g);
     };
-    long polls = 0, best_it = 0;  // one poll per iteration
-    bool impatient = false;
-    prob.should_stop = [&] {
-      if (stop()) return true;
-      impatient = ++polls - best_it > kLmPatience;
-      return impatient;
-    };
+    IterationCallbacks callbacks;
+    callbacks.progress = hooks.progress;
+    callbacks.should_stop = stop;
+    callbacks.patience = kLmPatience;
+    IterationMonitor monitor(
+        "lm", budget, [&](const Vector& th) { return window_loss(map, th, val, bal); }, x.theta,
+        callbacks, [&map](const Vector& th) { return map.damping_rate(th); });
+    prob.should_stop = [&monitor] { return monitor.interrupted(); };
     const auto t0 = std::chrono::steady_clock::now();
     LmSettings ls;
     ls.max_iterations = budget;
-    Vector th = x.theta, best = x.theta;
-    double best_val = window_loss(map, x.theta, val, bal);
-    LmReport rep = levenberg_marquardt(prob, th, ls, [&](long it) {
-      const double v = window_loss(map, th, val, bal);
-      if (std::isfinite(v) && v < best_val) {
-        best_val = v;
-        best = th;
-        best_it = it;
-      }
-      if (hooks.lm) hooks.lm(it, budget, v);
-    });
-    x.theta = best;
+    Vector th = x.theta;
+    LmReport rep = levenberg_marquardt(prob, th, ls, lm_hooks(monitor));
+    x.theta = monitor.best();
     if (stop()) stopped = true;
-    if (impatient)
+    if (monitor.cause() == StopCause::kPatience)
       rep.message = "no better validation loss in " + std::to_string(kLmPatience) + " iterations";
     x.lm = rep;
-    x.lm_best_iteration = best_it;
+    x.lm_best_iteration = monitor.best_iteration();
     x.lm_seconds += seconds_since(t0);
   };
 

@@ -92,7 +92,7 @@ GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const 
     }
     const PairSet resample = select_pairs(train, idx);
     Vector th = theta;
-    if (refine_one_step_map(map, th, resample, val, options.refine, should_stop).stopped) {
+    if (refine_one_step_map(map, th, resample, val, options.refine, {{}, should_stop}).stopped) {
       g.stopped = true;
       break;
     }

@@ -64,9 +64,17 @@ lapack::Factor factor(Matrix& lhs, const std::function<bool()>& should_stop) {
 
 }  // namespace
 
+LmHooks lm_hooks(IterationMonitor& monitor) {
+  LmHooks h;
+  h.on_accepted = [&monitor](long iteration, const Vector& theta, double cost) {
+    monitor.accept(iteration, theta, 2.0 * cost);  // a stop it asks for is seen by stop_before
+  };
+  h.stop_before = [&monitor](long iteration) { return monitor.stop_before(iteration); };
+  return h;
+}
+
 LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
-                             const LmSettings& settings,
-                             const std::function<void(long iteration)>& on_accepted) {
+                             const LmSettings& settings, const LmHooks& hooks) {
   const Index m = problem.n_residuals, n = problem.n_params;
   require(m >= 1 && n >= 1, "levenberg_marquardt: the problem needs residuals and parameters");
   require(theta.size() == n, "levenberg_marquardt: parameter vector has the wrong size");
@@ -106,7 +114,8 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
   double mu = kInitialMu, nu = 2.0;
   report.message = "maximum number of iterations reached";
   while (report.iterations < settings.max_iterations) {
-    if (problem.should_stop && problem.should_stop()) {
+    if ((problem.should_stop && problem.should_stop()) ||
+        (hooks.stop_before && hooks.stop_before(report.iterations + 1))) {
       report.message = "stopped by the caller";
       break;
     }
@@ -147,7 +156,7 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
           cost = new_cost;
           report.final_cost = cost;
           ++report.accepted;
-          if (on_accepted) on_accepted(report.iterations);
+          if (hooks.on_accepted) hooks.on_accepted(report.iterations, theta, cost);
           if (relative <= settings.function_tolerance) {
             report.message = "function tolerance reached";
             break;

@@ -134,60 +134,60 @@ void to_json(nlohmann::json& j, const RefineSummary& s) {
 
 namespace {
 
-// The caller's stop request, remembered once seen: every optimiser below polls it before each
-// evaluation and after each iteration.
-class StopPoll {
- public:
-  explicit StopPoll(const std::function<bool()>& should_stop) : should_stop_(should_stop) {}
-  bool operator()() const {
-    if (!stopped_ && should_stop_ && should_stop_()) stopped_ = true;
-    return stopped_;
-  }
-  bool stopped() const { return stopped_; }
+// The one-step residuals r(θ) and their Jacobian, scaled by 1/√N so that ½‖r‖² is L/2. The one
+// definition of the residuals that both LM solvers minimise: csympnet's directly, Ceres' through
+// CeresResiduals. Evaluations are refused once the monitor says the caller wants to stop.
+LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs,
+                                     const IterationMonitor& monitor) {
+  LeastSquaresProblem p;
+  p.n_residuals = pairs.size() * pairs.dim();
+  p.n_params = map.n_params();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
+  p.residuals = [&map, &pairs, scale, &monitor](ConstParams theta, Eigen::Ref<Vector> r) {
+    if (monitor.interrupted()) return false;  // a refused trial step; the loop then stops
+    r = scale * one_step_residuals(map, theta, pairs);
+    return r.allFinite();
+  };
+  p.jacobian = [&map, &pairs, scale, &monitor](ConstParams theta, Eigen::Ref<RowMajorMatrix> jac) {
+    residual_jacobian(map, theta, pairs, jac, [&monitor] { return monitor.interrupted(); });
+    jac *= scale;  // when stopped, the solver sees the stop before it uses jac
+  };
+  p.should_stop = [&monitor] { return monitor.interrupted(); };
+  return p;
+}
 
- private:
-  const std::function<bool()>& should_stop_;
-  mutable bool stopped_ = false;
-};
-
-// Residuals scaled by 1/√N, so that Ceres' cost ½‖r̃‖² is L/2.
-class OneStepResiduals final : public ceres::CostFunction {
+// A LeastSquaresProblem as a Ceres cost function (one residual block over all of θ).
+class CeresResiduals final : public ceres::CostFunction {
  public:
-  OneStepResiduals(const OneStepMap& map, const PairSet& pairs, const StopPoll& stop)
-      : map_(map), pairs_(pairs), stop_(stop) {
-    set_num_residuals(static_cast<int>(pairs.size() * pairs.dim()));
-    mutable_parameter_block_sizes()->push_back(static_cast<int>(map.n_params()));
-    scale_ = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
+  explicit CeresResiduals(const LeastSquaresProblem& problem) : problem_(problem) {
+    set_num_residuals(static_cast<int>(problem.n_residuals));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(problem.n_params));
   }
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    if (stop_()) return false;  // a refused evaluation ends the iteration; the callback stops
-    const Eigen::Map<const Vector> theta(parameters[0], map_.n_params());
-    const Vector r = one_step_residuals(map_, theta, pairs_);
-    Eigen::Map<Vector>(residuals, r.size()) = scale_ * r;
+    const Eigen::Map<const Vector> theta(parameters[0], problem_.n_params);
+    Eigen::Map<Vector> r(residuals, problem_.n_residuals);
+    if (!problem_.residuals(theta, r)) return false;  // not finite, or stopped
     if (jacobians != nullptr && jacobians[0] != nullptr) {
-      Eigen::Map<RowMajorMatrix> jac(jacobians[0], r.size(), map_.n_params());
-      residual_jacobian(map_, theta, pairs_, jac, [this] { return stop_(); });
-      if (stop_()) return false;
-      jac *= scale_;
+      Eigen::Map<RowMajorMatrix> jac(jacobians[0], problem_.n_residuals, problem_.n_params);
+      problem_.jacobian(theta, jac);
+      // A refused evaluation ends the iteration; the iteration callback then ends the solve.
+      if (problem_.should_stop()) return false;
     }
-    return r.allFinite();
+    return true;
   }
 
  private:
-  const OneStepMap& map_;
-  const PairSet& pairs_;
-  const StopPoll& stop_;
-  double scale_ = 1.0;
+  const LeastSquaresProblem& problem_;
 };
 
 // The one-step loss and its gradient for L-BFGS (Ceres minimises the value as given).
 class OneStepLossFunction final : public ceres::FirstOrderFunction {
  public:
-  OneStepLossFunction(const OneStepMap& map, const PairSet& pairs, const StopPoll& stop)
-      : map_(map), pairs_(pairs), stop_(stop) {}
+  OneStepLossFunction(const OneStepMap& map, const PairSet& pairs, const IterationMonitor& monitor)
+      : map_(map), pairs_(pairs), monitor_(monitor) {}
   bool Evaluate(const double* parameters, double* cost, double* gradient) const override {
-    if (stop_()) return false;
+    if (monitor_.interrupted()) return false;
     const Eigen::Map<const Vector> theta(parameters, map_.n_params());
     if (gradient == nullptr) {
       *cost = one_step_loss(map_, theta, pairs_);
@@ -202,80 +202,34 @@ class OneStepLossFunction final : public ceres::FirstOrderFunction {
  private:
   const OneStepMap& map_;
   const PairSet& pairs_;
-  const StopPoll& stop_;
+  const IterationMonitor& monitor_;
   mutable Vector grad_;
   mutable ForwardCache cache_;
 };
 
-// Validates iterates and remembers the best. `consider` reads the parameter array, which both
-// optimisers update in place (Ceres writes every iterate there first, since
-// update_state_every_iteration is on).
-class BestValidation {
+// Hands each of Ceres' successful iterates to the monitor, and ends the solve when the monitor
+// says stop. Ceres gives a callback no parameters: it reads `theta`, the parameter block itself,
+// which holds the current iterate only because update_state_every_iteration is on;
+// set_common_options sets that in the same place as it registers this callback.
+class CeresMonitor final : public ceres::IterationCallback {
  public:
-  BestValidation(const OneStepMap& map, const PairSet& val, const double* params,
-                 const Vector& start, double start_loss)
-      : map_(map), val_(val), params_(params), best_(start), best_loss_(start_loss) {}
-  void consider(long iteration) {
-    const Eigen::Map<const Vector> theta(params_, best_.size());
-    const double loss = one_step_loss(map_, theta, val_);
-    if (loss < best_loss_) {
-      best_loss_ = loss;
-      best_ = theta;
-      best_iteration_ = iteration;
-    }
-  }
-  const Vector& best() const { return best_; }
-  double best_loss() const { return best_loss_; }
-  long best_iteration() const { return best_iteration_; }
-
- private:
-  const OneStepMap& map_;
-  const PairSet& val_;
-  const double* params_;
-  Vector best_;
-  double best_loss_;
-  long best_iteration_ = 0;
-};
-
-// Hands Ceres' accepted iterates to BestValidation, and ends the solve once a stop is asked.
-class CeresBestValidation final : public ceres::IterationCallback {
- public:
-  CeresBestValidation(BestValidation& best, const StopPoll& stop) : best_(best), stop_(stop) {}
+  CeresMonitor(IterationMonitor& monitor, const Vector& theta) : monitor_(monitor), theta_(theta) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-    if (stop_()) return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
-    if (it.iteration != 0 && it.step_is_successful) best_.consider(it.iteration);
+    if (it.iteration != 0 && it.step_is_successful)
+      monitor_.accept(it.iteration, theta_, 2.0 * it.cost);  // Ceres' cost is L/2
+    if (monitor_.stop_before(it.iteration + 1)) return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     return ceres::SOLVER_CONTINUE;
   }
 
  private:
-  BestValidation& best_;
-  const StopPoll& stop_;
+  IterationMonitor& monitor_;
+  const Vector& theta_;
 };
 
-// The one-step residuals and their Jacobian, scaled by 1/√N like OneStepResiduals.
-LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs,
-                                     const StopPoll& stop) {
-  LeastSquaresProblem p;
-  p.n_residuals = pairs.size() * pairs.dim();
-  p.n_params = map.n_params();
-  const double scale = 1.0 / std::sqrt(static_cast<double>(pairs.size()));
-  p.residuals = [&map, &pairs, scale, &stop](ConstParams theta, Eigen::Ref<Vector> r) {
-    if (stop()) return false;  // a refused trial step; the loop then stops
-    r = scale * one_step_residuals(map, theta, pairs);
-    return r.allFinite();
-  };
-  p.jacobian = [&map, &pairs, scale, &stop](ConstParams theta, Eigen::Ref<RowMajorMatrix> jac) {
-    residual_jacobian(map, theta, pairs, jac, [&stop] { return stop(); });
-    jac *= scale;  // when stopped, the solver sees the stop before it uses jac
-  };
-  return p;
-}
-
-// What Ceres' LM and L-BFGS options share: the budget and tolerances, silence, and the
-// best-validation callback, which needs the iterate after every step.
+// What Ceres' LM and L-BFGS options share: the budget and tolerances, silence, and the monitor,
+// which needs the iterate in the parameter block after every step.
 template <class SolverOptions>
-void set_common_options(SolverOptions& so, const RefineOptions& options,
-                        CeresBestValidation& callback) {
+void set_common_options(SolverOptions& so, const RefineOptions& options, CeresMonitor& monitor) {
   so.max_num_iterations = static_cast<int>(options.iterations);
   so.function_tolerance = options.function_tolerance;
   so.gradient_tolerance = options.gradient_tolerance;
@@ -283,14 +237,14 @@ void set_common_options(SolverOptions& so, const RefineOptions& options,
   so.logging_type = ceres::SILENT;
   so.minimizer_progress_to_stdout = false;
   so.update_state_every_iteration = true;
-  so.callbacks.push_back(&callback);
+  so.callbacks.push_back(&monitor);
 }
 
 }  // namespace
 
 RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
                                   const PairSet& val, const RefineOptions& options,
-                                  const std::function<bool()>& should_stop) {
+                                  const IterationCallbacks& callbacks) {
   options.validate();
   train.validate("training pairs");
   val.validate("validation pairs");
@@ -303,17 +257,19 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
   RefineSummary s;
   s.method = options.method;
   s.train_loss_before = one_step_loss(map, theta, train);
-  s.val_loss_before = one_step_loss(map, theta, val);
   if (options.method == RefineMethod::kNone) {
+    s.val_loss_before = s.val_loss_after = one_step_loss(map, theta, val);
     s.train_loss_after = s.train_loss_before;
-    s.val_loss_after = s.val_loss_before;
     s.termination = "no second stage";
     return s;
   }
 
   const Vector initial = theta;
-  BestValidation best(map, val, theta.data(), initial, s.val_loss_before);
-  const StopPoll stop(should_stop);
+  IterationMonitor monitor(
+      options.method == RefineMethod::kLm ? "lm" : "lbfgs", options.iterations,
+      [&map, &val](const Vector& t) { return one_step_loss(map, t, val); }, theta, callbacks,
+      [&map](const Vector& t) { return map.damping_rate(t); });
+  s.val_loss_before = monitor.start_loss();
   if (options.method == RefineMethod::kLm &&
       options.linear_solver == LinearSolver::kBlasNormalCholesky) {
     LmSettings ls;
@@ -321,17 +277,16 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     ls.function_tolerance = options.function_tolerance;
     ls.gradient_tolerance = options.gradient_tolerance;
     ls.parameter_tolerance = options.parameter_tolerance;
-    LeastSquaresProblem problem = one_step_problem(map, train, stop);
-    problem.should_stop = [&stop] { return stop(); };
     const LmReport lr =
-        levenberg_marquardt(problem, theta, ls, [&best](long it) { best.consider(it); });
+        levenberg_marquardt(one_step_problem(map, train, monitor), theta, ls, lm_hooks(monitor));
     s.iterations = lr.iterations;
     s.termination = lr.message;
   } else if (options.method == RefineMethod::kLm) {
+    const LeastSquaresProblem lsp = one_step_problem(map, train, monitor);
+    CeresResiduals residuals(lsp);
     ceres::Problem::Options po;
     po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(po);
-    OneStepResiduals residuals(map, train, stop);
     problem.AddResidualBlock(&residuals, nullptr, theta.data());
     ceres::Solver::Options so;
     so.minimizer_type = ceres::TRUST_REGION;
@@ -340,32 +295,44 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
                                 ? ceres::DENSE_QR
                                 : ceres::DENSE_NORMAL_CHOLESKY;
     so.num_threads = 1;  // same seed, same bits
-    CeresBestValidation callback(best, stop);
+    CeresMonitor callback(monitor, theta);
     set_common_options(so, options, callback);
     ceres::Solver::Summary cs;
     ceres::Solve(so, &problem, &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;
     s.termination = cs.message;
   } else {
-    ceres::GradientProblem problem(new OneStepLossFunction(map, train, stop));
+    ceres::GradientProblem problem(new OneStepLossFunction(map, train, monitor));
     ceres::GradientProblemSolver::Options so;
     so.line_search_direction_type = ceres::LBFGS;
     so.line_search_type = ceres::WOLFE;
     so.max_lbfgs_rank = options.lbfgs_rank;
-    CeresBestValidation callback(best, stop);
+    CeresMonitor callback(monitor, theta);
     set_common_options(so, options, callback);
     ceres::GradientProblemSolver::Summary cs;
     ceres::Solve(so, problem, theta.data(), &cs);
     s.iterations = static_cast<long>(cs.iterations.size()) - 1;
     s.termination = cs.message;
   }
-  if (stop.stopped()) {
-    s.stopped = true;
-    s.termination = "interrupted";
+  switch (monitor.cause()) {
+    case StopCause::kNone:
+      break;
+    case StopCause::kPatience:  // a normal end, like a tolerance
+      s.termination = "no better validation loss in " + std::to_string(callbacks.patience) +
+                      " iterations";
+      break;
+    case StopCause::kInterrupt:
+      s.stopped = true;
+      s.termination = "interrupted";
+      break;
+    case StopCause::kCallback:
+      s.stopped = true;
+      s.termination = "stopped by the progress callback";
+      break;
   }
   if (options.keep_best_validation) {
-    theta = best.best();
-    s.best_iteration = best.best_iteration();
+    theta = monitor.best();
+    s.best_iteration = monitor.best_iteration();
   } else {
     s.best_iteration = s.iterations;
   }

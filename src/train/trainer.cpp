@@ -106,19 +106,19 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   require(objective.train_loss && objective.val_loss, "train: objective needs both losses");
   require(theta.size() == objective.n_params, "train: parameter vector has the wrong size");
 
-  using Clock = std::chrono::steady_clock;
-  const auto start = Clock::now();
-  auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
-
+  const auto start = std::chrono::steady_clock::now();
   AdamW opt(objective.n_params, options.adamw, objective.damping_index);
   Vector grad(objective.n_params);
 
+  const IterationCallbacks callbacks{progress, {}, 0};
+  // By reference: the objective's functions may hold copies of the data.
+  IterationMonitor::DampingRate rate;
+  if (objective.damping_rate) rate = [&objective](const Vector& t) { return objective.damping_rate(t); };
+  IterationMonitor monitor(
+      "adamw", options.epochs, [&objective](const Vector& t) { return objective.val_loss(t); },
+      theta, callbacks, rate);
   TrainSummary summary;
   summary.stop_reason = StopReason::kBudget;
-  Vector best = theta;
-  summary.best_val_loss = objective.val_loss(theta);
-  summary.best_epoch = 0;
-
   double train_loss = std::numeric_limits<double>::quiet_NaN();
   for (long epoch = 1; epoch <= options.epochs; ++epoch) {
     train_loss = objective.train_loss(theta, grad);
@@ -131,33 +131,16 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
     opt.step(theta, grad);
     summary.epochs_run = epoch;
     if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
-
-    const double val_loss = objective.val_loss(theta);
-    // Strict '<' keeps the earliest of equal losses, so runs are reproducible.
-    if (val_loss < summary.best_val_loss) {
-      summary.best_val_loss = val_loss;
-      summary.best_epoch = epoch;
-      best = theta;
-    }
-    if (progress) {
-      TrainProgress p;
-      p.epoch = epoch;
-      p.epochs = options.epochs;
-      p.train_loss = train_loss;
-      p.val_loss = val_loss;
-      p.best_val_loss = summary.best_val_loss;
-      const auto gamma = objective.damping_rate ? objective.damping_rate(theta) : std::nullopt;
-      p.gamma_hat = gamma.value_or(std::numeric_limits<double>::quiet_NaN());
-      p.seconds = seconds();
-      if (!progress(p)) {
-        summary.stop_reason = StopReason::kCallback;
-        break;
-      }
+    if (!monitor.accept(epoch, theta, train_loss)) {
+      summary.stop_reason = StopReason::kCallback;
+      break;
     }
   }
+  summary.best_val_loss = monitor.best_loss();
+  summary.best_epoch = monitor.best_iteration();
   summary.final_train_loss = train_loss;
-  theta = best;
-  summary.seconds = seconds();
+  theta = monitor.best();
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }
 

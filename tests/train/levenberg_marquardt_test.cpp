@@ -179,7 +179,8 @@ TEST(LevenbergMarquardt, RejectsAnOvershootAndStillConverges) {
   x << 3.0;
   std::vector<long> accepted_at;
   const LmReport r =
-      levenberg_marquardt(p, x, LmSettings{}, [&](long it) { accepted_at.push_back(it); });
+      levenberg_marquardt(
+          p, x, LmSettings{}, {[&](long it, const Vector&, double) { accepted_at.push_back(it); }, {}});
   EXPECT_LT(std::abs(x(0)), 1e-12) << r.message;
   ASSERT_FALSE(accepted_at.empty());
   EXPECT_GT(accepted_at.front(), 1);  // iteration 1 was the rejected overshoot
@@ -251,7 +252,8 @@ TEST(LevenbergMarquardt, TreatsANonFiniteTrialAsARejection) {
   x << 5.0;
   std::vector<long> accepted_at;
   const LmReport r =
-      levenberg_marquardt(p, x, LmSettings{}, [&](long it) { accepted_at.push_back(it); });
+      levenberg_marquardt(
+          p, x, LmSettings{}, {[&](long it, const Vector&, double) { accepted_at.push_back(it); }, {}});
   EXPECT_NEAR(x(0), 1.0, 1e-12) << r.message;
   ASSERT_FALSE(accepted_at.empty());
   EXPECT_GT(accepted_at.front(), 1);

@@ -178,6 +178,84 @@ TEST_P(RefineLm, KeepsTheBestValidationIterate) {
 
 INSTANTIATE_TEST_SUITE_P(Solvers, RefineLm, ::testing::Values("dense_qr", "blas_normal_cholesky"));
 
+// Every second-stage optimiser hands its iterates to the same IterationMonitor
+// (callbacks.hpp): progress is reported in its own stage, a callback can end it, patience ends
+// it, and the kept iterate is the best validation loss the callback saw.
+struct Stage {
+  RefineMethod method;
+  LinearSolver solver;
+  const char* name;
+};
+class RefineCallbacks : public ::testing::TestWithParam<Stage> {};
+
+TEST_P(RefineCallbacks, ProgressSeesEveryAcceptedIterateAndCanStop) {
+  const Stage st = GetParam();
+  RefineOptions o;
+  o.method = st.method;
+  o.linear_solver = st.solver;
+  o.iterations = 40;
+  Trained full = adamw_start();
+  std::vector<TrainProgress> seen;
+  IterationCallbacks cb;
+  cb.progress = [&seen](const TrainProgress& p) {
+    seen.push_back(p);
+    return true;
+  };
+  const RefineSummary s = refine_one_step_map(*full.map, full.theta, full.train, full.val, o, cb);
+  ASSERT_GE(seen.size(), 3u) << s.brief_report();
+  double lowest = s.val_loss_before;
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_STREQ(seen[k].stage, st.method == RefineMethod::kLm ? "lm" : "lbfgs");
+    EXPECT_EQ(seen[k].epochs, 40);
+    EXPECT_TRUE(k == 0 || seen[k].epoch > seen[k - 1].epoch);
+    EXPECT_GT(seen[k].gamma_hat, 0.0);
+    lowest = std::min(lowest, seen[k].val_loss);
+    EXPECT_EQ(seen[k].best_val_loss, lowest);
+  }
+  EXPECT_EQ(s.val_loss_after, lowest);
+  EXPECT_FALSE(s.stopped);
+
+  // The same run, told to stop at the second report: it ends there, keeps the best so far.
+  Trained cut = adamw_start();
+  long calls = 0;
+  cb.progress = [&calls](const TrainProgress&) { return ++calls < 2; };
+  const RefineSummary c = refine_one_step_map(*cut.map, cut.theta, cut.train, cut.val, o, cb);
+  EXPECT_TRUE(c.stopped);
+  EXPECT_EQ(c.termination, "stopped by the progress callback");
+  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(c.val_loss_after, std::min({s.val_loss_before, seen[0].val_loss, seen[1].val_loss}));
+  EXPECT_LE(c.iterations, seen[1].epoch + 1);
+}
+
+TEST_P(RefineCallbacks, PatienceEndsTheStageAfterTheBest) {
+  const Stage st = GetParam();
+  RefineOptions o;
+  o.method = st.method;
+  o.linear_solver = st.solver;
+  o.iterations = 200;
+  // Validation data from another damping rate, so that validation stops improving early.
+  Trained t = adamw_start();
+  PairSet other = rotation_pairs(10, 2);
+  other.z1 *= 1.01;
+  IterationCallbacks cb;
+  cb.patience = 3;
+  const RefineSummary s = refine_one_step_map(*t.map, t.theta, t.train, other, o, cb);
+  EXPECT_FALSE(s.stopped);  // patience is a normal end, not an interruption
+  if (s.termination == "no better validation loss in 3 iterations") {
+    EXPECT_EQ(s.iterations, s.best_iteration + 3) << s.brief_report();
+  } else {  // a tolerance came first
+    EXPECT_LE(s.iterations, s.best_iteration + 3) << s.brief_report();
+  }
+  EXPECT_LT(s.iterations, 200) << s.brief_report();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Optimisers, RefineCallbacks,
+    ::testing::Values(Stage{RefineMethod::kLm, LinearSolver::kDenseQr, "ceres_lm"},
+                      Stage{RefineMethod::kLm, LinearSolver::kBlasNormalCholesky, "csympnet_lm"},
+                      Stage{RefineMethod::kLbfgs, LinearSolver::kDenseQr, "lbfgs"}),
+    [](const ::testing::TestParamInfo<Stage>& i) { return std::string(i.param.name); });
+
 TEST(Refine, BothLevenbergMarquardtsReachTheSameFloor) {
   // Two implementations of one method, different step control details (Ceres scales the
   // Jacobian's columns): from the same start both reach the loss floor, and the same γ̂.

@@ -62,13 +62,14 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c);
 // checked by IdentifyConfig::validate(), which identify() calls.
 IdentifyConfig make_identify_config(const nlohmann::json& settings);
 
-// What the fit did at each stage; `stage` is called as each begins ("warm start", "AdamW",
-// "LM", "LM on longer windows …", "interval"), `lm` after each accepted LM step, and
-// `should_stop` is polled by AdamW (each validation) and LM (each iteration): an interrupt.
+// What the fit did at each stage: `stage` is called as each begins ("warm start", "AdamW",
+// "LM", "LM on longer windows …", "interval"); `progress` after each AdamW validation and each
+// accepted LM step (TrainProgress::stage "adamw" or "lm"; false ends that stage, keeping its
+// best iterate); `should_stop` is polled by AdamW (each validation) and LM (each iteration and
+// between blocks of a large factorisation): an interrupt, which ends the whole fit.
 struct IdentifyHooks {
-  ProgressCallback adamw;
+  ProgressCallback progress;
   std::function<void(const std::string& stage)> stage;
-  std::function<void(long iteration, long budget, double cost)> lm;
   std::function<bool()> should_stop;
 };
 

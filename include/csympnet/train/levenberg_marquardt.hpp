@@ -19,6 +19,7 @@
 #include <string>
 
 #include "csympnet/core/types.hpp"
+#include "csympnet/train/callbacks.hpp"
 #include "csympnet/train/residual_jacobian.hpp"
 
 namespace csympnet {
@@ -56,10 +57,23 @@ struct LmReport {
   std::string message;
 };
 
-// Minimises ½‖r(θ)‖² from theta, in place. `on_accepted(iteration)` runs after every accepted
-// step, with theta already updated.
+// What the solver tells its caller between iterations (an IterationMonitor's rules are bound
+// to these by lm_hooks(), callbacks.hpp).
+struct LmHooks {
+  // After every accepted step, with theta already updated and cost = ½‖r(theta)‖².
+  std::function<void(long iteration, const Vector& theta, double cost)> on_accepted;
+  // Before iteration `iteration` (1-based) starts: true ends the solve with the message
+  // "stopped by the caller" (an interrupt, or the caller's own rule such as patience).
+  std::function<bool(long iteration)> stop_before;
+};
+
+// The monitor's rules as LM hooks: each accepted step is validated and reported (its training
+// loss as 2·cost, the mean loss when the residuals carry the factor 1/√N), and each iteration
+// starts only if the monitor does not say stop. The monitor must outlive the hooks.
+LmHooks lm_hooks(IterationMonitor& monitor);
+
+// Minimises ½‖r(θ)‖² from theta, in place.
 LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
-                             const LmSettings& settings,
-                             const std::function<void(long iteration)>& on_accepted = {});
+                             const LmSettings& settings, const LmHooks& hooks = {});
 
 }  // namespace csympnet

@@ -4,9 +4,10 @@
 // BLAS) reaches its floor where first-order methods stall. L-BFGS (Ceres' GradientProblemSolver)
 // needs only the loss and its gradient, for models whose residual Jacobian is too large to hold.
 //
-// Checkpointing: the stage extends the best-validation rule. Its starting point (AdamW's
-// checkpoint) and every iterate are validated, and the one with the lowest validation loss
-// is kept, so a second stage can never return parameters that validate worse than it got.
+// Checkpointing: the stage extends the best-validation rule (IterationMonitor, callbacks.hpp).
+// Its starting point (AdamW's checkpoint) and every iterate are validated, and the one with the
+// lowest validation loss is kept, so a second stage can never return parameters that validate
+// worse than it got.
 #pragma once
 
 #include <functional>
@@ -17,6 +18,7 @@
 
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/callbacks.hpp"
 
 namespace csympnet {
 
@@ -92,12 +94,16 @@ double ceres_iteration_flops(LinearSolver linear_solver, Index n_residuals, Inde
 void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_params);
 
 // Refines theta in place. With method "none", returns a summary of zero iterations.
-// `should_stop`, when given, is polled before every residual or loss evaluation and after
-// every iteration: once it returns true the optimiser ends at the next poll (evaluations are
-// refused, so a Ceres iteration in progress ends early), the best iterate so far is kept as
-// usual, and the summary says `stopped` with termination "interrupted".
+// `callbacks` (callbacks.hpp): `progress` sees every accepted iterate (stage "lm" or "lbfgs")
+// and may end the stage; `should_stop` is polled before every residual or loss evaluation and
+// after every iteration, and once it returns true the optimiser ends at the next poll
+// (evaluations are refused, so a Ceres iteration in progress ends early); `patience` ends the
+// stage after that many iterations without a better validation loss (a normal end, like a
+// tolerance: termination "no better validation loss in N iterations"). However it ends, the best
+// iterate so far is kept as usual; an interrupt or a callback's stop sets `stopped`, with
+// termination "interrupted" or "stopped by the progress callback".
 RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const PairSet& train,
                                   const PairSet& val, const RefineOptions& options,
-                                  const std::function<bool()>& should_stop = {});
+                                  const IterationCallbacks& callbacks = {});
 
 }  // namespace csympnet

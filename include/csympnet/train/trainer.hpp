@@ -12,6 +12,7 @@
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/model.hpp"
 #include "csympnet/train/adamw.hpp"
+#include "csympnet/train/callbacks.hpp"
 #include "csympnet/train/objective.hpp"
 
 namespace csympnet {
@@ -43,17 +44,6 @@ struct TrainOptions {
 void to_json(nlohmann::json& j, const TrainOptions& o);
 void from_json(const nlohmann::json& j, TrainOptions& o);
 
-// What a progress callback sees after each validation.
-struct TrainProgress {
-  long epoch = 0;           // epochs done
-  long epochs = 0;          // budget
-  double train_loss = 0.0;  // loss at the parameters before this epoch's step
-  double val_loss = 0.0;    // validation loss after the step
-  double best_val_loss = 0.0;
-  double gamma_hat = 0.0;  // NaN for models without a damping rate
-  double seconds = 0.0;    // wall time so far
-};
-
 // Why training ended: its epoch budget ran out, the progress callback asked to stop, or the
 // loss or gradient became non-finite. Spelt "budget", "callback", "diverged" in reports.
 enum class StopReason { kBudget, kCallback, kDiverged };
@@ -73,11 +63,9 @@ struct TrainSummary {
 };
 void to_json(nlohmann::json& j, const TrainSummary& s);
 
-// Returns false to stop training early.
-using ProgressCallback = std::function<bool(const TrainProgress&)>;
-
-// Full-batch AdamW on `objective`, keeping the best-validation parameters: on return theta
-// holds them.
+// Full-batch AdamW on `objective`, keeping the best-validation parameters (IterationMonitor,
+// callbacks.hpp): on return theta holds them. `progress` sees every validation; returning
+// false ends the run (stop reason "callback").
 TrainSummary train_parameters(const Objective& objective, Vector& theta,
                               const TrainOptions& options, const ProgressCallback& progress = {});
 

@@ -25,6 +25,8 @@ packages=(
   pybind11-dev         # Python module: bindings
   python3-pytest       # Python module: tests
   python3-matplotlib   # csympnet.plot: the paper's figure types
+  python3-sklearn      # Python tests: CSympNetID under clone and cross_val_score
+  python3-tqdm         # CSympNetID(verbose=True): progress bars
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
   liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf

@@ -17,13 +17,19 @@ Identification on your own data, in any units (what `csympnet fit` runs):
     >>> result = csympnet.identify(z, t)                    # z (M, 2d), t (M,)
     >>> result.gamma, result.interval, result.identified
 
-Main entry points: identify, fit, fit_trajectories, run, load, Model, generate, systems, System,
+As a scikit-learn style estimator (clone, pickle, cross_val_score work):
+
+    >>> est = csympnet.CSympNetID().fit(z, t)               # PySINDy's order
+    >>> est.gamma_, est.gamma_interval_, est.score(z_test, t_test)
+
+Main entry points: CSympNetID, identify, fit, fit_trajectories, run, load, Model, generate, systems, System,
 read_csv, write_csv; figures in csympnet.plot (NumPy + matplotlib only). See docs/python.md.
 """
 
 from . import _core
 from ._core import Error
 from ._data import Pairs, System, Trajectory, generate, model_types, read_csv, systems, write_csv
+from ._estimator import CSympNetID
 from ._fit import RunResult, fit, fit_trajectories, run
 from ._identify import Identification, NotIdentifiedWarning, identify
 from ._model import Model, from_json, load
@@ -35,7 +41,7 @@ ValueError). The message names the argument, file or line and what was expected.
 Error.__module__ = "csympnet"
 
 __all__ = [
-    "Error", "Identification", "Model", "NotIdentifiedWarning", "Pairs", "RunResult", "System",
+    "CSympNetID", "Error", "Identification", "Model", "NotIdentifiedWarning", "Pairs", "RunResult", "System",
     "Trajectory", "fit", "fit_trajectories", "from_json", "generate", "identify", "load",
     "model_types", "read_csv", "run", "systems", "write_csv",
 ]

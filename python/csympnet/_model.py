@@ -74,7 +74,18 @@ class Model:
     def training(self):
         """Summary of the training run in this process (epochs_run, best_epoch, best_val_loss,
         final_train_loss, seconds, stop_reason), or None for a loaded model."""
+        if hasattr(self, "_training"):  # unpickled: kept beside the model file
+            return self._training
         return json.loads(self._m.training_json)
+
+    # --- pickling: the model file's text (θ to the bit), meta and the training summary -----
+    def __getstate__(self):
+        return {"model_file": self.to_json(), "training": self.training}
+
+    def __setstate__(self, state):
+        self._m = _core.from_json(state["model_file"])
+        self.meta = json.loads(self._m.meta_json)
+        self._training = state["training"]
 
     def __repr__(self):
         g = "" if self.gamma is None else f", gamma={self.gamma:.6g}"

@@ -1,0 +1,221 @@
+"""csympnet.CSympNetID: CSympNet-ID as a scikit-learn style estimator (PySINDy's conventions).
+
+The estimator runs `csympnet.identify` (what `csympnet fit` runs) and keeps what it found in
+attributes ending in an underscore. It follows scikit-learn's rules without importing
+scikit-learn: hyperparameters are stored unchanged by __init__ and checked by fit, so that
+`sklearn.base.clone`, `GridSearchCV` and `cross_val_score` work; a fitted estimator pickles.
+"""
+
+import inspect
+import warnings
+
+import numpy as np
+
+from . import _checks
+from ._identify import NotIdentifiedWarning, identify
+from ._verbose import progress_bars
+
+
+def _times(t, n_rows, t_default, name="t"):
+    """Sample times for n_rows states: t None (steps of t_default), a step, or the times."""
+    if t is None:
+        t = t_default
+    if np.ndim(t) == 0:
+        step = _checks.real(name, t, positive=True)
+        return step * np.arange(n_rows, dtype=float)
+    return _checks.vector(name, t, length=n_rows)
+
+
+def _trajectories(x, t, t_default):
+    """x and t in the accepted forms (see CSympNetID.fit) as a list of (t, z) pairs."""
+    if isinstance(x, (list, tuple)):
+        if len(x) == 0:
+            raise ValueError("x: expected at least one trajectory")
+        if isinstance(t, (list, tuple)):
+            if len(t) != len(x):
+                raise ValueError(f"t: {len(t)} time arrays for {len(x)} trajectories")
+            ts = t
+        else:
+            ts = [t] * len(x)
+        out = []
+        for k, (zk, tk) in enumerate(zip(x, ts)):
+            z, _ = _checks.states(f"x[{k}]", zk, allow_single=False)
+            out.append((_times(tk, z.shape[0], t_default, f"t[{k}]"), z))
+        return out
+    if np.ndim(x) == 3:
+        xa = np.asarray(x, dtype=float)
+        if t is not None and np.ndim(t) == 2:
+            ta = np.asarray(t, dtype=float)
+            if ta.shape != xa.shape[:2]:
+                raise ValueError(f"t: expected shape {xa.shape[:2]} for x of shape {xa.shape}")
+            return [(ta[k], xa[k]) for k in range(xa.shape[0])]
+        return [(_times(t, xa.shape[1], t_default), xa[k]) for k in range(xa.shape[0])]
+    z, _ = _checks.states("x", x, allow_single=False)
+    return [(_times(t, z.shape[0], t_default), z)]
+
+
+class CSympNetID:
+    """Identifies a linearly damped Hamiltonian system from its trajectories: the damping rate
+    γ with an interval, and an exactly conformally symplectic one-step map
+    Φ̂_h = S_a ∘ Ψ_h ∘ S_a, a = exp(−γ̂h/2), in the data's own units.
+
+    Hyperparameters are those of `csympnet.identify` (core, seed, window, loss, normalize,
+    epochs, lr, lm_iterations, val_fraction, blocks, level, dof_scales, threads), plus
+        t_default: the step between samples when fit, score or simulate get no times
+            (PySINDy's t_default);
+        verbose: progress bars on stderr for each stage (tqdm where it is installed).
+
+    After fit:
+        gamma_           γ̂ in the data's time units, or None when the data do not identify γ
+        gamma_interval_  (low, high) at `level`, or None
+        identified_      False when the data do not identify γ (`reasons_` says why)
+        reasons_         list of str
+        model_           the learned csympnet.Model (predict, rollout, save, ...)
+        report_          the full report (dict), as `csympnet fit` writes it
+        n_features_in_   2d, the state's length
+        dt_              the median step of the data fitted
+    """
+
+    def __init__(self, *, core=None, seed=42, window=0, loss="balanced", normalize=True,
+                 epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
+                 dof_scales="auto", threads=1, t_default=1.0, verbose=False):
+        self.core = core
+        self.seed = seed
+        self.window = window
+        self.loss = loss
+        self.normalize = normalize
+        self.epochs = epochs
+        self.lr = lr
+        self.lm_iterations = lm_iterations
+        self.val_fraction = val_fraction
+        self.blocks = blocks
+        self.level = level
+        self.dof_scales = dof_scales
+        self.threads = threads
+        self.t_default = t_default
+        self.verbose = verbose
+
+    # --- scikit-learn's parameter protocol ------------------------------------------------
+    @classmethod
+    def _param_names(cls):
+        sig = inspect.signature(cls.__init__)
+        return sorted(p.name for p in sig.parameters.values() if p.name != "self")
+
+    def get_params(self, deep=True):
+        """The hyperparameters as a dict (scikit-learn's protocol; `deep` has no effect)."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self, **params):
+        """Sets hyperparameters by name; returns self. Unknown names raise ValueError."""
+        valid = self._param_names()
+        for name, value in params.items():
+            if name not in valid:
+                raise ValueError(
+                    f"set_params: unknown hyperparameter {name!r}; expected one of {valid}")
+            setattr(self, name, value)
+        return self
+
+    def __repr__(self):
+        defaults = CSympNetID().get_params()
+        changed = {k: v for k, v in self.get_params().items() if v is not defaults[k]
+                   and not (isinstance(v, (int, float, str, bool)) and v == defaults[k])}
+        return "CSympNetID(" + ", ".join(f"{k}={v!r}" for k, v in changed.items()) + ")"
+
+    # --- fitting ------------------------------------------------------------------------
+    def fit(self, x, t=None, *, x_next=None):
+        """Fits to trajectories (PySINDy's order: states first, then times) or to pairs.
+
+        Trajectories:
+          - x (M, 2d) with t (M,) sample times, a step, or None (steps of t_default);
+          - x (K, M, 2d): K trajectories, with t (M,), (K, M), a step or None;
+          - x a list of arrays (M_k, 2d), with t a list of time arrays, a step or None.
+        Pairs: x (N, 2d) the states z0, x_next (N, 2d) the states one step later, t the
+        steps h, one (N,) or one for all.
+
+        Returns self. When the data do not identify γ, this warns (NotIdentifiedWarning),
+        sets identified_ = False and gamma_ = None; the model is still fitted.
+        """
+        options = {name: getattr(self, name) for name in (
+            "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
+            "val_fraction", "blocks", "level", "dof_scales", "threads")}
+        if not isinstance(self.verbose, (bool, np.bool_)):
+            raise TypeError(f"verbose: expected True or False, got {type(self.verbose).__name__}")
+        with progress_bars(bool(self.verbose)) as progress:
+            if x_next is not None:
+                z0, _ = _checks.states("x", x, allow_single=False)
+                z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
+                if z1.shape != z0.shape:
+                    raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
+                h = self.t_default if t is None else t
+                h = _checks.steps("t", h, z0.shape[0])
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", NotIdentifiedWarning)
+                    result = identify(pairs=(z0, z1, h), progress=progress, **options)
+                steps = h
+            else:
+                trajs = _trajectories(x, t, self.t_default)
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", NotIdentifiedWarning)
+                    result = identify([z for _, z in trajs], [tt for tt, _ in trajs],
+                                      progress=progress, **options)
+                steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
+        for w in caught:  # re-raised here, so that it points at the caller's fit()
+            warnings.warn(str(w.message), w.category, stacklevel=2)
+        self.model_ = result.model
+        self.report_ = result.report
+        self.identified_ = result.identified
+        self.reasons_ = result.reasons
+        self.gamma_ = result.gamma if result.identified else None
+        self.gamma_interval_ = result.interval if result.identified else None
+        self.n_features_in_ = 2 * result.model.d
+        self.dt_ = float(np.median(steps))
+        return self
+
+    def _check_fitted(self):
+        if not hasattr(self, "model_"):
+            raise RuntimeError("CSympNetID: call fit() first")
+
+    # --- using the fitted map ------------------------------------------------------------
+    def predict(self, x, h=None):
+        """One step of the learned map: Φ̂_h(x) for a state (2d,) or a batch (N, 2d);
+        h a step or one per state (default: dt_, the median step of the data fitted)."""
+        self._check_fitted()
+        return self.model_.predict(x, self.dt_ if h is None else h)
+
+    def simulate(self, x0, t):
+        """The learned map iterated from x0 at the times t (t[0] is x0's time): an array
+        (len(t), 2d) whose first row is x0 (PySINDy's simulate). The steps may vary."""
+        self._check_fitted()
+        times = _checks.vector("t", t)
+        if times.shape[0] < 2:
+            raise ValueError("t: expected at least two times (x0's and one more)")
+        return self.model_.rollout(x0, np.diff(times))
+
+    def score(self, x, t=None, *, x_next=None):
+        """R² of one-step predictions over the increments: 1 − Σ‖Φ̂_h(z_n) − z_{n+1}‖² /
+        Σ‖Δz_n − mean Δz‖², over every consecutive pair of the trajectories (or the pairs),
+        taken as fit takes them. 1 is perfect; predicting no change at all scores about 0.
+        (Rollout errors against observed trajectories: csympnet.Model.score.)"""
+        self._check_fitted()
+        if x_next is not None:
+            z0, _ = _checks.states("x", x, dim=self.n_features_in_, allow_single=False)
+            z1, _ = _checks.states("x_next", x_next, dim=self.n_features_in_, allow_single=False)
+            if z1.shape != z0.shape:
+                raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
+            h = _checks.steps("t", self.t_default if t is None else t, z0.shape[0])
+        else:
+            trajs = _trajectories(x, t, self.t_default)
+            z0 = np.concatenate([z[:-1] for _, z in trajs])
+            z1 = np.concatenate([z[1:] for _, z in trajs])
+            h = np.concatenate([np.diff(tt) for tt, _ in trajs])
+            if z0.shape[0] == 0:
+                raise ValueError("x: the trajectories give no pairs to score")
+            if z0.shape[1] != self.n_features_in_:
+                raise ValueError(
+                    f"x: states have {z0.shape[1]} components, the model {self.n_features_in_}")
+        pred = self.model_.predict(z0, h)
+        increments = z1 - z0
+        total = np.sum((increments - increments.mean(axis=0)) ** 2)
+        if total == 0.0:
+            raise ValueError("x: the states do not change, so R² is undefined")
+        return float(1.0 - np.sum((pred - z1) ** 2) / total)

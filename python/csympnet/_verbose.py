@@ -1,0 +1,67 @@
+"""Progress bars for verbose=True: one bar per stage (AdamW epochs, then each LM or L-BFGS run),
+drawn by tqdm where it is installed (Debian: python3-tqdm), else one plain line a second."""
+
+import contextlib
+import sys
+import time
+
+try:
+    from tqdm import tqdm as _tqdm
+except ImportError:  # tqdm is optional
+    _tqdm = None
+
+_STAGE_NAMES = {"adamw": "AdamW", "lm": "LM", "lbfgs": "L-BFGS"}
+
+
+class _Bars:
+    """A progress callback (csympnet.fit's `progress=`) that draws the bars."""
+
+    def __init__(self, file=None):
+        self._file = file if file is not None else sys.stderr
+        self._bar = None
+        self._stage = None
+        self._last = -1
+        self._printed = 0.0
+
+    def __call__(self, p):
+        stage = p.get("stage", "adamw")
+        if stage != self._stage or p["epoch"] < self._last:  # a new stage, or a new run of it
+            self.close()
+            self._stage = stage
+            if _tqdm is not None:
+                unit = "epoch" if stage == "adamw" else "it"
+                self._bar = _tqdm(total=p["epochs"], desc=_STAGE_NAMES.get(stage, stage),
+                                  unit=unit, file=self._file, leave=True, dynamic_ncols=True)
+        self._last = p["epoch"]
+        info = {"val": f"{p['val_loss']:.3e}"}
+        if p.get("gamma") is not None:
+            info["gamma"] = f"{p['gamma']:.6g}"
+        if self._bar is not None:
+            self._bar.update(p["epoch"] - self._bar.n)
+            self._bar.set_postfix(info, refresh=False)
+        else:
+            now = time.monotonic()
+            if now - self._printed >= 1.0 or p["epoch"] == p["epochs"]:
+                self._printed = now
+                fields = "  ".join(f"{k} {v}" for k, v in info.items())
+                print(f"{_STAGE_NAMES.get(stage, stage)} {p['epoch']}/{p['epochs']}  {fields}",
+                      file=self._file, flush=True)
+        return True
+
+    def close(self):
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+@contextlib.contextmanager
+def progress_bars(verbose, file=None):
+    """Yields a progress callback drawing bars when `verbose`, else None."""
+    if not verbose:
+        yield None
+        return
+    bars = _Bars(file)
+    try:
+        yield bars
+    finally:
+        bars.close()

@@ -12,6 +12,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/diagnostics/observed.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
@@ -61,7 +62,10 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--preset", a->preset,
                   "System and test set of this preset (default: the model's own system)")
       ->check(one_of(preset_names()));
-  cmd->add_option("--data", a->data, "Test trajectories CSV (default: the preset's test set)")
+  cmd->add_option("--data", a->data,
+                  "Observed trajectories CSV: the model is rolled out on them and scored "
+                  "(one-step and rollout errors, no system needed); with a system, also the "
+                  "test set of its diagnostics (default: the preset's test set)")
       ->check(kExistingFile);
   cmd->add_option("--h-test", a->h_test, "Step of the Jacobian diagnostics (default 0.2)")
       ->check(kFiniteNumber)
@@ -74,26 +78,43 @@ void add_evaluate(CLI::App& app) {
     std::optional<OutputDir> out_dir;
     if (!a->out.empty()) out_dir.emplace(a->out, a->force);
     const SavedModel saved = load_model(a->model);
-    RunConfig c = default_run_config(a->preset.empty() ? "s1" : a->preset, "csympnet");
-    if (a->preset.empty()) {
-      require(saved.meta.contains("system"), [&] {
-        return "--preset is required: " + a->model +
-               " does not record its system; expected --preset s1|s2|s3|s2-100|s3-100";
-      });
+    // The system, when one is known: --preset, else the one the model file records. Without
+    // either, only the observed data (--data) can score the model: no γ is assumed.
+    std::optional<RunConfig> c;
+    if (!a->preset.empty()) {
+      c = default_run_config(a->preset, "csympnet");
+    } else if (saved.meta.contains("system")) {
+      c = default_run_config("s1", "csympnet");
       try {
-        c.preset.system = saved.meta["system"].get<SystemSpec>();
+        c->preset.system = saved.meta["system"].get<SystemSpec>();
       } catch (const std::exception& e) {  // Error or nlohmann::json::exception
         throw Error(a->model + ": meta.system is not a valid system (" + e.what() +
                     "); expected one as written by csympnet run, or pass --preset");
       }
     }
-    a->system.apply(c.preset);
-    if (a->h_test) c.preset.h_test = *a->h_test;
-    const System sys(c.preset.system);
-    require(sys.dim() == saved.model.dim(), [&] {
-      return "the model's dimension " + std::to_string(saved.model.dim()) +
-             " does not match the system's " + std::to_string(sys.dim());
+    require(c.has_value() || !a->data.empty(), [&] {
+      return "--data or --preset is required: " + a->model +
+             " does not record its system; expected --data TRAJ.csv (observed trajectories) or "
+             "--preset s1|s2|s3|s2-100|s3-100";
     });
+    require(c.has_value() || !a->system.any(), [&] {
+      return "--d, --gamma, --omega, --k and --alpha change a known system, and " + a->model +
+             " records none; expected --preset with them";
+    });
+    require(c.has_value() || !a->h_test, [&] {
+      return std::string("--h-test is the step of the diagnostics against a known system; "
+                         "expected --preset with it (against --data the observed steps are used)");
+    });
+    std::optional<System> sys;
+    if (c) {
+      a->system.apply(c->preset);
+      if (a->h_test) c->preset.h_test = *a->h_test;
+      sys.emplace(c->preset.system);
+      require(sys->dim() == saved.model.dim(), [&] {
+        return "the model's dimension " + std::to_string(saved.model.dim()) +
+               " does not match the system's " + std::to_string(sys->dim());
+      });
+    }
     std::vector<Trajectory> tests;
     if (!a->data.empty()) {
       tests = read_trajectories_csv(a->data);
@@ -117,21 +138,39 @@ void add_evaluate(CLI::App& app) {
         });
       }
     } else {
-      require(!a->preset.empty(), "--data or --preset is required to know the test set");
-      Rng rng(c.test_seed, "test-trajectories");
-      tests = generate_test_set(sys, c.preset.n_test, c.preset.h_test, c.preset.horizon, rng,
-                                c.reference)
+      // The test set's size, span and step are a preset's; none is assumed.
+      require(!a->preset.empty(), [&] {
+        return "--data or --preset is required to know the test set: " + a->model +
+               " records its system but not a test set";
+      });
+      Rng rng(c->test_seed, "test-trajectories");
+      tests = generate_test_set(*sys, c->preset.n_test, c->preset.h_test, c->preset.horizon, rng,
+                                c->reference)
                   .trajectories;
     }
-    const Diagnostics d =
-        evaluate(learned_map(saved.model, saved.theta), sys, tests, c.preset.h_test);
-    nlohmann::json rep = d;
+    const LearnedMap map = learned_map(saved.model, saved.theta);
+    nlohmann::json rep;
+    if (sys) {
+      rep = evaluate(map, *sys, tests, c->preset.h_test);
+      rep["gamma_true"] = sys->gamma();
+      rep["system"] = c->preset.system;
+      rep["h_test"] = c->preset.h_test;
+    } else {
+      rep["gamma_hat"] = map.gamma_hat ? nlohmann::json(*map.gamma_hat) : nlohmann::json(nullptr);
+      rep["gamma_true"] = nullptr;  // no system given: nothing is assumed about it
+      rep["system"] = nullptr;
+    }
+    if (!a->data.empty()) {
+      try {
+        rep["observed"] = score_observed(map, tests);
+      } catch (const Error& e) {
+        throw Error(a->data + ": " + e.what());
+      }
+      rep["data"] = a->data;
+    }
     rep["model_file"] = a->model;
     rep["model"] = saved.model.type();
     rep["params"] = saved.model.n_params();
-    rep["gamma_true"] = sys.gamma();
-    rep["system"] = c.preset.system;
-    rep["h_test"] = c.preset.h_test;
     rep["test_trajectories"] = tests.size();
     if (out_dir) out_dir->commit({{"report.json", json_file_text(rep)}});
     std::cout << rep.dump(2) << "\n";

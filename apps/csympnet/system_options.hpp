@@ -50,6 +50,7 @@ struct SystemOverrides {
   std::optional<double> gamma, omega, k, alpha;
 
   void add_to(CLI::App& cmd);
+  bool any() const { return d || gamma || omega || k || alpha; }
   // Applies the given overrides; a changed d keeps the preset's core type and sizes.
   void apply(Preset& preset) const;
 };

@@ -195,7 +195,7 @@ class CSympNetID:
         """R² of one-step predictions over the increments: 1 − Σ‖Φ̂_h(z_n) − z_{n+1}‖² /
         Σ‖Δz_n − mean Δz‖², over every consecutive pair of the trajectories (or the pairs),
         taken as fit takes them. 1 is perfect; predicting no change at all scores about 0.
-        (Rollout errors against observed trajectories: csympnet.Model.score.)"""
+        It is `model_.score(...)["one_step_r2"]`; Model.score also gives rollout errors."""
         self._check_fitted()
         if x_next is not None:
             z0, _ = _checks.states("x", x, dim=self.n_features_in_, allow_single=False)
@@ -203,19 +203,11 @@ class CSympNetID:
             if z1.shape != z0.shape:
                 raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
             h = _checks.steps("t", self.t_default if t is None else t, z0.shape[0])
+            # Each pair as a trajectory of two points.
+            trajs_z = [np.stack([a, b]) for a, b in zip(z0, z1)]
+            trajs_t = [np.array([0.0, hj]) for hj in h]
         else:
             trajs = _trajectories(x, t, self.t_default)
-            z0 = np.concatenate([z[:-1] for _, z in trajs])
-            z1 = np.concatenate([z[1:] for _, z in trajs])
-            h = np.concatenate([np.diff(tt) for tt, _ in trajs])
-            if z0.shape[0] == 0:
-                raise ValueError("x: the trajectories give no pairs to score")
-            if z0.shape[1] != self.n_features_in_:
-                raise ValueError(
-                    f"x: states have {z0.shape[1]} components, the model {self.n_features_in_}")
-        pred = self.model_.predict(z0, h)
-        increments = z1 - z0
-        total = np.sum((increments - increments.mean(axis=0)) ** 2)
-        if total == 0.0:
-            raise ValueError("x: the states do not change, so R² is undefined")
-        return float(1.0 - np.sum((pred - z1) ** 2) / total)
+            trajs_z = [z for _, z in trajs]
+            trajs_t = [tt for tt, _ in trajs]
+        return float(self.model_.score(trajs_z, trajs_t)["one_step_r2"])

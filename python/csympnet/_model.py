@@ -157,6 +157,28 @@ class Model:
         out = {"R": r, "lambda_hat": lam, "structure_residual": s}
         return {k: v[0] for k, v in out.items()} if single else out
 
+    def score(self, z, t, traj=None):
+        """Scores the model against observed trajectories, with no system needed (what
+        `csympnet evaluate --model M --data traj.csv` reports under "observed").
+
+        z, t, traj: trajectories in the forms `identify` and `fit_trajectories` take (z (M, 2d)
+        with t (M,); rows labelled by traj; z (K, M, 2d); lists of arrays), in the model's units.
+        Returns a dict: one_step_rmse, one_step_relative (error over the increment's size),
+        one_step_r2 (R² of the increments), rollout_rmse, rollout_nrmse (over each trajectory's
+        spread), l2_error (the paper's rollout error), valid_time_mean and valid_fraction_mean
+        (how long each rollout from its first state stays within 10% of the trajectory's RMS
+        spread), rollout_finite, structure_residual_mean/max (exactness at the observed states),
+        gamma_hat, per_trajectory (a list of dicts), and "rollouts" (arrays (n+1, 2d)).
+        Definitions: include/csympnet/diagnostics/observed.hpp.
+        """
+        from ._fit import _as_trajectories  # _fit imports this module
+
+        data = trajectory_list(_as_trajectories(t, z, traj), "data", dim=2 * self.d)
+        scores, rollouts = self._m.score(data)
+        out = json.loads(scores)
+        out["rollouts"] = list(rollouts)
+        return out
+
     def diagnostics(self, system=None, tests=None, *, preset=None, h_test=None, test_seed=0,
                     n_test=None, horizon=None, per_point=True):
         """The paper's diagnostics against reference test trajectories, as `csympnet evaluate`

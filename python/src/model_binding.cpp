@@ -13,6 +13,7 @@
 #include "convert.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/diagnostics/observed.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/systems/system.hpp"
 
@@ -105,6 +106,20 @@ py::tuple structure(const PyModel& m, const DArray& z, const DArray& h,
   return py::make_tuple(vector_to(r), vector_to(lam), vector_to(self));
 }
 
+// score_observed() as `csympnet evaluate --data` runs it: (scores as JSON text, rollouts).
+py::tuple score_model(const PyModel& m, const py::sequence& data) {
+  const std::vector<Trajectory> trajs = trajectories_from(data, "data");
+  ObservedScores s;
+  {
+    py::gil_scoped_release nogil;
+    s = score_observed(learned_map(m.model, m.theta), trajs);
+  }
+  const nlohmann::json scores = s;
+  py::list rollouts;
+  for (const Matrix& r : s.rollouts) rollouts.append(states_to(r));
+  return py::make_tuple(scores.dump(), rollouts);
+}
+
 // evaluate() as `csympnet evaluate` runs it: returns (scalars as JSON text, rollouts,
 // energy_pred, energy_ref).
 py::tuple evaluate_model(const PyModel& m, const std::string& system_json,
@@ -185,6 +200,7 @@ void bind_model(py::module_& m) {
       .def("rollout", guarded(&rollout_states), py::arg("z0"), py::arg("hs"))
       .def("jacobian", guarded(&jacobians), py::arg("z"), py::arg("h"))
       .def("structure", guarded(&structure), py::arg("z"), py::arg("h"), py::arg("gamma_true"))
+      .def("score", guarded(&score_model), py::arg("data"))
       .def("evaluate", guarded(&evaluate_model), py::arg("system_json"), py::arg("tests"),
            py::arg("h_test"))
       .def(

@@ -141,3 +141,24 @@ def test_a_fit_model_pickles_with_its_training_summary():
     assert np.array_equal(copy.params, model.params)
     assert copy.training == model.training and copy.meta == model.meta
     assert np.array_equal(copy.predict([0.5, -0.2], 0.1), model.predict([0.5, -0.2], 0.1))
+
+
+def test_model_score_is_what_evaluate_data_reports(fitted, run_cli, tmp_path):
+    """Model.score and `csympnet evaluate --model M --data traj.csv` are one computation."""
+    held_t, held_z = trajectory([-0.4, 0.3], 120, seed=2)
+    scores = fitted.model_.score(held_z, held_t)
+    assert scores["pairs"] == 119 and len(scores["rollouts"]) == 1
+    assert scores["rollouts"][0].shape == (120, 2)
+    assert scores["one_step_r2"] == fitted.score(held_z, held_t)
+    assert scores["gamma_hat"] == fitted.model_.gamma
+    assert 0.0 < scores["valid_fraction_mean"] <= 1.0
+    model_path, csv_path = tmp_path / "model.json", tmp_path / "held.csv"
+    fitted.model_.save(model_path)
+    csympnet.write_csv(csv_path, [csympnet.Trajectory(held_t, held_z)])
+    import json
+    report = json.loads(run_cli("evaluate", "--model", model_path, "--data", csv_path).stdout)
+    observed = {k: v for k, v in scores.items() if k != "rollouts"}
+    assert report["observed"] == observed
+    assert report["gamma_true"] is None
+    with pytest.raises(ValueError, match="states have 4 components, expected 2d = 2"):
+        fitted.model_.score(np.zeros((5, 4)), np.arange(5.0))

@@ -358,6 +358,50 @@ TEST_F(Cli, FitReadsIrregularTrajectoriesAndPrintsGamma) {
   EXPECT_TRUE(fs::exists(dir_ / "fit" / "model.json"));
 }
 
+// A model scored on a user's own trajectories, with no system known: evaluate --data reports
+// the observed scores and assumes no γ; without --data it says what it needs.
+TEST_F(Cli, EvaluateScoresAModelOnObservedTrajectoriesWithoutASystem) {
+  std::string csv = "t,q1,p1\n";
+  const double g = 0.05, w = std::sqrt(1 - g * g / 4);
+  for (int k = 0; k < 80; ++k) {
+    const double t = 0.1 * k, e = std::exp(-g * t / 2);
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g\n", t, 3.0 + e * std::cos(w * t),
+                  e * (-g / 2 * std::cos(w * t) - w * std::sin(w * t)));
+    csv += buf;
+  }
+  const fs::path data = write("traj.csv", csv);
+  ASSERT_EQ(run("fit " + data.string() + " --recipe classic --epochs 100 --bootstrap 0 --quiet --out " +
+                (dir_ / "fit").string())
+                .code,
+            0);
+  const std::string model = (dir_ / "fit" / "model.json").string();
+  Result r = run("evaluate --model " + model + " --data " + data.string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto ev = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(ev["gamma_true"].is_null()) << r.out;
+  EXPECT_TRUE(ev["system"].is_null());
+  EXPECT_TRUE(ev["gamma_hat"].is_number());
+  EXPECT_EQ(ev["observed"]["pairs"].get<int>(), 79);
+  EXPECT_GT(ev["observed"]["one_step_r2"].get<double>(), 0.5);
+  EXPECT_EQ(ev["observed"]["per_trajectory"].size(), 1u);
+  EXPECT_EQ(ev.count("l2_error"), 0u);  // the system-based diagnostics need a system
+
+  r = run("evaluate --model " + model);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--data or --preset is required"), std::string::npos) << r.err;
+  r = run("evaluate --model " + model + " --data " + data.string() + " --gamma 0.1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("expected --preset with them"), std::string::npos) << r.err;
+  // With a preset, the system's diagnostics and the observed scores both.
+  r = run("evaluate --model " + model + " --data " + data.string() + " --preset s1");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto both = nlohmann::json::parse(r.out);
+  EXPECT_EQ(both["gamma_true"].get<double>(), 0.05);
+  EXPECT_TRUE(both["l2_error"].is_number());
+  EXPECT_EQ(both["observed"], ev["observed"]);
+}
+
 struct BadCase {
   const char* name;
   const char* text;

@@ -5,7 +5,7 @@ JOBS  ?= $(shell nproc)
 ASAN_OPTIONS_CI ?= detect_leaks=1:abort_on_error=1
 CLI   := $(BUILD)/bin/csympnet
 
-.PHONY: all deps build test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo bench format clean
+.PHONY: all deps build test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo bench docs format clean
 
 all: build
 
@@ -18,6 +18,12 @@ build: deps
 
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+# The documentation site: the guide (docs/*.md) and the Python API reference, in
+# $(BUILD)/docs/html (open index.html).
+docs: build
+	@PYTHONPATH=$(BUILD)/python /usr/bin/python3 -m sphinx -q -b html -d $(BUILD)/docs/doctrees docs $(BUILD)/docs/html
+	@echo "docs: $(BUILD)/docs/html/index.html"
 
 # The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (gcc), in $(ASAN_BUILD),
 # at -O1 with line tables only (-g1): 35-51% less compile CPU than -O2 -g on the heaviest

@@ -27,6 +27,8 @@ packages=(
   python3-matplotlib   # csympnet.plot: the paper's figure types
   python3-sklearn      # Python tests: CSympNetID under clone and cross_val_score
   python3-tqdm         # CSympNetID(verbose=True): progress bars
+  python3-sphinx       # make docs: the documentation site and API reference
+  python3-myst-parser  # ... reading the Markdown guide
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
   liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf

@@ -105,7 +105,7 @@ ObservedScores score_observed(const LearnedMap& map, const std::vector<Trajector
       r_sq += e;
       r_spread += (tr.z.col(i) - mean).squaredNorm();
       l2_sq += e * steps(i - 1);
-      if (valid && !(std::sqrt(e) <= kValidTimeTolerance * spread)) {
+      if (valid && !(std::sqrt(r_sq / static_cast<double>(i)) <= kValidTimeTolerance * spread)) {
         valid = false;
         ts.valid_time = tr.t(i - 1) - tr.t(0);  // the last time it was still within tolerance
       }

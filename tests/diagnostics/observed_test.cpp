@@ -113,19 +113,36 @@ TEST(ScoreObserved, ValidTimeIsTheLastTimeWithinTolerance) {
     return next;
   };
   const ObservedScores s = score_observed(drift, {tr});
-  // The same rollout, stepped here, and its first state past 10% of the RMS spread.
+  // The same rollout, stepped here, and the first state at which its RMS error so far passes
+  // 10% of the RMS spread.
   const Vector mean = tr.z.rowwise().mean();
   const double spread = std::sqrt((tr.z.colwise() - mean).colwise().squaredNorm().mean());
   Vector z = tr.z.col(0);
   Index first_bad = 0;
+  double sum_sq = 0.0;
   for (Index n = 1; n <= 80 && first_bad == 0; ++n) {
     z = drift.step(z, 0.1);
-    if ((z - tr.z.col(n)).norm() > kValidTimeTolerance * spread) first_bad = n;
+    sum_sq += (z - tr.z.col(n)).squaredNorm();
+    if (std::sqrt(sum_sq / static_cast<double>(n)) > kValidTimeTolerance * spread) first_bad = n;
   }
   ASSERT_GT(first_bad, 3);   // the case is not degenerate: valid for a while,
   ASSERT_LT(first_bad, 80);  // and not to the end
   EXPECT_EQ(s.valid_time_mean, tr.t(first_bad - 1));
   EXPECT_EQ(s.valid_fraction_mean, tr.t(first_bad - 1) / tr.t(80));
+}
+
+TEST(ScoreObserved, OneNoisySampleDoesNotEndTheValidTime) {
+  Trajectory tr = oscillator(80, 0.1);
+  const Vector mean = tr.z.rowwise().mean();
+  const double spread = std::sqrt((tr.z.colwise() - mean).colwise().squaredNorm().mean());
+  tr.z(1, 5) += 0.5 * spread;  // one outlier, far past 10% of the spread on its own
+  const ObservedScores s = score_observed(true_flow(), {tr});
+  // RMS so far at n = 5 is 0.5 spread / √5 = 0.22 spread: past the tolerance, so valid until
+  // t_4; with 20 clean samples before it, the outlier would be diluted below it.
+  EXPECT_EQ(s.valid_time_mean, tr.t(4));
+  Trajectory late = oscillator(80, 0.1);
+  late.z(1, 60) += 0.5 * spread;  // 0.5 / √60 = 0.065 spread: within
+  EXPECT_EQ(score_observed(true_flow(), {late}).valid_time_mean, late.t(80));
 }
 
 TEST(ScoreObserved, AMapThatFailsIsInfinitelyWrongNotACrash) {

@@ -12,9 +12,12 @@
 //   rollout RMSE         ( Σ_n≥1 ‖ẑ_n − z_n‖² / (2d · Σ steps) )^{1/2}
 //   rollout NRMSE        ( Σ_n≥1 ‖ẑ_n − z_n‖² / Σ_n≥1 ‖z_n − z̄‖² )^{1/2}, z̄ the trajectory's mean
 //   L2 error             ( Σ_m Σ_n≥1 ‖ẑ_n − z_n‖² h_{n−1} )^{1/2}, the paper's rollout error
-//   valid time           the time from t_0 until ‖ẑ_n − z_n‖ first exceeds 10% of the
+//   valid time           the time from t_0 until the RMS error so far,
+//                        ( mean_{1≤i≤n} ‖ẑ_i − z_i‖² )^{1/2}, first exceeds 10% of the
 //                        trajectory's RMS spread ( mean_n ‖z_n − z̄‖² )^{1/2} (its whole span
-//                        when it never does)
+//                        when it never does). The error so far, not the pointwise one, so
+//                        that one noisy sample does not end it; on data whose noise alone
+//                        exceeds the tolerance it is 0.
 // and the self structure residual S (diagnostics.hpp) at every observed state with the step
 // that follows it, for maps with a Jacobian.
 #pragma once

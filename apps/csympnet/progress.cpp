@@ -31,12 +31,15 @@ ProgressCallback ProgressLine::callback() {
                                          static_cast<double>(p.epoch)
                                    : 0.0;
     const bool adamw = std::strcmp(p.stage, "adamw") == 0;
-    std::fprintf(stderr, "\r\033[K%s %ld/%ld  ", adamw ? "epoch" : p.stage, p.epoch, p.epochs);
+    const bool bootstrap = std::strcmp(p.stage, "bootstrap") == 0;
+    std::fprintf(stderr, "\r\033[K%s %ld/%ld  ",
+                 adamw ? "epoch" : bootstrap ? "bootstrap replicate" : p.stage, p.epoch, p.epochs);
     if (!std::isnan(p.train_loss)) std::fprintf(stderr, "loss %.3e  ", p.train_loss);
-    std::fprintf(stderr, "val %.3e  best %.3e", p.val_loss, p.best_val_loss);
-    if (!std::isnan(p.gamma_hat)) std::fprintf(stderr, "  gamma_hat %.7f", p.gamma_hat);
+    if (!std::isnan(p.val_loss))
+      std::fprintf(stderr, "val %.3e  best %.3e  ", p.val_loss, p.best_val_loss);
+    if (!std::isnan(p.gamma_hat)) std::fprintf(stderr, "gamma_hat %.7f  ", p.gamma_hat);
     // An LM or L-BFGS budget is a cap that tolerances usually end sooner: no ETA for them.
-    if (adamw) std::fprintf(stderr, "  ETA %.1fs", eta);
+    if (adamw || bootstrap) std::fprintf(stderr, "ETA %.1fs", eta);
     std::fflush(stderr);
     drawn_ = true;
     return true;

@@ -10,7 +10,7 @@ try:
 except ImportError:  # tqdm is optional
     _tqdm = None
 
-_STAGE_NAMES = {"adamw": "AdamW", "lm": "LM", "lbfgs": "L-BFGS"}
+_STAGE_NAMES = {"adamw": "AdamW", "lm": "LM", "lbfgs": "L-BFGS", "bootstrap": "bootstrap"}
 
 
 class _Bars:
@@ -29,11 +29,11 @@ class _Bars:
             self.close()
             self._stage = stage
             if _tqdm is not None:
-                unit = "epoch" if stage == "adamw" else "it"
+                unit = {"adamw": "epoch", "bootstrap": "replicate"}.get(stage, "it")
                 self._bar = _tqdm(total=p["epochs"], desc=_STAGE_NAMES.get(stage, stage),
                                   unit=unit, file=self._file, leave=True, dynamic_ncols=True)
         self._last = p["epoch"]
-        info = {"val": f"{p['val_loss']:.3e}"}
+        info = {} if p.get("val_loss") is None else {"val": f"{p['val_loss']:.3e}"}
         if p.get("gamma") is not None:
             info["gamma"] = f"{p['gamma']:.6g}"
         if self._bar is not None:

@@ -38,8 +38,9 @@ class PythonProgress {
         info["epoch"] = p.epoch;
         info["epochs"] = p.epochs;
         info["train_loss"] = std::isnan(p.train_loss) ? py::none() : py::cast(p.train_loss);
-        info["val_loss"] = p.val_loss;
-        info["best_val_loss"] = p.best_val_loss;
+        info["val_loss"] = std::isnan(p.val_loss) ? py::none() : py::cast(p.val_loss);
+        info["best_val_loss"] =
+            std::isnan(p.best_val_loss) ? py::none() : py::cast(p.best_val_loss);
         info["gamma"] = std::isnan(p.gamma_hat) ? py::none() : py::cast(p.gamma_hat);
         info["seconds"] = p.seconds;
         const py::object result = callback_(info);

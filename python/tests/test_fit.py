@@ -124,6 +124,13 @@ def test_progress_callback_sees_training_and_can_stop(s1_pairs):
     assert lm and all(p["stage"] == "lm" and p["epochs"] == 30 for p in lm)
     assert all(a["epoch"] < b["epoch"] for a, b in zip(lm, lm[1:]))
     assert all(b["best_val_loss"] <= a["best_val_loss"] for a, b in zip(lm, lm[1:]))
+    # The bootstrap reports each replicate, with its γ̂ and no losses.
+    seen = []
+    csympnet.fit(*s1_pairs, epochs=50, refine="lm", refine_iterations=5, bootstrap=10,
+                 progress=seen.append)
+    boot = [p for p in seen if p["stage"] == "bootstrap"]
+    assert [p["epoch"] for p in boot] == list(range(1, 11))
+    assert all(p["epochs"] == 10 and p["gamma"] > 0 and p["val_loss"] is None for p in boot)
     stopped = csympnet.fit(*s1_pairs, epochs=1000, progress=lambda p: p["epoch"] < 30)
     assert stopped.training["stop_reason"] == "callback" and stopped.training["epochs_run"] == 30
 

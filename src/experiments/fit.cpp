@@ -297,7 +297,7 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   }
   if (r.config.bootstrap.replicates > 0) {
     GammaInterval g = gamma_bootstrap(*r.model.map, r.theta, r.train, r.val, r.config.bootstrap,
-                                      r.train_groups, should_stop);
+                                      r.train_groups, {progress, should_stop});
     if (g.stopped) {
       r.stopped = true;
       r.interval_note = "no interval: the bootstrap was interrupted after " +

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 
 #include "csympnet/core/error.hpp"
@@ -52,7 +53,8 @@ double sample_quantile(std::vector<double> values, double q) {
 GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const PairSet& train,
                               const PairSet& val, const BootstrapOptions& options,
                               const std::vector<Index>& groups,
-                              const std::function<bool()>& should_stop) {
+                              const IterationCallbacks& callbacks) {
+  const std::function<bool()>& should_stop = callbacks.should_stop;
   options.validate();
   require(map.damping_rate(theta).has_value(), [&] {
     return "bootstrap interval for gamma_hat: the model '" + map.type() +
@@ -97,6 +99,20 @@ GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const 
       break;
     }
     g.gammas.push_back(*map.damping_rate(th));
+    if (callbacks.progress) {
+      TrainProgress p;
+      p.stage = "bootstrap";
+      p.epoch = b + 1;
+      p.epochs = options.replicates;
+      p.train_loss = p.val_loss = p.best_val_loss = std::numeric_limits<double>::quiet_NaN();
+      p.gamma_hat = g.gammas.back();
+      p.seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (!callbacks.progress(p)) {
+        g.stopped = true;
+        break;
+      }
+    }
   }
   if (g.stopped) {
     g.replicates = static_cast<long>(g.gammas.size());

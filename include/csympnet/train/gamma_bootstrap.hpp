@@ -18,6 +18,7 @@
 
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/callbacks.hpp"
 #include "csympnet/train/refine.hpp"
 
 namespace csympnet {
@@ -54,12 +55,15 @@ struct GammaInterval {
 void to_json(nlohmann::json& j, const GammaInterval& g);
 
 // `groups`: empty (resample pairs) or one trajectory index per training pair (resample
-// trajectories). Requires a map with a damping rate. `should_stop`, when given, is polled
-// between replicates and inside each replicate's refinement (refine_one_step_map).
+// trajectories). Requires a map with a damping rate. `callbacks.should_stop`, when given, is
+// polled between replicates and inside each replicate's refinement (refine_one_step_map);
+// `callbacks.progress` sees each replicate as it ends (stage "bootstrap", epoch = replicates
+// done of epochs, gamma_hat = that replicate's γ̂; the losses are NaN) and may stop the
+// interval. A stopped bootstrap returns `stopped` and no interval.
 GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const PairSet& train,
                               const PairSet& val, const BootstrapOptions& options,
                               const std::vector<Index>& groups = {},
-                              const std::function<bool()>& should_stop = {});
+                              const IterationCallbacks& callbacks = {});
 
 // The q-quantile (q in [0, 1]) of values, linear interpolation between order statistics
 // (NumPy's default "linear" method).

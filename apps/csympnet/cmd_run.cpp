@@ -20,7 +20,8 @@ namespace csympnet::cli {
 
 namespace {
 struct RunArgs {
-  std::string preset, model = "csympnet", out, reference = "splitting", recipe = "default";
+  std::string preset, model = "csympnet", out, reference = "splitting",
+                      recipe = to_string(RunRecipe::kDefault);
   std::optional<std::string> lr_schedule;
   std::optional<double> lr;
   std::uint64_t seed = 42;
@@ -87,28 +88,29 @@ void add_run(CLI::App& app) {
   // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd->add_option("--seed", args->seed, "Training seed (data, validation, init); default 42")
       ->check(kSeed);
+  // The ranges are the library's (core/options.hpp); here only the syntax is checked first.
   cmd->add_option("--epochs", args->epochs, "Epoch budget (default: the preset's)")
       ->check(kWholeNumber)
-      ->check(in_range(0L, 100000000L));
+      ->check(library_range(kEpochsRange));
   cmd->add_option("--recipe", args->recipe,
                   "Training recipe: default (cosine-annealed rate) or paper (constant rate)")
-      ->check(one_of({"default", "paper"}));
+      ->check(one_of(run_recipe_names()));
   cmd->add_option("--lr", args->lr, "AdamW learning rate (default: the recipe's)")
       ->check(kFiniteNumber)
-      ->check(in_range(1e-12, 10.0));
+      ->check(library_range(kLrRange));
   cmd->add_option("--lr-schedule", args->lr_schedule, "constant or cosine (default: the recipe's)")
       ->check(one_of(lr_schedule_names()));
   cmd->add_option("--val-every", args->val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
-      ->check(in_range(1L, 100000000L));
+      ->check(library_range(kValEveryRange));
   cmd->add_option("--sigma", args->sigma, "Relative observation noise (default 0)")
       ->check(kFiniteNumber)
-      ->check(in_range(0.0, 10.0));
+      ->check(library_range(kSigmaRange));
   cmd->add_option("--reference", args->reference, "Reference solver for the data")
       ->check(one_of({"splitting", "expm", "rk"}));
   cmd->add_option("--beta-init", args->beta_init, "Initial beta of CSympNet-ID (nonzero)")
       ->check(kFiniteNumber)
-      ->check(kNonZero);
+      ->check(library_nonzero("beta_init"));
   cmd->add_flag("--no-beta-decay", args->no_beta_decay,
                 "Exclude beta from weight decay (beyond the paper's recipe)");
   cmd->add_option("--refine", args->refine,
@@ -118,7 +120,7 @@ void add_run(CLI::App& app) {
   cmd->add_option("--refine-iterations", args->refine_iterations,
                   "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
-      ->check(in_range(1L, 100000000L));
+      ->check(library_range(kRefineIterationsRange));
   cmd->add_option("--refine-solver", args->refine_solver,
                   "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
                   "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
@@ -136,13 +138,12 @@ void add_run(CLI::App& app) {
   args->system.add_to(*cmd);
   cmd->callback([args] {
     if (parse_only()) return;
-    const OutputDir out_dir = prepare_output_dir(args->out, args->force);
     RunConfig c = default_run_config(args->preset, args->model);
     args->system.apply(c.preset);
     if (!args->core.empty()) c.preset.core = parse_core(args->core);
     c.seed = args->seed;
     c.sigma = args->sigma;
-    if (args->recipe == "paper") c.train = paper_recipe(c.train.epochs);
+    apply_run_recipe(c, parse_run_recipe(args->recipe));
     if (args->epochs) c.train.epochs = *args->epochs;
     if (args->lr) c.train.adamw.lr = *args->lr;
     if (args->lr_schedule) c.train.lr_schedule = parse_lr_schedule(*args->lr_schedule);
@@ -155,6 +156,9 @@ void add_run(CLI::App& app) {
     if (args->refine_iterations) c.refine.iterations = *args->refine_iterations;
     if (args->refine_solver) c.refine.linear_solver = parse_linear_solver(*args->refine_solver);
     c.warm_start = args->warm_start;
+    // Every option checked (ranges, the rules between them) before any work.
+    at_boundary([&] { c.validate(); });
+    const OutputDir out_dir = prepare_output_dir(args->out, args->force);
     RunResult r;
     {
       ProgressLine progress(args->quiet);

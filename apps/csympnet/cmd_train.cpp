@@ -58,43 +58,42 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "Symplectic core: la:L:m or g:L:w (default: fit chooses by validation between "
                  "an LA and a G core; train takes one by dimension)")
       ->check(kCoreSpec);
+  // The ranges are the library's (core/options.hpp); here only the syntax is checked first.
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
       ->check(kWholeNumber)
-      ->check(in_range(1L, 100000000L));
+      ->check(library_range(kFitEpochsRange));
   cmd.add_option("--lr", a.lr, "AdamW learning rate (default 1e-3)")
       ->check(kFiniteNumber)
-      ->check(in_range(1e-12, 10.0));
+      ->check(library_range(kLrRange));
   cmd.add_option("--lr-schedule", a.lr_schedule, "cosine (default) or constant (the paper's)")
       ->check(one_of(lr_schedule_names()));
   cmd.add_option("--val-every", a.val_every, "Validate every K epochs (default 10)")
       ->check(kWholeNumber)
-      ->check(in_range(1L, 100000000L));
+      ->check(library_range(kValEveryRange));
   // kSeed: CLI11 would wrap "-1" into 2^64 - 1 and clamp 2^64 for an unsigned seed.
   cmd.add_option("--seed", a.seed, "Seed of the validation split and the init (default 42)")
       ->check(kSeed);
   cmd.add_option("--val-fraction", a.val_fraction,
                  "Held-out share when no --val is given (default 0.2)")
       ->check(kFiniteNumber)
-      ->check(in_range(0.01, 0.99));
+      ->check(library_range(kValFractionRange));
   cmd.add_option("--beta-init", a.beta_init, "Initial beta of CSympNet-ID (nonzero)")
       ->check(kFiniteNumber)
-      ->check(kNonZero);
+      ->check(library_nonzero("beta_init"));
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
   cmd.add_flag(
       "--warm-start,!--no-warm-start", a.warm_start,
       std::string("Start beta at the closed-form estimate of gamma from the data (") +
           (a.warm_start ? "default; --no-warm-start: start at --beta-init)" : "default: off)"));
-  std::vector<std::string> refine_names = {"auto"};
-  for (const std::string& name : refine_method_names()) refine_names.push_back(name);
   cmd.add_option("--refine", a.refine,
                  "Second stage after AdamW: none (the paper's recipe), lm, lbfgs, or auto (lm, "
                  "or lbfgs for large models) (default: " +
                      (recipe.refine_method ? to_string(*recipe.refine_method) : "auto") + ")")
-      ->check(one_of(refine_names));
+      ->check(one_of(refine_choice_names()));
   cmd.add_option("--refine-iterations", a.refine_iterations,
                  "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
-      ->check(in_range(1L, 100000000L));
+      ->check(library_range(kRefineIterationsRange));
   cmd.add_option("--refine-solver", a.refine_solver,
                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
@@ -108,18 +107,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                           : std::to_string(kAutoBootstrapReplicates) + " up to " +
                                 std::to_string(kMaxLmParams) + " parameters, else none)"))
       ->check(kWholeNumber)
-      ->check(in_range(0L, 1000000L))
-      ->check(CLI::Validator(
-          [](std::string& v) {
-            // A percentile interval needs at least 10 replicates: a usage error (exit 2),
-            // found before any work.
-            const long n = std::stol(v);
-            return n == 0 || n >= 10 ? std::string()
-                                     : "'" + v +
-                                           "' replicates are too few for a percentile "
-                                           "interval; expected 0 (off) or >= 10";
-          },
-          "0|>=10"));
+      ->check(library_range(kBootstrapRange));
   add_threads_option(cmd, a.threads);
   cmd.add_option("--out", a.out, "Output directory")->required()->check(kOutputPath);
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
@@ -144,13 +132,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   s.refine_iterations = a.refine_iterations;
   s.refine_solver = a.refine_solver;
   s.bootstrap = a.bootstrap;
-  const FitConfig c = make_fit_config(a.classic, s);
-  // auto picks the solver with the method; an explicit one would be overridden silently.
-  if (a.refine_solver && !c.refine_method) {
-    throw CLI::ValidationError("--refine-solver",
-                               "needs --refine lm: --refine auto (fit's default) chooses the "
-                               "solver by the model's size");
-  }
+  // Every option checked (ranges, spellings, the rules between them) before any work.
+  const FitConfig c = at_boundary([&] { return make_fit_config(a.classic, s); });
   const OutputDir out_dir = prepare_output_dir(a.out, a.force);
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
   // The training reader first: it refuses, at their line, values too large to train on and
@@ -203,12 +186,12 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     std::printf("gamma_hat = %.10g\n", *gamma);
   if (verbose_summary || !a.quiet) {
     std::printf("%s, d = %lld, %lld training / %lld validation pairs, %lld params\n",
-                r.config.model.c_str(), static_cast<long long>(r.train.d()),
+                to_string(r.config.model).c_str(), static_cast<long long>(r.train.d()),
                 static_cast<long long>(r.train.size()), static_cast<long long>(r.val.size()),
                 static_cast<long long>(r.model.n_params()));
     if (r.warm_start)
       std::printf("warm start gamma_0 = %.6g (%s)\n", r.warm_start->gamma,
-                  r.warm_start->method.c_str());
+                  to_string(r.warm_start->method).c_str());
     else if (!r.warm_start_note.empty())
       std::printf("no warm start (%s); beta started at %g\n", r.warm_start_note.c_str(),
                   r.config.beta_init);
@@ -250,6 +233,21 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       throw CLI::ValidationError(classic,
                                  "belongs to --recipe classic; the default recipe "
                                  "chooses it itself (docs/identification.md)");
+  nlohmann::json settings = {{"window", a.window},
+                             {"balanced", a.loss == "balanced"},
+                             {"normalize", !a.no_normalize},
+                             {"dof_scales", a.dof_scales},
+                             {"lm_iterations", a.lm_iterations},
+                             {"blocks", a.blocks},
+                             {"level", a.level},
+                             {"threads", a.threads}};
+  if (!a.core.empty()) settings["core"] = parse_core(a.core);
+  if (a.seed) settings["seed"] = *a.seed;
+  if (a.epochs) settings["epochs"] = *a.epochs;
+  if (a.lr) settings["lr"] = *a.lr;
+  if (a.val_fraction) settings["val_fraction"] = *a.val_fraction;
+  // Every option checked (ranges, spellings) before any work.
+  const IdentifyConfig c = at_boundary([&] { return make_identify_config(settings); });
   const OutputDir out_dir = prepare_output_dir(a.out, a.force);
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
@@ -270,20 +268,6 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   } else {
     trajs = parse_trajectories_csv(input.text, input.name);
   }
-  nlohmann::json settings = {{"window", a.window},
-                             {"balanced", a.loss == "balanced"},
-                             {"normalize", !a.no_normalize},
-                             {"dof_scales", a.dof_scales},
-                             {"lm_iterations", a.lm_iterations},
-                             {"blocks", a.blocks},
-                             {"level", a.level},
-                             {"threads", a.threads}};
-  if (!a.core.empty()) settings["core"] = parse_core(a.core);
-  if (a.seed) settings["seed"] = *a.seed;
-  if (a.epochs) settings["epochs"] = *a.epochs;
-  if (a.lr) settings["lr"] = *a.lr;
-  if (a.val_fraction) settings["val_fraction"] = *a.val_fraction;
-  const IdentifyConfig c = make_identify_config(settings);
   IdentifyHooks hooks;
   hooks.should_stop = [] { return interrupted(); };
   const bool talk = !a.quiet;
@@ -312,6 +296,8 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
 
     try {
       r = identify(trajs, pairs_only, c, hooks);
+    } catch (const OptionError& e) {  // an option the data cannot take (--window on pairs)
+      throw Error(a.data + ": " + e.message(cli_spelling()));
     } catch (const Error& e) {
       throw Error(a.data + ": " + e.what());  // what the data lack: name the file
     }
@@ -394,30 +380,32 @@ void add_fit(CLI::App& app) {
   cmd->add_option("--window", a->window,
                   "Steps per window of the loss (default 0: automatic, up to 4)")
       ->check(kWholeNumber)
-      ->check(in_range(0L, 64L));
+      ->check(library_range(kWindowRange));
   cmd->add_option("--loss", a->loss,
                   "balanced (default: residuals in the middle of the map) or one-step")
-      ->check(one_of({"balanced", "one-step"}));
+      ->check(one_of(identify_loss_names()));
   cmd->add_flag("--no-normalize", a->no_normalize, "Fit in the data's own units and offsets");
   cmd->add_option("--dof-scales", a->dof_scales,
                   "Per-dof momentum scales as parameters, for velocities instead of momenta: "
                   "auto (default: learned when d > 1), learned or fixed")
-      ->check(one_of({"auto", "learned", "fixed"}));
+      ->check(one_of(dof_scales_names()));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
       ->check(kWholeNumber)
-      ->check(in_range(0L, 100000L));
+      ->check(library_range(kLmIterationsRange));
   cmd->add_option("--level", a->level, "Level of the interval for gamma (default 0.95)")
-      ->check(in_range(0.5, 0.9999));
+      ->check(library_range(kLevelRange));
   cmd->add_option("--blocks", a->blocks,
                   "Segments a long trajectory is cut into, for validation and the interval "
                   "(default 20)")
       ->check(kWholeNumber)
-      ->check(in_range(3L, 10000L));
+      ->check(library_range(kBlocksRange));
   CLI::App* self = cmd;
   cmd->callback([a, self] {
     if (parse_only()) return;
-    if (a->recipe == "identify" && a->model.value_or(a->classic.model) == "csympnet")
+    const FitModel model =
+        a->model ? parse_fit_model(*a->model) : a->classic.model;  // --model was checked
+    if (a->recipe == "identify" && model == FitModel::kCSympNet)
       run_identify(*a, *self);
     else
       run_fit(*a, true);

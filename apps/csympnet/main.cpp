@@ -8,6 +8,7 @@
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
 #include "interrupt.hpp"
+#include "system_options.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -27,6 +28,12 @@ int main(int argc, char** argv) {
   } catch (const csympnet::cli::NotIdentified& e) {
     std::fprintf(stderr, "csympnet: not identified: %s\n", e.what());
     return csympnet::cli::kNotIdentifiedExitCode;
+  } catch (const csympnet::OptionError& e) {
+    // An option the library refused once the data were read (a beta_init too large for the
+    // data's steps): named as the command line spells it.
+    std::fprintf(stderr, "csympnet: error: %s\n",
+                 e.message(csympnet::cli::cli_spelling()).c_str());
+    return 1;
   } catch (const csympnet::Error& e) {
     // After a signal, a failure is its consequence (a read cut short by EINTR): say so, and
     // exit with the signal's code.

@@ -1,5 +1,6 @@
 #include "system_options.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -9,6 +10,7 @@
 #include <system_error>
 
 #include "csympnet/core/thread_team.hpp"
+#include "csympnet/train/trainer.hpp"
 
 namespace csympnet::cli {
 
@@ -55,16 +57,6 @@ const CLI::Validator kSeed(
     },
     "SEED");
 
-const CLI::Validator kNonZero(
-    [](std::string& input) {
-      double v = 0;
-      if (!CLI::detail::lexical_cast(input, v))
-        return "'" + input + "' is not a number; expected a nonzero number";
-      if (v == 0.0) return "'" + input + "' is zero; expected a nonzero number";
-      return std::string();
-    },
-    "NONZERO");
-
 namespace {
 std::string range_text(double v) {
   char buf[32];
@@ -88,6 +80,63 @@ CLI::Validator bounded(double lo, double hi, bool lo_open, std::string expected)
 
 CLI::Validator in_range(double lo, double hi) {
   return bounded(lo, hi, false, "a number from " + range_text(lo) + " to " + range_text(hi));
+}
+
+const OptionSpelling& cli_spelling() {
+  static const OptionSpelling s{
+      [](const std::string& key) -> std::string {
+        if (key == "decay_damping") return "--no-beta-decay";  // a flag that turns it off
+        std::string name = "--" + key;
+        std::replace(name.begin(), name.end(), '_', '-');
+        return name;
+      },
+      [](const std::string& key, const std::string& value) {
+        return cli_spelling().name(key) + " " + value;
+      }};
+  return s;
+}
+
+namespace {
+// The library's problem with the value, as CLI11 wants it from a validator: without the
+// option's name, which CLI11 puts in front.
+template <class Check>
+std::string library_says(Check&& check) {
+  try {
+    check();
+  } catch (const OptionError& e) {
+    return e.problem(cli_spelling());
+  }
+  return std::string();
+}
+}  // namespace
+
+CLI::Validator library_range(const OptionRange& range) {
+  return CLI::Validator(
+      [range](std::string& input) {
+        if (range.whole) {
+          // kWholeNumber has checked the digits; a long holds them.
+          long v = 0;
+          if (!CLI::detail::lexical_cast(input, v))
+            return "'" + input + "' is not a whole number; expected " + range.expected();
+          return library_says([&] { range.check(v, input); });
+        }
+        double v = 0;
+        if (!CLI::detail::lexical_cast(input, v))
+          return "'" + input + "' is not a number; expected " + range.expected();
+        return library_says([&] { range.check(v, input); });
+      },
+      range.expected());
+}
+
+CLI::Validator library_nonzero(const char* key) {
+  return CLI::Validator(
+      [key](std::string& input) {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(input, v))
+          return "'" + input + "' is not a number; expected a nonzero number";
+        return library_says([&] { check_nonzero(key, v, input); });
+      },
+      "NONZERO");
 }
 
 const CLI::Validator kNonNegative =
@@ -151,7 +200,7 @@ CLI::Option* add_threads_option(CLI::App& cmd, int& threads) {
                   "Threads for each training epoch of CSympNet-ID with d > 1 (other models train "
                   "on one); results are identical for any value (default 1)")
       ->check(kWholeNumber)
-      ->check(in_range(1, ThreadTeam::kMaxThreads));
+      ->check(library_range(kThreadsRange));
 }
 
 void SystemOverrides::add_to(CLI::App& cmd) {

@@ -8,6 +8,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "csympnet/core/options.hpp"
 #include "csympnet/experiments/preset.hpp"
 
 namespace csympnet::cli {
@@ -19,13 +20,33 @@ extern const CLI::Validator kFiniteNumber;
 extern const CLI::Validator kWholeNumber;
 // A seed: a whole number from 0 to 2^64 - 1, refused (not clamped) above.
 extern const CLI::Validator kSeed;
-// Refuses exactly zero (with kFiniteNumber first): CSympNet-ID's beta starts away from 0, where
-// |beta| has no derivative.
-extern const CLI::Validator kNonZero;
 
 // A number in [lo, hi]; the message gives the range in plain digits (CLI11's Range prints
-// DBL_MAX in 309 digits and 1e-12 as 0.000000).
+// DBL_MAX in 309 digits and 1e-12 as 0.000000). For the options of the commands that have no
+// library range (generate, rollout, reproduce, the system constants).
 CLI::Validator in_range(double lo, double hi);
+
+// How the command line spells the library's option keys (core/options.hpp): "val_fraction"
+// is --val-fraction, "decay_damping" --no-beta-decay; an option given a value reads
+// "--refine lm".
+const OptionSpelling& cli_spelling();
+// The library's range of an option (kValFractionRange, ...), checked while parsing, after the
+// syntax checks (kWholeNumber, kFiniteNumber), so that a value out of it is refused before any
+// work with the library's message; the help shows what it expects. The range is written once,
+// in the library, which checks it again when the configuration is built.
+CLI::Validator library_range(const OptionRange& range);
+// The library's nonzero rule (check_nonzero) for `key`, the same way.
+CLI::Validator library_nonzero(const char* key);
+// Runs `build` (make_fit_config, make_identify_config, RunConfig::validate): an option the
+// library refuses becomes a usage error (exit 2) naming the option as spelt here.
+template <class Build>
+auto at_boundary(Build&& build) -> decltype(build()) {
+  try {
+    return build();
+  } catch (const OptionError& e) {
+    throw CLI::ValidationError(cli_spelling().name(e.key()), e.problem(cli_spelling()));
+  }
+}
 // A number >= 0, and one > 0.
 extern const CLI::Validator kNonNegative;
 extern const CLI::Validator kPositive;

@@ -3,6 +3,11 @@
 Every check names the argument, says what was found and what was expected, and raises
 TypeError (wrong kind of object or dtype) or ValueError (wrong shape or value). What passes is
 a float64 C-contiguous array the compiled module can take as it is.
+
+Only what Python alone can check lives here: the kinds of objects, array shapes and values
+before they are converted. The ranges of the options of fit, identify and run, and the rules
+between them, are the library's (include/csympnet/core/options.hpp): it refuses a value with
+a csympnet.Error that names the argument as Python spells it.
 """
 
 import numbers
@@ -99,14 +104,6 @@ def steps(name, h, n):
             f"{name}: step {a[tiny][0]!r} is below the smallest normal double (2.2e-308), where "
             "exp(-gamma h) and h-polynomials lose their precision; expected a rescaled time unit")
     return a
-
-
-def learning_rate(name, x):
-    """A learning rate in [1e-12, 10], the range `csympnet fit --lr` accepts."""
-    lr = real(name, x, positive=True)
-    if not 1e-12 <= lr <= 10:
-        raise ValueError(f"{name}: expected a number from 1e-12 to 10, got {lr!r}")
-    return lr
 
 
 def real(name, x, positive=False, nonnegative=False):

@@ -16,8 +16,9 @@ FIT_MODELS = tuple(_core.fit_models())
 # The library's spellings (train/trainer.hpp), in the order Python's messages have named them:
 # ("cosine", "constant").
 LR_SCHEDULES = tuple(sorted(_core.lr_schedules(), reverse=True))
-# ThreadTeam::kMaxThreads (include/csympnet/core/thread_team.hpp).
-MAX_THREADS = 256
+# The choices of refine= ("auto", then the methods) and run's recipe= (experiments/run.hpp).
+REFINE_CHOICES = tuple(_core.refine_choices())
+RUN_RECIPES = tuple(_core.run_recipes())
 
 RunResult = namedtuple("RunResult", "model report rollouts tests")
 RunResult.__doc__ = """What `csympnet.run` returns: the trained Model, the report dict (as
@@ -142,37 +143,33 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
                 f"validation z0: states have {val[0].shape[1]} components, expected "
                 f"{a0.shape[1]} (as the training pairs)"
             )
+    # Only the kinds of the arguments are checked here; their ranges and the rules between them
+    # (refine_solver needs refine="lm", ...) are the library's (make_fit_config), which
+    # refuses a value with a csympnet.Error naming the argument.
     # None (epochs, bootstrap, refine_iterations, refine_solver): the library chooses.
     if epochs is not None:
-        epochs = _checks.integer("epochs", epochs, minimum=1)
+        epochs = _checks.integer("epochs", epochs)
     seed = _checks.seed("seed", seed)
     val_fraction = _checks.real("val_fraction", val_fraction)
-    if not 0 < val_fraction < 1:
-        raise ValueError(f"val_fraction: expected a number in (0, 1), got {val_fraction}")
     beta_init = _checks.real("beta_init", beta_init)
-    if beta_init == 0:
-        raise ValueError("beta_init: expected a nonzero number (d|β|/dβ vanishes at 0)")
     if not isinstance(beta_decay, (bool, np.bool_)):
         raise TypeError(f"beta_decay: expected True or False, got {type(beta_decay).__name__}")
-    lr = _checks.learning_rate("lr", lr)
+    lr = _checks.real("lr", lr)
     _checks.choice("lr_schedule", lr_schedule, LR_SCHEDULES)
-    lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction, positive=True)
-    weight_decay = _checks.real("weight_decay", weight_decay, nonnegative=True)
-    val_every = _checks.integer("val_every", val_every, minimum=1)
+    lr_final_fraction = _checks.real("lr_final_fraction", lr_final_fraction)
+    weight_decay = _checks.real("weight_decay", weight_decay)
+    val_every = _checks.integer("val_every", val_every)
     if not isinstance(warm_start, (bool, np.bool_)):
         raise TypeError(f"warm_start: expected True or False, got {type(warm_start).__name__}")
-    # The spellings are the library's (train/refine.hpp); "auto" leaves the choice to it.
-    _checks.choice("refine", refine, (*_core.refine_methods(), "auto"))
+    # The spellings are the library's (experiments/fit.hpp); "auto" leaves the choice to it.
+    _checks.choice("refine", refine, REFINE_CHOICES)
     if refine_iterations is not None:
-        refine_iterations = _checks.integer("refine_iterations", refine_iterations, minimum=1)
+        refine_iterations = _checks.integer("refine_iterations", refine_iterations)
     if refine_solver is not None:
         _checks.choice("refine_solver", refine_solver, tuple(_core.linear_solvers()))
-        if refine == "auto":
-            raise ValueError("refine_solver: needs refine=\"lm\"; refine=\"auto\" (the default) "
-                             "chooses the solver by the model's size")
     if bootstrap is not None:
-        bootstrap = _checks.integer("bootstrap", bootstrap, minimum=0)
-    threads = _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS)
+        bootstrap = _checks.integer("bootstrap", bootstrap)
+    threads = _checks.integer("threads", threads, maximum=2**31 - 1)  # a C++ int
     groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):
         raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")
@@ -271,21 +268,20 @@ def run(preset, model="csympnet", *, seed=42, epochs=None, sigma=0.0, recipe="de
     """
     _checks.choice("preset", preset, tuple(systems))
     _checks.choice("model", model, tuple(_core.model_types()))
-    _checks.choice("recipe", recipe, ("default", "paper"))
+    _checks.choice("recipe", recipe, RUN_RECIPES)
     _checks.choice("reference", reference, REFERENCES)
+    # The kinds here; the ranges are the library's (RunConfig::validate).
     seed = _checks.seed("seed", seed)
     if epochs is not None:
-        epochs = _checks.integer("epochs", epochs, minimum=0)
-    sigma = _checks.real("sigma", sigma, nonnegative=True)
+        epochs = _checks.integer("epochs", epochs)
+    sigma = _checks.real("sigma", sigma)
     if lr is not None:
-        lr = _checks.learning_rate("lr", lr)
+        lr = _checks.real("lr", lr)
     if lr_schedule is not None:
         _checks.choice("lr_schedule", lr_schedule, LR_SCHEDULES)
-    val_every = _checks.integer("val_every", val_every, minimum=1)
+    val_every = _checks.integer("val_every", val_every)
     beta_init = _checks.real("beta_init", beta_init)
-    if beta_init == 0:
-        raise ValueError("beta_init: expected a nonzero number (d|β|/dβ vanishes at 0)")
-    threads = _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS)
+    threads = _checks.integer("threads", threads, maximum=2**31 - 1)  # a C++ int
     core_model, report, rollouts, tests = _core.run(
         preset, model, seed, epochs, recipe, lr, lr_schedule, val_every, sigma, beta_init,
         bool(beta_decay), reference, _system_overrides(system), threads, _progress(progress))

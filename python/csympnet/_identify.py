@@ -10,7 +10,9 @@ from ._fit import _as_trajectories, _core_spec, _progress
 from ._data import trajectory_list
 from ._model import Model
 
-MAX_THREADS = 1024
+# The library's spellings (experiments/identify.hpp).
+LOSSES = tuple(_core.identify_losses())
+DOF_SCALES = tuple(_core.dof_scales())
 
 
 class NotIdentifiedWarning(UserWarning):
@@ -93,22 +95,24 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     checked = trajectory_list(trajs, "trajectories")
     for k, tr in enumerate(checked):
         _checks.trainable(f"trajectory {k} z", tr.z)
-    _checks.choice("loss", loss, ("balanced", "one-step"))
-    _checks.choice("dof_scales", dof_scales, ("auto", "learned", "fixed"))
+    _checks.choice("loss", loss, LOSSES)
+    _checks.choice("dof_scales", dof_scales, DOF_SCALES)
     if not isinstance(normalize, (bool, np.bool_)):
         raise TypeError(f"normalize: expected True or False, got {type(normalize).__name__}")
+    # The kinds here; the ranges are the library's (make_identify_config), which refuses a
+    # value with a csympnet.Error naming the argument.
     config = {
-        "seed": _checks.integer("seed", seed, minimum=0),
-        "window": _checks.integer("window", window, minimum=0, maximum=64),
+        "seed": _checks.seed("seed", seed),
+        "window": _checks.integer("window", window),
         "balanced": loss == "balanced",
         "normalize": bool(normalize),
-        "epochs": _checks.integer("epochs", epochs, minimum=0),
-        "lr": _checks.learning_rate("lr", lr),
-        "lm_iterations": _checks.integer("lm_iterations", lm_iterations, minimum=0),
-        "val_fraction": _checks.real("val_fraction", val_fraction, positive=True),
-        "blocks": _checks.integer("blocks", blocks, minimum=3, maximum=10000),
-        "level": _checks.real("level", level, positive=True),
-        "threads": _checks.integer("threads", threads, minimum=1, maximum=MAX_THREADS),
+        "epochs": _checks.integer("epochs", epochs),
+        "lr": _checks.real("lr", lr),
+        "lm_iterations": _checks.integer("lm_iterations", lm_iterations),
+        "val_fraction": _checks.real("val_fraction", val_fraction),
+        "blocks": _checks.integer("blocks", blocks),
+        "level": _checks.real("level", level),
+        "threads": _checks.integer("threads", threads, maximum=2**31 - 1),  # a C++ int
         "dof_scales": dof_scales,
     }
     if core is not None:

@@ -98,6 +98,9 @@ struct FitArgs {
 std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h,
                              const std::optional<py::tuple>& val, const FitArgs& a,
                              const py::object& progress) {
+  // csympnet.fit runs `csympnet fit --recipe classic`: the identification recipe. Every
+  // option is checked here, before any work (an OptionError names it as Python spells it).
+  const FitConfig c = make_fit_config(FitConfig::identification(), a.settings);
   const PairSet train = pairs_from(z0, z1, h, "training pairs");
   std::optional<PairSet> val_pairs;
   if (val) {
@@ -105,8 +108,6 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
     val_pairs = pairs_from((*val)[0].cast<DArray>(), (*val)[1].cast<DArray>(),
                            (*val)[2].cast<DArray>(), "validation pairs");
   }
-  // csympnet.fit runs `csympnet fit --recipe classic`: the identification recipe.
-  const FitConfig c = make_fit_config(FitConfig::identification(), a.settings);
   require(a.groups.empty() || static_cast<Index>(a.groups.size()) == train.size(),
           "groups: expected one trajectory label per training pair");
 
@@ -157,12 +158,7 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   }
   c.seed = a.seed;
   c.sigma = a.sigma;
-  if (a.recipe == "paper") {
-    c.train = paper_recipe(c.train.epochs);
-  } else {
-    require(a.recipe == "default",
-            [&] { return "recipe: expected 'default' or 'paper', got '" + a.recipe + "'"; });
-  }
+  apply_run_recipe(c, parse_run_recipe(a.recipe));
   if (a.epochs) c.train.epochs = *a.epochs;
   if (a.lr) c.train.adamw.lr = *a.lr;
   if (a.lr_schedule) c.train.lr_schedule = parse_lr_schedule(*a.lr_schedule);
@@ -171,6 +167,7 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
   c.train.adamw.decay_damping = a.decay_damping;
   c.reference.method = parse_reference(a.reference);
   c.beta_init = a.beta_init;
+  c.validate();  // every option, before any work
 
   PythonProgress watch(progress);
   RunResult r;
@@ -198,9 +195,9 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
 // identify() (what `csympnet fit` runs): returns the model and the report as JSON text.
 py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
                                 const std::string& config_json, const py::object& progress) {
+  // Every option checked first, before any work.
+  const IdentifyConfig c = make_identify_config(parse_json(config_json, "config"));
   const std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
-  const nlohmann::json cj = parse_json(config_json, "config");
-  const IdentifyConfig c = make_identify_config(cj);
   PythonProgress watch(progress);
   IdentifyHooks hooks;
   hooks.progress = watch.callback();  // AdamW and LM
@@ -236,9 +233,13 @@ void bind_fit(py::module_& m) {
         "identify() of experiments/identify.hpp (wrapped by csympnet.identify).");
   // The spellings of the second stage's methods and LM's solvers (train/refine.hpp).
   m.def("refine_methods", &refine_method_names);
+  m.def("refine_choices", &refine_choice_names);  // "auto", then refine_methods()
   m.def("linear_solvers", &linear_solver_names);
   m.def("fit_models", &fit_model_names);
   m.def("lr_schedules", &lr_schedule_names);
+  m.def("dof_scales", &dof_scales_names);
+  m.def("identify_losses", &identify_loss_names);
+  m.def("run_recipes", &run_recipe_names);
   // The recipe csympnet.fit's defaults mirror, as JSON text (tests/test_fit.py compares them).
   m.def("fit_recipe_json", [] { return nlohmann::json(FitConfig::identification()).dump(); });
   m.def(

@@ -17,6 +17,23 @@ const std::vector<std::string>& fit_model_names() {
   return names;
 }
 
+const std::vector<std::string>& refine_choice_names() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = {"auto"};
+    for (const std::string& m : refine_method_names()) n.push_back(m);
+    return n;
+  }();
+  return names;
+}
+
+std::string to_string(FitModel m) {
+  return fit_model_names().at(static_cast<std::size_t>(m));
+}
+
+FitModel parse_fit_model(const std::string& text, const char* key) {
+  return static_cast<FitModel>(choice_index(key, fit_model_names(), text));
+}
+
 FitConfig FitConfig::identification() {
   return FitConfig{};
 }
@@ -30,22 +47,18 @@ FitConfig FitConfig::adamw_only() {
 }
 
 void FitConfig::validate() const {
-  const auto& models = fit_model_names();
-  require(std::find(models.begin(), models.end(), model) != models.end(),
-          [&] { return "--model must be 'csympnet' or 'sympnet', got '" + model + "'"; });
-  require(std::isfinite(val_fraction) && val_fraction > 0.0 && val_fraction < 1.0,
-          [&] { return "--val-fraction must be in (0, 1), got " + std::to_string(val_fraction); });
-  require(std::isfinite(beta_init) && beta_init != 0.0, "--beta-init must be finite and nonzero");
-  TrainOptions t = train;
-  if (t.epochs <= 0) t.epochs = 0;
-  t.validate();
+  kValFractionRange.check(val_fraction);
+  check_nonzero("beta_init", beta_init);
+  if (train.epochs != kAutoEpochs) kFitEpochsRange.check(train.epochs);
+  train.validate();
   refine.validate();
   BootstrapOptions b = bootstrap;
   b.replicates = bootstrap_replicates.value_or(0);
   if (replicate_refine) b.refine = *replicate_refine;
   b.validate();
-  require(b.replicates == 0 || model == "csympnet",
-          "--bootstrap needs --model csympnet (the only model here with a damping rate)");
+  if (b.replicates != 0 && model != FitModel::kCSympNet)
+    throw OptionError("bootstrap",
+                      "needs {model=csympnet} (the only model here with a damping rate)");
 }
 
 void to_json(nlohmann::json& j, const FitConfig& c) {
@@ -56,7 +69,7 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
       c.bootstrap_replicates ? nlohmann::json(*c.bootstrap_replicates) : nlohmann::json("auto");
   bootstrap["refine"] =
       c.replicate_refine ? nlohmann::json(*c.replicate_refine) : nlohmann::json("auto");
-  j = {{"model", c.model},
+  j = {{"model", to_string(c.model)},
        {"core", c.core},
        {"seed", c.seed},
        {"val_fraction", c.val_fraction},
@@ -69,29 +82,45 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
 
 FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
   FitConfig c = recipe;
-  if (s.model) c.model = *s.model;
+  if (s.model) c.model = parse_fit_model(*s.model);
   if (!s.core.is_null()) c.core = s.core;
   if (s.seed) c.seed = *s.seed;
   if (s.val_fraction) c.val_fraction = *s.val_fraction;
   if (s.beta_init) c.beta_init = *s.beta_init;
-  if (s.epochs) c.train.epochs = *s.epochs;
+  if (s.epochs) {
+    kFitEpochsRange.check(*s.epochs);  // a given budget: kAutoEpochs (0) is not one
+    c.train.epochs = *s.epochs;
+  }
   if (s.val_every) c.train.val_every = *s.val_every;
   if (s.threads) c.train.threads = *s.threads;
   if (s.lr) c.train.adamw.lr = *s.lr;
   if (s.weight_decay) c.train.adamw.weight_decay = *s.weight_decay;
   if (s.decay_damping) c.train.adamw.decay_damping = *s.decay_damping;
-  if (s.lr_schedule) c.train.lr_schedule = parse_lr_schedule(*s.lr_schedule);
+  if (s.lr_schedule)
+    c.train.lr_schedule =
+        static_cast<LrSchedule>(choice_index("lr_schedule", lr_schedule_names(), *s.lr_schedule));
   if (s.lr_final_fraction) c.train.lr_final_fraction = *s.lr_final_fraction;
   if (s.warm_start) c.warm_start = *s.warm_start;
   if (s.refine) {
-    if (*s.refine == "auto")
+    const std::size_t k = choice_index("refine", refine_choice_names(), *s.refine);
+    if (k == 0)
       c.refine_method.reset();
     else
-      c.refine_method = parse_refine_method(*s.refine);
+      c.refine_method = static_cast<RefineMethod>(k - 1);
   }
   if (s.refine_iterations) c.refine.iterations = *s.refine_iterations;
-  if (s.refine_solver) c.refine.linear_solver = parse_linear_solver(*s.refine_solver);
+  if (s.refine_solver) {
+    c.refine.linear_solver =
+        static_cast<LinearSolver>(choice_index("refine_solver", linear_solver_names(),
+                                               *s.refine_solver));
+    // auto picks the solver with the method; an explicit one would be overridden silently.
+    if (!c.refine_method)
+      throw OptionError("refine_solver",
+                        "needs {refine=lm}: {refine=auto} (fit's default) chooses the solver by "
+                        "the model's size");
+  }
   if (s.bootstrap) c.bootstrap_replicates = *s.bootstrap;
+  c.validate();
   return c;
 }
 
@@ -194,16 +223,18 @@ std::pair<PairSet, PairSet> split_pairs(const PairSet& all, double val_fraction,
 }
 
 void check_beta_start(double beta, double h_max, bool from_warm_start) {
-  require(std::abs(beta) * h_max <= kMaxBetaInitTimesStep, [&] {
-    return std::string(from_warm_start ? "the warm start's gamma " : "--beta-init ") +
-           number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
-           " shrinks every state by exp(-|beta| h) = " +
-           number_text(std::exp(-std::abs(beta) * h_max)) +
-           " per step, so training could not move it; expected |beta_init| * h <= " +
-           number_text(kMaxBetaInitTimesStep) +
-           " (|beta_init| <= " + number_text(kMaxBetaInitTimesStep / h_max) + " here)" +
-           (from_warm_start ? "; the data decay too fast for their steps to identify gamma" : "");
-  });
+  if (std::abs(beta) * h_max <= kMaxBetaInitTimesStep) return;
+  const std::string problem =
+      number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
+      " shrinks every state by exp(-|beta| h) = " + number_text(std::exp(-std::abs(beta) * h_max)) +
+      " per step, so training could not move it; expected |beta_init| * h <= " +
+      number_text(kMaxBetaInitTimesStep) + " (|beta_init| <= " +
+      number_text(kMaxBetaInitTimesStep / h_max) + " here)";
+  // A beta_init the user gave names that option (spelt by the front end); the warm start's
+  // estimate is the data's doing.
+  if (!from_warm_start) throw OptionError("beta_init", problem);
+  throw Error("the warm start's gamma " + problem +
+              "; the data decay too fast for their steps to identify gamma");
 }
 
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
@@ -231,8 +262,9 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
     if (!groups.empty())
       for (Index i : train_idx) r.train_groups.push_back(groups[static_cast<std::size_t>(i)]);
   }
-  nlohmann::json spec = {{"type", config.model}, {"d", train.d()}, {"core", r.config.core}};
-  if (config.model == "csympnet") {
+  nlohmann::json spec = {
+      {"type", to_string(config.model)}, {"d", train.d()}, {"core", r.config.core}};
+  if (config.model == FitModel::kCSympNet) {
     spec["beta_init"] = config.beta_init;
     if (config.warm_start) {
       // A convenience, not a requirement: on data it cannot use (too few pairs, states that
@@ -262,9 +294,9 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
     r.config.bootstrap.replicates = *config.bootstrap_replicates;
   } else {
     r.config.bootstrap.replicates = 0;
-    if (config.model == "csympnet" && r.model.n_params() <= kMaxLmParams) {
+    if (config.model == FitModel::kCSympNet && r.model.n_params() <= kMaxLmParams) {
       r.config.bootstrap.replicates = kAutoBootstrapReplicates;
-    } else if (config.model == "csympnet") {
+    } else if (config.model == FitModel::kCSympNet) {
       r.interval_note = "no interval by default for " + std::to_string(r.model.n_params()) +
                         " parameters (more than " + std::to_string(kMaxLmParams) +
                         "): each bootstrap replicate refits them; ask for one with --bootstrap N "
@@ -322,7 +354,7 @@ nlohmann::json fit_report(const FitResult& r) {
   }
   const std::optional<GammaInterval>& g = r.interval;
   nlohmann::json report = {
-      {"model", r.config.model},
+      {"model", to_string(r.config.model)},
       {"data", nullptr},
       {"validation", r.val_split ? nlohmann::json("split") : nlohmann::json(nullptr)},
       {"d", r.train.d()},
@@ -346,7 +378,7 @@ nlohmann::json fit_report(const FitResult& r) {
       {"bootstrap", g ? nlohmann::json(*g) : nlohmann::json(nullptr)},
       {"warm_start", r.warm_start
                          ? nlohmann::json({{"gamma", r.warm_start->gamma},
-                                           {"method", r.warm_start->method},
+                                           {"method", to_string(r.warm_start->method)},
                                            {"groups", r.warm_start->groups}})
                          : nlohmann::json(r.warm_start_note.empty() ? "off" : r.warm_start_note)},
       {"quality", quality},

@@ -9,27 +9,42 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/core/options.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/experiments/fit.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/train/window_loss.hpp"
 
 namespace csympnet {
 
+const std::vector<std::string>& dof_scales_names() {
+  static const std::vector<std::string> names = {"auto", "learned", "fixed"};
+  return names;
+}
+
+std::string to_string(DofScales s) {
+  return dof_scales_names().at(static_cast<std::size_t>(s));
+}
+
+DofScales parse_dof_scales(const std::string& text, const char* key) {
+  return static_cast<DofScales>(choice_index(key, dof_scales_names(), text));
+}
+
+const std::vector<std::string>& identify_loss_names() {
+  static const std::vector<std::string> names = {"balanced", "one-step"};
+  return names;
+}
+
 void IdentifyConfig::validate() const {
-  require(window >= 0 && window <= 64, [&] {
-    return "--window must be in [0, 64] (0: automatic), got " + std::to_string(window);
-  });
-  require(epochs >= 0, "--epochs must be >= 0 (0: automatic)");
-  require(lm_iterations >= 0, "--lm-iterations must be >= 0 (0: automatic)");
-  require(std::isfinite(lr) && lr > 0.0 && lr <= 10.0, "--lr must be in (0, 10]");
-  require(std::isfinite(val_fraction) && val_fraction > 0.0 && val_fraction < 1.0,
-          "--val-fraction must be in (0, 1)");
-  require(target_blocks >= 3 && target_blocks <= 10000, "--blocks must be in [3, 10000]");
-  require(std::isfinite(level) && level >= 0.5 && level < 1.0, "--level must be in [0.5, 1)");
-  require(threads >= 1, "--threads must be >= 1");
-  require(dof_scales == "auto" || dof_scales == "learned" || dof_scales == "fixed",
-          [&] { return "--dof-scales must be auto, learned or fixed, got '" + dof_scales + "'"; });
+  kWindowRange.check(window);
+  kIdentifyEpochsRange.check(epochs);
+  kLmIterationsRange.check(lm_iterations);
+  kLrRange.check(lr);
+  kValFractionRange.check(val_fraction);
+  kBlocksRange.check(target_blocks);
+  kLevelRange.check(level);
+  kThreadsRange.check(static_cast<long>(threads));
 }
 
 void to_json(nlohmann::json& j, const IdentifyConfig& c) {
@@ -44,7 +59,7 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"val_fraction", c.val_fraction},
        {"target_blocks", c.target_blocks},
        {"level", c.level},
-       {"dof_scales", c.dof_scales}};
+       {"dof_scales", to_string(c.dof_scales)}};
 }
 
 IdentifyConfig make_identify_config(const nlohmann::json& settings) {
@@ -64,7 +79,8 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   c.window = settings.value("window", c.window);
   c.balanced = settings.value("balanced", c.balanced);
   c.normalize = settings.value("normalize", c.normalize);
-  c.dof_scales = settings.value("dof_scales", c.dof_scales);
+  if (settings.contains("dof_scales"))
+    c.dof_scales = parse_dof_scales(settings.at("dof_scales").get<std::string>());
   c.epochs = settings.value("epochs", c.epochs);
   c.lr = settings.value("lr", c.lr);
   c.lm_iterations = settings.value("lm_iterations", c.lm_iterations);
@@ -72,6 +88,7 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   c.target_blocks = settings.value("blocks", c.target_blocks);
   c.level = settings.value("level", c.level);
   c.threads = settings.value("threads", c.threads);
+  c.validate();
   return c;
 }
 
@@ -239,10 +256,9 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   Index m = config.window > 0 ? config.window : (pairs_only ? 1 : 4);
   std::vector<Trajectory> blocks;
   if (pairs_only) {
-    require(config.window <= 1, [&] {
-      return "--window " + std::to_string(config.window) +
-             " needs trajectories; a pairs file gives one-step windows";
-    });
+    if (config.window > 1)
+      throw OptionError("window", std::to_string(config.window) +
+                                      " needs trajectories; a pairs file gives one-step windows");
     m = 1;
     blocks = nt;
   } else {
@@ -310,11 +326,11 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   stage("warm start");
   double beta_init = 0.1;
-  if (c.dof_scales == "auto") c.dof_scales = d > 1 ? "learned" : "fixed";
-  r.choices["dof_scales"] = c.dof_scales;
-  if (c.dof_scales == "learned")
+  if (c.dof_scales == DofScales::kAuto) c.dof_scales = d > 1 ? DofScales::kLearned : DofScales::kFixed;
+  r.choices["dof_scales"] = to_string(c.dof_scales);
+  if (c.dof_scales == DofScales::kLearned)
     r.choices["dof_scales_reason"] =
-        config.dof_scales == "auto"
+        config.dof_scales == DofScales::kAuto
             ? "d > 1: momenta's per-dof units (velocities, masses) are learned, not assumed"
             : "given";
   {
@@ -332,7 +348,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     x.core = cores[k];
     nlohmann::json spec = {
         {"type", "csympnet"}, {"d", d}, {"core", x.core}, {"beta_init", beta_init}};
-    if (c.dof_scales == "learned" && d > 1) spec["dof_scales"] = "learned";
+    if (c.dof_scales == DofScales::kLearned && d > 1) spec["dof_scales"] = to_string(c.dof_scales);
     x.inner = make_model(spec);
     x.theta.resize(x.inner.n_params());
     Rng init_rng(config.seed, k == 0 ? std::string("init") : "init-" + std::to_string(k));
@@ -703,7 +719,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"config", r.config},
       {"params", r.model.n_params()},
       {"warm_start", r.warm_start ? nlohmann::json({{"gamma_normalised", r.warm_start->gamma},
-                                                    {"method", r.warm_start->method}})
+                                                    {"method", to_string(r.warm_start->method)}})
                                   : nlohmann::json(r.warm_start_note)},
       {"training", [&] {
          nlohmann::json t = r.training;

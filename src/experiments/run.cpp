@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/options.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/experiments/fit.hpp"
@@ -18,19 +19,35 @@ void RunConfig::validate() const {
   require(preset.n_train >= 1, "n_train must be >= 1");
   require(preset.n_val >= 1, "n_val must be >= 1");
   require(std::isfinite(preset.h_test) && preset.h_test > 0.0, "h_test must be > 0");
-  require(std::isfinite(sigma) && sigma >= 0.0,
-          [&] { return "--sigma must be a finite number >= 0, got " + std::to_string(sigma); });
-  require(std::isfinite(beta_init) && beta_init != 0.0,
-          "beta_init must be finite and nonzero (the gradient of |beta| vanishes at 0)");
+  kSigmaRange.check(sigma);
+  check_nonzero("beta_init", beta_init);  // the gradient of |beta| vanishes at 0
   train.validate();
   reference.validate();
   ode.validate();
   refine.validate();
-  require(refine.method == RefineMethod::kNone || !is_vector_field_type(model), [&] {
-    return "--refine applies to map models (csympnet, sympnet, map), not to '" + model + "'";
-  });
-  require(!warm_start || model == "csympnet", "--warm-start applies to --model csympnet only");
+  if (refine.method != RefineMethod::kNone && is_vector_field_type(model))
+    throw OptionError("refine",
+                      "applies to map models (csympnet, sympnet, map), not to '" + model + "'");
+  if (warm_start && model != "csympnet")
+    throw OptionError("warm_start", "applies to {model=csympnet} only");
   model_spec_for(preset, model);  // validates the model name
+}
+
+const std::vector<std::string>& run_recipe_names() {
+  static const std::vector<std::string> names = {"default", "paper"};
+  return names;
+}
+
+std::string to_string(RunRecipe r) {
+  return run_recipe_names().at(static_cast<std::size_t>(r));
+}
+
+RunRecipe parse_run_recipe(const std::string& text, const char* key) {
+  return static_cast<RunRecipe>(choice_index(key, run_recipe_names(), text));
+}
+
+void apply_run_recipe(RunConfig& c, RunRecipe recipe) {
+  if (recipe == RunRecipe::kPaper) c.train = paper_recipe(c.train.epochs);
 }
 
 RunConfig default_run_config(const std::string& preset, const std::string& model) {
@@ -153,7 +170,7 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   }
   if (r.warm_start)
     rep["warm_start"] = {{"gamma", r.warm_start->gamma},
-                         {"method", r.warm_start->method},
+                         {"method", to_string(r.warm_start->method)},
                          {"groups", r.warm_start->groups}};
   rep["architecture"] = r.model.hyperparams();
   rep["config"] = c;

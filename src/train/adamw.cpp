@@ -12,17 +12,14 @@ namespace csympnet {
 
 void AdamWOptions::validate() const {
   auto finite_pos = [](double x) { return std::isfinite(x) && x > 0.0; };
-  require(finite_pos(lr),
-          [&] { return "adamw.lr must be a finite number > 0, got " + std::to_string(lr); });
+  kLrRange.check(lr);
   require(std::isfinite(beta1) && beta1 >= 0.0 && beta1 < 1.0,
           [&] { return "adamw.beta1 must be in [0, 1), got " + std::to_string(beta1); });
   require(std::isfinite(beta2) && beta2 >= 0.0 && beta2 < 1.0,
           [&] { return "adamw.beta2 must be in [0, 1), got " + std::to_string(beta2); });
   require(finite_pos(eps),
           [&] { return "adamw.eps must be a finite number > 0, got " + std::to_string(eps); });
-  require(std::isfinite(weight_decay) && weight_decay >= 0.0, [&] {
-    return "adamw.weight_decay must be a finite number >= 0, got " + std::to_string(weight_decay);
-  });
+  kWeightDecayRange.check(weight_decay);
 }
 
 void to_json(nlohmann::json& j, const AdamWOptions& o) {

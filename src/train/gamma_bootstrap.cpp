@@ -12,14 +12,7 @@
 namespace csympnet {
 
 void BootstrapOptions::validate() const {
-  require(replicates >= 0, [&] {
-    return "bootstrap.replicates (--bootstrap) must be >= 0, got " + std::to_string(replicates);
-  });
-  require(replicates == 0 || replicates >= 10, [&] {
-    return "bootstrap.replicates (--bootstrap) must be 0 (off) or >= 10 for a percentile "
-           "interval, got " +
-           std::to_string(replicates);
-  });
+  kBootstrapRange.check(replicates);
   require(std::isfinite(level) && level > 0.0 && level < 1.0,
           [&] { return "bootstrap.level must be in (0, 1), got " + std::to_string(level); });
   refine.validate();

@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/options.hpp"
 
 namespace csympnet {
 
@@ -49,7 +50,7 @@ GammaWarmStart by_det(const PairSet& pairs, const std::vector<std::vector<Index>
   const Index d = pairs.d();
   double num = 0.0, den = 0.0;
   GammaWarmStart w;
-  w.method = "det";
+  w.method = WarmStartMethod::kDet;
   for (const auto& g : groups) {
     if (static_cast<Index>(g.size()) < min_size) continue;
     const PairSet sub = select_pairs(pairs, g);
@@ -74,26 +75,36 @@ GammaWarmStart by_midpoint(const PairSet& pairs) {
   const Matrix slope = (pairs.z1 - pairs.z0).array().rowwise() / pairs.h.transpose().array();
   const Matrix mc = affine_fit(mid, slope, "gamma warm start (midpoint)");
   GammaWarmStart w;
-  w.method = "midpoint";
+  w.method = WarmStartMethod::kMidpoint;
   w.gamma = -mc.leftCols(pairs.dim()).trace() / static_cast<double>(pairs.d());
   return w;
 }
 
 }  // namespace
 
-GammaWarmStart gamma_warm_start(const PairSet& pairs, const std::string& method) {
-  require(method == "auto" || method == "det" || method == "midpoint", [&] {
-    return "gamma warm start: method must be 'auto', 'det' or 'midpoint', got '" + method + "'";
-  });
+const std::vector<std::string>& warm_start_method_names() {
+  static const std::vector<std::string> names = {"auto", "det", "midpoint"};
+  return names;
+}
+
+std::string to_string(WarmStartMethod m) {
+  return warm_start_method_names().at(static_cast<std::size_t>(m));
+}
+
+WarmStartMethod parse_warm_start_method(const std::string& text, const char* key) {
+  return static_cast<WarmStartMethod>(choice_index(key, warm_start_method_names(), text));
+}
+
+GammaWarmStart gamma_warm_start(const PairSet& pairs, WarmStartMethod method) {
   pairs.validate("warm-start pairs");
   const Index min_size = 2 * (pairs.dim() + 1);
   require(pairs.size() >= min_size, [&] {
     return "gamma warm start: needs at least " + std::to_string(min_size) + " pairs, got " +
            std::to_string(pairs.size());
   });
-  if (method == "midpoint") return by_midpoint(pairs);
+  if (method == WarmStartMethod::kMidpoint) return by_midpoint(pairs);
   const auto groups = step_groups(pairs);
-  if (method == "det") return by_det(pairs, groups, min_size);
+  if (method == WarmStartMethod::kDet) return by_det(pairs, groups, min_size);
   Index covered = 0;
   for (const auto& g : groups)
     if (static_cast<Index>(g.size()) >= min_size) covered += static_cast<Index>(g.size());

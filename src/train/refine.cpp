@@ -61,10 +61,7 @@ LinearSolver parse_linear_solver(const std::string& text, const std::string& opt
 }
 
 void RefineOptions::validate() const {
-  require(iterations >= 1, [&] {
-    return "refine.iterations (--refine-iterations) must be >= 1, got " +
-           std::to_string(iterations);
-  });
+  kRefineIterationsRange.check(iterations);
   auto tol_ok = [](double x) { return std::isfinite(x) && x >= 0.0; };
   require(tol_ok(function_tolerance), "refine.function_tolerance must be a finite number >= 0");
   require(tol_ok(gradient_tolerance), "refine.gradient_tolerance must be a finite number >= 0");
@@ -84,13 +81,15 @@ void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_
     return;
   const double flops = ceres_iteration_flops(options.linear_solver, n_residuals, n_params);
   if (flops <= kMaxCeresIterationFlops) return;
-  throw Error("--refine-solver " + to_string(options.linear_solver) + " with " +
-              std::to_string(n_params) + " parameters and " + std::to_string(n_residuals) +
-              " residuals takes " + number_text(flops) +
-              " operations per LM iteration in one Ceres call that Ctrl-C " +
-              "cannot stop; expected at most " + number_text(kMaxCeresIterationFlops) +
-              ": use --refine-solver blas_normal_cholesky (csympnet's LM, which stops promptly), " +
-              "or --refine auto");
+  throw OptionError("refine_solver",
+                    to_string(options.linear_solver) + " with " + std::to_string(n_params) +
+                        " parameters and " + std::to_string(n_residuals) + " residuals takes " +
+                        number_text(flops) +
+                        " operations per LM iteration in one Ceres call that Ctrl-C cannot "
+                        "stop; expected at most " +
+                        number_text(kMaxCeresIterationFlops) +
+                        ": use {refine_solver=blas_normal_cholesky} (csympnet's LM, which stops "
+                        "promptly), or {refine=auto}");
 }
 
 void to_json(nlohmann::json& j, const RefineOptions& o) {

@@ -12,16 +12,11 @@
 namespace csympnet {
 
 void TrainOptions::validate() const {
-  require(epochs >= 0, [&] { return "train.epochs must be >= 0, got " + std::to_string(epochs); });
-  require(val_every >= 1,
-          [&] { return "train.val_every must be >= 1, got " + std::to_string(val_every); });
+  kEpochsRange.check(epochs);
+  kValEveryRange.check(val_every);
   adamw.validate();
-  require(std::isfinite(lr_final_fraction) && lr_final_fraction > 0.0 && lr_final_fraction <= 1.0,
-          "train.lr_final_fraction must be in (0, 1]");
-  require(threads >= 1 && threads <= ThreadTeam::kMaxThreads, [&] {
-    return "train.threads must be between 1 and " + std::to_string(ThreadTeam::kMaxThreads) +
-           ", got " + std::to_string(threads);
-  });
+  kLrFinalFractionRange.check(lr_final_fraction);
+  kThreadsRange.check(static_cast<long>(threads));
 }
 
 double TrainOptions::lr_at(long epoch) const {

@@ -190,10 +190,16 @@ TEST_F(OptionRanges, RunTrainAndFit) {
   // creating --out).
   for (const char* n : {"1", "5", "9"}) {
     expect_refused("fit " + data + " --recipe classic -q" + out(),
-                   {std::string("--bootstrap ") + n, "replicates are too few", 2});
+                   {std::string("--bootstrap ") + n,
+                    "a percentile interval needs at least 10 replicates", 2});
     expect_refused("train --data " + data + " -q" + out(),
-                   {std::string("--bootstrap ") + n, "expected 0 (off) or >= 10", 2});
+                   {std::string("--bootstrap ") + n,
+                    "expected 0 (off) or a number from 10 to 1000000", 2});
   }
+  // A rule between options, checked with the others before any work (it exited 1 after
+  // reading the data).
+  expect_refused("train --data " + data + " -q" + out(),
+                 {"--model sympnet --bootstrap 10", "--bootstrap: needs --model csympnet", 2});
   expect_refused("fit -q" + out(), {(dir_ / "none.csv").string(), "none.csv", 2});
   expect_refused("train -q" + out(), {"--data " + (dir_ / "none.csv").string(), "--data", 2});
 }

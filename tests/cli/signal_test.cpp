@@ -139,7 +139,7 @@ TEST_F(Signals, UninterruptibleCeresProblemsAreRefusedUpFront) {
       run("fit " + data_.string() + " --recipe classic --refine lm --refine-solver dense_qr " +
           "--out " + (dir_ / "big").string());
   EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_NE(r.err.find("--refine-solver dense_qr with 4111 parameters"), std::string::npos)
+  EXPECT_NE(r.err.find("--refine-solver: dense_qr with 4111 parameters"), std::string::npos)
       << r.err;
   EXPECT_NE(r.err.find("blas_normal_cholesky"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir_ / "big"));

@@ -85,7 +85,7 @@ TEST(HeldOutSystem, PendulumGammaToRelativeErrorOneInAThousand) {
   const FitResult r = fit_pairs(pairs, std::nullopt, c, {}, groups);
   EXPECT_EQ(r.config.refine.method, RefineMethod::kLm);  // the default for a model this size
   ASSERT_TRUE(r.warm_start.has_value());
-  EXPECT_EQ(r.warm_start->method, "midpoint");  // irregular steps
+  EXPECT_EQ(r.warm_start->method, WarmStartMethod::kMidpoint);  // irregular steps
   const double gamma = *r.model.damping_rate(r.theta);
   EXPECT_LT(std::abs(gamma - kGamma) / kGamma, 1e-3) << "gamma_hat " << gamma;
 }

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/options.hpp"
 #include "csympnet/experiments/identify.hpp"
 
 namespace csympnet {
@@ -38,7 +39,7 @@ TEST(IdentifyConfigBuilder, EveryKeyOverridesItsField) {
   EXPECT_EQ(c.window, 3);
   EXPECT_FALSE(c.balanced);
   EXPECT_FALSE(c.normalize);
-  EXPECT_EQ(c.dof_scales, "learned");
+  EXPECT_EQ(c.dof_scales, DofScales::kLearned);
   EXPECT_EQ(c.epochs, 123);
   EXPECT_EQ(c.lr, 2.5e-3);
   EXPECT_EQ(c.lm_iterations, 9);
@@ -64,6 +65,47 @@ TEST(IdentifyConfigBuilder, UnknownKeysAndNonObjectsAreRefusedByName) {
     EXPECT_STREQ(e.what(), "identify settings: unknown key 'windw'");
   }
   EXPECT_THROW(make_identify_config(nlohmann::json::array()), Error);
+}
+
+// make_identify_config is the boundary: a value out of its range is refused there, by key.
+TEST(IdentifyConfigBuilder, OutOfRangeValuesAreRefusedByKey) {
+  const auto key_of = [](const nlohmann::json& s) {
+    try {
+      make_identify_config(s);
+    } catch (const OptionError& e) {
+      return e.key();
+    }
+    return std::string();
+  };
+  EXPECT_EQ(key_of({{"window", 65}}), "window");
+  EXPECT_EQ(key_of({{"window", -1}}), "window");
+  EXPECT_EQ(key_of({{"epochs", -1}}), "epochs");
+  EXPECT_EQ(key_of({{"epochs", 0}}), "");  // 0: automatic
+  EXPECT_EQ(key_of({{"lm_iterations", 100001}}), "lm_iterations");
+  EXPECT_EQ(key_of({{"lr", 0.0}}), "lr");
+  EXPECT_EQ(key_of({{"val_fraction", 1.0}}), "val_fraction");
+  EXPECT_EQ(key_of({{"blocks", 2}}), "blocks");
+  EXPECT_EQ(key_of({{"level", 1.0}}), "level");
+  EXPECT_EQ(key_of({{"level", 0.4}}), "level");
+  EXPECT_EQ(key_of({{"threads", 0}}), "threads");
+  EXPECT_EQ(key_of({{"threads", 257}}), "threads");
+  EXPECT_EQ(key_of({{"dof_scales", "free"}}), "dof_scales");
+  try {
+    make_identify_config({{"level", 2.0}});
+    FAIL() << "level 2 was accepted";
+  } catch (const OptionError& e) {
+    EXPECT_STREQ(e.what(), "level: '2' is out of range; expected a number from 0.5 to 0.9999");
+  }
+}
+
+TEST(IdentifyConfigBuilder, DofScalesSpellingsRoundTrip) {
+  for (const std::string& name : dof_scales_names())
+    EXPECT_EQ(to_string(parse_dof_scales(name)), name);
+  EXPECT_EQ(to_string(DofScales::kFixed), "fixed");
+  EXPECT_EQ(make_identify_config({{"dof_scales", "fixed"}}).dof_scales, DofScales::kFixed);
+  EXPECT_THROW(parse_dof_scales("Learned"), OptionError);
+  const std::vector<std::string> losses = {"balanced", "one-step"};
+  EXPECT_EQ(identify_loss_names(), losses);
 }
 
 }  // namespace

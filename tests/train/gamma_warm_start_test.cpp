@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/options.hpp"
 #include "csympnet/data/generate.hpp"
 
 namespace csympnet {
@@ -20,7 +21,7 @@ TEST(GammaWarmStart, DetIsExactForALinearOscillatorAtOneStep) {
   SystemSpec s;  // ω = 1, γ = 0.05
   const PairSet p = expm_pairs(s, 40, 0.1, 0.1, 1);
   const GammaWarmStart w = gamma_warm_start(p);
-  EXPECT_EQ(w.method, "det");
+  EXPECT_EQ(w.method, WarmStartMethod::kDet);
   EXPECT_EQ(w.groups, 1);
   EXPECT_NEAR(w.gamma, 0.05, 1e-11);
 }
@@ -33,7 +34,7 @@ TEST(GammaWarmStart, DetIsExactForALinearChainAtSeveralSteps) {
   // Two step groups: the fit combines them by least squares in h.
   const PairSet p = concat_pairs({expm_pairs(s, 30, 0.1, 0.1, 2), expm_pairs(s, 30, 0.3, 0.3, 3)});
   const GammaWarmStart w = gamma_warm_start(p);
-  EXPECT_EQ(w.method, "det");
+  EXPECT_EQ(w.method, WarmStartMethod::kDet);
   EXPECT_EQ(w.groups, 2);
   EXPECT_NEAR(w.gamma, 0.2, 1e-10);
 }
@@ -45,7 +46,7 @@ TEST(GammaWarmStart, MidpointHasItsPredictedBiasAtIrregularSteps) {
   SystemSpec s;
   const PairSet p = expm_pairs(s, 80, 0.05, 0.15, 4);
   const GammaWarmStart w = gamma_warm_start(p);
-  EXPECT_EQ(w.method, "midpoint");
+  EXPECT_EQ(w.method, WarmStartMethod::kMidpoint);
   const double bound = 0.15 * 0.15 / 6.0 * (1.5 * 0.05 - 0.05 * 0.05 * 0.05 / 8.0);
   EXPECT_GT(w.gamma - 0.05, 0.0);
   EXPECT_LT(w.gamma - 0.05, bound);
@@ -55,13 +56,27 @@ TEST(GammaWarmStart, NamesTheMethodWhenItCannotApply) {
   SystemSpec s;
   const PairSet p = expm_pairs(s, 40, 0.05, 0.15, 5);  // all steps differ
   try {
-    gamma_warm_start(p, "det");
+    gamma_warm_start(p, WarmStartMethod::kDet);
     FAIL() << "det accepted data without step groups";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("det"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(gamma_warm_start(p, "svd"), Error);
   EXPECT_THROW(gamma_warm_start(expm_pairs(s, 3, 0.1, 0.1, 6)), Error);  // too few pairs
+}
+
+// The one spelling of each estimator, as reports write it; others refused by name.
+TEST(GammaWarmStart, MethodSpellingsRoundTripAndOthersAreRefused) {
+  for (const std::string& name : warm_start_method_names())
+    EXPECT_EQ(to_string(parse_warm_start_method(name)), name);
+  EXPECT_EQ(to_string(WarmStartMethod::kMidpoint), "midpoint");
+  try {
+    parse_warm_start_method("svd");
+    FAIL() << "'svd' was accepted";
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "warm_start_method");
+    EXPECT_STREQ(e.what(),
+                 "warm_start_method: 'svd' is not a choice; expected one of auto, det, midpoint");
+  }
 }
 
 }  // namespace

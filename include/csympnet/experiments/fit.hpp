@@ -29,21 +29,43 @@ constexpr double kMaxBetaInitTimesStep = 50.0;
 // would then be reported unchanged as γ̂.
 void check_beta_start(double beta, double h_max, bool from_warm_start);
 
-// The models fit_pairs trains: "csympnet" (CSympNet-ID) and "sympnet".
-const std::vector<std::string>& fit_model_names();
+// The models fit_pairs trains: CSympNet-ID (identifies γ) and the symplectic SympNet (no
+// damping). Spelt "csympnet", "sympnet" (model_types() of models/model.hpp): the one
+// spelling in reports, the CLI's --model and Python's model=.
+enum class FitModel { kCSympNet, kSympNet };
+std::string to_string(FitModel m);
+const std::vector<std::string>& fit_model_names();  // in enum order
+// The choices of a fit's second stage: "auto" (resolve_auto_refine), then
+// refine_method_names(); the CLI's --refine and Python's refine= take these.
+const std::vector<std::string>& refine_choice_names();
+// Refuses any other text with an OptionError for `key` naming the accepted spellings.
+FitModel parse_fit_model(const std::string& text, const char* key = "model");
+
+// The ranges of the fit's own options (core/options.hpp; the others are TrainOptions',
+// RefineOptions' and BootstrapOptions'). A fit's epoch budget, when given, is at least 1:
+// FitConfig's train.epochs = kAutoEpochs stands for "not given" (by dimension). A held-out
+// share below 1% or above 99% leaves one side nearly empty on the data sizes fit is for.
+inline constexpr long kAutoEpochs = 0;
+inline constexpr OptionRange kFitEpochsRange{
+    .key = "epochs", .lo = 1, .hi = 1e8, .whole = true};
+inline constexpr OptionRange kValFractionRange{.key = "val_fraction", .lo = 0.01, .hi = 0.99};
 
 // What fit_pairs does, and the recipes the front ends start from. Options that the library
-// chooses by the problem's size are std::optional: nullopt lets fit_pairs choose, and
-// FitResult::config holds what it chose. A default FitConfig is identification().
+// chooses by the problem's size are std::optional (or kAutoEpochs): nullopt lets fit_pairs
+// choose, and FitResult::config holds what it chose. A default-constructed FitConfig is
+// identification(), the documented default recipe (docs/identification.md, "the classic
+// recipe"): CSympNet-ID, epochs by dimension, the cosine-annealed rate from 1e-3, a warm
+// start, the second stage and the bootstrap interval chosen by size.
 struct FitConfig {
-  std::string model = "csympnet";  // "csympnet" or "sympnet"
-  nlohmann::json core;             // symplectic core; null → default_core_for(d)
-  std::uint64_t seed = 42;         // validation split and initialisation
-  double val_fraction = 0.2;       // share of pairs held out when no validation set is given
-  // AdamW with the cosine-annealed rate (docs/training.md); epochs <= 0 → default_epochs_for(d).
+  FitModel model = FitModel::kCSympNet;
+  nlohmann::json core;        // symplectic core; null → default_core_for(d)
+  std::uint64_t seed = 42;    // validation split and initialisation
+  double val_fraction = 0.2;  // share of pairs held out when no validation set is given
+  // AdamW with the cosine-annealed rate (docs/training.md); epochs kAutoEpochs →
+  // default_epochs_for(d).
   TrainOptions train = [] {
     TrainOptions t;
-    t.epochs = 0;
+    t.epochs = kAutoEpochs;
     t.lr_schedule = LrSchedule::kCosine;
     return t;
   }();
@@ -72,8 +94,9 @@ struct FitConfig {
   static FitConfig identification();
   static FitConfig adamw_only();
 
-  // Refuses an option out of its range, naming it (as the CLI spells it) and what was
-  // expected; fit_pairs calls it.
+  // Refuses an option out of its range, or two that do not go together, with an OptionError
+  // naming it by its key (core/options.hpp) and saying what was expected; make_fit_config and
+  // fit_pairs call it.
   void validate() const;
 };
 // The configuration as reports write it; an option left to fit_pairs reads "auto".
@@ -92,8 +115,10 @@ struct FitSettings {
   std::optional<bool> decay_damping, warm_start;
 };
 // `recipe` with the settings given applied: the one place a FitConfig is built from a front
-// end's values. Refuses a misspelt option value (naming the option); ranges are checked by
-// FitConfig::validate when fit_pairs runs.
+// end's values, and where they are checked, before any work: a misspelt value, a value out
+// of its range (FitConfig::validate) and an option that needs another (refine_solver needs
+// refine "lm") are refused with an OptionError naming the option by its key, which the front
+// end spells its own way ("--refine-solver", "refine_solver").
 FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& settings);
 
 // The presets' cores, chosen by dimension: LA(5,20) for d = 1, LA(4,10) up to d = 20,

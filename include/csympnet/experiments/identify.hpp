@@ -31,6 +31,31 @@
 
 namespace csympnet {
 
+// Per-dof momentum scales as parameters (models/dof_scaled_map.hpp), for velocities or per-dof
+// units of p: kAuto (learned when d > 1), kLearned or kFixed. Spelt "auto", "learned",
+// "fixed": the CLI's --dof-scales, Python's dof_scales= and the report.
+enum class DofScales { kAuto, kLearned, kFixed };
+std::string to_string(DofScales s);
+const std::vector<std::string>& dof_scales_names();  // in enum order
+// Refuses any other text with an OptionError for `key` naming the accepted spellings.
+DofScales parse_dof_scales(const std::string& text, const char* key = "dof_scales");
+
+// The residuals of the window loss: "balanced" (IdentifyConfig::balanced) or "one-step";
+// the CLI's --loss and Python's loss= take these.
+const std::vector<std::string>& identify_loss_names();
+
+// The ranges of the identification's own options (core/options.hpp); lr and threads are
+// TrainOptions' (kLrRange, kThreadsRange), val_fraction the fit's (kValFractionRange). 0 is
+// "automatic" for window, epochs and lm_iterations. A level beyond 0.9999 asks for a quantile
+// the few blocks here cannot give; fewer than 3 blocks leave none to validate.
+inline constexpr OptionRange kWindowRange{.key = "window", .lo = 0, .hi = 64, .whole = true};
+inline constexpr OptionRange kIdentifyEpochsRange{
+    .key = "epochs", .lo = 1, .hi = 1e8, .whole = true, .zero_means = "automatic"};
+inline constexpr OptionRange kLmIterationsRange{
+    .key = "lm_iterations", .lo = 0, .hi = 100000, .whole = true};
+inline constexpr OptionRange kBlocksRange{.key = "blocks", .lo = 3, .hi = 10000, .whole = true};
+inline constexpr OptionRange kLevelRange{.key = "level", .lo = 0.5, .hi = 0.9999};
+
 struct IdentifyConfig {
   // null: chosen by validation loss between an LA core (by dimension, with step polynomials
   // when steps vary) and a G core (docs/identification.md); else the core used.
@@ -39,9 +64,7 @@ struct IdentifyConfig {
   long window = 0;          // steps per window; 0: automatic (1 for pairs, else ≤ 4)
   bool balanced = true;     // balanced residuals (false: the plain one-step residuals)
   bool normalize = true;    // remove units and offsets first
-  // Per-dof momentum scales as parameters (models/dof_scaled_map.hpp), for velocities or
-  // per-dof units of p: "auto" (learned when d > 1), "learned" or "fixed".
-  std::string dof_scales = "auto";
+  DofScales dof_scales = DofScales::kAuto;
   long epochs = 0;  // AdamW budget; 0: scaled to the data
   double lr = 1e-3;
   // LM budget (per candidate core); 0: scaled to the work per iteration, and the chosen core
@@ -51,6 +74,7 @@ struct IdentifyConfig {
   long target_blocks = 20;    // a long trajectory is cut into about this many segments
   double level = 0.95;        // interval level
   int threads = 1;
+  // Refuses a value out of its range with an OptionError naming it by its key.
   void validate() const;
 };
 void to_json(nlohmann::json& j, const IdentifyConfig& c);
@@ -58,8 +82,9 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c);
 // The one place an IdentifyConfig is built from a front end's settings (the CLI's options,
 // Python's `identify` keywords): the defaults above, overridden by each key given. Keys:
 // core, seed, window, balanced, normalize, dof_scales, epochs, lr, lm_iterations,
-// val_fraction, blocks, level, threads. A key not in that list is refused by name. Ranges are
-// checked by IdentifyConfig::validate(), which identify() calls.
+// val_fraction, blocks, level, threads. A key not in that list is refused by name; a value
+// misspelt or out of its range with an OptionError naming its key (IdentifyConfig::validate,
+// which identify() calls again), before any work.
 IdentifyConfig make_identify_config(const nlohmann::json& settings);
 
 // What the fit did at each stage: `stage` is called as each begins ("warm start", "AdamW",

@@ -20,6 +20,18 @@
 
 namespace csympnet {
 
+// The training recipe of a run: kDefault (the preset's, with the cosine-annealed rate) or
+// kPaper (paper_recipe: the paper's constant rate). Spelt "default", "paper": the CLI's
+// `run --recipe` and Python's run(recipe=).
+enum class RunRecipe { kDefault, kPaper };
+std::string to_string(RunRecipe r);
+const std::vector<std::string>& run_recipe_names();  // in enum order
+// Refuses any other text with an OptionError for `key` naming the accepted spellings.
+RunRecipe parse_run_recipe(const std::string& text, const char* key = "recipe");
+
+// The range of the relative observation noise a run adds (core/options.hpp).
+inline constexpr OptionRange kSigmaRange{.key = "sigma", .lo = 0.0, .hi = 10.0};
+
 struct RunConfig {
   Preset preset;                   // system, data sizes, architecture, default budget
   std::string model = "csympnet";  // one of model_types()
@@ -40,6 +52,8 @@ struct RunConfig {
 };
 // Config from a preset with the preset's epoch budget.
 RunConfig default_run_config(const std::string& preset, const std::string& model);
+// c.train as `recipe` has it, with c.train's epoch budget.
+void apply_run_recipe(RunConfig& c, RunRecipe recipe);
 void to_json(nlohmann::json& j, const RunConfig& c);
 
 // The data of a run, generated from the config alone.

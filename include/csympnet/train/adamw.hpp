@@ -5,13 +5,22 @@
 //   θ ← θ − (lr / (1−β1ᵗ)) · m / ( √v / √(1−β2ᵗ) + eps )
 #pragma once
 
+#include <limits>
 #include <optional>
 
 #include <nlohmann/json.hpp>
 
+#include "csympnet/core/options.hpp"
 #include "csympnet/core/types.hpp"
 
 namespace csympnet {
+
+// The ranges of the options the front ends give (core/options.hpp): the learning rate (below
+// 1e-12 nothing moves in a budget of 1e8 epochs; above 10 every model here diverges) and the
+// weight decay.
+inline constexpr OptionRange kLrRange{.key = "lr", .lo = 1e-12, .hi = 10.0};
+inline constexpr OptionRange kWeightDecayRange{
+    .key = "weight_decay", .lo = 0.0, .hi = std::numeric_limits<double>::infinity()};
 
 struct AdamWOptions {
   double lr = 1e-3;            // learning rate

@@ -23,6 +23,15 @@
 
 namespace csympnet {
 
+// The range of the replicates as the front ends give them: 0 switches the interval off.
+inline constexpr OptionRange kBootstrapRange{
+    .key = "bootstrap",
+    .lo = 10,
+    .hi = 1e6,
+    .whole = true,
+    .zero_means = "off",
+    .why = "a percentile interval needs at least 10 replicates"};
+
 struct BootstrapOptions {
   long replicates = 0;         // number of resamples; 0 switches the interval off
   double level = 0.95;         // coverage level of the percentile interval, in (0, 1)

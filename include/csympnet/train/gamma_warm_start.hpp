@@ -15,20 +15,30 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "csympnet/data/dataset.hpp"
 
 namespace csympnet {
 
+// The estimator: kAuto (kDet when at least 90% of the pairs fall in equal-step groups of at
+// least 2(2d + 1) pairs each, else kMidpoint), kDet or kMidpoint. Spelt "auto", "det",
+// "midpoint" (reports write the one used).
+enum class WarmStartMethod { kAuto, kDet, kMidpoint };
+std::string to_string(WarmStartMethod m);
+const std::vector<std::string>& warm_start_method_names();  // in enum order
+// Refuses any other text with an OptionError for `key` naming the accepted spellings.
+WarmStartMethod parse_warm_start_method(const std::string& text,
+                                        const char* key = "warm_start_method");
+
 struct GammaWarmStart {
-  double gamma = 0.0;  // γ₀ (may be ≤ 0 on data with no visible damping)
-  std::string method;  // "det" or "midpoint"
-  Index groups = 0;    // step-size groups used by "det" (0 for "midpoint")
+  double gamma = 0.0;                              // γ₀ (may be ≤ 0 on data with no visible damping)
+  WarmStartMethod method = WarmStartMethod::kDet;  // the one used: kDet or kMidpoint
+  Index groups = 0;                                // step-size groups used by kDet (0 for kMidpoint)
 };
 
-// method: "auto" (det when at least 90% of the pairs fall in equal-step groups of at least
-// 2(2d + 1) pairs each, else midpoint), "det" or "midpoint". Throws Error naming the
-// method if it cannot be applied (too few pairs, singular fit).
-GammaWarmStart gamma_warm_start(const PairSet& pairs, const std::string& method = "auto");
+// Throws Error naming the method if it cannot be applied (too few pairs, singular fit).
+GammaWarmStart gamma_warm_start(const PairSet& pairs,
+                                WarmStartMethod method = WarmStartMethod::kAuto);
 
 }  // namespace csympnet

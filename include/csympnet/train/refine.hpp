@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "csympnet/core/options.hpp"
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/train/callbacks.hpp"
@@ -44,6 +45,10 @@ RefineMethod parse_refine_method(const std::string& text,
                                  const std::string& option = "refine.method (--refine)");
 LinearSolver parse_linear_solver(
     const std::string& text, const std::string& option = "refine.linear_solver (--refine-solver)");
+
+// The range of the second stage's iteration budget as the front ends give it.
+inline constexpr OptionRange kRefineIterationsRange{
+    .key = "refine_iterations", .lo = 1, .hi = 1e8, .whole = true};
 
 struct RefineOptions {
   RefineMethod method = RefineMethod::kNone;
@@ -89,8 +94,9 @@ inline constexpr double kMaxCeresIterationFlops = 3e9;
 // The work of one LM iteration with Ceres' `linear_solver` on an m × n Jacobian: 2mn² for
 // dense_qr, mn² + n³/3 for dense_normal_cholesky.
 double ceres_iteration_flops(LinearSolver linear_solver, Index n_residuals, Index n_params);
-// Refuses a Ceres linear solver for a problem past kMaxCeresIterationFlops, naming
-// --refine-solver and the solver that fits; call before training, so no work is lost.
+// Refuses a Ceres linear solver for a problem past kMaxCeresIterationFlops with an
+// OptionError for refine_solver naming the solver that fits; call before training, so no work
+// is lost.
 void check_refine_fits(const RefineOptions& options, Index n_residuals, Index n_params);
 
 // Refines theta in place. With method "none", returns a summary of zero iterations.

@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "csympnet/core/options.hpp"
+#include "csympnet/core/thread_team.hpp"
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/model.hpp"
 #include "csympnet/train/adamw.hpp"
@@ -26,6 +28,16 @@ const std::vector<std::string>& lr_schedule_names();  // in enum order
 // Refuses any other text with an Error naming `option` and the accepted spellings.
 LrSchedule parse_lr_schedule(const std::string& text,
                              const std::string& option = "train.lr_schedule");
+
+// The ranges of TrainOptions' options as the front ends give them (core/options.hpp). An
+// epoch budget of 0 trains nothing (`run --epochs 0` evaluates the initial parameters).
+inline constexpr OptionRange kEpochsRange{.key = "epochs", .lo = 0, .hi = 1e8, .whole = true};
+inline constexpr OptionRange kValEveryRange{
+    .key = "val_every", .lo = 1, .hi = 1e8, .whole = true};
+inline constexpr OptionRange kThreadsRange{
+    .key = "threads", .lo = 1, .hi = ThreadTeam::kMaxThreads, .whole = true};
+inline constexpr OptionRange kLrFinalFractionRange{
+    .key = "lr_final_fraction", .lo = 0.0, .hi = 1.0, .lo_open = true};
 
 struct TrainOptions {
   long epochs = 20000;  // epoch budget (one full-batch AdamW step per epoch)

@@ -108,7 +108,7 @@ __attribute__((target("avx512f,avx512vl"))) void backward_block(
   }
   const __m512d zero = _mm512_setzero_pd();
   const Index m = core.sublayers;
-  Index unit = n_units(core);  // units counted in application order, as the slots
+  Index unit = n_units(core);  // units counted in application order, as the recorded rows
   auto upstream_row = [&]() { return kPoly ? scratch.upstream + unit * scratch.ld + j0 : nullptr; };
   for (Index k = core.layers - 1; k >= 0; --k) {
     const Index base = module_offset(core, k);
@@ -167,19 +167,17 @@ double poly_sum(const double* g, const double* x, const Vector& h2, Index n) {
 
 }  // namespace
 
-bool d1_backward_simd(const D1Core& core, const double* theta, const std::vector<Matrix>& mats,
-                      std::size_t slot0, const double* h, Index n, double* gq, double* gp,
-                      double* grad) {
+bool d1_backward_simd(const D1Core& core, const double* theta, const Matrix* steps, const double* h,
+                      Index n, double* gq, double* gp, double* grad) {
   if (n < 1 || !use(Family::kD1Sweeps)) return false;
-  return d1_backward_kernel(core, theta, mats, slot0, h, n, gq, gp, grad);
+  return d1_backward_kernel(core, theta, steps, h, n, gq, gp, grad);
 }
 
-bool d1_backward_kernel(const D1Core& core, const double* theta, const std::vector<Matrix>& mats,
-                        std::size_t slot0, const double* h, Index n, double* gq, double* gp,
-                        double* grad) {
+bool d1_backward_kernel(const D1Core& core, const double* theta, const Matrix* steps,
+                        const double* h, Index n, double* gq, double* gp, double* grad) {
   if (n < 1) return false;
   BackwardScratch scratch(core, n);
-  const Matrix* rec = mats.data() + slot0;
+  const Matrix* rec = steps;
   for (Index j0 = 0; j0 < n; j0 += kBlock) {
     const Index cnt = n - j0 < kBlock ? n - j0 : kBlock;
     auto run = [&](auto block) { block(core, theta, rec, h, j0, cnt, gq, gp, scratch); };
@@ -203,18 +201,18 @@ bool d1_backward_kernel(const D1Core& core, const double* theta, const std::vect
   if (core.poly) {
     // dc = (S or a) Σ_j h_j² g_dst,j src_j, from the recorded upstream rows.
     const Vector h2 = Vector(Eigen::Map<const Vector>(h, n).array().square());
-    std::size_t slot = slot0;
+    const Matrix* step = steps;
     Index unit = 0;
     for (Index k = 0; k < core.layers; ++k) {
       const Index base = module_offset(core, k);
       for (Index i = 0; i < m; ++i, ++unit) {
         const double s = theta[base + i] + theta[base + i];
         const double* g = scratch.upstream + unit * scratch.ld;
-        grad[shear_coef(core, k, i)] += s * poly_sum(g, mats[slot++].data(), h2, n);
+        grad[shear_coef(core, k, i)] += s * poly_sum(g, (step++)->data(), h2, n);
       }
       if (k + 1 < core.layers) {
         const double* g = scratch.upstream + unit++ * scratch.ld;
-        grad[act_coef(core, k)] += theta[base + m + 2] * poly_sum(g, mats[slot++].data(), h2, n);
+        grad[act_coef(core, k)] += theta[base + m + 2] * poly_sum(g, (step++)->data(), h2, n);
       }
     }
   }
@@ -223,13 +221,13 @@ bool d1_backward_kernel(const D1Core& core, const double* theta, const std::vect
 
 #else
 
-bool d1_backward_simd(const D1Core&, const double*, const std::vector<Matrix>&, std::size_t,
-                      const double*, Index, double*, double*, double*) {
+bool d1_backward_simd(const D1Core&, const double*, const Matrix*, const double*, Index, double*,
+                      double*, double*) {
   return false;
 }
 
-bool d1_backward_kernel(const D1Core&, const double*, const std::vector<Matrix>&, std::size_t,
-                        const double*, Index, double*, double*, double*) {
+bool d1_backward_kernel(const D1Core&, const double*, const Matrix*, const double*, Index, double*,
+                        double*, double*) {
   return false;
 }
 

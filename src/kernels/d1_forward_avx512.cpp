@@ -37,11 +37,11 @@ class RecordRows {
   }
   double** data() { return heap_ ? heap_.get() : local_; }
 
-  // Prefetches the headers of mats[0, units): they are read one after the other, each a likely
+  // Prefetches the headers of rows[0, units): they are read one after the other, each a likely
   // L1 miss, and the prefetches let the misses overlap.
-  static void prefetch(const Matrix* mats, Index units) {
-    const char* begin = reinterpret_cast<const char*>(mats);
-    const char* end = reinterpret_cast<const char*>(mats + units);
+  static void prefetch(const Matrix* rows, Index units) {
+    const char* begin = reinterpret_cast<const char*>(rows);
+    const char* end = reinterpret_cast<const char*>(rows + units);
     for (const char* line = begin; line < end; line += 64) __builtin_prefetch(line, 0, 3);
   }
 
@@ -177,18 +177,18 @@ __attribute__((target("avx512f,avx512vl"))) void flow_block(const D1Core& core, 
 }  // namespace
 
 bool d1_flow_simd(const D1Core& core, const double* theta, double* q, double* p, const double* h,
-                  Index n, std::vector<Matrix>* mats, std::size_t slot0) {
+                  Index n, Matrix* steps) {
   if (n < 1 || !use(Family::kD1Sweeps)) return false;
-  return d1_flow_kernel(core, theta, q, p, h, n, mats, slot0);
+  return d1_flow_kernel(core, theta, q, p, h, n, steps);
 }
 
 bool d1_flow_kernel(const D1Core& core, const double* theta, double* q, double* p, const double* h,
-                    Index n, std::vector<Matrix>* mats, std::size_t slot0) {
+                    Index n, Matrix* steps) {
   if (n < 1) return false;
-  RecordRows rows(mats != nullptr ? n_units(core) : 0);
+  RecordRows rows(steps != nullptr ? n_units(core) : 0);
   double* const* rec = nullptr;
-  if (mats != nullptr) {
-    Matrix* row = mats->data() + slot0;
+  if (steps != nullptr) {
+    Matrix* row = steps;
     RecordRows::prefetch(row, n_units(core));
     for (Index u = 0; u < n_units(core); ++u) {
       if (row[u].rows() != 1 || row[u].cols() != n) row[u].resize(1, n);
@@ -210,13 +210,11 @@ bool d1_flow_kernel(const D1Core& core, const double* theta, double* q, double* 
 
 #else
 
-bool d1_flow_simd(const D1Core&, const double*, double*, double*, const double*, Index,
-                  std::vector<Matrix>*, std::size_t) {
+bool d1_flow_simd(const D1Core&, const double*, double*, double*, const double*, Index, Matrix*) {
   return false;
 }
 
-bool d1_flow_kernel(const D1Core&, const double*, double*, double*, const double*, Index,
-                    std::vector<Matrix>*, std::size_t) {
+bool d1_flow_kernel(const D1Core&, const double*, double*, double*, const double*, Index, Matrix*) {
   return false;
 }
 

@@ -16,9 +16,6 @@
 // self-check against LA-SympNet's portable d = 1 loops.
 #pragma once
 
-#include <cstddef>
-#include <vector>
-
 #include "csympnet/core/types.hpp"
 
 namespace csympnet::kernels {
@@ -34,26 +31,26 @@ struct D1Core {
   Index coef0 = 0;
 };
 
-// Ψ_h in place on the rows q, p (n values each, step h_j for sample j). When mats is not null,
-// mats[slot0 + u] (resized to 1 x n) receives the input of every linear sublayer and σ of every
-// activation module, in application order, as LaSympNet::flow records them. Returns false,
-// writing nothing, unless the d1_sweeps family runs now (registry.hpp) and n >= 1.
+// Ψ_h in place on the rows q, p (n values each, step h_j for sample j). When `steps` is not
+// null it points to an array of one Matrix per recorded unit (layers · sublayers + layers − 1),
+// which receive (resized to 1 x n) the input of every linear sublayer and σ of every activation
+// module, in application order, as LaSympNet::flow records them. Returns false, writing
+// nothing, unless the d1_sweeps family runs now (registry.hpp) and n >= 1.
 bool d1_flow_simd(const D1Core& core, const double* theta, double* q, double* p, const double* h,
-                  Index n, std::vector<Matrix>* mats, std::size_t slot0);
+                  Index n, Matrix* steps);
 
-// Reverse mode of d1_flow_simd() from what it recorded: gq, gp (n values each) hold
-// dL/d(q_out, p_out) on entry and dL/d(q_in, p_in) on exit; grad += dL/dθ. Same conditions.
-bool d1_backward_simd(const D1Core& core, const double* theta, const std::vector<Matrix>& mats,
-                      std::size_t slot0, const double* h, Index n, double* gq, double* gp,
-                      double* grad);
+// Reverse mode of d1_flow_simd() from the rows it recorded in `steps`: gq, gp (n values each)
+// hold dL/d(q_out, p_out) on entry and dL/d(q_in, p_in) on exit; grad += dL/dθ. Same
+// conditions.
+bool d1_backward_simd(const D1Core& core, const double* theta, const Matrix* steps, const double* h,
+                      Index n, double* gq, double* gp, double* grad);
 
 // The same two without asking the registry, for the family's self-check (which the model
 // supplies: the reference is its own portable loops). Only where the CPU has AVX-512F and VL
 // and the sigmoid family is available; false where not built.
 bool d1_flow_kernel(const D1Core& core, const double* theta, double* q, double* p, const double* h,
-                    Index n, std::vector<Matrix>* mats, std::size_t slot0);
-bool d1_backward_kernel(const D1Core& core, const double* theta, const std::vector<Matrix>& mats,
-                        std::size_t slot0, const double* h, Index n, double* gq, double* gp,
-                        double* grad);
+                    Index n, Matrix* steps);
+bool d1_backward_kernel(const D1Core& core, const double* theta, const Matrix* steps,
+                        const double* h, Index n, double* gq, double* gp, double* grad);
 
 }  // namespace csympnet::kernels

@@ -174,54 +174,62 @@ Matrix CSympNetId::forward(ConstParams theta, const Matrix& Z, const Vector& h,
   const Index d = core_->d();
   const Index nc = core_->n_params();
   const Index n = Z.cols();
-  // Working rows: with a cache, its own slots (swapped out and back, so that the core may grow
-  // cache->mats meanwhile); an epoch then allocates only the returned matrix.
-  Vector a;
-  Matrix q, p;
+  // Working rows: with a cache, the context's own (so that an epoch allocates only the returned
+  // matrix); without, locals.
+  Vector a_local;
+  Matrix q_local, p_local;
+  Vector* a = &a_local;
+  Matrix* q = &q_local;
+  Matrix* p = &p_local;
   Matrix* p_in = nullptr;
+  ForwardCache* core_cache = nullptr;
   if (cache != nullptr) {
-    const std::size_t q_slot = kCoreSlot0 + core_->cache_slots();
-    if (cache->vecs.size() < 2) cache->vecs.resize(2);
-    if (cache->mats.size() < q_slot + 1) cache->mats.resize(q_slot + 1);
-    cache->vecs[0] = h;
-    a.swap(cache->vecs[1]);
-    p.swap(cache->mats[1]);
-    q.swap(cache->mats[q_slot]);
-    p_in = &cache->mats[0];
+    Context& ctx = cache->make_context<Context>();
+    ctx.h = h;
+    a = &ctx.a;
+    q = &ctx.q;
+    p = &ctx.p_core;
+    p_in = &ctx.p_in;
     p_in->resize(d, n);
+    core_cache = &ctx.core;
   }
   // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
-  conformal_factors(std::abs(theta(nc)), h, a);
-  q.resize(d, n);
-  p.resize(d, n);
-  split_rows(Z, &a, q, p, p_in);
-  core_->flow(theta.head(nc), q, p, h, cache, kCoreSlot0);
+  conformal_factors(std::abs(theta(nc)), h, *a);
+  q->resize(d, n);
+  p->resize(d, n);
+  split_rows(Z, a, *q, *p, p_in);
+  core_->flow(theta.head(nc), *q, *p, h, core_cache);
   Matrix out;
-  join_rows(q, p, a, out);
-  if (cache != nullptr) {
-    cache->vecs[1].swap(a);
-    cache->mats[1].swap(p);
-    cache->mats[kCoreSlot0 + core_->cache_slots()].swap(q);
-  }
+  join_rows(*q, *p, *a, out);
   return out;
+}
+
+const CSympNetId::Context& CSympNetId::recorded(const ForwardCache& cache,
+                                                const char* reader) const {
+  const auto& ctx = cache.context<Context>(reader);
+  require(ctx.p_in.rows() == core_->d(), [&] {
+    return std::string(reader) +
+           ": the cache holds a forward pass at d = " + std::to_string(ctx.p_in.rows()) +
+           ", this model has d = " + std::to_string(core_->d());
+  });
+  return ctx;
 }
 
 void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
                           ParamsRef grad, Matrix* dZin) const {
-  const bool recorded =
-      cache.vecs.size() >= 2 && cache.mats.size() >= kCoreSlot0 + core_->cache_slots();
-  const Index batch = recorded ? cache.vecs[0].size() : -1;
-  if (!recorded || theta.size() != n_params() || dZout.rows() != dim() || dZout.cols() != batch ||
+  const Context& ctx = recorded(cache, "csympnet::backward");
+  const Index batch = ctx.h.size();
+  if (theta.size() != n_params() || dZout.rows() != dim() || dZout.cols() != batch ||
       grad.size() != n_params()) {
     check_backward_args(*this, theta, batch, dZout, grad);
   }
   const Index d = core_->d();
   const Index nc = core_->n_params();
   const Index n = dZout.cols();
-  const Vector& h = cache.vecs[0];
-  const Vector& a = cache.vecs[1];
-  const Matrix& p_in = cache.mats[0];
-  const Matrix& p_core = cache.mats[1];
+  const Vector& h = ctx.h;
+  const Vector& a = ctx.a;
+  const Matrix& p_in = ctx.p_in;
+  const Matrix& p_core = ctx.p_core;
   Matrix gq(d, n), gp(d, n);
   // Outer scaling p_out = a ⊙ p_core:  dL/da_j = Σ_i G_ij p_core,ij,  dL/dp_core = a G.
   // (For d = 1 the column sums are single products, formed after the core below.)
@@ -233,7 +241,7 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
     grad_a = (gp.array() * p_core.array()).colwise().sum().transpose();
     kernels::scale_columns(gp, a.data());
   }
-  core_->flow_backward(theta.head(nc), cache, kCoreSlot0, h, gq, gp, grad.head(nc));
+  core_->flow_backward(theta.head(nc), ctx.core, h, gq, gp, grad.head(nc));
   // Inner scaling p̃ = a ⊙ p_in:  dL/da_j += Σ_i G̃_ij p_in,ij,  dL/dp_in = a G̃.
   // a_j = exp(−|β| h_j / 2):  da_j/dβ = −(h_j / 2) a_j sign(β).
   double sum;
@@ -250,17 +258,17 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
   if (dZin != nullptr) join_rows(gq, gp, a, *dZin);
 }
 
-void CSympNetId::size_forward(const Vector& h, ForwardCache& cache) const {
+CSympNetId::Context& CSympNetId::size_forward(const Vector& h, ForwardCache& cache) const {
   const Index d = core_->d();
   const Index n = h.size();
-  if (cache.vecs.size() < 2) cache.vecs.resize(2);
-  if (cache.mats.size() < q_slot() + 1) cache.mats.resize(q_slot() + 1);
-  cache.vecs[0] = h;
-  cache.vecs[1].resize(n);
-  cache.mats[0].resize(d, n);
-  cache.mats[1].resize(d, n);
-  cache.mats[q_slot()].resize(d, n);
-  core_->size_slots(cache, kCoreSlot0, n, false);
+  Context& ctx = cache.make_context<Context>();
+  ctx.h = h;
+  ctx.a.resize(n);
+  ctx.p_in.resize(d, n);
+  ctx.p_core.resize(d, n);
+  ctx.q.resize(d, n);
+  core_->size_flow(ctx.core, n, false);
+  return ctx;
 }
 
 bool CSympNetId::splits(Index n, const std::vector<Columns>& ranges) const {
@@ -271,14 +279,11 @@ void CSympNetId::prepare(ConstParams theta, const Vector& h, ForwardCache& cache
   check_theta(*this, theta, "prepare");
   require(core_->d() > 1, "csympnet: the column-split passes need d > 1");
   const Index n = h.size();
-  size_forward(h, cache);
-  core_->size_slots(cache, kCoreSlot0, n, true);
-  const std::size_t r = core_->record_slots();
-  if (cache.records.size() < r + 2) cache.records.resize(r + 2);
-  cache.records[r].resize(core_->d(), n);
-  cache.records[r + 1].resize(core_->d(), n);
-  if (cache.record_vecs.empty()) cache.record_vecs.resize(1);
-  cache.record_vecs[0].resize(n);
+  Context& ctx = size_forward(h, cache);
+  core_->size_flow(ctx.core, n, true);
+  ctx.gq.resize(core_->d(), n);
+  ctx.gp.resize(core_->d(), n);
+  ctx.grad_a.resize(n);
 }
 
 void CSympNetId::forward_columns(ConstParams theta, const Matrix& Z, ForwardCache& cache,
@@ -287,16 +292,17 @@ void CSympNetId::forward_columns(ConstParams theta, const Matrix& Z, ForwardCach
   const Index nc = core_->n_params();
   const Index c0 = cols.begin;
   const Index n = cols.size();
-  const Vector& h = cache.vecs[0];
-  Vector& a = cache.vecs[1];
-  Matrix& p_in = cache.mats[0];
-  Matrix& p = cache.mats[1];  // the core's p, in place: it ends as the core output
-  Matrix& q = cache.mats[q_slot()];
+  // Sized by prepare() or size_forward(): only looked up here (the ranges run in parallel).
+  Context& ctx = cache.context<Context>("csympnet::forward_columns");
+  const Vector& h = ctx.h;
+  Vector& a = ctx.a;
+  Matrix& p = ctx.p_core;  // the core's p, in place: it ends as the core output
+  Matrix& q = ctx.q;
   // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
   conformal_factors(std::abs(theta(nc)), h, a, cols);
   split_rows_d<0>(Z.data() + 2 * d * c0, n, d, a.data() + c0, q.data() + d * c0, p.data() + d * c0,
-                  p_in.data() + d * c0);
-  core_->flow_columns(theta.head(nc), q, p, h, &cache, kCoreSlot0, cols);
+                  ctx.p_in.data() + d * c0);
+  core_->flow_columns(theta.head(nc), q, p, h, &ctx.core, cols);
   join_rows_impl<0>(q.data() + d * c0, p.data() + d * c0, a.data() + c0, n, d,
                     out.data() + 2 * d * c0);
 }
@@ -307,34 +313,34 @@ void CSympNetId::backward_columns(ConstParams theta, const ForwardCache& cache, 
   const Index nc = core_->n_params();
   const Index c0 = cols.begin;
   const Index n = cols.size();
-  const Vector& h = cache.vecs[0];
-  const Vector& a = cache.vecs[1];
-  const std::size_t r = core_->record_slots();
-  Matrix& gq = cache.records[r];
-  Matrix& gp = cache.records[r + 1];
-  auto grad_a = cache.record_vecs[0].segment(c0, n);
+  const Context& ctx = recorded(cache, "csympnet::backward_columns");
+  const Vector& h = ctx.h;
+  const Vector& a = ctx.a;
+  Matrix& gq = ctx.gq;
+  Matrix& gp = ctx.gp;
+  auto grad_a = ctx.grad_a.segment(c0, n);
   const auto gpc = gp.middleCols(c0, n);
   // As backward(): dL/da_j from the outer scaling, then the core, then the inner scaling.
   split_rows_d<0>(dZout.data() + 2 * d * c0, n, d, nullptr, gq.data() + d * c0, gp.data() + d * c0,
                   nullptr);
-  grad_a = (gpc.array() * cache.mats[1].middleCols(c0, n).array()).colwise().sum().transpose();
+  grad_a = (gpc.array() * ctx.p_core.middleCols(c0, n).array()).colwise().sum().transpose();
   kernels::scale_columns(gp.middleCols(c0, n), a.data() + c0);
-  core_->backward_columns(theta.head(nc), cache, kCoreSlot0, h, gq, gp, cols);
-  grad_a.array() +=
-      (gpc.array() * cache.mats[0].middleCols(c0, n).array()).colwise().sum().transpose();
+  core_->backward_columns(theta.head(nc), ctx.core, h, gq, gp, cols);
+  grad_a.array() += (gpc.array() * ctx.p_in.middleCols(c0, n).array()).colwise().sum().transpose();
 }
 
 void CSympNetId::backward_params(ConstParams theta, const ForwardCache& cache, ParamsRef grad,
                                  Share share) const {
   const Index nc = core_->n_params();
-  core_->backward_params(theta.head(nc), cache, kCoreSlot0, cache.vecs[0], grad.head(nc), share);
+  const Context& ctx = recorded(cache, "csympnet::backward_params");
+  core_->backward_params(theta.head(nc), ctx.core, ctx.h, grad.head(nc), share);
 }
 
 void CSympNetId::backward_finish(ConstParams theta, const ForwardCache& cache,
                                  ParamsRef grad) const {
   const Index nc = core_->n_params();
-  const Vector& grad_a = cache.record_vecs[0];
-  const double sum = (grad_a.array() * cache.vecs[0].array() * cache.vecs[1].array()).sum();
+  const Context& ctx = recorded(cache, "csympnet::backward_finish");
+  const double sum = (ctx.grad_a.array() * ctx.h.array() * ctx.a.array()).sum();
   grad(nc) += -0.5 * abs_derivative(theta(nc)) * sum;
 }
 

@@ -38,9 +38,23 @@ class CSympNetId final : public OneStepMap, public ColumnSplitPasses {
   Index n_params() const override { return core_->n_params() + 1; }
   void init_params(Rng& rng, ParamsRef theta) const override;
 
-  // Cache layout: vecs[0] = h, vecs[1] = a(h); mats[0] = input p, mats[1] = core output p
-  // (before the outer scaling); the core's own slots follow from mats[2]; after them, the core
-  // output q (a working buffer, kept so that a training epoch reuses it).
+  // What forward() keeps for backward(), and the column-split backward's records.
+  struct Context final : ForwardContext {
+    const char* owner() const override { return "csympnet"; }
+    Vector h;       // the steps
+    Vector a;       // a(h_j) = exp(−γ̂ h_j / 2) per column
+    Matrix p_in;    // the input p, before the inner scaling (d x N)
+    Matrix p_core;  // the core's p: a ⊙ p_in, in place, ending as the core's output (before the
+                    // outer scaling)
+    Matrix q;       // the core's q, likewise (a working buffer, kept so that an epoch reuses it)
+    ForwardCache core;  // the core's flow context
+    // Written by backward_columns() through a const cache: the input gradients gq, gp of the
+    // sweep and dL/da per column (kept so that the epochs of a training run reuse them).
+    mutable Matrix gq;
+    mutable Matrix gp;
+    mutable Vector grad_a;
+  };
+
   Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
                  ForwardCache* cache) const override;
   void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,
@@ -52,8 +66,6 @@ class CSympNetId final : public OneStepMap, public ColumnSplitPasses {
   nlohmann::json hyperparams() const override;
 
   // The column-split passes (column_split.hpp), for cores with d > 1 whose sweeps split.
-  // Their records follow the core's in cache.records: the input gradients gq, gp of the sweep;
-  // cache.record_vecs[0] holds dL/da per column.
   const ColumnSplitPasses* column_split() const override { return this; }
   bool splits(Index n, const std::vector<Columns>& ranges) const override;
   void prepare(ConstParams theta, const Vector& h, ForwardCache& cache) const override;
@@ -66,11 +78,12 @@ class CSympNetId final : public OneStepMap, public ColumnSplitPasses {
   void backward_finish(ConstParams theta, const ForwardCache& cache, ParamsRef grad) const override;
 
  private:
-  static constexpr std::size_t kCoreSlot0 = 2;
-
-  std::size_t q_slot() const { return kCoreSlot0 + core_->cache_slots(); }
-  // Sizes the forward's cache entries (not the backward records) for the steps h.
-  void size_forward(const Vector& h, ForwardCache& cache) const;
+  // Makes cache hold this model's context with the forward's entries (not the backward
+  // records) sized for the steps h, and returns it.
+  Context& size_forward(const Vector& h, ForwardCache& cache) const;
+  // The context in cache, refused (Error naming `reader`) unless a forward pass of a
+  // CSympNet-ID of this d recorded it.
+  const Context& recorded(const ForwardCache& cache, const char* reader) const;
 
   std::unique_ptr<SymplecticCore> core_;
   double beta_init_;

@@ -33,30 +33,31 @@ Matrix DofScaledMap::forward(ConstParams theta, const Matrix& Z, const Vector& h
   const Vector mu = scales(theta);
   Matrix zs = Z;
   zs.bottomRows(d_) = mu.asDiagonal() * Z.bottomRows(d_);
-  Matrix out = inner_->forward(theta.head(inner_->n_params()), zs, h, cache);
+  Context* ctx = cache != nullptr ? &cache->make_context<Context>() : nullptr;
+  Matrix out = inner_->forward(theta.head(inner_->n_params()), zs, h,
+                               ctx != nullptr ? &ctx->inner : nullptr);
   out.bottomRows(d_) = mu.cwiseInverse().asDiagonal() * out.bottomRows(d_);
-  if (cache != nullptr) {
-    cache->outer.resize(2);
-    cache->outer[0] = zs.bottomRows(d_);
-    cache->outer[1] = out.bottomRows(d_);
+  if (ctx != nullptr) {
+    ctx->p_scaled = zs.bottomRows(d_);
+    ctx->p_out = out.bottomRows(d_);
   }
   return out;
 }
 
 void DofScaledMap::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
                             ParamsRef grad, Matrix* dZin) const {
-  require(cache.outer.size() == 2, "dof-scaled map: backward needs a forward cache");
+  const Context& ctx = cache.context<Context>("dof-scaled map: backward");
   const Vector mu = scales(theta);
   const Index pin = inner_->n_params();
   // out_p = out'_p / μ: dL/dout'_p = dL/dout_p / μ, and ∂/∂ν_i of out_p,i = −out_p,i.
   Matrix up = dZout;
   up.bottomRows(d_) = mu.cwiseInverse().asDiagonal() * dZout.bottomRows(d_);
   Matrix dzs;
-  inner_->backward(theta.head(pin), cache, up, grad.head(pin), &dzs);
+  inner_->backward(theta.head(pin), ctx.inner, up, grad.head(pin), &dzs);
   // z'_p = μ z_p: ∂/∂ν_i of z'_p,i = z'_p,i.
   for (Index i = 1; i < d_; ++i)
     grad(pin + i - 1) +=
-        dzs.row(d_ + i).dot(cache.outer[0].row(i)) - dZout.row(d_ + i).dot(cache.outer[1].row(i));
+        dzs.row(d_ + i).dot(ctx.p_scaled.row(i)) - dZout.row(d_ + i).dot(ctx.p_out.row(i));
   if (dZin != nullptr) {
     *dZin = dzs;
     dZin->bottomRows(d_) = mu.asDiagonal() * dzs.bottomRows(d_);

@@ -35,22 +35,32 @@ nlohmann::json GSympNet::core_spec() const {
 // The forward and backward sweeps work on a range of columns (the whole batch when serial);
 // the parameter sums run over all columns, module by module (column_split.hpp).
 
-void GSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const {
-  reserve_slots(cache, slot0 + cache_slots());
-  for (Index k = 0; k < layers_; ++k) {
-    const auto s = slot0 + static_cast<std::size_t>(2 * k);
-    cache.mats[s].resize(d(), n);         // the module's input
-    cache.mats[s + 1].resize(width_, n);  // σ(K x + b)
+void GSympNet::size_flow(ForwardCache& flow_cache, Index n, bool records) const {
+  auto& ctx = flow_cache.make_context<FlowContext>();
+  ctx.modules.resize(static_cast<std::size_t>(layers_));
+  for (FlowContext::Module& m : ctx.modules) {
+    m.input.resize(d(), n);
+    m.sigma.resize(width_, n);
   }
   if (records) {
-    if (cache.records.size() < record_slots()) cache.records.resize(record_slots());
-    for (Index k = 0; k < layers_; ++k) {
-      const auto r = static_cast<std::size_t>(3 * k);
-      cache.records[r].resize(d(), n);
-      cache.records[r + 1].resize(width_, n);
-      cache.records[r + 2].resize(width_, n);
+    ctx.records.resize(static_cast<std::size_t>(layers_));
+    for (FlowContext::ModuleRecords& r : ctx.records) {
+      r.g_dst_h.resize(d(), n);
+      r.gy.resize(width_, n);
+      r.gu.resize(width_, n);
     }
   }
+}
+
+const GSympNet::FlowContext& GSympNet::recorded(const ForwardCache& flow_cache,
+                                                const char* reader) const {
+  const auto& ctx = flow_cache.context<FlowContext>(reader);
+  require(ctx.modules.size() == static_cast<std::size_t>(layers_), [&] {
+    return std::string(reader) + ": the cache holds a flow of " +
+           std::to_string(ctx.modules.size()) + " modules, this core has " +
+           std::to_string(layers_);
+  });
+  return ctx;
 }
 
 bool GSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const {
@@ -68,10 +78,13 @@ bool GSympNet::splits_columns(Index n, const std::vector<Columns>& ranges) const
 }
 
 void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                            ForwardCache* cache, std::size_t slot0, Columns cols) const {
+                            ForwardCache* flow_cache, Columns cols) const {
   const Index dd = d();
   const Index c0 = cols.begin;
   const Index n = cols.size();
+  // Sized by size_flow(): this only looks the context up (the ranges run in parallel).
+  FlowContext* ctx =
+      flow_cache != nullptr ? &flow_cache->context<FlowContext>("g::flow_columns") : nullptr;
   Matrix u(width_, n);
   Matrix sig_local;
   Matrix scratch;
@@ -83,13 +96,14 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
     const bool kick = k % 2 == 0;
     const auto src = (kick ? q : p).middleCols(c0, n);
     auto dst = (kick ? p : q).middleCols(c0, n);
-    const auto slot = slot0 + static_cast<std::size_t>(2 * k);
-    if (cache != nullptr) kernels::copy_columns(src, cache->mats[slot].middleCols(c0, n));
+    FlowContext::Module* rec =
+        ctx != nullptr ? &ctx->modules[static_cast<std::size_t>(k)] : nullptr;
+    if (rec != nullptr) kernels::copy_columns(src, rec->input.middleCols(c0, n));
     detail::core_product_to(kmat, src, u, scratch);
     u.array().colwise() += b;
     // u then holds (a ⊙ σ) scaled by h per column; kick: p += Kᵀ u.
-    if (cache != nullptr) {
-      auto sig = cache->mats[slot + 1].middleCols(c0, n);
+    if (rec != nullptr) {
+      auto sig = rec->sigma.middleCols(c0, n);
       sigmoid_to(u, sig);
       kernels::columns_times_scaled(sig, a.data(), h.data() + c0, u);
     } else {
@@ -100,9 +114,9 @@ void GSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vecto
   }
 }
 
-void GSympNet::sweep_module(ConstParams theta, Index k, const ForwardCache& cache,
-                            std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
-                            Columns cols, Matrix& gh, Matrix& gy, Matrix& gu) const {
+void GSympNet::sweep_module(ConstParams theta, Index k, const FlowContext::Module& rec,
+                            const Vector& h, Matrix& gq, Matrix& gp, Columns cols,
+                            FlowContext::ModuleRecords& out) const {
   const Index dd = d();
   const Index c0 = cols.begin;
   const Index n = cols.size();
@@ -112,27 +126,29 @@ void GSympNet::sweep_module(ConstParams theta, Index k, const ForwardCache& cach
   const bool kick = k % 2 == 0;
   auto gsrc = (kick ? gq : gp).middleCols(c0, n);
   const auto gdst = (kick ? gp : gq).middleCols(c0, n);
-  const auto sig = cache.mats[slot0 + static_cast<std::size_t>(2 * k + 1)].middleCols(c0, n);
+  const auto sig = rec.sigma.middleCols(c0, n);
   Matrix scratch;
   // dst += Kᵀ y H:  dy = K (G_dst H);  y = a ⊙ σ(u):  du = dy ⊙ a ⊙ σ(1 − σ);
   // u = K src + b:  g_src += Kᵀ du.
-  auto ghc = gh.middleCols(c0, n);
+  auto ghc = out.g_dst_h.middleCols(c0, n);
   kernels::columns_times(gdst, h.data() + c0, ghc);
-  auto gyc = gy.middleCols(c0, n);
+  auto gyc = out.gy.middleCols(c0, n);
   detail::core_product_to(kmat, ghc, gyc, scratch);
-  auto guc = gu.middleCols(c0, n);
+  auto guc = out.gu.middleCols(c0, n);
   guc = ((gyc.array() * sig.array() * (1.0 - sig.array())).colwise() * a).matrix();
   detail::core_product_add(kmat.transpose(), guc, gsrc, scratch);
 }
 
-void GSympNet::params_module(ConstParams theta, Index k, const ForwardCache& cache,
-                             std::size_t slot0, const Matrix& gh, const Matrix& gy,
-                             const Matrix& gu, ParamsRef grad) const {
+void GSympNet::params_module(ConstParams theta, Index k, const FlowContext::Module& rec,
+                             const FlowContext::ModuleRecords& in, ParamsRef grad) const {
   const Index dd = d();
   const Index off = module_offset(k);
   const auto a = theta.segment(off + width_ * dd, width_).array();
-  const Matrix& src = cache.mats[slot0 + static_cast<std::size_t>(2 * k)];
-  const Matrix& sig = cache.mats[slot0 + static_cast<std::size_t>(2 * k + 1)];
+  const Matrix& src = rec.input;
+  const Matrix& sig = rec.sigma;
+  const Matrix& gh = in.g_dst_h;
+  const Matrix& gy = in.gy;
+  const Matrix& gu = in.gu;
   Eigen::Map<Matrix> grad_k(grad.data() + off, width_, dd);
   Matrix gk;
   // dK = y (G_dst H)ᵀ + du srcᵀ,  da = Σ_j dy ⊙ σ,  db = Σ_j du.
@@ -143,34 +159,35 @@ void GSympNet::params_module(ConstParams theta, Index k, const ForwardCache& cac
   detail::core_product_add(gu, src.transpose(), grad_k, gk);
 }
 
-void GSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                             const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
+void GSympNet::flow_backward(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                             Matrix& gq, Matrix& gp, ParamsRef grad) const {
+  const FlowContext& ctx = recorded(flow_cache, "g::flow_backward");
   const Index n = gq.cols();
-  Matrix gh(d(), n);
-  Matrix gy(width_, n);
-  Matrix gu(width_, n);
+  // The serial pass keeps one module's sweep values at a time.
+  FlowContext::ModuleRecords live{Matrix(d(), n), Matrix(width_, n), Matrix(width_, n)};
   for (Index k = layers_ - 1; k >= 0; --k) {
-    sweep_module(theta, k, cache, slot0, h, gq, gp, {0, n}, gh, gy, gu);
-    params_module(theta, k, cache, slot0, gh, gy, gu, grad);
+    const auto& rec = ctx.modules[static_cast<std::size_t>(k)];
+    sweep_module(theta, k, rec, h, gq, gp, {0, n}, live);
+    params_module(theta, k, rec, live, grad);
   }
 }
 
-void GSympNet::backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                                const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const {
+void GSympNet::backward_columns(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                                Matrix& gq, Matrix& gp, Columns cols) const {
+  const FlowContext& ctx = recorded(flow_cache, "g::backward_columns");
   for (Index k = layers_ - 1; k >= 0; --k) {
-    const auto r = static_cast<std::size_t>(3 * k);
-    sweep_module(theta, k, cache, slot0, h, gq, gp, cols, cache.records[r], cache.records[r + 1],
-                 cache.records[r + 2]);
+    const auto m = static_cast<std::size_t>(k);
+    sweep_module(theta, k, ctx.modules[m], h, gq, gp, cols, ctx.records[m]);
   }
 }
 
-void GSympNet::backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
+void GSympNet::backward_params(ConstParams theta, const ForwardCache& flow_cache,
                                const Vector& /*h*/, ParamsRef grad, Share share) const {
+  const FlowContext& ctx = recorded(flow_cache, "g::backward_params");
   for (Index k = layers_ - 1; k >= 0; --k) {
     if (!share.owns(layers_ - 1 - k)) continue;
-    const auto r = static_cast<std::size_t>(3 * k);
-    params_module(theta, k, cache, slot0, cache.records[r], cache.records[r + 1],
-                  cache.records[r + 2], grad);
+    const auto m = static_cast<std::size_t>(k);
+    params_module(theta, k, ctx.modules[m], ctx.records[m], grad);
   }
 }
 

@@ -38,20 +38,21 @@ bool la_d1_kernels_agree() {
     fill(gq.data(), kN, 1.0);
     fill(gp.data(), kN, 1.0);
     Matrix q2 = q, p2 = p, gq2 = gq, gp2 = gp;
-    ForwardCache c1, c2;
-    LaSympNet::reserve_slots(c2, net.cache_slots());
-    net.flow_d1_rows(theta, q, p, h, &c1, 0);
+    LaSympNet::FlowContext c1, c2;
+    c1.steps.resize(net.recorded_steps());
+    c2.steps.resize(net.recorded_steps());
+    net.flow_d1_rows(theta, q, p, h, &c1);
     if (!kernels::d1_flow_kernel(net.d1_core(), theta.data(), q2.data(), p2.data(), h.data(), kN,
-                                 &c2.mats, 0) ||
-        !same(q, q2) || !same(p, p2) || c1.mats.size() != c2.mats.size()) {
+                                 c2.steps.data()) ||
+        !same(q, q2) || !same(p, p2)) {
       return false;
     }
-    for (std::size_t i = 0; i < c1.mats.size(); ++i) {
-      if (!same(c1.mats[i], c2.mats[i])) return false;
+    for (std::size_t i = 0; i < c1.steps.size(); ++i) {
+      if (!same(c1.steps[i], c2.steps[i])) return false;
     }
     Vector g1 = Vector::Constant(net.n_params(), 0.25), g2 = g1;
-    net.flow_backward_d1_rows(theta, c1, 0, h, gq, gp, g1);
-    if (!kernels::d1_backward_kernel(net.d1_core(), theta.data(), c1.mats, 0, h.data(), kN,
+    net.flow_backward_d1_rows(theta, c1, h, gq, gp, g1);
+    if (!kernels::d1_backward_kernel(net.d1_core(), theta.data(), c1.steps.data(), h.data(), kN,
                                      gq2.data(), gp2.data(), g2.data()) ||
         !same(gq, gq2) || !same(gp, gp2) || !same(g1, g2)) {
       return false;

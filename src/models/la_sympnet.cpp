@@ -116,26 +116,43 @@ nlohmann::json LaSympNet::core_spec() const {
   return spec;
 }
 
-std::size_t LaSympNet::cache_slots() const {
+std::size_t LaSympNet::recorded_steps() const {
   // One input per linear sublayer, one σ value per activation module.
   return static_cast<std::size_t>(layers_ * sublayers_ + layers_ - 1);
 }
 
-void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-                     std::size_t slot0) const {
+LaSympNet::FlowContext& LaSympNet::flow_context(ForwardCache& flow_cache) const {
+  auto& ctx = flow_cache.make_context<FlowContext>();
+  ctx.steps.resize(recorded_steps());
+  return ctx;
+}
+
+const LaSympNet::FlowContext& LaSympNet::recorded(const ForwardCache& flow_cache,
+                                                  const char* reader) const {
+  const auto& ctx = flow_cache.context<FlowContext>(reader);
+  require(ctx.steps.size() == recorded_steps(), [&] {
+    return std::string(reader) + ": the cache holds a flow of " + std::to_string(ctx.steps.size()) +
+           " recorded steps, this core records " + std::to_string(recorded_steps());
+  });
+  return ctx;
+}
+
+void LaSympNet::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                     ForwardCache* flow_cache) const {
   if (d() == 1) {
-    flow_d1(theta, q, p, h, cache, slot0);
+    flow_d1(theta, q, p, h, flow_cache);
   } else {
-    SymplecticCore::flow(theta, q, p, h, cache, slot0);
+    SymplecticCore::flow(theta, q, p, h, flow_cache);
   }
 }
 
-void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                              const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
+void LaSympNet::flow_backward(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                              Matrix& gq, Matrix& gp, ParamsRef grad) const {
+  const FlowContext& ctx = recorded(flow_cache, "la::flow_backward");
   if (d() == 1) {
-    flow_backward_d1(theta, cache, slot0, h, gq, gp, grad);
+    flow_backward_d1(theta, ctx, h, gq, gp, grad);
   } else {
-    flow_backward_batch(theta, cache, slot0, h, gq, gp, grad);
+    flow_backward_batch(theta, ctx, h, gq, gp, grad);
   }
 }
 
@@ -144,34 +161,34 @@ kernels::D1Core LaSympNet::d1_core() const {
 }
 
 void LaSympNet::flow_d1(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                        ForwardCache* cache, std::size_t slot0) const {
-  if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
+                        ForwardCache* flow_cache) const {
+  FlowContext* ctx = flow_cache != nullptr ? &flow_context(*flow_cache) : nullptr;
   if (kernels::d1_flow_simd(d1_core(), theta.data(), q.data(), p.data(), h.data(), q.cols(),
-                            cache != nullptr ? &cache->mats : nullptr, slot0)) {
+                            ctx != nullptr ? ctx->steps.data() : nullptr)) {
     return;
   }
-  flow_d1_rows(theta, q, p, h, cache, slot0);
+  flow_d1_rows(theta, q, p, h, ctx);
 }
 
-void LaSympNet::flow_backward_d1(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                                 const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
-  if (kernels::d1_backward_simd(d1_core(), theta.data(), cache.mats, slot0, h.data(), gq.cols(),
+void LaSympNet::flow_backward_d1(ConstParams theta, const FlowContext& ctx, const Vector& h,
+                                 Matrix& gq, Matrix& gp, ParamsRef grad) const {
+  if (kernels::d1_backward_simd(d1_core(), theta.data(), ctx.steps.data(), h.data(), gq.cols(),
                                 gq.data(), gp.data(), grad.data())) {
     return;
   }
-  flow_backward_d1_rows(theta, cache, slot0, h, gq, gp, grad);
+  flow_backward_d1_rows(theta, ctx, h, gq, gp, grad);
 }
 
 // d = 1: each S is the scalar 2A and q, p are single rows of N values. The general path's
 // operations, per element and in the same order, without its d x d products and temporaries,
 // so the results are bit-identical to it.
 void LaSympNet::flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                             ForwardCache* cache, std::size_t slot0) const {
+                             FlowContext* ctx) const {
   if (d() != 1) throw Error("la::flow_d1_rows: d = " + std::to_string(d()) + ", expected 1");
   const Index n = q.cols();
   const auto hrow = ConstRowMap(h.data(), n).array();
-  std::size_t slot = slot0;
-  if (cache != nullptr) reserve_slots(*cache, slot0 + cache_slots());
+  // The recorded steps in application order (sized by the caller).
+  Matrix* step = ctx != nullptr ? ctx->steps.data() : nullptr;
   Matrix sig_local;
   Vector tau_buf;
   for (Index k = 0; k < layers_; ++k) {
@@ -180,7 +197,7 @@ void LaSympNet::flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vect
       const bool kick = i % 2 == 0;
       const Matrix& src = kick ? q : p;
       Matrix& dst = kick ? p : q;
-      if (cache != nullptr) cache->mats[slot++] = src;
+      if (step != nullptr) *step++ = src;
       const double s = theta(off) + theta(off);
       const auto trow =
           ConstRowMap(unit_step(theta, shear_coef(k, i), h, tau_buf).data(), n).array();
@@ -193,7 +210,7 @@ void LaSympNet::flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vect
       const bool kick = k % 2 == 0;
       const Matrix& src = kick ? q : p;
       Matrix& dst = kick ? p : q;
-      Matrix& sig = cache != nullptr ? cache->mats[slot++] : sig_local;
+      Matrix& sig = step != nullptr ? *step++ : sig_local;
       sigmoid_into(src, sig);
       const double a = theta(off + 2);
       const auto trow = ConstRowMap(unit_step(theta, act_coef(k), h, tau_buf).data(), n).array();
@@ -203,9 +220,8 @@ void LaSympNet::flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vect
   }
 }
 
-void LaSympNet::flow_backward_d1_rows(ConstParams theta, const ForwardCache& cache,
-                                      std::size_t slot0, const Vector& h, Matrix& gq, Matrix& gp,
-                                      ParamsRef grad) const {
+void LaSympNet::flow_backward_d1_rows(ConstParams theta, const FlowContext& ctx, const Vector& h,
+                                      Matrix& gq, Matrix& gp, ParamsRef grad) const {
   if (d() != 1) {
     throw Error("la::flow_backward_d1_rows: d = " + std::to_string(d()) + ", expected 1");
   }
@@ -220,7 +236,8 @@ void LaSympNet::flow_backward_d1_rows(ConstParams theta, const ForwardCache& cac
   Matrix gh(n, n_shears + 1);  // the last column is scratch for the activation modules
   std::vector<const double*> shear_src(static_cast<std::size_t>(n_shears));
   std::vector<Index> shear_off(static_cast<std::size_t>(n_shears));
-  std::size_t slot = slot0 + cache_slots();
+  // The recorded steps, walked back from the last.
+  const Matrix* step = ctx.steps.data() + ctx.steps.size();
   Index t = n_shears;
   for (Index k = layers_ - 1; k >= 0; --k) {
     const Index base = module_offset(k);
@@ -229,7 +246,7 @@ void LaSympNet::flow_backward_d1_rows(ConstParams theta, const ForwardCache& cac
       const bool kick = k % 2 == 0;
       Matrix& gsrc = kick ? gq : gp;
       const Matrix& gdst = kick ? gp : gq;
-      const Matrix& sig = cache.mats[--slot];
+      const Matrix& sig = *--step;
       const double a = theta(bias + 2);
       if (poly) {
         const auto gd = ConstRowMap(gdst.data(), n).array();
@@ -250,7 +267,7 @@ void LaSympNet::flow_backward_d1_rows(ConstParams theta, const ForwardCache& cac
       Matrix& gsrc = kick ? gq : gp;
       const Matrix& gdst = kick ? gp : gq;
       --t;
-      shear_src[static_cast<std::size_t>(t)] = cache.mats[--slot].data();
+      shear_src[static_cast<std::size_t>(t)] = (--step)->data();
       shear_off[static_cast<std::size_t>(t)] = base + i;
       const double s = theta(base + i) + theta(base + i);
       if (poly) {

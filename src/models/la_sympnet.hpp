@@ -45,27 +45,48 @@ class LaSympNet final : public SymplecticCore {
   Index n_params() const override;
   void init_params(Rng& rng, ParamsRef theta) const override;
   nlohmann::json core_spec() const override;
-  std::size_t cache_slots() const override;
+
+  // What flow() records, and the column-split backward's records.
+  struct FlowContext final : ForwardContext {
+    const char* owner() const override { return "la core"; }
+    // The backward sweep's values at one unit (backward_units()), read by its parameter step:
+    // a shear or an activation module keeps gh = G_dst ⊙ τ and, with step polynomials, g_dst;
+    // a bias unit keeps g_p and g_q. Unused members stay empty.
+    struct SweepRecords {
+      Matrix gh;
+      Matrix g_dst;
+      Matrix gp;
+      Matrix gq;
+    };
+    // In application order, per linear module k: the input of each of its sublayers, then
+    // (k < L − 1) σ of the activation module after it; recorded_steps() in all. One array in
+    // that order because the d = 1 kernels walk it as rows (d1_sweeps.hpp).
+    std::vector<Matrix> steps;
+    // Per unit of backward_units(), written by backward_columns() through a const cache:
+    // scratch of the backward pass, kept so that the epochs of a training run reuse it.
+    mutable std::vector<SweepRecords> records;
+  };
+  // How many entries of FlowContext::steps one flow() records.
+  std::size_t recorded_steps() const;
 
   // d = 1 runs single-row sweeps (flow_d1); d > 1 the column passes of la_sympnet_sweeps.cpp.
-  void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-            std::size_t slot0) const override;
-  void flow_backward(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                     const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const override;
+  void flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+            ForwardCache* flow_cache) const override;
+  void flow_backward(ConstParams theta, const ForwardCache& flow_cache, const Vector& h, Matrix& gq,
+                     Matrix& gp, ParamsRef grad) const override;
   void flow_tangent(ConstParams theta, Vector& q, Vector& p, Matrix& tq, Matrix& tp,
                     double h) const override;
 
   // The column-split passes need d > 1 (false from splits_columns() at d = 1, and the other
   // four throw Error there).
   bool splits_columns(Index n, const std::vector<Columns>& ranges) const override;
-  std::size_t record_slots() const override;
-  void size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const override;
-  void flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-                    std::size_t slot0, Columns cols) const override;
-  void backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                        const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const override;
-  void backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                       const Vector& h, ParamsRef grad, Share share) const override;
+  void size_flow(ForwardCache& flow_cache, Index n, bool records) const override;
+  void flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                    ForwardCache* flow_cache, Columns cols) const override;
+  void backward_columns(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                        Matrix& gq, Matrix& gp, Columns cols) const override;
+  void backward_params(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                       ParamsRef grad, Share share) const override;
 
   Index layers() const { return layers_; }
   Index sublayers() const { return sublayers_; }
@@ -74,16 +95,22 @@ class LaSympNet final : public SymplecticCore {
  private:
   // flow() and flow_backward() for d = 1: the d = 1 sweep kernels (src/kernels/d1_sweeps.hpp)
   // where they run, else the single-row loops below.
-  void flow_d1(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-               std::size_t slot0) const;
-  void flow_backward_d1(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                        const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  void flow_d1(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+               ForwardCache* flow_cache) const;
+  void flow_backward_d1(ConstParams theta, const FlowContext& ctx, const Vector& h, Matrix& gq,
+                        Matrix& gp, ParamsRef grad) const;
   // The d = 1 loops in Eigen expressions, what runs where the kernels do not, and the reference
   // of their self-check (la_d1_check.cpp).
-  void flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vector& h, ForwardCache* cache,
-                    std::size_t slot0) const;
-  void flow_backward_d1_rows(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                             const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  void flow_d1_rows(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
+                    FlowContext* ctx) const;
+  void flow_backward_d1_rows(ConstParams theta, const FlowContext& ctx, const Vector& h, Matrix& gq,
+                             Matrix& gp, ParamsRef grad) const;
+  // This core's flow context in flow_cache, with its steps sized for recorded_steps() (the d = 1
+  // paths size the rows themselves).
+  FlowContext& flow_context(ForwardCache& flow_cache) const;
+  // The flow context recorded in flow_cache, refused (Error naming `reader`) unless a flow of a
+  // core with as many steps recorded it.
+  const FlowContext& recorded(const ForwardCache& flow_cache, const char* reader) const;
   kernels::D1Core d1_core() const;
   friend bool detail::la_d1_kernels_agree();
 
@@ -93,15 +120,15 @@ class LaSympNet final : public SymplecticCore {
   // columns; its parameter step adds its block of dL/dθ from what the sweep step left.
   struct Unit;
   struct UnitRecords;
-  std::vector<Unit> backward_units(std::size_t slot0) const;
+  std::vector<Unit> backward_units() const;
   void require_batch_core(const char* what) const;
-  void sweep_unit(ConstParams theta, const Unit& u, const ForwardCache& cache, const Vector& h,
+  void sweep_unit(ConstParams theta, const Unit& u, const FlowContext& ctx, const Vector& h,
                   Matrix& gq, Matrix& gp, Columns cols, const UnitRecords& out) const;
-  void params_unit(ConstParams theta, const Unit& u, const ForwardCache& cache, const Vector& h,
+  void params_unit(ConstParams theta, const Unit& u, const FlowContext& ctx, const Vector& h,
                    const Vector& h2, const UnitRecords& in, ParamsRef grad) const;
   // flow_backward() at d > 1: each unit's sweep step on all columns, then its parameter step.
-  void flow_backward_batch(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                           const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const;
+  void flow_backward_batch(ConstParams theta, const FlowContext& ctx, const Vector& h, Matrix& gq,
+                           Matrix& gp, ParamsRef grad) const;
   // τ on columns cols: h itself when step_terms = 1, else h ⊙ (1 + c h) written to buf.
   const double* unit_step_columns(ConstParams theta, Index coef, const Vector& h, Columns cols,
                                   Vector& buf) const;

@@ -28,7 +28,7 @@ struct LaSympNet::Unit {
   Kind kind;
   Index k;           // linear module
   Index i;           // shear within it (kShear)
-  std::size_t slot;  // cache slot of its σ (kActivation) or of its input (kShear)
+  std::size_t step;  // its σ (kActivation) or its input (kShear) in FlowContext::steps
   // Whether the update it reverses is a kick (it changes p; its gradient flows into g_q).
   bool kick() const { return (kind == Kind::kShear ? i : k) % 2 == 0; }
 };
@@ -48,31 +48,34 @@ void LaSympNet::require_batch_core(const char* what) const {
   if (d() == 1) throw Error(std::string("la::") + what + ": the column passes need d > 1");
 }
 
-std::vector<LaSympNet::Unit> LaSympNet::backward_units(std::size_t slot0) const {
+std::vector<LaSympNet::Unit> LaSympNet::backward_units() const {
   std::vector<Unit> units;
-  std::size_t slot = slot0 + cache_slots();
+  // The recorded steps are in application order; the units walk them back from the last.
+  std::size_t step = recorded_steps();
   for (Index k = layers_ - 1; k >= 0; --k) {
-    if (k + 1 < layers_) units.push_back({Unit::Kind::kActivation, k, 0, --slot});
+    if (k + 1 < layers_) units.push_back({Unit::Kind::kActivation, k, 0, --step});
     units.push_back({Unit::Kind::kBias, k, 0, 0});
-    for (Index i = sublayers_ - 1; i >= 0; --i) units.push_back({Unit::Kind::kShear, k, i, --slot});
+    for (Index i = sublayers_ - 1; i >= 0; --i) units.push_back({Unit::Kind::kShear, k, i, --step});
   }
   return units;
 }
 
-std::size_t LaSympNet::record_slots() const {
-  // Per unit: gh and, with step polynomials, g_dst; per bias unit: g_p and g_q.
-  const auto poly = static_cast<std::size_t>(step_terms_ == 2 ? 1 : 0);
-  const auto shears = static_cast<std::size_t>(layers_ * sublayers_);
-  const auto activations = static_cast<std::size_t>(layers_ - 1);
-  return (shears + activations) * (1 + poly) + 2 * static_cast<std::size_t>(layers_);
-}
-
-void LaSympNet::size_slots(ForwardCache& cache, std::size_t slot0, Index n, bool records) const {
-  reserve_slots(cache, slot0 + cache_slots());
-  for (std::size_t s = slot0; s < slot0 + cache_slots(); ++s) cache.mats[s].resize(d(), n);
+void LaSympNet::size_flow(ForwardCache& flow_cache, Index n, bool records) const {
+  FlowContext& ctx = flow_context(flow_cache);
+  for (Matrix& step : ctx.steps) step.resize(d(), n);
   if (records) {
-    if (cache.records.size() < record_slots()) cache.records.resize(record_slots());
-    for (std::size_t r = 0; r < record_slots(); ++r) cache.records[r].resize(d(), n);
+    const std::vector<Unit> units = backward_units();
+    ctx.records.resize(units.size());
+    for (std::size_t r = 0; r < units.size(); ++r) {
+      FlowContext::SweepRecords& rec = ctx.records[r];
+      if (units[r].kind == Unit::Kind::kBias) {
+        rec.gp.resize(d(), n);
+        rec.gq.resize(d(), n);
+      } else {
+        rec.gh.resize(d(), n);
+        if (step_terms_ == 2) rec.g_dst.resize(d(), n);
+      }
+    }
   }
 }
 
@@ -96,8 +99,12 @@ const double* LaSympNet::unit_step_columns(ConstParams theta, Index coef, const 
 }
 
 void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                             ForwardCache* cache, std::size_t slot0, Columns cols) const {
+                             ForwardCache* flow_cache, Columns cols) const {
   require_batch_core("flow_columns");
+  // Sized by size_flow(): this only looks the context up (the ranges run in parallel).
+  Matrix* step = flow_cache != nullptr
+                     ? flow_cache->context<FlowContext>("la::flow_columns").steps.data()
+                     : nullptr;
   const Index dd = d();
   const Index c0 = cols.begin;
   const Index n = cols.size();
@@ -105,14 +112,13 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
   Matrix scratch;
   Matrix sig_local;
   Vector tau_buf;
-  std::size_t slot = slot0;
   for (Index k = 0; k < layers_; ++k) {
     Index off = module_offset(k);
     for (Index i = 0; i < sublayers_; ++i, off += dd * dd) {
       const bool kick = i % 2 == 0;
       const auto src = (kick ? q : p).middleCols(c0, n);
       auto dst = (kick ? p : q).middleCols(c0, n);
-      if (cache != nullptr) kernels::copy_columns(src, cache->mats[slot++].middleCols(c0, n));
+      if (step != nullptr) kernels::copy_columns(src, (step++)->middleCols(c0, n));
       symmetric_from(theta, off, dd, s);
       const double* tau = unit_step_columns(theta, shear_coef(k, i), h, cols, tau_buf);
       detail::core_product_add_scaled(s, src, tau, dst,
@@ -127,8 +133,8 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
       const auto a = theta.segment(off + 2 * dd, dd).array();
       const double* tau = unit_step_columns(theta, act_coef(k), h, cols, tau_buf);
       // kick p += h a ⊙ σ(q)
-      if (cache != nullptr) {
-        auto sig = cache->mats[slot++].middleCols(c0, n);
+      if (step != nullptr) {
+        auto sig = (step++)->middleCols(c0, n);
         sigmoid_to(src, sig);
         kernels::add_columns_times_scaled(sig, a.data(), tau, dst);
       } else {
@@ -139,7 +145,7 @@ void LaSympNet::flow_columns(ConstParams theta, Matrix& q, Matrix& p, const Vect
   }
 }
 
-void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const ForwardCache& cache,
+void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const FlowContext& ctx,
                            const Vector& h, Matrix& gq, Matrix& gp, Columns cols,
                            const UnitRecords& out) const {
   const Index dd = d();
@@ -163,7 +169,7 @@ void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const ForwardCache&
   kernels::columns_times(gdst, unit_step_columns(theta, coef, h, cols, tau_buf), gh);
   if (act) {
     // dst += h a ⊙ σ(src):  g_src += h a ⊙ σ' ⊙ g_dst.
-    const auto sig = cache.mats[u.slot].middleCols(c0, n);
+    const auto sig = ctx.steps[u.step].middleCols(c0, n);
     const auto a = theta.segment(module_offset(u.k) + sublayers_ * dd * dd + 2 * dd, dd).array();
     gsrc.array() += (gh.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
   } else {
@@ -175,7 +181,7 @@ void LaSympNet::sweep_unit(ConstParams theta, const Unit& u, const ForwardCache&
   }
 }
 
-void LaSympNet::params_unit(ConstParams theta, const Unit& u, const ForwardCache& cache,
+void LaSympNet::params_unit(ConstParams theta, const Unit& u, const FlowContext& ctx,
                             const Vector& h, const Vector& h2, const UnitRecords& in,
                             ParamsRef grad) const {
   const Index dd = d();
@@ -189,7 +195,7 @@ void LaSympNet::params_unit(ConstParams theta, const Unit& u, const ForwardCache
       return;
     case Unit::Kind::kActivation: {
       // da = Σ_j h_j g_dst ⊙ σ; with step polynomials dc = Σ_j h_j² g_dst,j · (a ⊙ σ_j).
-      const Matrix& sig = cache.mats[u.slot];
+      const Matrix& sig = ctx.steps[u.step];
       const auto a = theta.segment(bias + 2 * dd, dd).array();
       if (poly)
         grad(act_coef(u.k)) +=
@@ -200,7 +206,7 @@ void LaSympNet::params_unit(ConstParams theta, const Unit& u, const ForwardCache
     case Unit::Kind::kShear: {
       // dS = (G_dst H) srcᵀ, dA = dS + dSᵀ; with step polynomials dc = Σ_j h_j² g_dst,j · (S
       // src_j).
-      const Matrix& src = cache.mats[u.slot];
+      const Matrix& src = ctx.steps[u.step];
       const Index off = module_offset(u.k) + u.i * dd * dd;
       if (poly) {
         Matrix s(dd, dd);
@@ -219,61 +225,64 @@ void LaSympNet::params_unit(ConstParams theta, const Unit& u, const ForwardCache
 
 namespace {
 
-// The records of one unit in cache.records, from index r on (advanced past them).
-template <typename Unit>
-auto records_at(const Unit& u, bool poly, std::vector<Matrix>& recs, std::size_t& r) {
+// What a unit's steps read and write among its records in the flow context.
+template <typename Unit, typename Records>
+auto records_of(const Unit& u, bool poly, Records& rec) {
   struct {
     Matrix* gh = nullptr;
     Matrix* g1 = nullptr;
     Matrix* g2 = nullptr;
   } out;
   if (u.kind == Unit::Kind::kBias) {
-    out.g1 = &recs[r++];
-    out.g2 = &recs[r++];
+    out.g1 = &rec.gp;
+    out.g2 = &rec.gq;
   } else {
-    out.gh = &recs[r++];
-    if (poly) out.g1 = &recs[r++];
+    out.gh = &rec.gh;
+    if (poly) out.g1 = &rec.g_dst;
   }
   return out;
 }
 
 }  // namespace
 
-void LaSympNet::backward_columns(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                                 const Vector& h, Matrix& gq, Matrix& gp, Columns cols) const {
+void LaSympNet::backward_columns(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                                 Matrix& gq, Matrix& gp, Columns cols) const {
   require_batch_core("backward_columns");
-  std::size_t r = 0;
-  for (const Unit& u : backward_units(slot0)) {
-    const auto rec = records_at(u, step_terms_ == 2, cache.records, r);
-    sweep_unit(theta, u, cache, h, gq, gp, cols, {rec.gh, rec.g1, rec.g2, true});
+  const FlowContext& ctx = recorded(flow_cache, "la::backward_columns");
+  const std::vector<Unit> units = backward_units();
+  for (std::size_t r = 0; r < units.size(); ++r) {
+    const auto rec = records_of(units[r], step_terms_ == 2, ctx.records[r]);
+    sweep_unit(theta, units[r], ctx, h, gq, gp, cols, {rec.gh, rec.g1, rec.g2, true});
   }
 }
 
-void LaSympNet::backward_params(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                                const Vector& h, ParamsRef grad, Share share) const {
+void LaSympNet::backward_params(ConstParams theta, const ForwardCache& flow_cache, const Vector& h,
+                                ParamsRef grad, Share share) const {
   require_batch_core("backward_params");
+  const FlowContext& ctx = recorded(flow_cache, "la::backward_params");
   const Vector h2 = step_terms_ == 2 ? Vector(h.array().square()) : Vector();
-  std::size_t r = 0;
   // Shears are dealt to the shares in turn, and so, separately, are the cheap units.
   Index shears = 0;
   Index others = 0;
-  for (const Unit& u : backward_units(slot0)) {
-    const auto rec = records_at(u, step_terms_ == 2, cache.records, r);
+  const std::vector<Unit> units = backward_units();
+  for (std::size_t r = 0; r < units.size(); ++r) {
+    const Unit& u = units[r];
+    const auto rec = records_of(u, step_terms_ == 2, ctx.records[r]);
     const bool mine = share.owns(u.kind == Unit::Kind::kShear ? shears++ : others++);
-    if (mine) params_unit(theta, u, cache, h, h2, {rec.gh, rec.g1, rec.g2, true}, grad);
+    if (mine) params_unit(theta, u, ctx, h, h2, {rec.gh, rec.g1, rec.g2, true}, grad);
   }
 }
 
-void LaSympNet::flow_backward_batch(ConstParams theta, const ForwardCache& cache, std::size_t slot0,
-                                    const Vector& h, Matrix& gq, Matrix& gp, ParamsRef grad) const {
+void LaSympNet::flow_backward_batch(ConstParams theta, const FlowContext& ctx, const Vector& h,
+                                    Matrix& gq, Matrix& gp, ParamsRef grad) const {
   const Index n = gq.cols();
   const Vector h2 = step_terms_ == 2 ? Vector(h.array().square()) : Vector();
   Matrix gh(d(), n);
-  for (const Unit& u : backward_units(slot0)) {
+  for (const Unit& u : backward_units()) {
     UnitRecords live{&gh, &gp, &gq, false};
     if (u.kind != Unit::Kind::kBias) live.g1 = u.kick() ? &gp : &gq;  // g_dst
-    sweep_unit(theta, u, cache, h, gq, gp, {0, n}, live);
-    params_unit(theta, u, cache, h, h2, live, grad);
+    sweep_unit(theta, u, ctx, h, gq, gp, {0, n}, live);
+    params_unit(theta, u, ctx, h, h2, live, grad);
   }
 }
 

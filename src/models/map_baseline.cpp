@@ -35,30 +35,23 @@ Matrix MapBaseline::forward(ConstParams theta, const Matrix& Z, const Vector& h,
   input.topRows(Z.rows()) = Z;
   input.row(Z.rows()) = h.transpose();
   if (cache == nullptr) return Z + net_.forward(theta, input, nullptr);
-  // The MLP's activations live in cache->mats; swapping them in and out reuses the storage.
-  MlpCache net_cache;
-  net_cache.acts.swap(cache->mats);
-  Matrix out = Z + net_.forward(theta, input, &net_cache);
-  net_cache.acts.swap(cache->mats);
-  cache->vecs.resize(1);
-  cache->vecs[0] = h;
+  Context& ctx = cache->make_context<Context>();
+  Matrix out = Z + net_.forward(theta, input, &ctx.net);
+  ctx.h = h;
   return out;
 }
 
 void MapBaseline::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
                            ParamsRef grad, Matrix* dZin) const {
-  const bool recorded = cache.vecs.size() == 1 && !cache.mats.empty();
-  check_backward_args(*this, theta, recorded ? cache.vecs[0].size() : -1, dZout, grad);
-  // ForwardCache is const here, so the activations are copied (O(wN), small next to the
-  // O(w²N) products of the backward pass).
-  MlpCache net_cache{cache.mats};
+  const Context& ctx = cache.context<Context>("map::backward");
+  check_backward_args(*this, theta, ctx.h.size(), dZout, grad);
   if (dZin == nullptr) {
-    net_.backward(theta, net_cache, dZout, grad, nullptr);
+    net_.backward(theta, ctx.net, dZout, grad, nullptr);
     return;
   }
   // z' = z + MLP([z; h]): the identity path adds dZout; the h row of dX is dropped.
   Matrix dx;
-  net_.backward(theta, net_cache, dZout, grad, &dx);
+  net_.backward(theta, ctx.net, dZout, grad, &dx);
   *dZin = dZout + dx.topRows(dim());
 }
 

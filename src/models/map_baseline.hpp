@@ -26,7 +26,13 @@ class MapBaseline final : public OneStepMap {
   Index n_params() const override { return net_.n_params(); }
   void init_params(Rng& rng, ParamsRef theta) const override;
 
-  // Cache layout: vecs[0] = h; mats = the MLP's activations (input [Z; hᵀ] first).
+  // What forward() keeps for backward().
+  struct Context final : ForwardContext {
+    const char* owner() const override { return "map"; }
+    Vector h;      // the steps
+    MlpCache net;  // the MLP's activations (its input [Z; hᵀ] first)
+  };
+
   Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
                  ForwardCache* cache) const override;
   void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,

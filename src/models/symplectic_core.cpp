@@ -10,14 +10,10 @@ SymplecticCore::SymplecticCore(Index d) : d_(d) {
           [&] { return "symplectic core: d = " + std::to_string(d) + ", expected d >= 1"; });
 }
 
-void SymplecticCore::reserve_slots(ForwardCache& cache, std::size_t n) {
-  if (cache.mats.size() < n) cache.mats.resize(n);
-}
-
 void SymplecticCore::flow(ConstParams theta, Matrix& q, Matrix& p, const Vector& h,
-                          ForwardCache* cache, std::size_t slot0) const {
-  if (cache != nullptr) size_slots(*cache, slot0, q.cols(), false);
-  flow_columns(theta, q, p, h, cache, slot0, {0, q.cols()});
+                          ForwardCache* flow_cache) const {
+  if (flow_cache != nullptr) size_flow(*flow_cache, q.cols(), false);
+  flow_columns(theta, q, p, h, flow_cache, {0, q.cols()});
 }
 
 Matrix SymplecticCore::forward(ConstParams theta, const Matrix& Z, const Vector& h,
@@ -25,11 +21,13 @@ Matrix SymplecticCore::forward(ConstParams theta, const Matrix& Z, const Vector&
   check_forward_args(*this, theta, Z, h);
   Matrix q = Z.topRows(d_);
   Matrix p = Z.bottomRows(d_);
+  ForwardCache* flow_cache = nullptr;
   if (cache != nullptr) {
-    if (cache->vecs.empty()) cache->vecs.resize(1);
-    cache->vecs[0] = h;
+    auto& ctx = cache->make_context<MapContext>();
+    ctx.h = h;
+    flow_cache = &ctx.flow;
   }
-  flow(theta, q, p, h, cache, 0);
+  flow(theta, q, p, h, flow_cache);
   Matrix out(2 * d_, Z.cols());
   out.topRows(d_) = q;
   out.bottomRows(d_) = p;
@@ -38,11 +36,11 @@ Matrix SymplecticCore::forward(ConstParams theta, const Matrix& Z, const Vector&
 
 void SymplecticCore::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
                               ParamsRef grad, Matrix* dZin) const {
-  const bool recorded = !cache.vecs.empty() && cache.mats.size() >= cache_slots();
-  check_backward_args(*this, theta, recorded ? cache.vecs[0].size() : -1, dZout, grad);
+  const auto& ctx = cache.context<MapContext>("symplectic core backward");
+  check_backward_args(*this, theta, ctx.h.size(), dZout, grad);
   Matrix gq = dZout.topRows(d_);
   Matrix gp = dZout.bottomRows(d_);
-  flow_backward(theta, cache, 0, cache.vecs[0], gq, gp, grad);
+  flow_backward(theta, ctx.flow, ctx.h, gq, gp, grad);
   if (dZin != nullptr) {
     dZin->resize(2 * d_, dZout.cols());
     dZin->topRows(d_) = gq;

@@ -15,6 +15,7 @@
 #include "../src/models/csympnet_id.hpp"
 #include "../src/models/g_sympnet.hpp"
 #include "../src/models/la_sympnet.hpp"
+#include "support/flow_records.hpp"
 #include "support/random_data.hpp"
 #include "support/same_bits.hpp"
 
@@ -231,19 +232,20 @@ TEST(CoreColumns, SerialSweepsEqualThePreviousSweeps) {
       if (la != nullptr) reference_la_flow(*la, theta, q_ref, p_ref, h, ref_cache);
       if (g != nullptr) reference_g_flow(*g, theta, q_ref, p_ref, h, ref_cache);
       ForwardCache cache;
-      core->flow(theta, q, p, h, &cache, 0);
+      core->flow(theta, q, p, h, &cache);
       ASSERT_TRUE(same_bits(q_ref, q));
       ASSERT_TRUE(same_bits(p_ref, p));
-      ASSERT_EQ(ref_cache.size(), core->cache_slots());
+      const std::vector<const Matrix*> recorded = flow_records(*core, cache);
+      ASSERT_EQ(ref_cache.size(), recorded.size());
       for (std::size_t s = 0; s < ref_cache.size(); ++s) {
-        ASSERT_TRUE(same_bits(ref_cache[s], cache.mats[s])) << "slot " << s;
+        ASSERT_TRUE(same_bits(ref_cache[s], *recorded[s])) << "record " << s;
       }
       const Matrix gq0 = random_matrix(gen, d, n, 1.0), gp0 = random_matrix(gen, d, n, 1.0);
       Matrix gq_ref = gq0, gp_ref = gp0, gq = gq0, gp = gp0;
       Vector grad_ref = Vector::Zero(core->n_params()), grad = grad_ref;
       if (la != nullptr) reference_la_backward(*la, theta, ref_cache, h, gq_ref, gp_ref, grad_ref);
       if (g != nullptr) reference_g_backward(*g, theta, ref_cache, h, gq_ref, gp_ref, grad_ref);
-      core->flow_backward(theta, cache, 0, h, gq, gp, grad);
+      core->flow_backward(theta, cache, h, gq, gp, grad);
       EXPECT_TRUE(same_bits(gq_ref, gq));
       EXPECT_TRUE(same_bits(gp_ref, gp));
       EXPECT_TRUE(same_bits(grad_ref, grad));
@@ -273,8 +275,11 @@ void expect_split_equals_serial(const CSympNetId& model, const std::vector<Colum
     model.forward_columns(theta, z, split, out, *r);
   }
   ASSERT_TRUE(same_bits(out_serial, out));
-  for (std::size_t s = 0; s < serial.mats.size(); ++s) {
-    ASSERT_TRUE(same_bits(serial.mats[s], split.mats[s])) << "slot " << s;
+  const std::vector<Matrix> serial_records = csympnet_records(model, serial);
+  const std::vector<Matrix> split_records = csympnet_records(model, split);
+  ASSERT_EQ(serial_records.size(), split_records.size());
+  for (std::size_t s = 0; s < serial_records.size(); ++s) {
+    ASSERT_TRUE(same_bits(serial_records[s], split_records[s])) << "record " << s;
   }
   for (auto r = ranges.rbegin(); r != ranges.rend(); ++r)
     model.backward_columns(theta, split, dz, *r);

@@ -1,4 +1,4 @@
-// CSympNetId::forward/backward split and join the state rows by hand, reuse the cache's slots,
+// CSympNetId::forward/backward split and join the state rows by hand, reuse the cache's storage,
 // compute a = exp(−γ̂h/2) with the AVX-512 exp where it runs, and, for d = 1, form the column
 // sums of the β gradient as single products (src/models/csympnet_id.cpp). None of that may
 // change a bit: this file keeps the previous implementation, written with Eigen expressions
@@ -16,14 +16,29 @@
 #include "../src/models/g_sympnet.hpp"
 #include "../src/models/la_sympnet.hpp"
 #include "csympnet/core/error.hpp"
+#include "support/flow_records.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
 namespace {
 
-// The previous CSympNetId::forward, verbatim but for the core accessor.
+// What the reference forward records: as CSympNetId::Context, without the working buffers.
+struct Recorded {
+  Vector h, a;
+  Matrix p_in, p_core;
+  ForwardCache core;
+};
+
+// The same list as csympnet_records() (support/flow_records.hpp) gives for the model's cache.
+std::vector<Matrix> records_of(const CSympNetId& m, const Recorded& rec) {
+  std::vector<Matrix> out = {rec.h.transpose(), rec.a.transpose(), rec.p_in, rec.p_core};
+  for (const Matrix* r : flow_records(m.core(), rec.core)) out.push_back(*r);
+  return out;
+}
+
+// The previous CSympNetId::forward, verbatim but for the core accessor and where it records.
 Matrix reference_forward(const CSympNetId& m, ConstParams theta, const Matrix& Z, const Vector& h,
-                         ForwardCache* cache) {
+                         Recorded* cache) {
   const SymplecticCore& core = m.core();
   const Index d = core.d();
   const Index nc = core.n_params();
@@ -33,14 +48,12 @@ Matrix reference_forward(const CSympNetId& m, ConstParams theta, const Matrix& Z
   Matrix p = Z.bottomRows(d);
   p.array().rowwise() *= a.transpose().array();
   if (cache != nullptr) {
-    if (cache->vecs.size() < 2) cache->vecs.resize(2);
-    if (cache->mats.size() < 2) cache->mats.resize(2);
-    cache->vecs[0] = h;
-    cache->vecs[1] = a;
-    cache->mats[0] = Z.bottomRows(d);
+    cache->h = h;
+    cache->a = a;
+    cache->p_in = Z.bottomRows(d);
   }
-  core.flow(theta.head(nc), q, p, h, cache, 2);
-  if (cache != nullptr) cache->mats[1] = p;
+  core.flow(theta.head(nc), q, p, h, cache != nullptr ? &cache->core : nullptr);
+  if (cache != nullptr) cache->p_core = p;
   Matrix out(2 * d, Z.cols());
   out.topRows(d) = q;
   out.bottomRows(d) = (p.array().rowwise() * a.transpose().array()).matrix();
@@ -53,21 +66,21 @@ double abs_derivative(double beta) {
   return 0.0;
 }
 
-// The previous CSympNetId::backward, verbatim but for the core accessor.
-void reference_backward(const CSympNetId& m, ConstParams theta, const ForwardCache& cache,
+// The previous CSympNetId::backward, verbatim but for the core accessor and where it reads.
+void reference_backward(const CSympNetId& m, ConstParams theta, const Recorded& cache,
                         const Matrix& dZout, ParamsRef grad, Matrix* dZin) {
   const SymplecticCore& core = m.core();
   const Index d = core.d();
   const Index nc = core.n_params();
-  const Vector& h = cache.vecs[0];
-  const Vector& a = cache.vecs[1];
+  const Vector& h = cache.h;
+  const Vector& a = cache.a;
   const auto arow = a.transpose().array();
   Matrix gq = dZout.topRows(d);
   Matrix gp = dZout.bottomRows(d);
-  Vector grad_a = (gp.array() * cache.mats[1].array()).colwise().sum().transpose();
+  Vector grad_a = (gp.array() * cache.p_core.array()).colwise().sum().transpose();
   gp.array().rowwise() *= arow;
-  core.flow_backward(theta.head(nc), cache, 2, h, gq, gp, grad.head(nc));
-  grad_a.array() += (gp.array() * cache.mats[0].array()).colwise().sum().transpose();
+  core.flow_backward(theta.head(nc), cache.core, h, gq, gp, grad.head(nc));
+  grad_a.array() += (gp.array() * cache.p_in.array()).colwise().sum().transpose();
   grad(nc) += -0.5 * abs_derivative(theta(nc)) * (grad_a.array() * h.array() * a.array()).sum();
   if (dZin != nullptr) {
     gp.array().rowwise() *= arow;
@@ -126,7 +139,7 @@ void expect_same_as_reference(const CSympNetId& m, Index n, Beta beta, std::mt19
                ", beta case = " + std::to_string(static_cast<int>(beta)));
   const Problem pr = random_problem(m, n, beta, gen);
 
-  ForwardCache ref_cache;
+  Recorded ref_cache;
   const Matrix ref_out = reference_forward(m, pr.theta, pr.z, pr.h, &ref_cache);
   Vector ref_grad = pr.grad0;
   Matrix ref_dz;
@@ -137,7 +150,7 @@ void expect_same_as_reference(const CSympNetId& m, Index n, Beta beta, std::mt19
 
   EXPECT_TRUE(same_bits(m.forward(pr.theta, pr.z, pr.h, nullptr), ref_out));
 
-  // A cache that already holds a pass of another size and other parameters: its slots are
+  // A cache that already holds a pass of another size and other parameters: its storage is
   // reused, which must not leak into the results.
   ForwardCache cache;
   const Problem other = random_problem(m, n + 3, Beta::kPositive, gen);
@@ -145,12 +158,12 @@ void expect_same_as_reference(const CSympNetId& m, Index n, Beta beta, std::mt19
   for (int pass = 0; pass < 2; ++pass) {
     SCOPED_TRACE("pass " + std::to_string(pass));
     EXPECT_TRUE(same_bits(m.forward(pr.theta, pr.z, pr.h, &cache), ref_out));
-    ASSERT_GE(cache.vecs.size(), 2u);
-    EXPECT_TRUE(same_bits(cache.vecs[0], ref_cache.vecs[0]));
-    EXPECT_TRUE(same_bits(cache.vecs[1], ref_cache.vecs[1]));  // a = exp(−γ̂h/2)
-    ASSERT_GE(cache.mats.size(), ref_cache.mats.size());
-    for (std::size_t i = 0; i < ref_cache.mats.size(); ++i) {
-      EXPECT_TRUE(same_bits(cache.mats[i], ref_cache.mats[i])) << "cache slot " << i;
+    // h, a = exp(−γ̂h/2), p_in, p_core, then the core's records.
+    const std::vector<Matrix> recorded = csympnet_records(m, cache);
+    const std::vector<Matrix> expected = records_of(m, ref_cache);
+    ASSERT_EQ(recorded.size(), expected.size());
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_TRUE(same_bits(recorded[i], expected[i])) << "record " << i;
     }
     Vector grad = pr.grad0;
     Matrix dz;

@@ -83,7 +83,6 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
                ", step_terms = " + std::to_string(c.step_terms) + ", N = " + std::to_string(c.n));
   const LaSympNet net(1, c.layers, c.sublayers, c.step_terms);
   const Problem pr = random_problem(net, c.n, gen, wide, specials);
-  constexpr std::size_t kSlot0 = 2;  // the core's slots follow the caller's, as in CSympNet-ID
 
   Matrix q_ref = pr.q, p_ref = pr.p;
   ForwardCache cache_ref;
@@ -91,17 +90,18 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
   Vector grad_ref = pr.grad0;
   {
     const kernels::ForcePortable portable;  // the d = 1 loops in Eigen expressions
-    net.flow(pr.theta, q_ref, p_ref, pr.h, &cache_ref, kSlot0);
-    net.flow_backward(pr.theta, cache_ref, kSlot0, pr.h, gq_ref, gp_ref, grad_ref);
+    net.flow(pr.theta, q_ref, p_ref, pr.h, &cache_ref);
+    net.flow_backward(pr.theta, cache_ref, pr.h, gq_ref, gp_ref, grad_ref);
   }
   if (!specials) {
     ASSERT_TRUE(q_ref.allFinite() && p_ref.allFinite() && grad_ref.allFinite());
   }
 
-  auto expect_cache = [&](const ForwardCache& cache) {
-    ASSERT_EQ(cache.mats.size(), cache_ref.mats.size());
-    for (std::size_t s = kSlot0; s < cache.mats.size(); ++s) {
-      EXPECT_TRUE(same_bits(cache.mats[s], cache_ref.mats[s])) << "slot " << s;
+  const auto& steps_ref = cache_ref.context<LaSympNet::FlowContext>("test").steps;
+  auto expect_steps = [&](const std::vector<Matrix>& steps) {
+    ASSERT_EQ(steps.size(), steps_ref.size());
+    for (std::size_t s = 0; s < steps.size(); ++s) {
+      EXPECT_TRUE(same_bits(steps[s], steps_ref[s])) << "step " << s;
     }
   };
 
@@ -109,17 +109,17 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
     Matrix q = pr.q, p = pr.p, gq = pr.gq, gp = pr.gp;
     Vector grad = pr.grad0;
     ForwardCache cache;
-    net.flow(pr.theta, q, p, pr.h, &cache, kSlot0);
+    net.flow(pr.theta, q, p, pr.h, &cache);
     EXPECT_TRUE(same_bits(q, q_ref));
     EXPECT_TRUE(same_bits(p, p_ref));
-    expect_cache(cache);
-    net.flow_backward(pr.theta, cache, kSlot0, pr.h, gq, gp, grad);
+    expect_steps(cache.context<LaSympNet::FlowContext>("test").steps);
+    net.flow_backward(pr.theta, cache, pr.h, gq, gp, grad);
     EXPECT_TRUE(same_bits(gq, gq_ref));
     EXPECT_TRUE(same_bits(gp, gp_ref));
     EXPECT_TRUE(same_bits(grad, grad_ref));
     // Without a cache (validation, rollouts).
     Matrix q2 = pr.q, p2 = pr.p;
-    net.flow(pr.theta, q2, p2, pr.h, nullptr, 0);
+    net.flow(pr.theta, q2, p2, pr.h, nullptr);
     EXPECT_TRUE(same_bits(q2, q_ref));
     EXPECT_TRUE(same_bits(p2, p_ref));
   }
@@ -129,14 +129,13 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
                              c.layers * (c.sublayers + 3) - 1};
   Matrix q = pr.q, p = pr.p, gq = pr.gq, gp = pr.gp;
   Vector grad = pr.grad0;
-  ForwardCache cache;
-  cache.mats.resize(kSlot0 + net.cache_slots());
+  std::vector<Matrix> steps(net.recorded_steps());
   ASSERT_TRUE(kernels::d1_flow_simd(core, pr.theta.data(), q.data(), p.data(), pr.h.data(), c.n,
-                                    &cache.mats, kSlot0));
+                                    steps.data()));
   EXPECT_TRUE(same_bits(q, q_ref));
   EXPECT_TRUE(same_bits(p, p_ref));
-  expect_cache(cache);
-  ASSERT_TRUE(kernels::d1_backward_simd(core, pr.theta.data(), cache.mats, kSlot0, pr.h.data(), c.n,
+  expect_steps(steps);
+  ASSERT_TRUE(kernels::d1_backward_simd(core, pr.theta.data(), steps.data(), pr.h.data(), c.n,
                                         gq.data(), gp.data(), grad.data()));
   EXPECT_TRUE(same_bits(gq, gq_ref));
   EXPECT_TRUE(same_bits(gp, gp_ref));

@@ -23,6 +23,14 @@ class DofScaledMap final : public OneStepMap {
   Index dim() const override { return inner_->dim(); }
   Index n_params() const override { return inner_->n_params() + d_ - 1; }
   void init_params(Rng& rng, ParamsRef theta) const override;
+  // What forward() keeps for backward(): the wrapped map's cache and the scaled p rows.
+  struct Context final : ForwardContext {
+    const char* owner() const override { return "dof-scaled map"; }
+    ForwardCache inner;  // the wrapped map's context
+    Matrix p_scaled;     // μ ⊙ p of the input, as the wrapped map read it (d x N)
+    Matrix p_out;        // the p rows of the output, after the division by μ (d x N)
+  };
+
   Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
                  ForwardCache* cache) const override;
   void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,

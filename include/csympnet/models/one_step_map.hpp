@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <typeinfo>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -19,18 +20,58 @@
 
 namespace csympnet {
 
-// Intermediates of one forward pass. Opaque to callers; reusing one cache across calls of
-// the same batch size lets a model avoid reallocating.
-struct ForwardCache {
-  std::vector<Matrix> mats;
-  std::vector<Vector> vecs;
-  // The column-split backward's records (column_split.hpp): written by its sweep over column
-  // ranges, read by its parameter sums. Scratch of backward(), which takes the cache as const;
-  // kept here so that the epochs of a training run reuse the storage.
-  mutable std::vector<Matrix> records;
-  mutable std::vector<Vector> record_vecs;
-  // What a wrapping map (DofScaledMap) keeps of its own; the wrapped map never touches it.
-  std::vector<Matrix> outer;
+// What one map's forward pass keeps for its backward pass, with named members. Each map that
+// keeps something defines its own context type (a core: per module its input and σ; CSympNet-ID:
+// its conformal scalings and, nested, its core's cache); maps that only wrap another and keep
+// nothing of their own (SympNet, NormalizedMap) pass the cache through.
+class ForwardContext {
+ public:
+  virtual ~ForwardContext() = default;
+  // The kind of map that recorded it ("g core", "csympnet", ...), for the error when a map of
+  // another kind is handed this context.
+  virtual const char* owner() const = 0;
+};
+
+// Intermediates of one forward pass: the typed context of the map that ran it. Callers create
+// the cache, pass it to forward() and then, unchanged, to backward(); its contents are opaque to
+// them. Reusing one cache across calls lets a map keep its storage: a forward pass finds its own
+// context and resizes it in place (no allocation once the batch size has been seen), so the
+// epochs of a training run allocate nothing here.
+class ForwardCache {
+ public:
+  ForwardCache() = default;
+  ForwardCache(ForwardCache&&) noexcept = default;
+  ForwardCache& operator=(ForwardCache&&) noexcept = default;
+
+  bool empty() const { return context_ == nullptr; }
+
+  // For a forward pass: the context of type C held, else a new C replacing whatever the cache
+  // held (a forward pass defines every value it records, so another map's context is simply
+  // dropped).
+  template <class C>
+  C& make_context() {
+    if (context_ == nullptr || typeid(*context_) != typeid(C)) context_ = std::make_unique<C>();
+    return static_cast<C&>(*context_);
+  }
+
+  // For a backward pass (or a later pass of the same forward): the context of type C that a
+  // forward pass recorded. Throws Error naming `reader` if the cache is empty or holds what a
+  // map of another kind recorded: reading it as a C would be undefined behaviour.
+  template <class C>
+  const C& context(const char* reader) const {
+    if (context_ == nullptr || typeid(*context_) != typeid(C)) refuse(reader);
+    return static_cast<const C&>(*context_);
+  }
+  template <class C>
+  C& context(const char* reader) {
+    if (context_ == nullptr || typeid(*context_) != typeid(C)) refuse(reader);
+    return static_cast<C&>(*context_);
+  }
+
+ private:
+  [[noreturn]] void refuse(const char* reader) const;
+
+  std::unique_ptr<ForwardContext> context_;
 };
 
 class OneStepMap {

@@ -48,10 +48,15 @@ SIZES = {
 #: Override with `units={"t": "s", ...}`; an empty string shows no unit.
 DEFAULT_UNITS = {"t": "a.u.", "q": "a.u.", "p": "a.u.", "H": "a.u.", "E": "a.u."}
 
-#: The featured model's colour, and the colours of the others in turn.
+#: The featured model's colour.
 FEATURED_COLOR = "#d62728"
-_COLORS = ["#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-           "#bcbd22", "#17becf"]
+#: The colour of each model type when it is not featured, the same in every figure.
+MODEL_COLORS = {
+    "sympnet": "#1f77b4", "map": "#2ca02c", "ode": "#ff7f0e", "dhnn": "#9467bd",
+    "dhnn2": "#8c564b", "phnn": "#e377c2", "phnn2": "#7f7f7f", "csympnet": "#17becf",
+}
+# Other labels take these in turn, after the model types' colours.
+_COLORS = list(MODEL_COLORS.values()) + ["#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39"]
 
 # Line styles: the reference and the featured model above the rest (zorder), the reference
 # dashed on top so that a featured curve lying on it still shows through the gaps.
@@ -138,14 +143,21 @@ def _featured(labels, highlight):
 
 
 def _styles(labels, featured):
-    """{label: line style}: the featured one strong and on top, the others in turn."""
-    out, i = {}, 0
+    """{label: line style}: the featured one strong and on top; the others thinner, a model
+    type in its own colour (MODEL_COLORS), any other label in the next colour not yet taken."""
+    labels = list(labels)
+    taken = {MODEL_COLORS[k] for k in labels if k in MODEL_COLORS and k != featured}
+    free = iter([c for c in _COLORS if c not in taken] or _COLORS)
+    out = {}
     for label in labels:
         if label == featured:
             out[label] = dict(_FEATURED)
         else:
-            out[label] = {**_OTHER, "color": _COLORS[i % len(_COLORS)]}
-            i += 1
+            color = MODEL_COLORS.get(label) or next(free, None)
+            if color is None:  # more labels than colours: start again
+                free = iter(_COLORS)
+                color = next(free)
+            out[label] = {**_OTHER, "color": color}
     return out
 
 

@@ -301,3 +301,14 @@ def test_figures_script_sizes(tmp_path, size, width):
     assert png_width("noise-s1-l2.png") == pytest.approx(bars, abs=0.01)
     bad = subprocess.run(args[:3] + ["--size", "poster"], capture_output=True, text=True)
     assert bad.returncode != 0 and "--size" in bad.stderr
+
+
+def test_each_model_type_keeps_its_colour_across_figures():
+    colours = lambda fig: {ln.get_label(): ln.get_color() for ln in fig.axes[0].get_lines()}
+    a = colours(plot.trajectory(T, {"csympnet": REF, "dhnn2": REF, "phnn2": REF}, REF))
+    b = colours(plot.trajectory(T, {"map": REF, "ode": REF, "dhnn2": REF, "phnn2": REF}, REF))
+    assert a["DHNN2"] == b["DHNN2"] == plot.MODEL_COLORS["dhnn2"]
+    assert a["pHNN2"] == b["pHNN2"] and a["CSympNet-ID"] == plot.FEATURED_COLOR
+    # Labels that are not model types get distinct colours, none of them the featured one.
+    c = colours(plot.trajectory(T, {f"run {i}": REF for i in range(20)}, None))
+    assert len(set(list(c.values())[:12])) == 12 and plot.FEATURED_COLOR not in c.values()

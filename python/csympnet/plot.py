@@ -169,17 +169,17 @@ def _legend_order(handles, featured):
     return sorted(handles, key=rank)  # stable: the others keep their order
 
 
-def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0, legend_slot=True):
+def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0):
     """A figure of `n_panels` panels on a grid of `ncols` columns, sized by the preset: panels
     are width/ncols wide and aspect times that high. With legend entries, a legend axes: the
-    grid's free cell when there is one (and legend_slot), else a row below the panels.
+    grid's free cell when there is one, else a row below the panels.
     Returns (figure, [axes], legend axes or None)."""
     width, height, p = _preset(size)
     ncols = max(1, min(ncols, n_panels))
     nrows = math.ceil(n_panels / ncols)
     free = nrows * ncols - n_panels
-    in_slot = entries > 0 and free > 0 and legend_slot
-    legend_rows = 0.0
+    in_slot = entries > 0 and free > 0
+    legend_rows = 0
     if entries > 0 and not in_slot:
         per_row = min(entries, p["legend_columns"])
         legend_rows = math.ceil(entries / per_row)
@@ -201,8 +201,7 @@ def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0, legend_slot=Tr
         legend_ax = fig.add_subplot(gs[nrows, :])
     if legend_ax is not None:
         legend_ax.axis("off")
-        legend_ax.set_in_layout(True)
-        legend_ax.in_slot = in_slot
+        legend_ax.in_slot = in_slot  # read by _put_legend
     return fig, axes, legend_ax
 
 
@@ -215,12 +214,12 @@ def _new_axes(ax, size, aspect, entries):
     return fig, axes[0], legend_ax
 
 
-def _legend(ax, legend_ax, size, labels, featured, loc="best"):
-    """The legend of `ax`, in legend order: inside `ax` (loc) or in `legend_ax`."""
+def _legend(ax, legend_ax, size, labels, featured):
+    """The legend of `ax`, in legend order: inside `ax` or in `legend_ax`."""
     items = _legend_order(_entries(ax, labels), featured)
     if items:
         _put_legend(ax if legend_ax is None else legend_ax, [h for _, h in items],
-                    [lab for lab, _ in items], size, inside=legend_ax is None, loc=loc)
+                    [lab for lab, _ in items], size, inside=legend_ax is None)
 
 
 def _entries(ax, labels):
@@ -231,11 +230,13 @@ def _entries(ax, labels):
     return [(by_name.get(name, name), h) for h, name in zip(handles, names)]
 
 
-def _put_legend(target, handles, labels, size, *, inside, loc="best"):
+def _put_legend(target, handles, labels, size, *, inside):
+    """A legend inside the axes `target` (loc="best"), or filling a legend axes: one or two
+    columns in a free cell of the grid, up to the preset's number of columns in a row."""
     p = _preset(size)[2]
     shown = [_display(lab) for lab in labels]
     if inside:
-        target.legend(handles, shown, loc=loc, fontsize=p["small"], framealpha=0.85)
+        target.legend(handles, shown, loc="best", fontsize=p["small"], framealpha=0.85)
         return
     if getattr(target, "in_slot", False):
         ncol = 1 if len(shown) <= 6 else 2
@@ -247,7 +248,9 @@ def _put_legend(target, handles, labels, size, *, inside, loc="best"):
 
 
 def _display(label):
-    return label if label == "reference" or label.startswith("$") else _name(label)
+    """A legend entry's text: the paper's name of a model type; "reference" and math as given."""
+    text = str(label)
+    return text if text == "reference" or text.startswith("$") else _name(label)
 
 
 def _style(ax, size):

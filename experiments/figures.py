@@ -1,6 +1,11 @@
 #!/usr/bin/python3
-"""Figures of a reproduction: `figures.py DIR` reads DIR/summary.json and DIR/runs/*.json
-(written by `csympnet reproduce`) and writes PNG and PDF files to DIR/figures/.
+"""Figures of a reproduction: `figures.py DIR [--size auto|column|page]` reads DIR/summary.json
+and DIR/runs/*.json (written by `csympnet reproduce`) and writes PNG and PDF files to
+DIR/figures/.
+
+--size: "column" (3.5 in wide) or "page" (7.2 in wide) for every figure; "auto" (the default)
+draws the rollout figures at page width and the bar charts at column width. CSympNet-ID is the
+featured model of every figure (drawn on top, in red); PDFs embed TrueType fonts.
 
 The drawing code is csympnet.plot (python/csympnet/plot.py), loaded by file path so that the
 figures need only NumPy and matplotlib, not the compiled module.
@@ -14,6 +19,7 @@ figures need only NumPy and matplotlib, not the compiled module.
   hsweep-PRESET-sigmaS   L2 error against h_test, trained at h = 0.1 (s1: U[0.05, 0.15])
 """
 
+import argparse
 import importlib.util
 import json
 import os
@@ -59,7 +65,7 @@ def records_by_key(out):
     return by_key
 
 
-def rollout_figures(plot, summary, records, suite, figdir):
+def rollout_figures(plot, summary, records, suite, figdir, size):
     for preset, by_model in summary[suite].items():
         if not isinstance(by_model, dict) or preset in ("title", "kind", "vary"):
             continue
@@ -75,7 +81,7 @@ def rollout_figures(plot, summary, records, suite, figdir):
         if not preds:
             continue
         title = f"{summary[suite]['title'].split(':')[0]}: {preset}, first test trajectory"
-        plot.rollout_figure(t, preds, ref, energies=energies, energy_ref=e_ref,
+        plot.rollout_figure(t, preds, ref, energies=energies, energy_ref=e_ref, size=size,
                             path=os.path.join(figdir, f"{suite}-{preset}-rollout"), title=title)
 
 
@@ -89,7 +95,7 @@ def cells_by(summary, suite, preset, key, sigma=None):
     return out
 
 
-def grid_figures(plot, summary, figdir):
+def grid_figures(plot, summary, figdir, size):
     suites = summary["suites"]
     presets = lambda s: [p for p in summary[s] if p not in ("title", "kind", "vary")]
     if "noise" in suites:
@@ -97,18 +103,20 @@ def grid_figures(plot, summary, figdir):
             cells = cells_by(summary, "noise", preset, "sigma")
             sigmas = next(iter(cells.values()))[0]
             l2 = {m: [values(c["l2_error"]) for c in cs] for m, (_, cs) in cells.items()}
-            plot.error_vs_noise(sigmas, l2, path=os.path.join(figdir, f"noise-{preset}-l2"),
+            plot.error_vs_noise(sigmas, l2, size=size,
+                                path=os.path.join(figdir, f"noise-{preset}-l2"),
                                 title=f"{preset}: rollout error under noise")
             lam = {m: [values(c["lambda_hat"]) for c in cs] for m, (_, cs) in cells.items()}
             lam_star = next(iter(cells.values()))[1][0]["lambda_star"]
-            plot.lambda_vs_noise(sigmas, lam, lam_star,
+            plot.lambda_vs_noise(sigmas, lam, lam_star, size=size,
                                  path=os.path.join(figdir, f"noise-{preset}-lambda"),
                                  title=f"{preset}: learned factor under noise")
             gam = {m: [values(c["gamma_abs_err"]) for c in cs] for m, (_, cs) in cells.items()
                    if cs and cs[0]["gamma_abs_err"] is not None}
             if gam:
-                plot.bars(plot._noise_labels(sigmas), gam, ylabel="$|\\hat\\gamma-\\gamma|$",
-                          xlabel="noise level $\\sigma$", log=True,
+                plot.bars(plot.noise_labels(sigmas), gam,
+                          ylabel="$|\\hat\\gamma-\\gamma|$ (a.u.)",
+                          xlabel="relative noise level $\\sigma$", log=True, size=size,
                           path=os.path.join(figdir, f"noise-{preset}-gamma"),
                           title=f"{preset}: damping-rate error under noise")
     if "samples" in suites:
@@ -116,8 +124,8 @@ def grid_figures(plot, summary, figdir):
             cells = cells_by(summary, "samples", preset, "n_train")
             sizes = next(iter(cells.values()))[0]
             l2 = {m: [values(c["l2_error"]) for c in cs] for m, (_, cs) in cells.items()}
-            plot.bars([str(n) for n in sizes], l2, ylabel="$L^2$ rollout error",
-                      xlabel="training pairs $N_{train}$",
+            plot.bars([str(n) for n in sizes], l2, ylabel="$L^2$ rollout error (a.u.)",
+                      xlabel="training pairs $N_{\\mathrm{train}}$", size=size,
                       path=os.path.join(figdir, f"samples-{preset}-l2"),
                       title=f"{preset}: sample efficiency")
     if "hsweep" in suites:
@@ -127,16 +135,23 @@ def grid_figures(plot, summary, figdir):
                 cells = cells_by(summary, "hsweep", preset, "h_test", sigma=sigma)
                 hs = next(iter(cells.values()))[0]
                 l2 = {m: [values(c["l2_error"]) for c in cs] for m, (_, cs) in cells.items()}
-                plot.bars([f"{h:g}" for h in hs], l2, ylabel="$L^2$ rollout error",
-                          xlabel="test step $h_{test}$",
+                plot.bars([f"{h:g}" for h in hs], l2, ylabel="$L^2$ rollout error (a.u.)",
+                          xlabel="test step $h_{\\mathrm{test}}$ (a.u.)", size=size,
                           path=os.path.join(figdir, f"hsweep-{preset}-sigma{sigma:g}"),
                           title=f"{preset}: test-step sweep, $\\sigma$ = {sigma:g}")
 
 
 def main(argv):
-    if len(argv) != 2:
-        sys.exit("usage: figures.py DIR   (DIR from csympnet reproduce)")
-    out = argv[1]
+    parser = argparse.ArgumentParser(
+        prog="figures.py", description="Draws the figures of a csympnet reproduce directory.")
+    parser.add_argument("dir", help="the --out directory of csympnet reproduce")
+    parser.add_argument("--size", choices=["auto", "column", "page"], default="auto",
+                        help="figure width: column (3.5 in), page (7.2 in), or auto (rollout "
+                             "figures page wide, bar charts column wide; the default)")
+    args = parser.parse_args(argv[1:])
+    out = args.dir
+    rollout_size = "page" if args.size == "auto" else args.size
+    bar_size = "column" if args.size == "auto" else args.size
     summary_path = os.path.join(out, "summary.json")
     if not os.path.exists(summary_path):
         sys.exit(f"figures.py: {summary_path} not found; run csympnet reproduce first")
@@ -148,8 +163,8 @@ def main(argv):
     records = records_by_key(out)
     for suite in summary["suites"]:
         if summary[suite]["kind"] == "table" and suite in ("table2", "table5", "reference"):
-            rollout_figures(plot, summary, records, suite, figdir)
-    grid_figures(plot, summary, figdir)
+            rollout_figures(plot, summary, records, suite, figdir, rollout_size)
+    grid_figures(plot, summary, figdir, bar_size)
     print(f"figures.py: wrote {len(os.listdir(figdir))} files to {figdir}")
 
 

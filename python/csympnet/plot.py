@@ -2,21 +2,31 @@
 
 Depends on NumPy and matplotlib only (not on the compiled csympnet module), so a script can load
 this file by path. Figures are built on matplotlib's Agg canvas without pyplot, so importing it
-never changes the backend of the calling program.
+never changes the backend of the calling program, and every setting it needs (font sizes,
+TrueType fonts in PDF files) is applied in a local rc_context: the caller's rcParams are never
+changed.
 
 Conventions: a trajectory of states is an array (n+1, 2d) whose columns are q1..qd, p1..pd;
 `predictions` is a dict {label: states}; model type names ("csympnet", "map", ...) are shown
-with the paper's names. Every function takes `ax=` (draw into an existing Axes) and `path=`
-(save the figure as PNG and PDF, see `save`) and returns the matplotlib Figure.
+with the paper's names. Every function takes `ax=` (draw into an existing Axes), `size=` (the
+figure size preset, see SIZES) and `path=` (save the figure as PNG and PDF, see `save`) and
+returns the matplotlib Figure.
+
+Style: the reference is black and dashed, the featured model (`highlight=`, by default
+CSympNet-ID when it is among the labels) is a thick red solid line, and both are drawn above
+the other models, which are thinner and lighter. Legends list the reference, the featured
+model, then the others in the order given.
 
 Functions (signatures in docs/python.md): phase_portrait, trajectory, accumulated_error, energy,
 rollout_figure, accumulated_errors, bars, error_vs_noise, lambda_vs_noise, noise_labels,
 summarize, save.
 """
 
+import math
 import os
 
 import numpy as np
+from matplotlib import rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -25,36 +35,232 @@ MODEL_NAMES = {
     "csympnet": "CSympNet-ID", "sympnet": "SympNet", "map": "MapBaseline", "ode": "ODEBaseline",
     "dhnn": "DHNN", "dhnn2": "DHNN2", "phnn": "pHNN", "phnn2": "pHNN2",
 }
-_COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
-           "#7f7f7f", "#bcbd22", "#17becf"]
-_FONT = {"axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 8,
-         "xtick.labelsize": 9, "ytick.labelsize": 9}
+
+#: Figure size presets: width in inches (a journal's single column and full text width) and
+#: font sizes in points. `size=` takes one of these names or a (width, height) tuple in inches.
+SIZES = {
+    "column": {"width": 3.5, "font": 8, "small": 7, "legend_columns": 3},
+    "page": {"width": 7.2, "font": 9, "small": 8, "legend_columns": 5},
+}
+
+#: Units shown in axis labels, by quantity: t (time), q and p (states), H (energy), E (the
+#: accumulated L2 error, whose unit is that of the states times the square root of time's).
+#: Override with `units={"t": "s", ...}`; an empty string shows no unit.
+DEFAULT_UNITS = {"t": "a.u.", "q": "a.u.", "p": "a.u.", "H": "a.u.", "E": "a.u."}
+
+#: The featured model's colour.
+FEATURED_COLOR = "#d62728"
+#: The colour of each model type when it is not featured, the same in every figure.
+MODEL_COLORS = {
+    "sympnet": "#1f77b4", "map": "#2ca02c", "ode": "#ff7f0e", "dhnn": "#9467bd",
+    "dhnn2": "#8c564b", "phnn": "#e377c2", "phnn2": "#7f7f7f", "csympnet": "#17becf",
+}
+# Other labels take these in turn, after the model types' colours.
+_COLORS = list(MODEL_COLORS.values()) + ["#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39"]
+
+# Line styles: the reference and the featured model above the rest (zorder), the reference
+# dashed on top so that a featured curve lying on it still shows through the gaps.
+_REFERENCE = {"color": "black", "ls": "--", "lw": 1.1, "zorder": 6}
+_FEATURED = {"color": FEATURED_COLOR, "ls": "-", "lw": 2.0, "zorder": 5, "alpha": 1.0}
+_OTHER = {"ls": "-", "lw": 0.9, "zorder": 2, "alpha": 0.8}
+
+# PDF and PostScript text as embedded TrueType (Type 42) fonts, which journals' submission
+# systems accept, instead of matplotlib's default Type 3 fonts.
+_TRUETYPE = {"pdf.fonttype": 42, "ps.fonttype": 42}
+
+
+def _preset(size):
+    """(width, height or None, preset dict) of a size preset name or a (width, height) tuple."""
+    if isinstance(size, str):
+        if size not in SIZES:
+            raise ValueError(
+                f"size: expected one of {sorted(SIZES)} or (width, height), got {size!r}")
+        return SIZES[size]["width"], None, SIZES[size]
+    try:
+        w, h = (float(v) for v in size)
+    except (TypeError, ValueError):
+        raise ValueError(f"size: expected one of {sorted(SIZES)} or (width, height), got {size!r}")
+    if not (w > 0 and h > 0):
+        raise ValueError(f"size: width and height must be positive, got {size!r}")
+    return w, h, SIZES["column" if w < 5.0 else "page"]
+
+
+def _rc(size):
+    """The local settings of a figure of size preset `size`."""
+    p = _preset(size)[2]
+    return rc_context({
+        **_TRUETYPE,
+        "font.size": p["font"], "axes.titlesize": p["font"], "axes.labelsize": p["font"],
+        "legend.fontsize": p["small"], "xtick.labelsize": p["small"],
+        "ytick.labelsize": p["small"], "figure.titlesize": p["font"] + 1,
+        "axes.linewidth": 0.6, "xtick.major.width": 0.6, "ytick.major.width": 0.6,
+        "xtick.minor.width": 0.4, "ytick.minor.width": 0.4, "grid.linewidth": 0.4,
+        "lines.markersize": 3.5, "patch.linewidth": 0.5,
+        "figure.constrained_layout.h_pad": 0.02, "figure.constrained_layout.w_pad": 0.02,
+    })
 
 
 def _name(label):
     return MODEL_NAMES.get(label, str(label))
 
 
-def _color(i):
-    return _COLORS[i % len(_COLORS)]
+def _units(units):
+    if units is None:
+        return dict(DEFAULT_UNITS)
+    if not isinstance(units, dict):
+        raise TypeError("units: expected a dict such as {'t': 's', 'q': 'm'}")
+    unknown = sorted(set(units) - set(DEFAULT_UNITS))
+    if unknown:
+        raise ValueError(f"units: unknown quantities {unknown}; known: {sorted(DEFAULT_UNITS)}")
+    return {**DEFAULT_UNITS, **{k: str(v) for k, v in units.items()}}
 
 
-def _new_axes(ax, figsize=(4.8, 3.6)):
-    """(figure, axes): the given axes and its figure, or a new one-panel figure."""
-    if ax is not None:
-        return ax.figure, ax
-    fig = Figure(figsize=figsize, layout="constrained")
+def _label(text, unit="", log=False, wrap=26):
+    """An axis label with its unit and whether the axis is logarithmic: "E (a.u., log scale)".
+    A unit already in parentheses at the end of `text` is kept; a label longer than `wrap`
+    characters puts the parenthesis on a second line."""
+    notes = [n for n in (unit, "log scale" if log else "") if n]
+    if text.endswith(")") and " (" in text:
+        at = text.rindex(" (")
+        text, notes = text[:at], [text[at + 2:-1]] + notes
+    if not notes:
+        return text
+    note = f"({', '.join(notes)})"
+    return f"{text}\n{note}" if len(text) + len(note) > wrap else f"{text} {note}"
+
+
+def _featured(labels, highlight):
+    """The featured label among `labels`: `highlight`, or "csympnet" when present (None), or
+    nothing (False or "")."""
+    labels = list(labels)
+    if highlight is None:
+        return "csympnet" if "csympnet" in labels else None
+    if highlight is False or highlight == "":
+        return None
+    if highlight not in labels:
+        raise ValueError(f"highlight: {highlight!r} is not one of the labels {labels}")
+    return highlight
+
+
+def _styles(labels, featured):
+    """{label: line style}: the featured one strong and on top; the others thinner, a model
+    type in its own colour (MODEL_COLORS), any other label in the next colour not yet taken."""
+    labels = list(labels)
+    taken = {MODEL_COLORS[k] for k in labels if k in MODEL_COLORS and k != featured}
+    free = iter([c for c in _COLORS if c not in taken] or _COLORS)
+    out = {}
+    for label in labels:
+        if label == featured:
+            out[label] = dict(_FEATURED)
+        else:
+            color = MODEL_COLORS.get(label) or next(free, None)
+            if color is None:  # more labels than colours: start again
+                free = iter(_COLORS)
+                color = next(free)
+            out[label] = {**_OTHER, "color": color}
+    return out
+
+
+def _legend_order(handles, featured):
+    """Legend entries: the reference, the featured model, then the others as drawn."""
+    def rank(item):
+        label = item[0]
+        return 0 if label == "reference" else 1 if label == featured else 2
+    return sorted(handles, key=rank)  # stable: the others keep their order
+
+
+def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0):
+    """A figure of `n_panels` panels on a grid of `ncols` columns, sized by the preset: panels
+    are width/ncols wide and aspect times that high. With legend entries, a legend axes: the
+    grid's free cell when there is one, else a row below the panels.
+    Returns (figure, [axes], legend axes or None)."""
+    width, height, p = _preset(size)
+    ncols = max(1, min(ncols, n_panels))
+    nrows = math.ceil(n_panels / ncols)
+    free = nrows * ncols - n_panels
+    in_slot = entries > 0 and free > 0
+    legend_rows = 0
+    if entries > 0 and not in_slot:
+        per_row = min(entries, p["legend_columns"])
+        legend_rows = math.ceil(entries / per_row)
+    legend_h = (0.08 + legend_rows * p["small"] * 1.55 / 72.0) if legend_rows else 0.0
+    if ncols == 1 and width >= 5.0:  # a single panel across the page: flatter
+        aspect *= 0.6
+    panel_h = width / ncols * aspect
+    if height is not None:  # an explicit (width, height): the panels share what the legend leaves
+        panel_h = max(height - legend_h, 0.5) / nrows
+    fig = Figure(figsize=(width, nrows * panel_h + legend_h), layout="constrained")
     FigureCanvasAgg(fig)
-    return fig, fig.add_subplot()
+    ratios = [panel_h] * nrows + ([legend_h] if legend_h else [])
+    gs = fig.add_gridspec(len(ratios), ncols, height_ratios=ratios)
+    axes = [fig.add_subplot(gs[i // ncols, i % ncols]) for i in range(n_panels)]
+    legend_ax = None
+    if in_slot:
+        legend_ax = fig.add_subplot(gs[nrows - 1, ncols - free:])
+    elif legend_h:
+        legend_ax = fig.add_subplot(gs[nrows, :])
+    if legend_ax is not None:
+        legend_ax.axis("off")
+        legend_ax.in_slot = in_slot  # read by _put_legend
+    return fig, axes, legend_ax
 
 
-def _style(ax, fig):
-    ax.title.set_fontsize(_FONT["axes.titlesize"])
-    ax.xaxis.label.set_fontsize(_FONT["axes.labelsize"])
-    ax.yaxis.label.set_fontsize(_FONT["axes.labelsize"])
-    ax.tick_params(labelsize=_FONT["xtick.labelsize"])
+def _new_axes(ax, size, aspect, entries):
+    """(figure, axes, legend axes): the given axes (its legend inside), or a new one-panel
+    figure with its legend below."""
+    if ax is not None:
+        return ax.figure, ax, None
+    fig, axes, legend_ax = _figure(size, aspect=aspect, entries=entries)
+    return fig, axes[0], legend_ax
+
+
+def _legend(ax, legend_ax, size, labels, featured):
+    """The legend of `ax`, in legend order: inside `ax` or in `legend_ax`."""
+    items = _legend_order(_entries(ax, labels), featured)
+    if items:
+        _put_legend(ax if legend_ax is None else legend_ax, [h for _, h in items],
+                    [lab for lab, _ in items], size, inside=legend_ax is None)
+
+
+def _entries(ax, labels):
+    """[(label, handle)] of the legend entries of `ax`, by the labels they were drawn for."""
+    by_name = {_name(label): label for label in labels}
+    by_name["reference"] = "reference"
+    handles, names = ax.get_legend_handles_labels()
+    return [(by_name.get(name, name), h) for h, name in zip(handles, names)]
+
+
+def _put_legend(target, handles, labels, size, *, inside):
+    """A legend inside the axes `target` (loc="best"), or filling a legend axes: one or two
+    columns in a free cell of the grid, up to the preset's number of columns in a row."""
+    p = _preset(size)[2]
+    shown = [_display(lab) for lab in labels]
+    if inside:
+        target.legend(handles, shown, loc="best", fontsize=p["small"], framealpha=0.85)
+        return
+    if getattr(target, "in_slot", False):
+        ncol = 1 if len(shown) <= 6 else 2
+    else:
+        rows = math.ceil(len(shown) / p["legend_columns"])
+        ncol = math.ceil(len(shown) / rows)
+    target.legend(handles, shown, loc="center", ncol=ncol, fontsize=p["small"], frameon=False,
+                  handlelength=2.2, columnspacing=1.2, borderaxespad=0.0)
+
+
+def _display(label):
+    """A legend entry's text: the paper's name of a model type; "reference" and math as given."""
+    text = str(label)
+    return text if text == "reference" or text.startswith("$") else _name(label)
+
+
+def _style(ax, size):
+    p = _preset(size)[2]
+    ax.title.set_fontsize(p["font"])
+    ax.xaxis.label.set_fontsize(p["font"])
+    ax.yaxis.label.set_fontsize(p["font"])
+    ax.tick_params(labelsize=p["small"])
     ax.grid(True, which="major", alpha=0.3)
-    return fig
+    return ax.figure
 
 
 def _states(name, z):
@@ -97,9 +303,18 @@ def _log_scale(ax, log, values):
     return log
 
 
-def save(fig, path, dpi=200):
+def _curves(ax, series, reference, featured):
+    """Draws {label: (x, y)} and the reference (x, y) or None in the house style."""
+    styles = _styles(series, featured)
+    for label, (x, y) in series.items():
+        ax.plot(x, y, label=_name(label), **styles[label])
+    if reference is not None:
+        ax.plot(*reference, label="reference", **_REFERENCE)
+
+
+def save(fig, path, dpi=300):
     """Writes `fig` as PATH.png and PATH.pdf (a .png/.pdf suffix on `path` is dropped), creating
-    the directory. Returns the two paths written."""
+    the directory; the PDF embeds its fonts as TrueType. Returns the two paths written."""
     base, ext = os.path.splitext(os.fspath(path))
     if ext.lower() not in (".png", ".pdf"):
         base = os.fspath(path)
@@ -107,9 +322,10 @@ def save(fig, path, dpi=200):
     if folder:
         os.makedirs(folder, exist_ok=True)
     written = []
-    for suffix in (".png", ".pdf"):
-        fig.savefig(base + suffix, dpi=dpi)
-        written.append(base + suffix)
+    with rc_context(_TRUETYPE):
+        for suffix in (".png", ".pdf"):
+            fig.savefig(base + suffix, dpi=dpi)
+            written.append(base + suffix)
     return written
 
 
@@ -119,48 +335,54 @@ def _finish(fig, path):
     return fig
 
 
-def phase_portrait(predictions, reference=None, *, coord=0, ax=None, path=None, title=None):
+def phase_portrait(predictions, reference=None, *, coord=0, highlight=None, units=None,
+                   size="column", ax=None, path=None, title=None):
     """Phase portrait (q_i, p_i) of coordinate i = coord + 1 (default q1, p1).
 
     predictions: {label: states (n+1, 2d)}; reference: states (n+1, 2d) or None.
     """
-    preds = _predictions(predictions)
-    fig, ax = _new_axes(ax, (4.0, 3.8))
-    d = None
-    if reference is not None:
-        ref = _states("reference", reference)
-        d = ref.shape[1] // 2
-        ax.plot(_shown(ref[:, coord]), _shown(ref[:, d + coord]), "k--", lw=1.6, label="reference")
-        ax.plot(ref[0, coord], ref[0, d + coord], "ko", ms=4)
-    for i, (label, z) in enumerate(preds.items()):
-        dz = z.shape[1] // 2
-        ax.plot(_shown(z[:, coord]), _shown(z[:, dz + coord]), color=_color(i), lw=1.2,
-                label=_name(label))
-        d = dz
-    ax.set_xlabel(f"$q_{{{coord + 1}}}$")
-    ax.set_ylabel(f"$p_{{{coord + 1}}}$")
-    ax.set_title(title or "Phase portrait")
-    ax.legend(loc="best")
-    return _finish(_style(ax, fig), path)
+    with _rc(size):
+        preds = _predictions(predictions)
+        featured = _featured(preds, highlight)
+        u = _units(units)
+        fig, ax, legend_ax = _new_axes(ax, size, 0.85, len(preds) + (reference is not None))
+        series = {}
+        for label, z in preds.items():
+            d = z.shape[1] // 2
+            series[label] = (_shown(z[:, coord]), _shown(z[:, d + coord]))
+        ref = None
+        if reference is not None:
+            r = _states("reference", reference)
+            d = r.shape[1] // 2
+            ref = (_shown(r[:, coord]), _shown(r[:, d + coord]))
+            ax.plot(r[0, coord], r[0, d + coord], "ko", zorder=7)
+        _curves(ax, series, ref, featured)
+        ax.set_xlabel(_label(f"$q_{{{coord + 1}}}$", u["q"]))
+        ax.set_ylabel(_label(f"$p_{{{coord + 1}}}$", u["p"]))
+        ax.set_title(title or "Phase portrait")
+        _legend(ax, legend_ax, size, preds, featured)
+        return _finish(_style(ax, size), path)
 
 
-def trajectory(t, predictions, reference=None, *, coord=0, ax=None, path=None, title=None):
+def trajectory(t, predictions, reference=None, *, coord=0, highlight=None, units=None,
+               size="column", ax=None, path=None, title=None):
     """q_i(t) for coordinate i = coord + 1 (default q1). t: times (n+1,)."""
-    preds = _predictions(predictions)
-    fig, ax = _new_axes(ax)
-    n = next(iter(preds.values())).shape[0] if preds else _states("reference", reference).shape[0]
-    ts = _times(t, n)
-    if reference is not None:
-        ref = _states("reference", reference)
-        ax.plot(ts, _shown(ref[:, coord]), "k--", lw=1.6, label="reference")
-    for i, (label, z) in enumerate(preds.items()):
-        ax.plot(_times(t, z.shape[0]), _shown(z[:, coord]), color=_color(i), lw=1.2,
-                label=_name(label))
-    ax.set_xlabel("$t$")
-    ax.set_ylabel(f"$q_{{{coord + 1}}}(t)$")
-    ax.set_title(title or f"Trajectory $q_{{{coord + 1}}}$")
-    ax.legend(loc="best")
-    return _finish(_style(ax, fig), path)
+    with _rc(size):
+        preds = _predictions(predictions)
+        featured = _featured(preds, highlight)
+        u = _units(units)
+        fig, ax, legend_ax = _new_axes(ax, size, 0.6, len(preds) + (reference is not None))
+        series = {label: (_times(t, z.shape[0]), _shown(z[:, coord])) for label, z in preds.items()}
+        ref = None
+        if reference is not None:
+            r = _states("reference", reference)
+            ref = (_times(t, r.shape[0]), _shown(r[:, coord]))
+        _curves(ax, series, ref, featured)
+        ax.set_xlabel(_label("time $t$", u["t"]))
+        ax.set_ylabel(_label(f"$q_{{{coord + 1}}}$", u["q"]))
+        ax.set_title(title or f"Trajectory $q_{{{coord + 1}}}(t)$")
+        _legend(ax, legend_ax, size, preds, featured)
+        return _finish(_style(ax, size), path)
 
 
 def accumulated_errors(t, predictions, reference):
@@ -179,68 +401,89 @@ def accumulated_errors(t, predictions, reference):
     return out
 
 
-def accumulated_error(t, predictions, reference, *, log=None, ax=None, path=None, title=None):
+def accumulated_error(t, predictions, reference, *, log=None, highlight=None, units=None,
+                      size="column", ax=None, path=None, title=None):
     """Accumulated rollout error E(t) (see `accumulated_errors`); log scale when it spans
     decades (log=None), or as forced by log=True/False."""
-    errs = accumulated_errors(t, predictions, reference)
-    fig, ax = _new_axes(ax)
-    ts = _times(t, _states("reference", reference).shape[0])
-    for i, (label, e) in enumerate(errs.items()):
-        ax.plot(ts[1:], _shown(e[1:]), color=_color(i), lw=1.2, label=_name(label))
-    _log_scale(ax, log, np.concatenate([e[1:] for e in errs.values()]) if errs else [])
-    ax.set_xlabel("$t$")
-    ax.set_ylabel("accumulated $L^2$ error")
-    ax.set_title(title or "Accumulated error")
-    ax.legend(loc="best")
-    return _finish(_style(ax, fig), path)
+    with _rc(size):
+        errs = accumulated_errors(t, predictions, reference)
+        featured = _featured(errs, highlight)
+        u = _units(units)
+        fig, ax, legend_ax = _new_axes(ax, size, 0.6, len(errs))
+        ts = _times(t, _states("reference", reference).shape[0])
+        _curves(ax, {label: (ts[1:], _shown(e[1:])) for label, e in errs.items()}, None, featured)
+        log = _log_scale(ax, log, np.concatenate([e[1:] for e in errs.values()]) if errs else [])
+        ax.set_xlabel(_label("time $t$", u["t"]))
+        ax.set_ylabel(_label("$L^2$ error $E(t)$", u["E"], log))
+        ax.set_title(title or "Accumulated error")
+        _legend(ax, legend_ax, size, errs, featured)
+        return _finish(_style(ax, size), path)
 
 
-def energy(t, energies, reference=None, *, log=None, ax=None, path=None, title=None):
+def energy(t, energies, reference=None, *, log=None, highlight=None, units=None, size="column",
+           ax=None, path=None, title=None):
     """Energy H along rollouts. energies: {label: (n+1,)}; reference: (n+1,) or None."""
     if not isinstance(energies, dict):
         raise TypeError("energies: expected a dict {label: energy values (n+1,)}")
-    fig, ax = _new_axes(ax)
-    values = []
-    if reference is not None:
-        e = np.asarray(reference, dtype=float)
-        ax.plot(_times(t, e.shape[0]), _shown(e), "k--", lw=1.6, label="reference")
-        values.append(e)
-    for i, (label, e) in enumerate(energies.items()):
-        e = np.asarray(e, dtype=float)
-        ax.plot(_times(t, e.shape[0]), _shown(e), color=_color(i), lw=1.2, label=_name(label))
-        values.append(e)
-    _log_scale(ax, log, np.concatenate(values) if values else [])
-    ax.set_xlabel("$t$")
-    ax.set_ylabel("energy $H$")
-    ax.set_title(title or "Energy")
-    ax.legend(loc="best")
-    return _finish(_style(ax, fig), path)
+    with _rc(size):
+        featured = _featured(energies, highlight)
+        u = _units(units)
+        fig, ax, legend_ax = _new_axes(ax, size, 0.6, len(energies) + (reference is not None))
+        series, values = {}, []
+        for label, e in energies.items():
+            e = np.asarray(e, dtype=float)
+            series[label] = (_times(t, e.shape[0]), _shown(e))
+            values.append(e)
+        ref = None
+        if reference is not None:
+            e = np.asarray(reference, dtype=float)
+            ref = (_times(t, e.shape[0]), _shown(e))
+            values.append(e)
+        _curves(ax, series, ref, featured)
+        log = _log_scale(ax, log, np.concatenate(values) if values else [])
+        ax.set_xlabel(_label("time $t$", u["t"]))
+        ax.set_ylabel(_label("energy $H$", u["H"], log))
+        ax.set_title(title or "Energy")
+        _legend(ax, legend_ax, size, energies, featured)
+        return _finish(_style(ax, size), path)
 
 
 def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None, coord=0,
-                   path=None, title=None):
-    """The paper's rollout figure: phase portrait (q1, p1), q1(t), accumulated error and, when
-    `energies` ({label: (n+1,)}) is given, energy — one row of panels."""
+                   highlight=None, units=None, size="page", ncols=None, path=None, title=None):
+    """The paper's rollout figure: phase portrait (q_i, p_i), q_i(t), accumulated error and,
+    when `energies` ({label: (n+1,)}) is given, energy, with one legend for all panels.
+
+    The panels wrap onto rows of `ncols` (default: all four in one row for size="page", two
+    per row for "column"); the legend takes a free cell of the grid or a row below it."""
+    preds = _predictions(predictions)
+    featured = _featured(preds, highlight)
     panels = 4 if energies is not None else 3
-    fig = Figure(figsize=(3.9 * panels + 1.6, 3.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, panels)
-    phase_portrait(predictions, reference, coord=coord, ax=axes[0])
-    trajectory(t, predictions, reference, coord=coord, ax=axes[1])
-    accumulated_error(t, predictions, reference, ax=axes[2])
-    if energies is not None:
-        energy(t, energies, energy_ref, ax=axes[3])
-    # One legend for the row, outside the last panel: with many models, per-panel legends
-    # would cover the curves. The q1(t) panel has every entry (reference included).
-    handles, labels = axes[1].get_legend_handles_labels()
-    for ax in axes:
-        if ax.get_legend() is not None:
-            ax.get_legend().remove()
-    axes[-1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-                    borderaxespad=0.0)
-    if title:
-        fig.suptitle(title, fontsize=12)
-    return _finish(fig, path)
+    if ncols is None:
+        ncols = 2 if _preset(size)[0] < 5.0 else 4
+    with _rc(size):
+        fig, axes, legend_ax = _figure(size, panels, ncols=ncols, aspect=0.9,
+                                       entries=len(preds) + 1)
+        common = {"highlight": featured if featured is not None else False, "units": units,
+                  "size": size}
+        phase_portrait(preds, reference, coord=coord, ax=axes[0], **common)
+        trajectory(t, preds, reference, coord=coord, ax=axes[1], **common)
+        accumulated_error(t, preds, reference, ax=axes[2], **common)
+        if energies is not None:
+            energy(t, energies, energy_ref, ax=axes[3],
+                   **{**common, "highlight": featured if featured in energies else False})
+            axes[3].set_title("Energy $H$")
+        axes[1].set_title(f"$q_{{{coord + 1}}}(t)$")
+        # One legend for the figure: per-panel legends would cover the curves. The q_i(t) panel
+        # has every entry (the reference included).
+        items = _legend_order(_entries(axes[1], preds), featured)
+        for ax in axes:
+            if ax.get_legend() is not None:
+                ax.get_legend().remove()
+        _put_legend(legend_ax, [h for _, h in items], [lab for lab, _ in items], size,
+                    inside=False)
+        if title:
+            fig.suptitle(title)
+        return _finish(fig, path)
 
 
 def summarize(samples):
@@ -254,16 +497,19 @@ def summarize(samples):
 
 
 def bars(groups, series, *, ylabel, xlabel=None, log=None, ylim=None, reference=None,
-         reference_label=None, ax=None, path=None, title=None):
+         reference_label=None, highlight=None, size="column", ax=None, path=None, title=None):
     """Grouped bars at the median with interquartile error bars (25th to 75th percentile).
 
     groups: labels of the x groups (e.g. noise levels).
     series: {label: [samples of group 0, samples of group 1, ...]}, one 1-D sample per group
         (e.g. the values over seeds).
-    log: log scale (None: when the medians and quartiles span decades).
+    log: log scale (None: when the medians and quartiles span decades); the y label then says
+        "log scale".
     ylim: (low, high) display range; bars beyond it are cut at the edge and marked with ▲/▼.
         This changes the display only, not the statistics.
     reference: a value drawn as a dashed horizontal line (label `reference_label`).
+    highlight: the featured series (default "csympnet" when present): first in each group, in
+        the featured colour with a dark edge; the others lighter.
     """
     if not isinstance(series, dict) or not series:
         raise TypeError("series: expected a non-empty dict {label: [samples per group]}")
@@ -273,46 +519,61 @@ def bars(groups, series, *, ylabel, xlabel=None, log=None, ylim=None, reference=
         if len(per_group) != len(groups):
             raise ValueError(f"series[{label!r}]: has {len(per_group)} groups, expected {len(groups)}")
         stats[label] = np.array([summarize(s) for s in per_group])  # (G, 3): median, q25, q75
-    fig, ax = _new_axes(ax, (max(4.8, 1.2 * len(groups) + 1.5) + 1.4, 3.6))
-    log = _log_scale(ax, log, np.concatenate([s.ravel() for s in stats.values()]))
-    x = np.arange(len(groups))
-    width = 0.8 / len(stats)
-    for i, (label, s) in enumerate(stats.items()):
-        pos = x - 0.4 + width * (i + 0.5)
-        med, lo, hi = s[:, 0], s[:, 1], s[:, 2]
-        shown = np.where(np.isfinite(med), med, np.nan)
-        ax.bar(pos, shown, width * 0.9, color=_color(i), label=_name(label), alpha=0.85)
-        err = np.vstack([np.clip(med - lo, 0, None), np.clip(hi - med, 0, None)])
-        ax.errorbar(pos, shown, yerr=np.where(np.isfinite(err), err, 0.0), fmt="none",
-                    ecolor="black", elinewidth=1, capsize=3)
-    if reference is not None:
-        ax.axhline(reference, color="black", ls="--", lw=1.3, label=reference_label or "reference")
-    if ylim is not None:
-        ax.set_ylim(*ylim)
-        _mark_clipped(ax, x, width, stats, ylim)
-    ax.set_xticks(x, groups)
-    if xlabel:
-        ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
-    if title:
-        ax.set_title(title)
-    # Outside the axes, right of them: inside, with up to eight series, "best" still covered
-    # bars (checked on the full reproduction's figures).
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
-    return _finish(_style(ax, fig), path)
+    featured = _featured(stats, highlight)
+    if featured is not None:  # first in each group, next to the reference line's legend entry
+        stats = {featured: stats[featured], **{k: v for k, v in stats.items() if k != featured}}
+    styles = _styles(stats, featured)
+    with _rc(size):
+        fig, ax, legend_ax = _new_axes(ax, size, 0.62, len(stats) + (reference is not None))
+        log = _log_scale(ax, log, np.concatenate([s.ravel() for s in stats.values()]))
+        x = np.arange(len(groups))
+        width = 0.8 / len(stats)
+        for i, (label, s) in enumerate(stats.items()):
+            pos = x - 0.4 + width * (i + 0.5)
+            med, lo, hi = s[:, 0], s[:, 1], s[:, 2]
+            shown = np.where(np.isfinite(med), med, np.nan)
+            strong = label == featured
+            ax.bar(pos, shown, width * 0.9, color=styles[label]["color"], label=_name(label),
+                   alpha=1.0 if strong else 0.7, zorder=3 if strong else 2,
+                   edgecolor="black" if strong else "none", linewidth=0.6 if strong else 0.0)
+            err = np.vstack([np.clip(med - lo, 0, None), np.clip(hi - med, 0, None)])
+            ax.errorbar(pos, shown, yerr=np.where(np.isfinite(err), err, 0.0), fmt="none",
+                        ecolor="black", elinewidth=0.8, capsize=1.5 if width < 0.15 else 2.5,
+                        zorder=4)
+        if reference is not None:
+            ax.axhline(reference, label="reference",
+                       **{**_REFERENCE, "lw": 1.0})
+        if ylim is not None:
+            ax.set_ylim(*ylim)
+            _mark_clipped(ax, x, width, stats, styles, ylim)
+        ax.set_xticks(x, groups)
+        if xlabel:
+            ax.set_xlabel(xlabel)
+        ax.set_ylabel(_label(ylabel, "", log))
+        ax.grid(False, axis="x")
+        if title:
+            ax.set_title(title)
+        items = _legend_order(_entries(ax, stats), featured)
+        shown_labels = [(reference_label or "reference") if lab == "reference" else lab
+                        for lab, _ in items]
+        _put_legend(ax if legend_ax is None else legend_ax, [h for _, h in items], shown_labels,
+                    size, inside=legend_ax is None)
+        _style(ax, size)
+        ax.grid(False, axis="x")
+        return _finish(fig, path)
 
 
-def _mark_clipped(ax, x, width, stats, ylim):
+def _mark_clipped(ax, x, width, stats, styles, ylim):
     lo_lim, hi_lim = ylim
-    for i, s in enumerate(stats.values()):
+    for i, (label, s) in enumerate(stats.items()):
         pos = x - 0.4 + width * (i + 0.5)
         for j, (med, _, hi) in enumerate(s):
             if not np.isfinite(med) or hi > hi_lim:
-                ax.annotate("▲", (pos[j], hi_lim), ha="center", va="top", fontsize=7,
-                            color=_color(i), annotation_clip=False)
+                ax.annotate("▲", (pos[j], hi_lim), ha="center", va="top", fontsize=6,
+                            color=styles[label]["color"], annotation_clip=False, zorder=5)
             elif med < lo_lim:
-                ax.annotate("▼", (pos[j], lo_lim), ha="center", va="bottom", fontsize=7,
-                            color=_color(i), annotation_clip=False)
+                ax.annotate("▼", (pos[j], lo_lim), ha="center", va="bottom", fontsize=6,
+                            color=styles[label]["color"], annotation_clip=False, zorder=5)
 
 
 def noise_labels(noise_levels):
@@ -323,16 +584,19 @@ def noise_labels(noise_levels):
 _noise_labels = noise_labels  # the name experiments/figures.py first used
 
 
-def error_vs_noise(noise_levels, errors, *, ylim=None, ax=None, path=None, title=None):
+def error_vs_noise(noise_levels, errors, *, ylim=None, highlight=None, units=None, size="column",
+                   ax=None, path=None, title=None):
     """L2 rollout error against noise level σ: bars at the median over seeds with IQR error bars.
     errors: {model: [errors over seeds at each σ]}."""
-    return bars(noise_labels(noise_levels), errors, ylabel="$L^2$ rollout error",
-                xlabel="noise level $\\sigma$", ylim=ylim, ax=ax, path=path,
-                title=title or "Rollout error under noise")
+    u = _units(units)
+    unit = f" ({u['E']})" if u["E"] else ""
+    return bars(noise_labels(noise_levels), errors, ylabel="$L^2$ rollout error" + unit,
+                xlabel="relative noise level $\\sigma$", ylim=ylim, highlight=highlight,
+                size=size, ax=ax, path=path, title=title or "Rollout error under noise")
 
 
-def lambda_vs_noise(noise_levels, lambdas, lambda_star, *, ylim=None, ax=None, path=None,
-                    title=None):
+def lambda_vs_noise(noise_levels, lambdas, lambda_star, *, ylim=None, highlight=None,
+                    size="column", ax=None, path=None, title=None):
     """Learned conformal factor λ̂ against noise level σ, with λ* dashed: bars at the median over
     seeds with IQR error bars. lambdas: {model: [λ̂ over seeds at each σ]}. The default range is
     centred on λ* and wide enough for every quartile (pass ylim to clip outliers)."""
@@ -341,7 +605,8 @@ def lambda_vs_noise(noise_levels, lambdas, lambda_star, *, ylim=None, ax=None, p
         ends = ends[np.isfinite(ends)]
         w = max(1.2 * np.max(np.abs(ends - lambda_star)) if ends.size else 0.0, 1e-4)
         ylim = (lambda_star - w, lambda_star + w)
-    return bars(noise_labels(noise_levels), lambdas, ylabel="learned factor $\\hat\\lambda$",
-                xlabel="noise level $\\sigma$", log=False, ylim=ylim,
-                reference=lambda_star, reference_label="$\\lambda^*$", ax=ax, path=path,
-                title=title or "Learned conformal factor under noise")
+    return bars(noise_labels(noise_levels), lambdas,
+                ylabel="learned factor $\\hat\\lambda$ (dimensionless)",
+                xlabel="relative noise level $\\sigma$", log=False, ylim=ylim,
+                reference=lambda_star, reference_label="$\\lambda^*$", highlight=highlight,
+                size=size, ax=ax, path=path, title=title or "Learned conformal factor under noise")

@@ -1,6 +1,7 @@
 #include "csympnet/experiments/summary.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -117,17 +118,80 @@ std::string md_escape(const std::string& s) {
   return out;
 }
 
-std::string latex_escape(std::string s) {
+// Text for LaTeX's text mode: its ten special characters escaped.
+std::string latex_escape(const std::string& s) {
   std::string out;
   for (const char c : s) {
-    if (c == '_' || c == '%' || c == '&' || c == '#') out += '\\';
-    if (c == '|') {
-      out += "$|$";
-      continue;
+    switch (c) {
+      case '_':
+      case '%':
+      case '&':
+      case '#':
+      case '$':
+      case '{':
+      case '}':
+        out += '\\';
+        out += c;
+        break;
+      case '\\':
+        out += "\\textbackslash{}";
+        break;
+      case '~':
+        out += "\\textasciitilde{}";
+        break;
+      case '^':
+        out += "\\textasciicircum{}";
+        break;
+      case '|':
+        out += "\\textbar{}";
+        break;
+      default:
+        out += c;
     }
-    out += c;
   }
   return out;
+}
+
+// A metric's column heading in LaTeX (math where the paper uses symbols).
+std::string latex_column(const std::string& c) {
+  static const std::map<std::string, const char*> labels = {
+      {"l2_error", "$L^2$"},
+      {"residual_mean", "$E[R]$"},
+      {"residual_max", "$\\max R$"},
+      {"lambda_abs_err_mean", "$E|\\hat\\lambda-\\lambda^*|$"},
+      {"gamma_hat", "$\\hat\\gamma$"},
+      {"gamma_abs_err", "$|\\hat\\gamma-\\gamma|$"},
+      {"structure_residual_max", "$\\max S$"},
+      {"params", "params"},
+      {"train_seconds", "train (s)"}};
+  const auto it = labels.find(c);
+  return it == labels.end() ? latex_escape(c) : std::string(it->second);
+}
+
+// A caption's opening from a suite title. LaTeX numbers the float itself, so the paper's
+// numbering in a title "Table 2: what" moves to the end: "what (the paper's Table 2)".
+std::string latex_caption_title(const std::string& title) {
+  const std::string prefix = "Table ";
+  std::size_t end = prefix.size();
+  while (end < title.size() && std::isdigit(static_cast<unsigned char>(title[end]))) ++end;
+  if (title.rfind(prefix, 0) != 0 || end == prefix.size() || title.compare(end, 2, ": ") != 0)
+    return latex_escape(title);
+  return latex_escape(title.substr(end + 2)) + " (the paper's Table " +
+         title.substr(prefix.size(), end - prefix.size()) + ")";
+}
+
+// The opening of a booktabs table float: caption, label, and the tabular's column spec.
+std::string latex_open(const std::string& caption, const std::string& label,
+                       const std::string& spec) {
+  return "\\begin{table}[htbp]\n\\centering\n\\small\n\\caption{" + caption + "}\n\\label{" +
+         label + "}\n\\begin{tabular}{" + spec + "}\n\\toprule\n";
+}
+
+const char* const kLatexClose = "\\bottomrule\n\\end{tabular}\n\\end{table}\n";
+
+// A number cell: the same text as in the Markdown and CSV tables, with an en dash for none.
+std::string latex_cell(const std::string& text) {
+  return text == "-" ? "--" : text;
 }
 
 }  // namespace
@@ -269,12 +333,23 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
   if (s.kind == "table") {
     md += "Each metric: ours, the paper's value where it reports one, and ours / paper.\n\n";
     csv = "preset,model,metric,ours,paper,ratio\n";
-    tex = "% " + s.title + "\n\\begin{tabular}{ll" + std::string(s.columns.size() * 3, 'r') +
-          "}\n\\hline\nPreset & Model";
-    for (const auto& c : s.columns)
-      tex += " & " + latex_escape(column_label(c)) + " & paper & ratio";
-    tex += " \\\\\n\\hline\n";
+    tex = "% " + s.title + "\n% Needs \\usepackage{booktabs}.\n" +
+          latex_open(latex_caption_title(s.title) +
+                         ". Each metric: ours, the paper's value where it reports one, and ours "
+                         "/ paper.",
+                     "tab:" + s.name, "ll" + std::string(s.columns.size() * 3, 'r'));
+    std::string rules;
+    tex += " & ";
+    for (std::size_t i = 0; i < s.columns.size(); ++i) {
+      tex += " & \\multicolumn{3}{c}{" + latex_column(s.columns[i]) + "}";
+      rules +=
+          "\\cmidrule(lr){" + std::to_string(3 + 3 * i) + "-" + std::to_string(5 + 3 * i) + "}";
+    }
+    tex += " \\\\\n" + rules + "\nPreset & Model";
+    for (std::size_t i = 0; i < s.columns.size(); ++i) tex += " & ours & paper & ratio";
+    tex += " \\\\\n\\midrule\n";
     for (const auto& preset : s.presets) {
+      if (&preset != &s.presets.front()) tex += "\\midrule\n";
       md += "## " + preset + "\n\n| model |";
       std::string rule = "|---|";
       for (const auto& c : s.columns) {
@@ -285,7 +360,8 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
       for (const auto& model : s.models) {
         const json& e = js.at(preset).at(model);
         md += std::string("| ") + model_label(model) + " |";
-        tex += preset + " & " + model_label(model);
+        tex += (&model == &s.models.front() ? latex_escape(preset) : std::string()) + " & " +
+               latex_escape(model_label(model));
         for (const auto& c : s.columns) {
           const json ours = e.contains(c) ? e.at(c) : json(nullptr);
           const json paper =
@@ -298,7 +374,8 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
           md += " " + o + " | " + fmt(paper, pat) + " | " + fmt(ratio, "%.3g") + " |";
           csv += preset + "," + model + "," + c + "," + o + "," + fmt(paper, pat) + "," +
                  fmt(ratio, "%.3g") + "\n";
-          tex += " & " + o + " & " + fmt(paper, pat) + " & " + fmt(ratio, "%.3g");
+          tex += " & " + latex_cell(o) + " & " + latex_cell(fmt(paper, pat)) + " & " +
+                 latex_cell(fmt(ratio, "%.3g"));
         }
         md += "\n";
         tex += " \\\\\n";
@@ -311,9 +388,8 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
                    : std::string(model_label(check.at("best_l2_model").get<std::string>()))) +
               ".\n";
       md += "\n";
-      tex += "\\hline\n";
     }
-    tex += "\\end{tabular}\n";
+    tex += kLatexClose;
     return f;
   }
   // Grid suites: one row per cell, median [q1, q3] over seeds.
@@ -325,9 +401,8 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
   csv =
       "preset,model,sigma,n_train,h_test,l2_median,l2_q1,l2_q3,gamma_err_median,gamma_err_q1,"
       "gamma_err_q3,lambda_hat_median,lambda_hat_q1,lambda_hat_q3,lambda_star,failed\n";
-  tex = "% " + s.title +
-        "\n\\begin{tabular}{llrrrrrr}\n\\hline\nPreset & Model & $\\sigma$ & $N$ & $h$ & L2 "
-        "(median [IQR]) & $|\\hat\\gamma-\\gamma|$ & $\\hat\\lambda$ \\\\\n\\hline\n";
+  // LaTeX: one table per preset (a grid suite has dozens of rows per preset).
+  tex = "% " + s.title + "\n% Needs \\usepackage{booktabs}.\n";
   auto iqr = [](const json& st, const char* pat) {
     if (st.is_null()) return std::string("-");
     return fmt(st.at("median"), pat) + " [" + fmt(st.at("q1"), pat) + ", " + fmt(st.at("q3"), pat) +
@@ -339,7 +414,16 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
            fmt(st.at("q3"), "%.6e");
   };
   for (const auto& preset : s.presets) {
+    tex += "\n" +
+           latex_open(latex_caption_title(s.title) + ". System " + latex_escape(preset) +
+                          "; $L^2$ and " + "$|\\hat\\gamma-\\gamma|$: median [$q_1$, $q_3$] over " +
+                          std::to_string(s.seeds.size()) + " seeds; $\\hat\\lambda$: median.",
+                      "tab:" + s.name + "-" + preset, "lrrrrrr") +
+           "Model & $\\sigma$ & $N_{\\mathrm{train}}$ & $h_{\\mathrm{test}}$ & $L^2$ & "
+           "$|\\hat\\gamma-\\gamma|$ & $\\hat\\lambda$ \\\\\n\\midrule\n";
     for (const auto& model : s.models) {
+      if (&model != &s.models.front()) tex += "\\addlinespace\n";
+      bool first = true;
       for (const json& c : js.at(preset).at(model)) {
         const std::string sig = fmt(c.at("sigma"), "%g"), n = fmt(c.at("n_train")),
                           h = fmt(c.at("h_test"), "%g");
@@ -352,14 +436,17 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
                three(c.at("lambda_hat")) + "," + fmt(c.at("lambda_star"), "%.12g") + "," +
                fmt(c.at("failed")) + "\n";
         tex +=
-            preset + " & " + model_label(model) + " & " + sig + " & " + n + " & " + h + " & " +
-            iqr(c.at("l2_error"), "%.2e") + " & " + iqr(c.at("gamma_abs_err"), "%.1e") + " & " +
-            fmt(c.at("lambda_hat").is_null() ? json() : c.at("lambda_hat").at("median"), "%.5f") +
+            (first ? latex_escape(model_label(model)) : std::string()) + " & " + sig + " & " + n +
+            " & " + h + " & " + latex_cell(iqr(c.at("l2_error"), "%.2e")) + " & " +
+            latex_cell(iqr(c.at("gamma_abs_err"), "%.1e")) + " & " +
+            latex_cell(fmt(c.at("lambda_hat").is_null() ? json() : c.at("lambda_hat").at("median"),
+                           "%.5f")) +
             " \\\\\n";
+        first = false;
       }
     }
+    tex += kLatexClose;
   }
-  tex += "\\hline\n\\end{tabular}\n";
   return f;
 }
 

@@ -45,6 +45,128 @@ void expect_suite_error(const json& doc, const std::string& fragment) {
   }
 }
 
+// One booktabs table float of a LaTeX table file.
+struct LatexFloat {
+  std::string caption, label;
+  std::vector<std::vector<std::string>> header, body;  // rows split into cells
+};
+
+// The cells of a tabular row "a & b & c \\" (an escaped \& is text, not a separator).
+std::vector<std::string> latex_cells(std::string row) {
+  const std::string end = " \\\\";
+  EXPECT_TRUE(row.size() >= end.size() &&
+              row.compare(row.size() - end.size(), end.size(), end) == 0)
+      << row;
+  row = row.substr(0, row.size() - end.size());
+  std::vector<std::string> cells(1);
+  for (std::size_t i = 0; i < row.size(); ++i) {
+    if (row[i] == '&' && (i == 0 || row[i - 1] != '\\'))
+      cells.emplace_back();
+    else
+      cells.back() += row[i];
+  }
+  for (auto& c : cells) {
+    c.erase(0, c.find_first_not_of(' '));
+    c.erase(c.find_last_not_of(' ') + 1);
+  }
+  return cells;
+}
+
+// How many columns a row spans (a \multicolumn{n} cell spans n).
+std::size_t latex_span(const std::vector<std::string>& cells) {
+  std::size_t n = 0;
+  for (const auto& c : cells) n += c.rfind("\\multicolumn{", 0) == 0 ? std::stoul(c.substr(13)) : 1;
+  return n;
+}
+
+// Reads a LaTeX table file line by line, checking that it consists of comments and booktabs
+// floats: \begin{table}, \caption, \label, \begin{tabular}{SPEC}, \toprule, header rows
+// (and \cmidrule), \midrule, body rows (separated by \midrule or \addlinespace), \bottomrule,
+// \end{tabular}, \end{table}; no \hline; every row spans as many columns as SPEC names.
+std::vector<LatexFloat> parse_latex_tables(const std::string& tex) {
+  std::vector<LatexFloat> out;
+  std::istringstream in(tex);
+  std::string line;
+  enum { kOutside, kPreamble, kTop, kHeader, kBody, kEndTabular, kEndTable } state = kOutside;
+  std::size_t columns = 0;
+  auto starts = [&](const char* prefix) { return line.rfind(prefix, 0) == 0; };
+  while (std::getline(in, line)) {
+    EXPECT_EQ(line.find("\\hline"), std::string::npos) << line;
+    switch (state) {
+      case kOutside:
+        if (line.empty() || starts("%")) break;
+        EXPECT_EQ(line, "\\begin{table}[htbp]");
+        out.emplace_back();
+        state = kPreamble;
+        break;
+      case kPreamble:
+        if (starts("\\caption{")) {
+          out.back().caption = line.substr(9, line.size() - 10);
+        } else if (starts("\\label{")) {
+          out.back().label = line.substr(7, line.size() - 8);
+        } else if (starts("\\begin{tabular}{")) {
+          const std::string spec = line.substr(16, line.size() - 17);
+          EXPECT_EQ(spec.find_first_not_of("lrc"), std::string::npos) << spec;
+          columns = spec.size();
+          state = kTop;
+        } else {
+          EXPECT_TRUE(line == "\\centering" || line == "\\small") << line;
+        }
+        break;
+      case kTop:
+        EXPECT_EQ(line, "\\toprule");
+        state = kHeader;
+        break;
+      case kHeader:
+        if (line == "\\midrule") {
+          state = kBody;
+        } else if (!starts("\\cmidrule")) {
+          out.back().header.push_back(latex_cells(line));
+          EXPECT_EQ(latex_span(out.back().header.back()), columns) << line;
+        }
+        break;
+      case kBody:
+        if (line == "\\bottomrule") {
+          state = kEndTabular;
+        } else if (line != "\\midrule" && line != "\\addlinespace") {
+          out.back().body.push_back(latex_cells(line));
+          EXPECT_EQ(out.back().body.back().size(), columns) << line;
+        }
+        break;
+      case kEndTabular:
+        EXPECT_EQ(line, "\\end{tabular}");
+        state = kEndTable;
+        break;
+      case kEndTable:
+        EXPECT_EQ(line, "\\end{table}");
+        state = kOutside;
+        break;
+    }
+  }
+  EXPECT_EQ(state, kOutside) << "a table float is not closed";
+  for (const auto& f : out) {
+    EXPECT_FALSE(f.caption.empty());
+    EXPECT_FALSE(f.label.empty());
+    EXPECT_FALSE(f.header.empty());
+    EXPECT_FALSE(f.body.empty());
+  }
+  return out;
+}
+
+std::vector<std::vector<std::string>> csv_rows(const std::string& csv) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    rows.emplace_back();
+    std::istringstream fields(line);
+    std::string f;
+    while (std::getline(fields, f, ',')) rows.back().push_back(f);
+  }
+  return rows;
+}
+
 class Reproduce : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -286,9 +408,62 @@ TEST_F(Reproduce, SummaryAndTablesFollowTheRecords) {
   EXPECT_EQ(t1.markdown, t2.markdown);
   EXPECT_NE(t1.markdown.find("CSympNet-ID"), std::string::npos);
   EXPECT_NE(t1.csv.find("s1,csympnet,l2_error,"), std::string::npos);
-  EXPECT_NE(t1.latex.find("\\begin{tabular}"), std::string::npos);
   const TableFiles g = render_tables(grid, summary);
   EXPECT_NE(g.csv.find("s1,dhnn2,0.01,80,0.2,"), std::string::npos);
+
+  // LaTeX: booktabs floats with a caption and a label. The table suite's body holds, per
+  // preset and model, the CSV's numbers (ours, paper, ratio per column) as the same text.
+  const auto floats = parse_latex_tables(t1.latex);
+  ASSERT_EQ(floats.size(), 1u);
+  EXPECT_EQ(floats[0].label, "tab:tiny");
+  ASSERT_EQ(floats[0].header.size(), 2u);
+  EXPECT_EQ(floats[0].header[0][2], "\\multicolumn{3}{c}{params}");
+  EXPECT_EQ(floats[0].header[0][3], "\\multicolumn{3}{c}{$L^2$}");
+  EXPECT_EQ(floats[0].header[1][0], "Preset");
+  EXPECT_NE(t1.latex.find("\\cmidrule(lr){3-5}\\cmidrule(lr){6-8}\\cmidrule(lr){9-11}\n"),
+            std::string::npos);
+  const auto csv = csv_rows(t1.csv);
+  const auto& body = floats[0].body;
+  ASSERT_EQ(body.size(), table.presets.size() * table.models.size());
+  ASSERT_EQ(csv.size(), body.size() * table.columns.size());
+  for (std::size_t r = 0; r < body.size(); ++r) {
+    EXPECT_EQ(body[r][0], r == 0 ? "s1" : "");  // the preset on its first row only
+    EXPECT_EQ(body[r][1], r == 0 ? "CSympNet-ID" : r == 1 ? "SympNet" : "ODEBaseline");
+    for (std::size_t c = 0; c < table.columns.size(); ++c) {
+      const auto& want = csv[r * table.columns.size() + c];
+      for (std::size_t k = 0; k < 3; ++k)
+        EXPECT_EQ(body[r][2 + 3 * c + k], want[3 + k] == "-" ? "--" : want[3 + k])
+            << "row " << r << ", " << want[2];
+    }
+  }
+  EXPECT_EQ(body[1][2 + 3 * 2], "--");  // SympNet has no gamma: an en dash
+  // The grid: one float per preset, a row per cell, its L2 median as in the CSV (3 digits).
+  const auto gfloats = parse_latex_tables(g.latex);
+  ASSERT_EQ(gfloats.size(), grid.presets.size());
+  EXPECT_EQ(gfloats[0].label, "tab:tgrid-s1");
+  EXPECT_NE(gfloats[0].caption.find("over 3 seeds"), std::string::npos) << gfloats[0].caption;
+  const auto gcsv = csv_rows(g.csv);
+  ASSERT_EQ(gfloats[0].body.size(), gcsv.size());
+  for (std::size_t r = 0; r < gcsv.size(); ++r) {
+    const auto& row = gfloats[0].body[r];
+    EXPECT_EQ(row[1], gcsv[r][2]);  // sigma
+    EXPECT_EQ(row[3], gcsv[r][4]);  // h_test
+    if (gcsv[r][5] == "-")
+      EXPECT_EQ(row[4], "--");
+    else
+      EXPECT_NEAR(std::stod(row[4]), std::stod(gcsv[r][5]), 5e-3 * std::stod(gcsv[r][5]));
+  }
+  EXPECT_EQ(gfloats[0].body[0][0], "CSympNet-ID");
+  // The caption: the title, escaped, with the paper's table number moved to its end.
+  SuiteSpec titled = table;
+  titled.title = "Table 2: L2 error_x & 5% of #1";
+  EXPECT_EQ(parse_latex_tables(render_tables(titled, summary).latex).at(0).caption,
+            "L2 error\\_x \\& 5\\% of \\#1 (the paper's Table 2). Each metric: ours, the paper's "
+            "value where it reports one, and ours / paper.");
+  titled.title = "Table 2 with {braces}";
+  EXPECT_EQ(parse_latex_tables(render_tables(titled, summary).latex).at(0).caption.substr(0, 23),
+            "Table 2 with \\{braces\\}");
+  EXPECT_EQ(gfloats[0].body[1][0], "");
   // Every Markdown table row has as many cell separators (unescaped '|') as its header.
   for (const std::string& md : {t1.markdown, g.markdown}) {
     std::istringstream lines(md);

@@ -24,7 +24,7 @@ namespace csympnet::cli {
 
 namespace {
 struct EvaluateArgs {
-  std::string model, preset, data, out;
+  std::string model, preset, data, out, columns;
   std::optional<double> h_test;
   bool force = false;
   SystemOverrides system;
@@ -67,6 +67,7 @@ void add_evaluate(CLI::App& app) {
                   "(one-step and rollout errors, no system needed); with a system, also the "
                   "test set of its diagnostics (default: the preset's test set)")
       ->check(kExistingFile);
+  add_columns_option(*cmd, a->columns);
   cmd->add_option("--h-test", a->h_test, "Step of the Jacobian diagnostics (default 0.2)")
       ->check(kFiniteNumber)
       ->check(kStep);
@@ -117,7 +118,8 @@ void add_evaluate(CLI::App& app) {
     }
     std::vector<Trajectory> tests;
     if (!a->data.empty()) {
-      tests = read_trajectories_csv(a->data);
+      const CsvInput input = read_csv_input(a->data, parse_column_map(a->columns));
+      tests = parse_trajectories_csv(input.text, input.name);
       // Reading accepts single-point trajectories (they are valid data); a rollout needs two.
       for (std::size_t k = 0; k < tests.size(); ++k) {
         require(tests[k].z.rows() == saved.model.dim(), [&] {

@@ -34,6 +34,7 @@ struct FitArgs {
   // (FitConfig::identification): one-step loss, second stage, bootstrap.
   FitConfig classic;
   std::string data, val, out, core;
+  std::string columns;  // --columns: the file's own header names (ColumnMap)
   std::optional<std::string> model, lr_schedule, refine, refine_solver;
   std::optional<double> lr, val_fraction, beta_init;
   std::optional<std::uint64_t> seed;
@@ -52,6 +53,7 @@ struct FitArgs {
 
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
   const FitConfig& recipe = a.classic;
+  add_columns_option(cmd, a.columns);
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
       ->check(one_of(fit_model_names()));
   cmd.add_option("--core", a.core,
@@ -81,10 +83,14 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(kFiniteNumber)
       ->check(library_nonzero("beta_init"));
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
-  cmd.add_flag(
-      "--warm-start,!--no-warm-start", a.warm_start,
-      std::string("Start beta at the closed-form estimate of gamma from the data (") +
-          (a.warm_start ? "default; --no-warm-start: start at --beta-init)" : "default: off)"));
+  // Two flags rather than CLI11's "!--no-warm-start", whose help reads "{false}".
+  CLI::Option* on = cmd.add_flag(
+      "--warm-start", a.warm_start,
+      std::string("Start beta at the closed-form estimate of gamma from the data") +
+          (a.warm_start ? " (default)" : " (default: off)"));
+  CLI::Option* off = cmd.add_flag_callback(
+      "--no-warm-start", [&a] { a.warm_start = false; }, "Start beta at --beta-init instead");
+  on->excludes(off);
   cmd.add_option("--refine", a.refine,
                  "Second stage after AdamW: none (the paper's recipe), lm, lbfgs, or auto (lm, "
                  "or lbfgs for large models) (default: " +
@@ -138,7 +144,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
-  const CsvInput input = read_csv_input(a.data);  // once: a pipe or "-" works too
+  const ColumnMap columns = parse_column_map(a.columns);
+  const CsvInput input = read_csv_input(a.data, columns);  // once: a pipe or "-" works too
   const PairSet data = parse_any_as_pairs(input.text, input.name);
   std::vector<Index> groups;
   if (input.kind == CsvKind::kTrajectories) {
@@ -149,7 +156,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   }
   std::optional<PairSet> val;
   if (!a.val.empty()) {
-    val = read_any_as_pairs(a.val);
+    const CsvInput val_input = read_csv_input(a.val, columns);
+    val = parse_any_as_pairs(val_input.text, val_input.name);
     if (val->d() != data.d())
       throw Error("--val " + a.val + " has d = " + std::to_string(val->d()) + " (" +
                   std::to_string(2 * val->d()) + " state columns) but " + input.name + " has d = " +
@@ -163,6 +171,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   const auto gamma = r.model.damping_rate(r.theta);
   nlohmann::json report = fit_report(r);
   report["data"] = a.data;
+  if (!a.columns.empty()) report["columns"] = a.columns;
   if (!a.val.empty()) report["validation"] = a.val;
   const auto quality = [&report](const char* key) { return report["quality"][key].get<double>(); };
   // One set: the report, the wall times (apart, so the report stays bit-identical run to
@@ -251,7 +260,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   const OutputDir out_dir = prepare_output_dir(a.out, a.force);
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
-  const CsvInput input = read_csv_input(a.data);  // once: a pipe or "-" works too
+  const CsvInput input = read_csv_input(a.data, parse_column_map(a.columns));  // once: a pipe works
   const PairSet checked = parse_any_as_pairs(input.text, input.name);
   const bool pairs_only = input.kind != CsvKind::kTrajectories;
   std::vector<Trajectory> trajs;
@@ -304,6 +313,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
+  if (!a.columns.empty()) report["data"]["columns"] = a.columns;
   out_dir.commit(
       {{"report.json", json_file_text(report)},
        {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
@@ -349,10 +359,10 @@ void add_train(CLI::App& app) {
   // train: AdamW alone unless told otherwise (FitConfig::adamw_only).
   auto a = std::make_shared<FitArgs>(FitConfig::adamw_only());
   CLI::App* cmd = app.add_subcommand("train", "Train a model on pairs (or trajectories) CSV");
-  cmd->add_option("--data", a->data, "Training CSV (pairs or trajectories); - for stdin")
+  cmd->add_option("data,--data", a->data, "Training CSV (pairs or trajectories); - for stdin")
       ->required()
       ->check(kInputFile);
-  cmd->add_option("--val", a->val, "Validation CSV (default: a split of --data)")
+  cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
       ->check(kExistingFile);
   add_fit_options(*cmd, *a);
   cmd->callback([a] {
@@ -367,7 +377,7 @@ void add_fit(CLI::App& app) {
   auto a = std::make_shared<FitArgs>(FitConfig::identification());
   CLI::App* cmd = app.add_subcommand(
       "fit", "Fit CSympNet-ID to your own pairs or trajectories and print gamma_hat");
-  cmd->add_option("data", a->data, "CSV of pairs or trajectories; - for standard input")
+  cmd->add_option("data,--data", a->data, "CSV of pairs or trajectories; - for standard input")
       ->required()
       ->check(kInputFile);
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")

@@ -9,7 +9,9 @@
 #include <string_view>
 #include <system_error>
 
+#include "csympnet/core/error.hpp"
 #include "csympnet/core/thread_team.hpp"
+#include "csympnet/data/csv.hpp"
 #include "csympnet/train/trainer.hpp"
 
 namespace csympnet::cli {
@@ -22,7 +24,7 @@ const CLI::Validator kFiniteNumber(
       if (!std::isfinite(v)) return "'" + input + "' is not finite; expected a finite number";
       return std::string();
     },
-    "FINITE");
+    "");
 
 // Digits only (an optional leading '+'), parsed exactly: CLI11's own messages for these
 // ("Value abc not in range", a seed of 2^64 silently clamped) say neither what was wrong nor
@@ -48,14 +50,14 @@ const CLI::Validator kWholeNumber(
     [](std::string& input) {
       return whole_number_error(input, 9223372036854775807ULL, "a whole number such as 100");
     },
-    "INT");
+    "");
 
 const CLI::Validator kSeed(
     [](std::string& input) {
       return whole_number_error(input, 18446744073709551615ULL,
                                 "a seed from 0 to 18446744073709551615");
     },
-    "SEED");
+    "");
 
 namespace {
 std::string range_text(double v) {
@@ -80,6 +82,27 @@ CLI::Validator bounded(double lo, double hi, bool lo_open, std::string expected)
 
 CLI::Validator in_range(double lo, double hi) {
   return bounded(lo, hi, false, "a number from " + range_text(lo) + " to " + range_text(hi));
+}
+
+CLI::Option* add_columns_option(CLI::App& cmd, std::string& spec) {
+  return cmd
+      .add_option("--columns", spec,
+                  "The data file's own column names for the columns csympnet reads, e.g. "
+                  "t=time_s,q1=angle,p1=velocity (traj, t, h, q1..qd, p1..pd, next_q1.., "
+                  "next_p1..); other columns are ignored (default: the header must be "
+                  "csympnet's own, docs/data-formats.md)")
+      ->type_name("MAP")
+      ->check(CLI::Validator(
+          [](std::string& input) {
+            try {
+              parse_column_map(input, "");
+            } catch (const Error& e) {
+              std::string why = e.what();
+              return why.rfind(": ", 0) == 0 ? why.substr(2) : why;
+            }
+            return std::string();
+          },
+          ""));
 }
 
 const OptionSpelling& cli_spelling() {

@@ -63,6 +63,10 @@ extern const CLI::Validator kInputFile;
 // A non-empty output path.
 extern const CLI::Validator kOutputPath;
 
+// --columns t=time,q1=theta,p1=omega: a data file's own header names (data/csv.hpp ColumnMap),
+// checked as it is parsed.
+CLI::Option* add_columns_option(CLI::App& cmd, std::string& spec);
+
 // --threads N of the training commands: TrainOptions::threads.
 CLI::Option* add_threads_option(CLI::App& cmd, int& threads);
 

@@ -317,6 +317,14 @@ CsvInput read_csv_input(const std::string& path) {
   return in;
 }
 
+CsvInput read_csv_input(const std::string& path, const ColumnMap& map) {
+  CsvInput in;
+  in.name = path == "-" ? std::string("standard input") : path;
+  in.text = apply_column_map(read_text_file(path), in.name, map);
+  in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;
+  return in;
+}
+
 PairSet read_pairs_csv(const std::string& path) {
   return read_pairs(csv_detail::load_csv_text(path));
 }

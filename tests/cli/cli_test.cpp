@@ -402,6 +402,47 @@ TEST_F(Cli, EvaluateScoresAModelOnObservedTrajectoriesWithoutASystem) {
   EXPECT_EQ(both["observed"], ev["observed"]);
 }
 
+// A file with its own header names reads through --columns exactly like csympnet's own
+// header; train takes its data positionally like fit, and --data still works.
+TEST_F(Cli, ColumnsMapAFilesOwnHeaderAndDataIsPositional) {
+  std::string own = "temperature,time_s,omega,theta\n", canonical = "t,q1,p1\n";
+  const double g = 0.05, w = std::sqrt(1 - g * g / 4);
+  for (int k = 0; k < 40; ++k) {
+    const double t = 0.1 * k, e = std::exp(-g * t / 2);
+    const double q = e * std::cos(w * t), p = e * (-g / 2 * std::cos(w * t) - w * std::sin(w * t));
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "21.5,%.17g,%.17g,%.17g\n", t, p, q);
+    own += buf;
+    std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g\n", t, q, p);
+    canonical += buf;
+  }
+  const fs::path a = write("own.csv", own), b = write("canonical.csv", canonical);
+  const std::string opts = " --epochs 30 --bootstrap 0 --quiet --out ";
+  Result r = run("train " + a.string() + " --columns t=time_s,q1=theta,p1=omega" + opts +
+                 (dir_ / "own").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("train --data " + b.string() + opts + (dir_ / "canonical").string());
+  ASSERT_EQ(r.code, 0) << r.err;
+  auto own_report = nlohmann::json::parse(slurp(dir_ / "own" / "report.json"));
+  auto canonical_report = nlohmann::json::parse(slurp(dir_ / "canonical" / "report.json"));
+  EXPECT_EQ(own_report["columns"], "t=time_s,q1=theta,p1=omega");
+  EXPECT_EQ(own_report["gamma_hat"], canonical_report["gamma_hat"]);
+  EXPECT_EQ(own_report["training"]["best_val_loss"], canonical_report["training"]["best_val_loss"]);
+
+  r = run("train " + a.string() + " --columns x=time_s" + opts + (dir_ / "x").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("--columns: 'x' is not a column csympnet reads"), std::string::npos) << r.err;
+  r = run("train " + a.string() + " --columns t=time,q1=theta,p1=omega" + opts +
+          (dir_ / "y").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("own.csv:1: --columns maps t to 'time', which is not a column"),
+            std::string::npos)
+      << r.err;
+  r = run("train " + b.string() + " --warm-start --no-warm-start" + opts + (dir_ / "z").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("excludes"), std::string::npos) << r.err;
+}
+
 struct BadCase {
   const char* name;
   const char* text;

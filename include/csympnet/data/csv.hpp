@@ -8,6 +8,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "csympnet/data/dataset.hpp"
@@ -39,6 +40,25 @@ struct CsvInput {
   CsvKind kind = CsvKind::kPairs;
 };
 CsvInput read_csv_input(const std::string& path);
+
+// A file's own column names for the columns csympnet reads: pairs of (canonical name, the
+// file's name), e.g. {"t", "time_s"}, {"q1", "angle_deg"}, {"p1", "velocity"}. The canonical
+// names are traj, t, h, q1..qd, p1..pd, next_q1..next_qd and next_p1..next_pd.
+struct ColumnMap {
+  std::vector<std::pair<std::string, std::string>> columns;
+  bool empty() const { return columns.empty(); }
+};
+// Reads "t=time_s,q1=angle_deg,p1=velocity" (the CLI's --columns); refuses an unknown canonical
+// name, a name given twice, or a malformed entry with an Error naming `option`.
+ColumnMap parse_column_map(const std::string& spec, const std::string& option = "--columns");
+// The CSV text with the map applied: each mapped column renamed to its canonical name, every
+// column put in the canonical order, and columns neither mapped nor canonical dropped. Lines
+// keep their numbers, so later messages still point into the user's file. Refuses, naming the
+// file and line, a mapped name absent from the header or present twice, and a data line with
+// another number of fields than the header. An empty map returns the text unchanged.
+std::string apply_column_map(std::string text, const std::string& name, const ColumnMap& map);
+// read_csv_input with the map applied (its kind detected from the rewritten header).
+CsvInput read_csv_input(const std::string& path, const ColumnMap& map);
 
 // Values are written with 17 significant digits, so they read back bit-identical.
 void write_pairs_csv(const std::string& path, const PairSet& pairs);

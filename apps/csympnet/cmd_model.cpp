@@ -206,9 +206,9 @@ void add_rollout(CLI::App& app) {
     // Streamed, a row per step: memory stays constant for any --steps, and a signal stops it
     // within a few thousand steps (the rows printed are the rollout up to there).
     auto print = [&](Index n) {
-      std::printf("%.17g", static_cast<double>(n) * *h);
-      for (Index i = 0; i < z.size(); ++i) std::printf(",%.17g", z(i));
-      std::printf("\n");
+      std::string row = round_trip_text(static_cast<double>(n) * *h);
+      for (Index i = 0; i < z.size(); ++i) row += "," + round_trip_text(z(i));
+      std::printf("%s\n", row.c_str());
     };
     print(0);
     for (Index n = 1; n <= *steps; ++n) {

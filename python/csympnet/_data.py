@@ -171,8 +171,9 @@ def read_csv(path):
 
 
 def write_csv(path, data):
-    """Writes `Pairs` (pairs format) or a list of `Trajectory` (trajectories format) with 17
-    significant digits, so the CLI reads back the same bits."""
+    """Writes `Pairs` (pairs format) or a list of `Trajectory` (trajectories format), each
+    number as the shortest text that reads back to the same double, so the CLI reads back the
+    same bits."""
     if isinstance(data, Pairs):
         z0, _ = _checks.states("z0", data.z0, allow_single=False)
         z1, _ = _checks.states("z1", data.z1, dim=z0.shape[1], allow_single=False)

@@ -13,7 +13,6 @@ import numpy as np
 
 from . import _checks
 from ._identify import NotIdentifiedWarning, identify
-from ._verbose import progress_bars
 
 
 def _times(t, n_rows, t_default, name="t"):
@@ -138,27 +137,23 @@ class CSympNetID:
         options = {name: getattr(self, name) for name in (
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
             "val_fraction", "blocks", "level", "dof_scales", "threads")}
-        if not isinstance(self.verbose, (bool, np.bool_)):
-            raise TypeError(f"verbose: expected True or False, got {type(self.verbose).__name__}")
-        with progress_bars(bool(self.verbose)) as progress:
-            if x_next is not None:
-                z0, _ = _checks.states("x", x, allow_single=False)
-                z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
-                if z1.shape != z0.shape:
-                    raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
-                h = self.t_default if t is None else t
-                h = _checks.steps("t", h, z0.shape[0])
-                with warnings.catch_warnings(record=True) as caught:
-                    warnings.simplefilter("always", NotIdentifiedWarning)
-                    result = identify(pairs=(z0, z1, h), progress=progress, **options)
-                steps = h
-            else:
-                trajs = _trajectories(x, t, self.t_default)
-                with warnings.catch_warnings(record=True) as caught:
-                    warnings.simplefilter("always", NotIdentifiedWarning)
-                    result = identify([z for _, z in trajs], [tt for tt, _ in trajs],
-                                      progress=progress, **options)
-                steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
+        options["verbose"] = self.verbose
+        if x_next is not None:
+            z0, _ = _checks.states("x", x, allow_single=False)
+            z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
+            if z1.shape != z0.shape:
+                raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
+            h = _checks.steps("t", self.t_default if t is None else t, z0.shape[0])
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", NotIdentifiedWarning)
+                result = identify(pairs=(z0, z1, h), **options)
+            steps = h
+        else:
+            trajs = _trajectories(x, t, self.t_default)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", NotIdentifiedWarning)
+                result = identify([z for _, z in trajs], [tt for tt, _ in trajs], **options)
+            steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
         for w in caught:  # re-raised here, so that it points at the caller's fit()
             warnings.warn(str(w.message), w.category, stacklevel=2)
         self.model_ = result.model

@@ -8,6 +8,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import _checks, _core
+from ._verbose import progress_callback
 from ._data import REFERENCES, Trajectory, _system_overrides, systems, trajectory_list
 from ._model import Model
 
@@ -81,7 +82,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         val_fraction=0.2, beta_init=0.1, beta_decay=True, lr=1e-3, lr_schedule="cosine",
         lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=True,
         refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, threads=1,
-        progress=None, meta=None, _groups=None):
+        progress=None, verbose=False, meta=None, _groups=None):
     """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs with the classic recipe: what
     `csympnet fit --recipe classic` does, with the same defaults, so the same pairs and options
     give the same parameters to the bit. For identification on your own data (any units, an
@@ -121,6 +122,8 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         (iterations and budget for lm and lbfgs), train_loss (None where the optimiser does not
         say), val_loss, best_val_loss, gamma, seconds (of that stage); returning False ends the
         fit, keeping the best parameters so far.
+    verbose: True draws a progress bar per stage on stderr (AdamW, LM or L-BFGS, the
+        bootstrap), with tqdm where it is installed; with `progress` too, both run.
     meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
 
     Returns a Model holding the best-validation parameters; its `gamma` is γ̂. Training runs
@@ -174,11 +177,12 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if meta is not None and not isinstance(meta, dict):
         raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")
 
-    m = Model(_core.fit_pairs(a0, a1, hs, val, model, _core_spec(core), seed, val_fraction,
-                              beta_init, epochs, val_every, lr, lr_schedule, lr_final_fraction,
-                              weight_decay, bool(beta_decay), bool(warm_start), refine,
-                              refine_iterations, refine_solver, bootstrap, groups, threads,
-                              _progress(progress)))
+    with progress_callback(progress, verbose) as callback:
+        m = Model(_core.fit_pairs(a0, a1, hs, val, model, _core_spec(core), seed, val_fraction,
+                                  beta_init, epochs, val_every, lr, lr_schedule,
+                                  lr_final_fraction, weight_decay, bool(beta_decay),
+                                  bool(warm_start), refine, refine_iterations, refine_solver,
+                                  bootstrap, groups, threads, callback))
     if meta:
         m.meta.update(meta)
     _warn_if_diverged(m)

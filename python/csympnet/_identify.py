@@ -6,7 +6,8 @@ import warnings
 import numpy as np
 
 from . import _checks, _core
-from ._fit import _as_trajectories, _core_spec, _progress
+from ._fit import _as_trajectories, _core_spec
+from ._verbose import progress_callback
 from ._data import trajectory_list
 from ._model import Model
 
@@ -55,7 +56,7 @@ class Identification:
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
-             progress=None):
+             progress=None, verbose=False):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
@@ -72,6 +73,11 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     over training loss when that exceeds 1. When the data do not identify γ this warns
     (NotIdentifiedWarning) and returns identified=False.
     Ctrl-C raises KeyboardInterrupt within about a second.
+
+    progress: optional callable, called after each AdamW validation and each accepted LM step
+    with a dict (stage "adamw" or "lm", epoch, epochs, train_loss, val_loss, best_val_loss,
+    gamma, seconds); returning False ends that stage with its best parameters.
+    verbose: True draws a progress bar per stage on stderr (tqdm where it is installed).
 
     Returns an Identification.
     """
@@ -117,8 +123,9 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     }
     if core is not None:
         config["core"] = json.loads(_core_spec(core))
-    core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
-                                             _progress(progress))
+    with progress_callback(progress, verbose) as callback:
+        core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
+                                                 callback)
     result = Identification(Model(core_model), json.loads(report_text))
     if not result.identified:
         warnings.warn("csympnet.identify: not identified: " + "; ".join(result.reasons),

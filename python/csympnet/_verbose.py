@@ -65,3 +65,27 @@ def progress_bars(verbose, file=None):
         yield bars
     finally:
         bars.close()
+
+
+def _check_verbose(verbose):
+    if not isinstance(verbose, bool) and type(verbose).__name__ != "bool_":
+        raise TypeError(f"verbose: expected True or False, got {type(verbose).__name__}")
+    return bool(verbose)
+
+
+@contextlib.contextmanager
+def progress_callback(progress, verbose):
+    """The callback for `progress=` and `verbose=` together: the bars draw, and the user's
+    callback (if any) decides whether to go on."""
+    if progress is not None and not callable(progress):
+        raise TypeError("progress: expected a callable taking a dict, or None")
+    with progress_bars(_check_verbose(verbose)) as bars:
+        if bars is None or progress is None:
+            yield bars if progress is None else progress
+            return
+
+        def both(p):
+            bars(p)
+            return progress(p)
+
+        yield both

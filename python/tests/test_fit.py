@@ -342,3 +342,14 @@ def test_ctrl_c_stops_identify_within_a_second(noisy_d10_pairs):
     latency = _interrupt_after(
         4.0, lambda: csympnet.identify(pairs=(z0, z1, h), epochs=50, lm_iterations=100000))
     assert latency < 1.0, f"KeyboardInterrupt {latency:.2f} s after SIGINT"
+
+
+def test_verbose_draws_bars_for_every_stage_and_keeps_the_callback(s1_pairs, capsys):
+    seen = []
+    csympnet.fit(*s1_pairs, epochs=40, refine="lm", refine_iterations=5, bootstrap=10,
+                 verbose=True, progress=seen.append)
+    err = capsys.readouterr().err
+    assert "AdamW" in err and "LM" in err and "bootstrap" in err
+    assert {p["stage"] for p in seen} == {"adamw", "lm", "bootstrap"}
+    with pytest.raises(TypeError, match="verbose: expected True or False"):
+        csympnet.fit(*s1_pairs, epochs=5, verbose="yes")

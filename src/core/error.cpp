@@ -1,5 +1,7 @@
 #include "csympnet/core/error.hpp"
 
+#include <charconv>
+
 #include <cstdio>
 
 namespace csympnet {
@@ -18,6 +20,12 @@ std::string printable(const std::string& text) {
     }
   }
   return out;
+}
+
+std::string round_trip_text(double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
 }
 
 std::string number_text(double v) {

@@ -9,12 +9,7 @@ namespace csympnet {
 
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s.precision(17);
-  s << v;
-  return s.str();
-}
+std::string num(double v) { return round_trip_text(v); }
 
 std::string shape(const Matrix& m) {
   return std::to_string(m.rows()) + "x" + std::to_string(m.cols());

@@ -30,14 +30,12 @@ OutputFiles run_output_files(const RunResult& r) {
   std::vector<Trajectory> predicted;
   predicted.reserve(tests.size());
   std::string energy = "traj,t,energy_pred,energy_ref\n";
-  char buf[96];
   for (std::size_t m = 0; m < tests.size(); ++m) {
     predicted.push_back({tests[m].t, r.diagnostics.rollouts[m]});
-    for (Index n = 0; n < tests[m].t.size(); ++n) {
-      std::snprintf(buf, sizeof buf, "%zu,%.17g,%.17g,%.17g\n", m, tests[m].t(n),
-                    r.diagnostics.energy_pred[m](n), r.diagnostics.energy_ref[m](n));
-      energy += buf;
-    }
+    for (Index n = 0; n < tests[m].t.size(); ++n)
+      energy += std::to_string(m) + "," + round_trip_text(tests[m].t(n)) + "," +
+                round_trip_text(r.diagnostics.energy_pred[m](n)) + "," +
+                round_trip_text(r.diagnostics.energy_ref[m](n)) + "\n";
   }
   files.emplace_back("rollout.csv", trajectories_csv_text(predicted));
   files.emplace_back("reference.csv", trajectories_csv_text(tests));

@@ -42,5 +42,8 @@ std::string printable(const std::string& text);
 
 // A number for a message: six significant digits ("1e+300", "0.1", "2.5e-07").
 std::string number_text(double v);
+// The shortest text that reads back to exactly v ("0.2", not "0.20000000000000001"): what every
+// file and table csympnet writes uses, so that numbers are both short and bit-exact.
+std::string round_trip_text(double v);
 
 }  // namespace csympnet

@@ -60,7 +60,8 @@ std::string apply_column_map(std::string text, const std::string& name, const Co
 // read_csv_input with the map applied (its kind detected from the rewritten header).
 CsvInput read_csv_input(const std::string& path, const ColumnMap& map);
 
-// Values are written with 17 significant digits, so they read back bit-identical.
+// Values are written as the shortest text that reads back to the same double (round_trip_text),
+// so they read back bit-identical.
 void write_pairs_csv(const std::string& path, const PairSet& pairs);
 void write_trajectories_csv(const std::string& path, const std::vector<Trajectory>& trajs);
 // The text the writers write (after the same validation).

@@ -25,6 +25,10 @@ packages=(
   pybind11-dev         # Python module: bindings
   python3-pytest       # Python module: tests
   python3-matplotlib   # csympnet.plot: the paper's figure types
+  python3-pip          # pip install . (docs/install.md; tested by ctest -L install)
+  python3-venv         # ... into a venv (python3 -m venv --system-site-packages)
+  python3-setuptools   # ... its build backend, offline (pip install --no-build-isolation)
+  python3-wheel        # ... and pip wheel
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
   liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf

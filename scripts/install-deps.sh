@@ -29,6 +29,10 @@ packages=(
   python3-tqdm         # CSympNetID(verbose=True): progress bars
   python3-sphinx       # make docs: the documentation site and API reference
   python3-myst-parser  # ... reading the Markdown guide
+  python3-pip          # pip install . (docs/install.md; tested by ctest -L install)
+  python3-venv         # ... into a venv (python3 -m venv --system-site-packages)
+  python3-setuptools   # ... its build backend, offline (pip install --no-build-isolation)
+  python3-wheel        # ... and pip wheel
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
   liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf

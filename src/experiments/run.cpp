@@ -174,7 +174,7 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
                          {"groups", r.warm_start->groups}};
   rep["architecture"] = r.model.hyperparams();
   rep["config"] = c;
-  rep["csympnet_version"] = "0.1.0";
+  rep["csympnet_version"] = CSYMPNET_VERSION;  // the project version (CMakeLists.txt)
   return r;
 }
 

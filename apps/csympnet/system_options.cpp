@@ -230,16 +230,20 @@ void SystemOverrides::add_to(CLI::App& cmd) {
   cmd.add_option("--d", d, "Degrees of freedom (overrides the preset)")
       ->check(kWholeNumber)
       ->check(in_range(1, 100000));
-  cmd.add_option("--gamma", gamma, "Damping rate gamma >= 0 (default 0.05)")
+  cmd.add_option("--gamma", gamma,
+                 "Damping rate gamma >= 0 of the preset's system (default: the preset's own, "
+                 "0.05 for all five)")
       ->check(kFiniteNumber)
       ->check(kNonNegative);
-  cmd.add_option("--omega", omega, "Frequency omega > 0 (oscillator, cubic)")
+  cmd.add_option("--omega", omega,
+                 "Frequency omega > 0 (oscillator, cubic; default: the preset's)")
       ->check(kFiniteNumber)
       ->check(kPositive);
-  cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain)")
+  cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain; default: the preset's)")
       ->check(kFiniteNumber)
       ->check(kNonNegative);
-  cmd.add_option("--alpha", alpha, "Cubic coefficient alpha (cubic)")->check(kFiniteNumber);
+  cmd.add_option("--alpha", alpha, "Cubic coefficient alpha (cubic; default: the preset's)")
+      ->check(kFiniteNumber);
 }
 
 void SystemOverrides::apply(Preset& p) const {

@@ -88,6 +88,7 @@ def main():
     rollout = est.simulate(held_z[0], held_t)
     figure = os.path.join(args.out, "tutorial-rollout")
     plot.rollout_figure(held_t - held_t[0], {"csympnet": rollout}, held_z, path=figure,
+                        units={"t": "s", "q": "deg", "p": "deg/s"},
                         title=f"Held-out 15 s: γ̂ = {est.gamma_:.4f} 1/s (true {GAMMA})")
     est.model_.save(os.path.join(args.out, "model.json"))
     print(f"wrote {figure}.png, {figure}.pdf and {args.out}/model.json")

@@ -38,7 +38,7 @@ TEST(PairSetValidate, AcceptsGoodData) {
 TEST(PairSetValidate, NamesWhatIsWrong) {
   PairSet p = make_pairs(1, 4);
   p.h(3) = -0.1;
-  EXPECT_EQ(message_of(p), "pairs: h[3] = -0.10000000000000001 must be > 0");
+  EXPECT_EQ(message_of(p), "pairs: h[3] = -0.1 must be > 0");
 
   p = make_pairs(1, 4);
   p.h(0) = 0.0;

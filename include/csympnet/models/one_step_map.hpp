@@ -50,7 +50,7 @@ class ForwardCache {
   // dropped).
   template <class C>
   C& make_context() {
-    if (context_ == nullptr || typeid(*context_) != typeid(C)) context_ = std::make_unique<C>();
+    if (!holds<C>()) context_ = std::make_unique<C>();
     return static_cast<C&>(*context_);
   }
 
@@ -59,17 +59,25 @@ class ForwardCache {
   // map of another kind recorded: reading it as a C would be undefined behaviour.
   template <class C>
   const C& context(const char* reader) const {
-    if (context_ == nullptr || typeid(*context_) != typeid(C)) refuse(reader);
+    if (!holds<C>()) refuse(reader);
     return static_cast<const C&>(*context_);
   }
   template <class C>
   C& context(const char* reader) {
-    if (context_ == nullptr || typeid(*context_) != typeid(C)) refuse(reader);
+    if (!holds<C>()) refuse(reader);
     return static_cast<C&>(*context_);
   }
 
  private:
   [[noreturn]] void refuse(const char* reader) const;
+  // Whether the cache holds a context of exactly type C (bound to a reference first, so that
+  // typeid sees an lvalue, not a call).
+  template <class C>
+  bool holds() const {
+    if (context_ == nullptr) return false;
+    const ForwardContext& held = *context_;
+    return typeid(held) == typeid(C);
+  }
 
   std::unique_ptr<ForwardContext> context_;
 };

@@ -103,8 +103,9 @@ void add_evaluate(CLI::App& app) {
              " records none; expected --preset with them";
     });
     require(c.has_value() || !a->h_test, [&] {
-      return std::string("--h-test is the step of the diagnostics against a known system; "
-                         "expected --preset with it (against --data the observed steps are used)");
+      return std::string(
+          "--h-test is the step of the diagnostics against a known system; "
+          "expected --preset with it (against --data the observed steps are used)");
     });
     std::optional<System> sys;
     if (c) {

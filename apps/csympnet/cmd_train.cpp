@@ -84,10 +84,10 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(library_nonzero("beta_init"));
   cmd.add_flag("--no-beta-decay", a.no_beta_decay, "Exclude beta from weight decay");
   // Two flags rather than CLI11's "!--no-warm-start", whose help reads "{false}".
-  CLI::Option* on = cmd.add_flag(
-      "--warm-start", a.warm_start,
-      std::string("Start beta at the closed-form estimate of gamma from the data") +
-          (a.warm_start ? " (default)" : " (default: off)"));
+  CLI::Option* on =
+      cmd.add_flag("--warm-start", a.warm_start,
+                   std::string("Start beta at the closed-form estimate of gamma from the data") +
+                       (a.warm_start ? " (default)" : " (default: off)"));
   CLI::Option* off = cmd.add_flag_callback(
       "--no-warm-start", [&a] { a.warm_start = false; }, "Start beta at --beta-init instead");
   on->excludes(off);

@@ -19,7 +19,8 @@ bool parse_only() {
 
 void add_all_commands(CLI::App& app) {
   app.require_subcommand(1);
-  app.set_version_flag("--version", [] { return "csympnet " CSYMPNET_VERSION "\n" + kernels_summary(); });
+  app.set_version_flag("--version",
+                       [] { return "csympnet " CSYMPNET_VERSION "\n" + kernels_summary(); });
   add_run(app);
   add_describe(app);
   add_generate(app);

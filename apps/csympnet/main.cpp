@@ -31,8 +31,7 @@ int main(int argc, char** argv) {
   } catch (const csympnet::OptionError& e) {
     // An option the library refused once the data were read (a beta_init too large for the
     // data's steps): named as the command line spells it.
-    std::fprintf(stderr, "csympnet: error: %s\n",
-                 e.message(csympnet::cli::cli_spelling()).c_str());
+    std::fprintf(stderr, "csympnet: error: %s\n", e.message(csympnet::cli::cli_spelling()).c_str());
     return 1;
   } catch (const csympnet::Error& e) {
     // After a signal, a failure is its consequence (a read cut short by EINTR): say so, and

@@ -33,7 +33,10 @@ ProgressCallback ProgressLine::callback() {
     const bool adamw = std::strcmp(p.stage, "adamw") == 0;
     const bool bootstrap = std::strcmp(p.stage, "bootstrap") == 0;
     std::fprintf(stderr, "\r\033[K%s %ld/%ld  ",
-                 adamw ? "epoch" : bootstrap ? "bootstrap replicate" : p.stage, p.epoch, p.epochs);
+                 adamw       ? "epoch"
+                 : bootstrap ? "bootstrap replicate"
+                             : p.stage,
+                 p.epoch, p.epochs);
     if (!std::isnan(p.train_loss)) std::fprintf(stderr, "loss %.3e  ", p.train_loss);
     if (!std::isnan(p.val_loss))
       std::fprintf(stderr, "val %.3e  best %.3e  ", p.val_loss, p.best_val_loss);

@@ -106,16 +106,16 @@ CLI::Option* add_columns_option(CLI::App& cmd, std::string& spec) {
 }
 
 const OptionSpelling& cli_spelling() {
-  static const OptionSpelling s{
-      [](const std::string& key) -> std::string {
-        if (key == "decay_damping") return "--no-beta-decay";  // a flag that turns it off
-        std::string name = "--" + key;
-        std::replace(name.begin(), name.end(), '_', '-');
-        return name;
-      },
-      [](const std::string& key, const std::string& value) {
-        return cli_spelling().name(key) + " " + value;
-      }};
+  static const OptionSpelling s{[](const std::string& key) -> std::string {
+                                  if (key == "decay_damping")
+                                    return "--no-beta-decay";  // a flag that turns it off
+                                  std::string name = "--" + key;
+                                  std::replace(name.begin(), name.end(), '_', '-');
+                                  return name;
+                                },
+                                [](const std::string& key, const std::string& value) {
+                                  return cli_spelling().name(key) + " " + value;
+                                }};
   return s;
 }
 
@@ -235,8 +235,7 @@ void SystemOverrides::add_to(CLI::App& cmd) {
                  "0.05 for all five)")
       ->check(kFiniteNumber)
       ->check(kNonNegative);
-  cmd.add_option("--omega", omega,
-                 "Frequency omega > 0 (oscillator, cubic; default: the preset's)")
+  cmd.add_option("--omega", omega, "Frequency omega > 0 (oscillator, cubic; default: the preset's)")
       ->check(kFiniteNumber)
       ->check(kPositive);
   cmd.add_option("--k", k, "Spring stiffness k >= 0 (chain; default: the preset's)")

@@ -21,7 +21,9 @@ namespace {
 constexpr const char* kPairsForm = "h,q1..qd,p1..pd,next_q1..next_qd,next_p1..next_pd";
 constexpr const char* kTrajForm = "[traj,]t,q1..qd,p1..pd";
 
-std::string shortest(double v) { return round_trip_text(v); }
+std::string shortest(double v) {
+  return round_trip_text(v);
+}
 
 struct Header {
   CsvKind kind = CsvKind::kPairs;
@@ -272,7 +274,9 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
   return out;
 }
 
-void append_double(std::string& out, double v) { out += round_trip_text(v); }
+void append_double(std::string& out, double v) {
+  out += round_trip_text(v);
+}
 
 void append_header(std::string& out, const std::vector<std::string>& names) {
   for (std::size_t c = 0; c < names.size(); ++c) {

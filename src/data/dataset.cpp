@@ -9,7 +9,9 @@ namespace csympnet {
 
 namespace {
 
-std::string num(double v) { return round_trip_text(v); }
+std::string num(double v) {
+  return round_trip_text(v);
+}
 
 std::string shape(const Matrix& m) {
   return std::to_string(m.rows()) + "x" + std::to_string(m.cols());

@@ -157,8 +157,7 @@ ObservedScores score_observed(const LearnedMap& map, const std::vector<Trajector
   if (self_points > 0) {
     s.structure_residual_mean = self_sum / static_cast<double>(self_points);
   } else {
-    s.structure_residual_mean = s.structure_residual_max =
-        std::numeric_limits<double>::quiet_NaN();
+    s.structure_residual_mean = s.structure_residual_max = std::numeric_limits<double>::quiet_NaN();
   }
   return s;
 }

@@ -69,15 +69,9 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
       c.bootstrap_replicates ? nlohmann::json(*c.bootstrap_replicates) : nlohmann::json("auto");
   bootstrap["refine"] =
       c.replicate_refine ? nlohmann::json(*c.replicate_refine) : nlohmann::json("auto");
-  j = {{"model", to_string(c.model)},
-       {"core", c.core},
-       {"seed", c.seed},
-       {"val_fraction", c.val_fraction},
-       {"train", c.train},
-       {"beta_init", c.beta_init},
-       {"warm_start", c.warm_start},
-       {"refine", refine},
-       {"bootstrap", bootstrap}};
+  j = {{"model", to_string(c.model)},    {"core", c.core},   {"seed", c.seed},
+       {"val_fraction", c.val_fraction}, {"train", c.train}, {"beta_init", c.beta_init},
+       {"warm_start", c.warm_start},     {"refine", refine}, {"bootstrap", bootstrap}};
 }
 
 FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
@@ -110,9 +104,8 @@ FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
   }
   if (s.refine_iterations) c.refine.iterations = *s.refine_iterations;
   if (s.refine_solver) {
-    c.refine.linear_solver =
-        static_cast<LinearSolver>(choice_index("refine_solver", linear_solver_names(),
-                                               *s.refine_solver));
+    c.refine.linear_solver = static_cast<LinearSolver>(
+        choice_index("refine_solver", linear_solver_names(), *s.refine_solver));
     // auto picks the solver with the method; an explicit one would be overridden silently.
     if (!c.refine_method)
       throw OptionError("refine_solver",
@@ -228,8 +221,8 @@ void check_beta_start(double beta, double h_max, bool from_warm_start) {
       number_text(beta) + " with the data's largest step h = " + number_text(h_max) +
       " shrinks every state by exp(-|beta| h) = " + number_text(std::exp(-std::abs(beta) * h_max)) +
       " per step, so training could not move it; expected |beta_init| * h <= " +
-      number_text(kMaxBetaInitTimesStep) + " (|beta_init| <= " +
-      number_text(kMaxBetaInitTimesStep / h_max) + " here)";
+      number_text(kMaxBetaInitTimesStep) +
+      " (|beta_init| <= " + number_text(kMaxBetaInitTimesStep / h_max) + " here)";
   // A beta_init the user gave names that option (spelt by the front end); the warm start's
   // estimate is the data's doing.
   if (!from_warm_start) throw OptionError("beta_init", problem);
@@ -318,9 +311,8 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
     r.stopped = r.training.stop_reason == StopReason::kCallback;
     return r;
   }
-  r.refine =
-      refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine,
-                          {progress, should_stop});
+  r.refine = refine_one_step_map(*r.model.map, r.theta, r.train, r.val, r.config.refine,
+                                 {progress, should_stop});
   if (r.refine.stopped) {
     r.stopped = true;
     if (r.config.bootstrap.replicates > 0)

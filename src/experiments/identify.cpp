@@ -8,8 +8,8 @@
 #include <sstream>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/core/rng.hpp"
 #include "csympnet/core/options.hpp"
+#include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/fit.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
@@ -326,7 +326,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   stage("warm start");
   double beta_init = 0.1;
-  if (c.dof_scales == DofScales::kAuto) c.dof_scales = d > 1 ? DofScales::kLearned : DofScales::kFixed;
+  if (c.dof_scales == DofScales::kAuto)
+    c.dof_scales = d > 1 ? DofScales::kLearned : DofScales::kFixed;
   r.choices["dof_scales"] = to_string(c.dof_scales);
   if (c.dof_scales == DofScales::kLearned)
     r.choices["dof_scales_reason"] =

@@ -129,9 +129,8 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   const bool stopped = r.training.stop_reason == StopReason::kCallback;
   if (stopped && !evaluate_if_stopped) return r;
   if (r.model.is_map() && !stopped)
-    r.refine =
-        refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine,
-                            {progress, should_stop});
+    r.refine = refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine,
+                                   {progress, should_stop});
 
   const System sys(c.preset.system);
   const auto t0 = std::chrono::steady_clock::now();

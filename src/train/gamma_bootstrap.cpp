@@ -99,8 +99,7 @@ GammaInterval gamma_bootstrap(const OneStepMap& map, const Vector& theta, const 
       p.epochs = options.replicates;
       p.train_loss = p.val_loss = p.best_val_loss = std::numeric_limits<double>::quiet_NaN();
       p.gamma_hat = g.gammas.back();
-      p.seconds =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       if (!callbacks.progress(p)) {
         g.stopped = true;
         break;

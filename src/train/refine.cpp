@@ -317,8 +317,8 @@ RefineSummary refine_one_step_map(const OneStepMap& map, Vector& theta, const Pa
     case StopCause::kNone:
       break;
     case StopCause::kPatience:  // a normal end, like a tolerance
-      s.termination = "no better validation loss in " + std::to_string(callbacks.patience) +
-                      " iterations";
+      s.termination =
+          "no better validation loss in " + std::to_string(callbacks.patience) + " iterations";
       break;
     case StopCause::kInterrupt:
       s.stopped = true;

@@ -108,7 +108,8 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   const IterationCallbacks callbacks{progress, {}, 0};
   // By reference: the objective's functions may hold copies of the data.
   IterationMonitor::DampingRate rate;
-  if (objective.damping_rate) rate = [&objective](const Vector& t) { return objective.damping_rate(t); };
+  if (objective.damping_rate)
+    rate = [&objective](const Vector& t) { return objective.damping_rate(t); };
   IterationMonitor monitor(
       "adamw", options.epochs, [&objective](const Vector& t) { return objective.val_loss(t); },
       theta, callbacks, rate);

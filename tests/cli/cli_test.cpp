@@ -371,10 +371,11 @@ TEST_F(Cli, EvaluateScoresAModelOnObservedTrajectoriesWithoutASystem) {
     csv += buf;
   }
   const fs::path data = write("traj.csv", csv);
-  ASSERT_EQ(run("fit " + data.string() + " --recipe classic --epochs 100 --bootstrap 0 --quiet --out " +
-                (dir_ / "fit").string())
-                .code,
-            0);
+  ASSERT_EQ(
+      run("fit " + data.string() + " --recipe classic --epochs 100 --bootstrap 0 --quiet --out " +
+          (dir_ / "fit").string())
+          .code,
+      0);
   const std::string model = (dir_ / "fit" / "model.json").string();
   Result r = run("evaluate --model " + model + " --data " + data.string());
   ASSERT_EQ(r.code, 0) << r.err;
@@ -431,7 +432,8 @@ TEST_F(Cli, ColumnsMapAFilesOwnHeaderAndDataIsPositional) {
 
   r = run("train " + a.string() + " --columns x=time_s" + opts + (dir_ / "x").string());
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("--columns: 'x' is not a column csympnet reads"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--columns: 'x' is not a column csympnet reads"), std::string::npos)
+      << r.err;
   r = run("train " + a.string() + " --columns t=time,q1=theta,p1=omega" + opts +
           (dir_ / "y").string());
   EXPECT_EQ(r.code, 1);

@@ -189,12 +189,12 @@ TEST_F(OptionRanges, RunTrainAndFit) {
   // Too few bootstrap replicates is a usage error found before any work (it exited 1 after
   // creating --out).
   for (const char* n : {"1", "5", "9"}) {
-    expect_refused("fit " + data + " --recipe classic -q" + out(),
-                   {std::string("--bootstrap ") + n,
-                    "a percentile interval needs at least 10 replicates", 2});
-    expect_refused("train --data " + data + " -q" + out(),
-                   {std::string("--bootstrap ") + n,
-                    "expected 0 (off) or a number from 10 to 1000000", 2});
+    expect_refused(
+        "fit " + data + " --recipe classic -q" + out(),
+        {std::string("--bootstrap ") + n, "a percentile interval needs at least 10 replicates", 2});
+    expect_refused(
+        "train --data " + data + " -q" + out(),
+        {std::string("--bootstrap ") + n, "expected 0 (off) or a number from 10 to 1000000", 2});
   }
   // A rule between options, checked with the others before any work (it exited 1 after
   // reading the data).

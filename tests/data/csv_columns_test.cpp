@@ -68,9 +68,9 @@ TEST(ColumnMap, KeepsCanonicalColumnsItDoesNotMapAndReadsPairs) {
   // A canonical name that the map gives to another column is the map's.
   EXPECT_EQ(apply_column_map("t,q1,p1,seconds\n9,2,1,0\n", "f.csv", parse_column_map("t=seconds")),
             "t,q1,p1\n0,2,1\n");
-  const std::string pairs = apply_column_map(
-      "step,x,v,x_next,v_next\n0.1,1,0,0.99,-0.1\n", "p.csv",
-      parse_column_map("h=step,q1=x,p1=v,next_q1=x_next,next_p1=v_next"));
+  const std::string pairs =
+      apply_column_map("step,x,v,x_next,v_next\n0.1,1,0,0.99,-0.1\n", "p.csv",
+                       parse_column_map("h=step,q1=x,p1=v,next_q1=x_next,next_p1=v_next"));
   EXPECT_EQ(pairs, "h,q1,p1,next_q1,next_p1\n0.1,1,0,0.99,-0.1\n");
   EXPECT_EQ(parse_pairs_csv(pairs, "p.csv").size(), 1);
   // Two degrees of freedom, ordered q1 q2 p1 p2 whatever the file's order.

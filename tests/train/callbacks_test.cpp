@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "csympnet/train/levenberg_marquardt.hpp"
+#include "support/train_fixtures.hpp"
 
 namespace csympnet {
 namespace {
@@ -20,7 +21,9 @@ Vector scalar(double x) {
 }
 
 // Validation loss = the single parameter itself, so a test chooses each iterate's loss.
-double identity_loss(const Vector& theta) { return theta(0); }
+double identity_loss(const Vector& theta) {
+  return theta(0);
+}
 
 TEST(IterationMonitor, KeepsTheStrictlyLowestAndTheEarliestOfEqualLosses) {
   const IterationCallbacks none;
@@ -105,17 +108,7 @@ TEST(IterationMonitor, RemembersAnInterruptAndNamesIt) {
 // exactly P iterations after that step, however often the solver polls should_stop within an
 // iteration (here: before each iteration and after each Jacobian).
 TEST(IterationMonitor, LmPatienceIsInIterationsNotPolls) {
-  LeastSquaresProblem p;
-  p.n_residuals = 2;
-  p.n_params = 2;
-  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
-    r(0) = 10.0 * (x(1) - x(0) * x(0));
-    r(1) = 1.0 - x(0);
-    return true;
-  };
-  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) {
-    j << -20.0 * x(0), 10.0, -1.0, 0.0;
-  };
+  LeastSquaresProblem p = testing::rosenbrock_problem();
   for (long patience : {5L, 8L}) {
     long validations = 0;
     // Call 0 validates the start; call 1 (the first accepted step) is the best; then worse.

@@ -6,33 +6,15 @@
 #include <cmath>
 #include <vector>
 
-#include "csympnet/train/objective.hpp"
-#include "csympnet/train/trainer.hpp"
-#include "support/model_fixtures.hpp"
+#include "support/train_fixtures.hpp"
 
 namespace csympnet {
 namespace {
 
-struct Fitted {
-  std::unique_ptr<OneStepMap> map;
-  Vector theta;
-  PairSet train, val;
-};
+using Fitted = testing::TrainedMap;
 
 Fitted fitted() {
-  Fitted f;
-  f.map = make_one_step_map(nlohmann::json::parse(
-      R"({"type":"csympnet","d":1,"core":{"type":"la","layers":2,"sublayers":3}})"));
-  f.theta.resize(f.map->n_params());
-  Rng rng(3, "init");
-  f.map->init_params(rng, f.theta);
-  f.train = testing::damped_rotation_pairs(30, 1, "bootstrap-train");
-  f.val = testing::damped_rotation_pairs(10, 2, "bootstrap-val");
-  TrainOptions o;
-  o.epochs = 300;
-  o.adamw.lr = 1e-2;
-  train_parameters(make_one_step_objective(*f.map, f.train, f.val), f.theta, o);
-  return f;
+  return testing::adamw_trained_rotation_map();
 }
 
 BootstrapOptions options() {

@@ -9,6 +9,7 @@
 
 #include "../../src/train/lapack.hpp"
 #include "csympnet/core/rng.hpp"
+#include "support/train_fixtures.hpp"
 
 namespace csympnet {
 namespace {
@@ -130,18 +131,7 @@ TEST(LevenbergMarquardt, LargeProblemsPollBetweenBlocksAndStop) {
 }
 
 LeastSquaresProblem rosenbrock() {
-  LeastSquaresProblem p;
-  p.n_residuals = 2;
-  p.n_params = 2;
-  p.residuals = [](ConstParams x, Eigen::Ref<Vector> r) {
-    r(0) = 10.0 * (x(1) - x(0) * x(0));
-    r(1) = 1.0 - x(0);
-    return true;
-  };
-  p.jacobian = [](ConstParams x, Eigen::Ref<RowMajorMatrix> j) {
-    j << -20.0 * x(0), 10.0, -1.0, 0.0;
-  };
-  return p;
+  return testing::rosenbrock_problem();
 }
 
 TEST(LevenbergMarquardt, SolvesRosenbrockFromTheClassicStart) {
@@ -178,9 +168,8 @@ TEST(LevenbergMarquardt, RejectsAnOvershootAndStillConverges) {
   Vector x(1);
   x << 3.0;
   std::vector<long> accepted_at;
-  const LmReport r =
-      levenberg_marquardt(
-          p, x, LmSettings{}, {[&](long it, const Vector&, double) { accepted_at.push_back(it); }, {}});
+  const LmReport r = levenberg_marquardt(
+      p, x, LmSettings{}, {[&](long it, const Vector&, double) { accepted_at.push_back(it); }, {}});
   EXPECT_LT(std::abs(x(0)), 1e-12) << r.message;
   ASSERT_FALSE(accepted_at.empty());
   EXPECT_GT(accepted_at.front(), 1);  // iteration 1 was the rejected overshoot
@@ -251,9 +240,8 @@ TEST(LevenbergMarquardt, TreatsANonFiniteTrialAsARejection) {
   Vector x(1);
   x << 5.0;
   std::vector<long> accepted_at;
-  const LmReport r =
-      levenberg_marquardt(
-          p, x, LmSettings{}, {[&](long it, const Vector&, double) { accepted_at.push_back(it); }, {}});
+  const LmReport r = levenberg_marquardt(
+      p, x, LmSettings{}, {[&](long it, const Vector&, double) { accepted_at.push_back(it); }, {}});
   EXPECT_NEAR(x(0), 1.0, 1e-12) << r.message;
   ASSERT_FALSE(accepted_at.empty());
   EXPECT_GT(accepted_at.front(), 1);

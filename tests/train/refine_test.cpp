@@ -9,6 +9,7 @@
 #include "csympnet/train/trainer.hpp"
 #include "support/gradient_check.hpp"
 #include "support/model_fixtures.hpp"
+#include "support/train_fixtures.hpp"
 
 namespace csympnet {
 namespace {
@@ -80,27 +81,10 @@ PairSet rotation_pairs(Index n, std::uint64_t seed) {
   return testing::damped_rotation_pairs(n, seed, "rotation");
 }
 
-struct Trained {
-  std::unique_ptr<OneStepMap> map;
-  Vector theta;
-  PairSet train, val;
-};
+using Trained = testing::TrainedMap;
 
 Trained adamw_start() {
-  Trained t;
-  t.map = make_one_step_map(nlohmann::json::parse(
-      R"({"type":"csympnet","d":1,"core":{"type":"la","layers":2,"sublayers":3}})"));
-  t.theta.resize(t.map->n_params());
-  Rng rng(3, "init");
-  t.map->init_params(rng, t.theta);
-  t.train = rotation_pairs(30, 1);
-  t.val = rotation_pairs(10, 2);
-  TrainOptions o;
-  o.epochs = 500;
-  o.adamw.lr = 1e-2;
-  o.lr_schedule = LrSchedule::kCosine;
-  train_parameters(make_one_step_objective(*t.map, t.train, t.val), t.theta, o);
-  return t;
+  return testing::adamw_trained_rotation_map();
 }
 
 // Both LM implementations: Ceres' (dense QR) and the normal-equations one with BLAS.

@@ -46,8 +46,7 @@ FitModel parse_fit_model(const std::string& text, const char* key = "model");
 // FitConfig's train.epochs = kAutoEpochs stands for "not given" (by dimension). A held-out
 // share below 1% or above 99% leaves one side nearly empty on the data sizes fit is for.
 inline constexpr long kAutoEpochs = 0;
-inline constexpr OptionRange kFitEpochsRange{
-    .key = "epochs", .lo = 1, .hi = 1e8, .whole = true};
+inline constexpr OptionRange kFitEpochsRange{.key = "epochs", .lo = 1, .hi = 1e8, .whole = true};
 inline constexpr OptionRange kValFractionRange{.key = "val_fraction", .lo = 0.01, .hi = 0.99};
 
 // What fit_pairs does, and the recipes the front ends start from. Options that the library

@@ -32,9 +32,9 @@ WarmStartMethod parse_warm_start_method(const std::string& text,
                                         const char* key = "warm_start_method");
 
 struct GammaWarmStart {
-  double gamma = 0.0;                              // γ₀ (may be ≤ 0 on data with no visible damping)
+  double gamma = 0.0;  // γ₀ (may be ≤ 0 on data with no visible damping)
   WarmStartMethod method = WarmStartMethod::kDet;  // the one used: kDet or kMidpoint
-  Index groups = 0;                                // step-size groups used by kDet (0 for kMidpoint)
+  Index groups = 0;  // step-size groups used by kDet (0 for kMidpoint)
 };
 
 // Throws Error naming the method if it cannot be applied (too few pairs, singular fit).

@@ -32,8 +32,7 @@ LrSchedule parse_lr_schedule(const std::string& text,
 // The ranges of TrainOptions' options as the front ends give them (core/options.hpp). An
 // epoch budget of 0 trains nothing (`run --epochs 0` evaluates the initial parameters).
 inline constexpr OptionRange kEpochsRange{.key = "epochs", .lo = 0, .hi = 1e8, .whole = true};
-inline constexpr OptionRange kValEveryRange{
-    .key = "val_every", .lo = 1, .hi = 1e8, .whole = true};
+inline constexpr OptionRange kValEveryRange{.key = "val_every", .lo = 1, .hi = 1e8, .whole = true};
 inline constexpr OptionRange kThreadsRange{
     .key = "threads", .lo = 1, .hi = ThreadTeam::kMaxThreads, .whole = true};
 inline constexpr OptionRange kLrFinalFractionRange{

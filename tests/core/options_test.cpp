@@ -23,10 +23,9 @@ const OptionSpelling kDashed{[](const std::string& k) {
                                  if (c == '_') c = '-';
                                return n + " " + v;
                              }};
-const OptionSpelling kKeyword{[](const std::string& k) { return k; },
-                              [](const std::string& k, const std::string& v) {
-                                return k + "=\"" + v + "\"";
-                              }};
+const OptionSpelling kKeyword{
+    [](const std::string& k) { return k; },
+    [](const std::string& k, const std::string& v) { return k + "=\"" + v + "\""; }};
 
 std::string refusal(const std::function<void()>& f) {
   try {
@@ -57,12 +56,12 @@ TEST(OptionRange, SaysWhatItExpectsInPlainDigits) {
             "a number from 1e-12 to 10");
   EXPECT_EQ((OptionRange{.key = "f", .lo = 0, .hi = 1, .lo_open = true}).expected(),
             "a number > 0 and <= 1");
-  EXPECT_EQ((OptionRange{.key = "w", .lo = 0, .hi = std::numeric_limits<double>::infinity()})
-                .expected(),
-            "a number >= 0");
-  EXPECT_EQ((OptionRange{.key = "b", .lo = 10, .hi = 1e6, .whole = true, .zero_means = "off"})
-                .expected(),
-            "0 (off) or a number from 10 to 1000000");
+  EXPECT_EQ(
+      (OptionRange{.key = "w", .lo = 0, .hi = std::numeric_limits<double>::infinity()}).expected(),
+      "a number >= 0");
+  EXPECT_EQ(
+      (OptionRange{.key = "b", .lo = 10, .hi = 1e6, .whole = true, .zero_means = "off"}).expected(),
+      "0 (off) or a number from 10 to 1000000");
 }
 
 TEST(OptionRange, RefusesOutsideItsEndsNonFiniteAndFractionalWholeNumbers) {
@@ -75,8 +74,8 @@ TEST(OptionRange, RefusesOutsideItsEndsNonFiniteAndFractionalWholeNumbers) {
   EXPECT_EQ(refusal([&] { f.check(1.0, "1.000"); }),
             "--val-fraction: '1.000' is out of range; expected a number from 0.01 to 0.99");
   EXPECT_THROW(f.check(std::nan("")), OptionError);
-  const OptionRange w{.key = "weight_decay", .lo = 0,
-                      .hi = std::numeric_limits<double>::infinity()};
+  const OptionRange w{
+      .key = "weight_decay", .lo = 0, .hi = std::numeric_limits<double>::infinity()};
   EXPECT_NO_THROW(w.check(1e300));
   EXPECT_THROW(w.check(std::numeric_limits<double>::infinity()), OptionError);
   const OptionRange open{.key = "f", .lo = 0, .hi = 1, .lo_open = true, .hi_open = true};

@@ -169,15 +169,19 @@ struct Stage {
   RefineMethod method;
   LinearSolver solver;
   const char* name;
+  RefineOptions options(long iterations) const {
+    RefineOptions o;
+    o.method = method;
+    o.linear_solver = solver;
+    o.iterations = iterations;
+    return o;
+  }
 };
 class RefineCallbacks : public ::testing::TestWithParam<Stage> {};
 
 TEST_P(RefineCallbacks, ProgressSeesEveryAcceptedIterateAndCanStop) {
   const Stage st = GetParam();
-  RefineOptions o;
-  o.method = st.method;
-  o.linear_solver = st.solver;
-  o.iterations = 40;
+  const RefineOptions o = st.options(40);
   Trained full = adamw_start();
   std::vector<TrainProgress> seen;
   IterationCallbacks cb;
@@ -213,10 +217,7 @@ TEST_P(RefineCallbacks, ProgressSeesEveryAcceptedIterateAndCanStop) {
 
 TEST_P(RefineCallbacks, PatienceEndsTheStageAfterTheBest) {
   const Stage st = GetParam();
-  RefineOptions o;
-  o.method = st.method;
-  o.linear_solver = st.solver;
-  o.iterations = 200;
+  const RefineOptions o = st.options(200);
   // Validation data from another damping rate, so that validation stops improving early.
   Trained t = adamw_start();
   PairSet other = rotation_pairs(10, 2);

@@ -8,10 +8,33 @@
 #include "csympnet/data/generate.hpp"
 #include "csympnet/experiments/run.hpp"
 
+#include <algorithm>
+#include <optional>
+#include <regex>
+
 namespace csympnet::bench {
 
-Setup make_setup(const std::string& preset, const std::string& model, std::uint64_t seed) {
-  const RunConfig c = default_run_config(preset, model);
+namespace {
+
+bool preset_names_contain(const std::string& name) {
+  const auto names = preset_names();
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+}  // namespace
+
+Setup make_setup(const std::string& workload, const std::string& model, std::uint64_t seed) {
+  // P-Nk: preset P with N thousand training pairs.
+  std::string preset = workload;
+  std::optional<Index> n_train;
+  static const std::regex kSized("(.+)-([1-9][0-9]*)k");
+  std::smatch m;
+  if (std::regex_match(workload, m, kSized) && preset_names_contain(m[1].str())) {
+    preset = m[1].str();
+    n_train = std::stoll(m[2].str()) * 1000;
+  }
+  RunConfig c = default_run_config(preset, model);
+  if (n_train) c.preset.n_train = *n_train;
   const System sys(c.preset.system);
   Setup s;
   Rng train_rng(seed, "train-pairs");

@@ -17,7 +17,9 @@ struct Setup {
 };
 
 // Training (and validation) pairs of `preset` drawn from the streams `csympnet run --seed
-// seed` uses, and `model` initialised from its "init" stream.
+// seed` uses, and `model` initialised from its "init" stream. Besides the presets, the
+// workloads P-Nk (e.g. s2-100-4k, s2-100-40k) are preset P with N thousand training pairs from
+// the same stream (the GEMM-bound sizes of docs/benchmarks.md); the validation pairs are P's.
 Setup make_setup(const std::string& preset, const std::string& model, std::uint64_t seed = 42);
 
 // The analytic FLOP count of one full-batch CSympNet-ID epoch (forward, backward, AdamW) on

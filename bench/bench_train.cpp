@@ -3,6 +3,8 @@
 //
 //   epoch/P/M       one full-batch training epoch: loss, gradient and AdamW step, as
 //                   train_parameters() runs it (the table of `make bench` reads epoch/P/csympnet)
+//   epoch/W/csympnet  the same for the GEMM-bound workloads s2-100-4k and s2-100-40k (the
+//                   s2-100 model on 4,000 and 40,000 pairs)
 //   epoch/P/csympnet/threads:T  the same on a team of T threads (TrainOptions::threads; wall
 //                   time, since CPU time would count the calling thread only)
 //   lossgrad/P/M    forward + backward only: the model's training loss with its gradient
@@ -30,6 +32,8 @@ namespace csympnet::bench {
 namespace {
 
 const std::vector<std::string> kPresets = {"s1", "s2", "s3", "s2-100"};
+// The GEMM-bound sizes: the s2-100 model (d = 100) on 4,000 and 40,000 pairs (bench_setup.hpp).
+const std::vector<std::string> kLargeWorkloads = {"s2-100-4k", "s2-100-40k"};
 const std::vector<std::string> kModels = {"csympnet", "sympnet", "map",  "ode",
                                           "dhnn",     "dhnn2",   "phnn", "phnn2"};
 
@@ -135,6 +139,16 @@ void register_benchmarks() {
       const std::string name = "epoch/" + p + "/csympnet/threads:" + std::to_string(t);
       RegisterBenchmark(name.c_str(), epoch, p, std::string("csympnet"), t)
           ->Unit(benchmark::kMicrosecond)
+          ->UseRealTime();
+    }
+  }
+  for (const auto& p : kLargeWorkloads) {
+    RegisterBenchmark(("epoch/" + p + "/csympnet").c_str(), epoch, p, std::string("csympnet"), 1)
+        ->Unit(benchmark::kMillisecond);
+    for (int t : {2, 3, 4}) {
+      const std::string name = "epoch/" + p + "/csympnet/threads:" + std::to_string(t);
+      RegisterBenchmark(name.c_str(), epoch, p, std::string("csympnet"), t)
+          ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
     }
   }

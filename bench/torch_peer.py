@@ -17,7 +17,7 @@ Loss: mean over pairs of ‖z1 − Φ̂_h(z0)‖² (summed over the 2d component
 Optimiser: AdamW(lr 1e-3, betas (0.9, 0.999), eps 1e-8, weight_decay 5e-4).
 
 Inputs come from `csympnet_bench --peer-export DIR` (bench/peer_export.cpp): for each
-preset P, DIR/P-train.csv (the pairs format of docs/data-formats.md), DIR/P-spec.json
+preset P, DIR/P-train.f64 (the pairs as raw float64, a row h, z0, z1 per pair), DIR/P-spec.json
 (architecture and θ layout), DIR/P-theta0.txt (csympnet's initial θ, 17 digits) and
 DIR/P-losses.txt (csympnet's training loss at epochs 1..K from that θ).
 
@@ -39,7 +39,8 @@ import time
 def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--dir", required=True, help="directory written by csympnet_bench --peer-export")
-    ap.add_argument("--presets", default="s1,s2,s3,s2-100")
+    ap.add_argument("--presets", default="s1,s2,s3,s2-100",
+                    help="presets and workloads (s2-100-4k: s2-100 on 4,000 pairs) exported in --dir")
     ap.add_argument("--threads", type=int, default=1, help="torch and BLAS threads (default 1)")
     ap.add_argument("--blas-threads", type=int, default=None,
                     help="OpenBLAS threads when they differ from --threads")
@@ -277,8 +278,8 @@ def main():
             spec = json.load(f)
         theta0 = np.loadtxt(base + "-theta0.txt", dtype=np.float64, ndmin=1)
         ours = np.loadtxt(base + "-losses.txt", dtype=np.float64, ndmin=1).tolist()
-        data = np.loadtxt(base + "-train.csv", delimiter=",", skiprows=1, dtype=np.float64, ndmin=2)
         dim = 2 * spec["d"]
+        data = np.fromfile(base + "-train.f64", dtype="<f8").reshape(-1, 1 + 2 * dim)
         h = torch.from_numpy(data[:, :1].copy())
         z0 = torch.from_numpy(data[:, 1:1 + dim].copy())
         z1 = torch.from_numpy(data[:, 1 + dim:1 + 2 * dim].copy())

@@ -77,6 +77,8 @@ def test_torch_model_refined_by_fit_init(tmp_path, cli):
                                init=tmp_path / "torch.json", lm_iterations=60)
     assert result.gamma == report["gamma_hat"]
     assert result.report["init"]["checksum"] == file_checksum
+    est = csympnet.CSympNetID(init=tmp_path / "torch.json", lm_iterations=60)
+    assert est.fit([tr.z for tr in data], [tr.t for tr in data]).gamma_ == report["gamma_hat"]
     # The refined file is again a torch module, which predicts as the library does.
     again = ct.load(out / "model.json")
     z = held_out[0].z

@@ -310,6 +310,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   // 1. Units and offsets: a model file to start from keeps its own (its θ is in those units).
   if (init != nullptr) {
+    r.config.normalize = init->normalization.has_value();  // what the report says was done
     r.normalization = init->normalization.value_or(identity_normalization(d));
     r.choices["normalization_reason"] =
         init->normalization ? "the init model file's own (its parameters are in those units)"

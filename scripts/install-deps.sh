@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what csympnet needs to build and test, from Debian 12 packages, and skips what is
 # already present. Safe to run any number of times.
-#   --bench   also what `make bench` needs: PyTorch for the side-by-side (on OpenBLAS).
+#   --bench   accepted for older instructions: what `make bench` needs (PyTorch for the
+#             side-by-side) is now in the main list.
 set -euo pipefail
 
 bench=0
@@ -27,6 +28,7 @@ packages=(
   python3-matplotlib   # csympnet.plot: the paper's figure types
   python3-sklearn      # Python tests: CSympNetID under clone and cross_val_score
   python3-tqdm         # CSympNetID(verbose=True): progress bars
+  python3-torch        # csympnet.torch and its tests; bench/torch_peer.py (make bench)
   python3-sphinx       # make docs: the documentation site and API reference
   python3-myst-parser  # ... reading the Markdown guide
   python3-pip          # pip install . (docs/install.md; tested by ctest -L install)
@@ -40,9 +42,7 @@ packages=(
   clang-14             # fuzz/: libFuzzer targets (make fuzz)
   libclang-rt-14-dev   # fuzz/: the libFuzzer and sanitizer runtimes for clang
 )
-if [ "$bench" -eq 1 ]; then
-  packages+=(python3-torch)  # bench/torch_peer.py; libopenblas0-pthread (above) is its BLAS
-fi
+: "$bench"  # nothing more to add: python3-torch is in the list above
 
 missing=()
 for p in "${packages[@]}"; do

@@ -47,6 +47,7 @@ struct FitArgs {
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;
   std::string loss = "balanced", dof_scales = "auto";
+  std::string init;  // --init FILE: a model file to start from (IdentifyConfig::init)
   bool no_normalize = false;
   double level = 0.95;
 };
@@ -255,6 +256,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (a.epochs) settings["epochs"] = *a.epochs;
   if (a.lr) settings["lr"] = *a.lr;
   if (a.val_fraction) settings["val_fraction"] = *a.val_fraction;
+  if (!a.init.empty()) settings["init"] = a.init;
   // Every option checked (ranges, spellings) before any work.
   const IdentifyConfig c = at_boundary([&] { return make_identify_config(settings); });
   const OutputDir out_dir = prepare_output_dir(a.out, a.force);
@@ -319,9 +321,11 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
        {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
                                         {"lm_seconds", r.lm_seconds},
                                         {"interval_seconds", r.interval_seconds}})},
-       {"model.json",
-        model_file_text(r.model, r.theta,
-                        {{"data", a.data}, {"seed", r.config.seed}, {"recipe", "identify"}})}});
+       {"model.json", model_file_text(r.model, r.theta, [&] {
+          nlohmann::json meta = {{"data", a.data}, {"seed", r.config.seed}, {"recipe", "identify"}};
+          if (r.config.init) meta["init"] = r.config.init->file;
+          return meta;
+        }())}});
   if (r.identified) {
     const SandwichInterval& s = *r.interval;
     std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% interval, %s, %ld blocks)\n",
@@ -410,12 +414,21 @@ void add_fit(CLI::App& app) {
                   "(default 20)")
       ->check(kWholeNumber)
       ->check(library_range(kBlocksRange));
+  cmd->add_option("--init", a->init,
+                  "Model file of CSympNet-ID to start from (from `fit`, or saved by "
+                  "csympnet.torch): its core, parameters and units; AdamW only with --epochs")
+      ->check(kExistingFile);
   CLI::App* self = cmd;
   cmd->callback([a, self] {
     if (parse_only()) return;
     const FitModel model =
         a->model ? parse_fit_model(*a->model) : a->classic.model;  // --model was checked
-    if (a->recipe == "identify" && model == FitModel::kCSympNet)
+    const bool identify = a->recipe == "identify" && model == FitModel::kCSympNet;
+    if (!a->init.empty() && !identify)
+      throw CLI::ValidationError("--init",
+                                 "belongs to the default recipe (--recipe identify) "
+                                 "with --model csympnet");
+    if (identify)
       run_identify(*a, *self);
     else
       run_fit(*a, true);

@@ -109,6 +109,7 @@ const OptionSpelling& cli_spelling() {
   static const OptionSpelling s{[](const std::string& key) -> std::string {
                                   if (key == "decay_damping")
                                     return "--no-beta-decay";  // a flag that turns it off
+                                  if (key == "normalize") return "--no-normalize";
                                   std::string name = "--" + key;
                                   std::replace(name.begin(), name.end(), '_', '-');
                                   return name;

@@ -23,7 +23,9 @@ As a scikit-learn style estimator (clone, pickle, cross_val_score work):
     >>> est.gamma_, est.gamma_interval_, est.score(z_test, t_test)
 
 Main entry points: CSympNetID, identify, fit, fit_trajectories, run, load, Model, generate, systems, System,
-read_csv, write_csv; figures in csympnet.plot (NumPy + matplotlib only). See docs/python.md.
+read_csv, write_csv; figures in csympnet.plot (NumPy + matplotlib only); the same maps as PyTorch
+modules that read and write model files in csympnet.torch (imported only on request; needs
+torch). See docs/python.md.
 """
 
 from . import _core

@@ -59,7 +59,8 @@ class CSympNetID:
     Φ̂_h = S_a ∘ Ψ_h ∘ S_a, a = exp(−γ̂h/2), in the data's own units.
 
     Hyperparameters are those of `csympnet.identify` (core, seed, window, loss, normalize,
-    epochs, lr, lm_iterations, val_fraction, blocks, level, dof_scales, threads), plus
+    epochs, lr, lm_iterations, val_fraction, blocks, level, dof_scales, threads, init: the
+    path of a model file to start from), plus
         t_default: the step between samples when fit, score or simulate get no times
             (PySINDy's t_default);
         verbose: progress bars on stderr for each stage (tqdm where it is installed).
@@ -77,7 +78,7 @@ class CSympNetID:
 
     def __init__(self, *, core=None, seed=42, window=0, loss="balanced", normalize=True,
                  epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
-                 dof_scales="auto", threads=1, t_default=1.0, verbose=False):
+                 dof_scales="auto", threads=1, init=None, t_default=1.0, verbose=False):
         self.core = core
         self.seed = seed
         self.window = window
@@ -91,6 +92,7 @@ class CSympNetID:
         self.level = level
         self.dof_scales = dof_scales
         self.threads = threads
+        self.init = init
         self.t_default = t_default
         self.verbose = verbose
 
@@ -136,7 +138,7 @@ class CSympNetID:
         """
         options = {name: getattr(self, name) for name in (
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
-            "val_fraction", "blocks", "level", "dof_scales", "threads")}
+            "val_fraction", "blocks", "level", "dof_scales", "threads", "init")}
         options["verbose"] = self.verbose
         if x_next is not None:
             z0, _ = _checks.states("x", x, allow_single=False)

@@ -1,6 +1,7 @@
 """Identification on one's own data: what `csympnet fit` runs (docs/identification.md)."""
 
 import json
+import os
 import warnings
 
 import numpy as np
@@ -56,7 +57,7 @@ class Identification:
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
-             progress=None, verbose=False):
+             init=None, progress=None, verbose=False):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
@@ -73,6 +74,12 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     over training loss when that exceeds 1. When the data do not identify γ this warns
     (NotIdentifiedWarning) and returns identified=False.
     Ctrl-C raises KeyboardInterrupt within about a second.
+
+    init: the path of a CSympNet-ID model file to start from (`csympnet fit --init`; written by
+    `fit`, `Model.save` or `csympnet.torch.save`): its core, parameters and units are kept (the
+    data are normalised with the file's normalisation, or fitted in their own units when it has
+    none), AdamW runs only when `epochs` is given, and LM refines. `core` cannot be given with
+    it. The report records the file and its checksum under "init".
 
     progress: optional callable, called after each AdamW validation and each accepted LM step
     with a dict (stage "adamw" or "lm", epoch, epochs, train_loss, val_loss, best_val_loss,
@@ -123,6 +130,10 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     }
     if core is not None:
         config["core"] = json.loads(_core_spec(core))
+    if init is not None:
+        if not isinstance(init, (str, os.PathLike)):
+            raise TypeError(f"init: expected the path of a model file, got {type(init).__name__}")
+        config["init"] = os.fspath(init)
     with progress_callback(progress, verbose) as callback:
         core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
                                                  callback)

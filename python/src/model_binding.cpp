@@ -229,6 +229,34 @@ void bind_model(py::module_& m) {
       },
       py::arg("path"), "Reads a model file (io/model_file.hpp).");
   m.def(
+      "spec_info",
+      [](const std::string& spec_json) {
+        const Model model = model_from_spec(parse_json(spec_json, "spec"), "spec");
+        return py::make_tuple(model.hyperparams().dump(), model.n_params());
+      },
+      py::arg("spec_json"),
+      "(the architecture as the library writes it, its parameter count) of a model spec.");
+  m.def(
+      "from_spec",
+      [](const std::string& spec_json, const DArray& params, const std::string& meta_json) {
+        // Through the model file's own reader, so that every check of a file applies (sizes,
+        // parameter count, finite values).
+        const nlohmann::json spec = parse_json(spec_json, "spec");
+        const nlohmann::json meta = parse_json(meta_json, "meta");
+        require(meta.is_object(), "meta: expected a JSON object");
+        const Vector theta = vector_from(params, "params");
+        const nlohmann::json doc = {
+            {"format", kModelFormat},
+            {"version", kModelFormatVersion},
+            {"model", spec},
+            {"meta", meta},
+            {"checksum", model_checksum(spec, meta, theta)},
+            {"params", std::vector<double>(theta.data(), theta.data() + theta.size())}};
+        return from_saved(model_from_json(doc, "model"));
+      },
+      py::arg("spec_json"), py::arg("params"), py::arg("meta_json"),
+      "A model from its architecture (a model file's \"model\" entry) and flat parameters.");
+  m.def(
       "from_json",
       [](const std::string& text) {
         return from_saved(model_from_json(parse_json(text, "model"), "model"));

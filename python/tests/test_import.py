@@ -44,3 +44,23 @@ def test_plot_loads_by_path_without_the_extension(tmp_path):
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "fig.png").stat().st_size > 0
     assert (tmp_path / "fig.pdf").stat().st_size > 0
+
+
+def test_torch_is_optional():
+    # With torch unimportable (None in sys.modules), csympnet imports and csympnet.torch says
+    # what to install.
+    script = textwrap.dedent("""
+        import sys
+        sys.modules["torch"] = None
+        import csympnet
+        assert csympnet.load
+        try:
+            import csympnet.torch
+        except ImportError as e:
+            assert "python3-torch" in str(e) and "pip install torch" in str(e), e
+        else:
+            raise AssertionError("csympnet.torch imported without torch")
+    """)
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       env=dict(os.environ), timeout=60)
+    assert p.returncode == 0, p.stderr

@@ -12,7 +12,10 @@
 #include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/fit.hpp"
+#include "csympnet/io/files.hpp"
+#include "csympnet/io/json_text.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
+#include "csympnet/models/model_file.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/train/window_loss.hpp"
 
@@ -60,6 +63,41 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"target_blocks", c.target_blocks},
        {"level", c.level},
        {"dof_scales", to_string(c.dof_scales)}};
+  if (c.init) j["init"] = {{"file", c.init->file}, {"checksum", c.init->checksum}};
+}
+
+std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) {
+  auto out = std::make_shared<IdentifyInit>();
+  out->file = file;
+  nlohmann::json doc;
+  SavedModel saved;
+  try {
+    doc = parse_json_text(read_text_file(file), file, "a csympnet model file");
+    saved = model_from_json(doc, file);
+  } catch (const OptionError&) {
+    throw;
+  } catch (const Error& e) {
+    throw OptionError("init", e.what());
+  }
+  // model_from_json checked the checksum against the contents: it is the file's.
+  out->checksum = doc.at("checksum").get<std::string>();
+  out->model = std::move(saved.model);
+  out->theta = std::move(saved.theta);
+  const nlohmann::json& spec = doc.at("model");
+  if (!out->model.is_map() || out->model.type() != "csympnet" ||
+      !out->model.damping_param_index().has_value())
+    throw OptionError("init", file + ": a model of type '" + out->model.type() +
+                                  "'; expected a CSympNet-ID (\"type\": \"csympnet\"), the "
+                                  "one-step map with a damping rate that fit refines");
+  out->inner_spec = spec;
+  if (spec.contains("normalization")) {
+    Normalization n;
+    from_json(spec.at("normalization"), n);
+    out->normalization = std::move(n);
+    out->inner_spec.erase("normalization");
+  }
+  out->dof_scales = out->inner_spec.contains("dof_scales");
+  return out;
 }
 
 IdentifyConfig make_identify_config(const nlohmann::json& settings) {
@@ -67,7 +105,7 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
           [&] { return "identify settings: expected a JSON object, got " + settings.dump(); });
   static const char* const kKeys[] = {
       "core", "seed",          "window",       "balanced", "normalize", "dof_scales", "epochs",
-      "lr",   "lm_iterations", "val_fraction", "blocks",   "level",     "threads"};
+      "lr",   "lm_iterations", "val_fraction", "blocks",   "level",     "threads",    "init"};
   for (const auto& item : settings.items()) {
     const bool known = std::any_of(std::begin(kKeys), std::end(kKeys),
                                    [&](const char* k) { return item.key() == k; });
@@ -89,6 +127,25 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   c.level = settings.value("level", c.level);
   c.threads = settings.value("threads", c.threads);
   c.validate();
+  if (settings.contains("init") && !settings.at("init").is_null()) {
+    if (!settings.at("init").is_string() || settings.at("init").get<std::string>().empty())
+      throw OptionError("init", "expected the path of a model file");
+    c.init = load_identify_init(settings.at("init").get<std::string>());
+    const IdentifyInit& init = *c.init;
+    if (!c.core.is_null())
+      throw OptionError(
+          "core", "cannot be given with {init}: the model file " + init.file + " fixes the core");
+    if (!c.normalize && init.normalization)
+      throw OptionError("normalize", "cannot be switched off with {init}: the model file " +
+                                         init.file +
+                                         " carries a normalisation, and its parameters are in "
+                                         "those units");
+    const bool learned = c.dof_scales == DofScales::kLearned;
+    if (c.dof_scales != DofScales::kAuto && learned != init.dof_scales)
+      throw OptionError("dof_scales",
+                        "'" + to_string(c.dof_scales) + "' disagrees with {init}: " + init.file +
+                            (init.dof_scales ? " learns" : " has no") + " per-dof momentum scales");
+  }
   return c;
 }
 
@@ -212,6 +269,12 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   for (std::size_t k = 0; k < trajs.size(); ++k)
     trajs[k].validate("fit: trajectory " + std::to_string(k));
   const Index d = trajs.front().z.rows() / 2;
+  const IdentifyInit* init = config.init.get();
+  if (init != nullptr && init->model.dim() != 2 * d)
+    throw OptionError("init",
+                      init->file + " is a model of d = " + std::to_string(init->model.dim() / 2) +
+                          " degrees of freedom, but the data have d = " + std::to_string(d) +
+                          "; expected a model of the data's dimension");
   IdentifyResult r;
   r.config = config;
   auto stage = [&](const std::string& name) {
@@ -245,11 +308,20 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
             {"h_max", h_max},
             {"h_median", sorted[sorted.size() / 2]}};
 
-  // 1. Units and offsets.
-  r.normalization = config.normalize
-                        ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
-                                      : fit_normalization(trajs))
-                        : identity_normalization(d);
+  // 1. Units and offsets: a model file to start from keeps its own (its θ is in those units).
+  if (init != nullptr) {
+    r.config.normalize = init->normalization.has_value();  // what the report says was done
+    r.normalization = init->normalization.value_or(identity_normalization(d));
+    r.choices["normalization_reason"] =
+        init->normalization ? "the init model file's own (its parameters are in those units)"
+                            : "none: the init model file has none, so the data are fitted "
+                              "in their own units";
+  } else {
+    r.normalization = config.normalize
+                          ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
+                                        : fit_normalization(trajs))
+                          : identity_normalization(d);
+  }
   const std::vector<Trajectory> nt = normalize(r.normalization, trajs);
 
   // 2. Window length and blocks.
@@ -313,6 +385,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // 3. Candidate cores. Given: that one. Else an LA and a G core, each trained (AdamW, then
   // LM) on a share of the budget; the lower validation loss wins and continues LM.
   IdentifyConfig& c = r.config;
+  if (init != nullptr) c.core = init->inner_spec.at("core");
   const bool choose = c.core.is_null();
   std::vector<nlohmann::json> cores =
       choose ? default_cores(d, varying) : std::vector<nlohmann::json>{c.core};
@@ -326,10 +399,14 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   stage("warm start");
   double beta_init = 0.1;
-  if (c.dof_scales == DofScales::kAuto)
+  if (init != nullptr)
+    c.dof_scales = init->dof_scales ? DofScales::kLearned : DofScales::kFixed;
+  else if (c.dof_scales == DofScales::kAuto)
     c.dof_scales = d > 1 ? DofScales::kLearned : DofScales::kFixed;
   r.choices["dof_scales"] = to_string(c.dof_scales);
-  if (c.dof_scales == DofScales::kLearned)
+  if (init != nullptr)
+    r.choices["dof_scales_reason"] = "the init model file's";
+  else if (c.dof_scales == DofScales::kLearned)
     r.choices["dof_scales_reason"] =
         config.dof_scales == DofScales::kAuto
             ? "d > 1: momenta's per-dof units (velocities, masses) are learned, not assumed"
@@ -347,6 +424,11 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   for (std::size_t k = 0; k < cores.size(); ++k) {
     Candidate& x = cand[k];
     x.core = cores[k];
+    if (init != nullptr) {  // the file's map in its normalised units, and its θ
+      x.inner = make_model(init->inner_spec);
+      x.theta = init->theta;
+      continue;
+    }
     nlohmann::json spec = {
         {"type", "csympnet"}, {"d", d}, {"core", x.core}, {"beta_init", beta_init}};
     if (c.dof_scales == DofScales::kLearned && d > 1) spec["dof_scales"] = to_string(c.dof_scales);
@@ -362,16 +444,24 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   // The AdamW budget by an estimate of an epoch's seconds (about 4 ns per sample, step and
   // parameter on one core), about 10 s in all (shared by the candidates), between 300 and
   // 50,000 epochs.
+  // From a model file, AdamW runs only when epochs are given: LM starts from the file's θ.
   auto epochs_for = [&](const Candidate& x) -> long {
     if (config.epochs > 0) return config.epochs;
+    if (init != nullptr) return 0;
     const double epoch_seconds = 4e-9 * static_cast<double>(train.size()) * static_cast<double>(m) *
                                  static_cast<double>(x.inner.n_params());
     return std::clamp<long>(std::lround(10.0 * share / epoch_seconds), 300, 50000);
   };
   auto run_adamw = [&](Candidate& x, const std::string& label) {
     if (stop()) return;
-    stage(label);
     const OneStepMap& map = *x.inner.map;
+    if (epochs_for(x) == 0) {  // none: the summary of the parameters as they are
+      x.training = TrainSummary{};
+      x.training.best_val_loss = window_loss(map, x.theta, val, bal);
+      x.training.final_train_loss = window_loss(map, x.theta, train, bal);
+      return;
+    }
+    stage(label);
     Objective o;
     o.n_params = x.inner.n_params();
     o.damping_index = map.damping_param_index();
@@ -488,10 +578,16 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     if (varying) why += "; the LA candidate has step polynomials because the steps vary";
     r.choices["core_reason"] = why;
   } else {
-    r.choices["core_reason"] = "given";
+    r.choices["core_reason"] = init != nullptr ? "the init model file's" : "given";
   }
   c.epochs = epochs_for(best);
   r.choices["epochs"] = c.epochs;
+  if (init != nullptr) {
+    r.choices["init"] = {{"file", init->file}, {"checksum", init->checksum}};
+    r.choices["epochs_reason"] = config.epochs > 0
+                                     ? "given: AdamW from the init model file's parameters"
+                                     : "none: LM refines the init model file's parameters";
+  }
   long lm_total = cand.size() > 1 ? lm_budget(best, 10.0, 2) : lm_budget(best, 25.0);
   // The winner continues where its LM stopped, with the rest of the one-step budget.
   const long more = cand.size() > 1 && config.lm_iterations == 0 && best.lm.iterations > 0 &&
@@ -691,7 +787,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 
   // 9. The model in the user's units.
   nlohmann::json user_spec = inner.hyperparams();
-  user_spec["normalization"] = r.normalization;
+  if (init == nullptr || init->normalization) user_spec["normalization"] = r.normalization;
   r.model = make_model(user_spec);
   return r;
 }
@@ -737,6 +833,8 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"quality", r.quality},
       {"stopped", r.stopped},
       {"architecture", r.model.hyperparams()}};
+  if (r.config.init)
+    j["init"] = {{"file", r.config.init->file}, {"checksum", r.config.init->checksum}};
   return j;
 }
 

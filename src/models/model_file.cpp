@@ -64,6 +64,21 @@ nlohmann::json model_to_json(const Model& model, const Vector& theta, const nloh
           {"params", params}};
 }
 
+Model model_from_spec(const nlohmann::json& spec, const std::string& where) {
+  double sizes = 1.0;
+  product_of_sizes(spec, sizes);
+  require(sizes <= kMaxSizeProduct, [&] {
+    return where + ": the architecture's sizes multiply to " + short_number(sizes) +
+           ", more than any model file can hold; expected sizes whose product is at most " +
+           std::to_string(static_cast<long long>(kMaxSizeProduct));
+  });
+  try {
+    return make_model(spec);
+  } catch (const Error& e) {
+    throw Error(where + ": " + e.what());
+  }
+}
+
 SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) {
   require(doc.is_object(), [&] { return where + ": expected a JSON object"; });
   require(doc.contains("format") && doc["format"] == kModelFormat, [&] {
@@ -92,19 +107,8 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
     return where +
            ": missing \"model\"; expected the architecture, e.g. {\"type\": \"csympnet\", ...}";
   });
-  double sizes = 1.0;
-  product_of_sizes(doc["model"], sizes);
-  require(sizes <= kMaxSizeProduct, [&] {
-    return where + ": the architecture's sizes multiply to " + short_number(sizes) +
-           ", more than any model file can hold; expected sizes whose product is at most " +
-           std::to_string(static_cast<long long>(kMaxSizeProduct));
-  });
   SavedModel out;
-  try {
-    out.model = make_model(doc["model"]);
-  } catch (const Error& e) {
-    throw Error(where + ": " + e.what());
-  }
+  out.model = model_from_spec(doc["model"], where);
   require(doc.contains("params") && doc["params"].is_array(),
           [&] { return where + ": missing array \"params\"; expected the flat parameter vector"; });
   const auto& params = doc["params"];

@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -56,6 +57,24 @@ inline constexpr OptionRange kLmIterationsRange{
 inline constexpr OptionRange kBlocksRange{.key = "blocks", .lo = 3, .hi = 10000, .whole = true};
 inline constexpr OptionRange kLevelRange{.key = "level", .lo = 0.5, .hi = 0.9999};
 
+// A model file to start from (`csympnet fit --init FILE`, Python's init=): a CSympNet-ID, bare
+// or wrapped in its units ("normalization") and learned dof scales ("dof_scales"). The fit
+// keeps its architecture, β and θ, and its units: the data are normalised with the file's
+// normalisation, or fitted in their own units when the file has none (a map in the user's
+// units), so that θ means what it meant. docs/identification.md, "Starting from a model file".
+struct IdentifyInit {
+  std::string file;      // the path, as given
+  std::string checksum;  // the file's checksum (model_file.hpp)
+  Model model;           // the whole model of the file (normalisation included)
+  Vector theta;
+  nlohmann::json inner_spec;                   // the file's spec without "normalization"
+  std::optional<Normalization> normalization;  // the file's, if it has one
+  bool dof_scales = false;                     // the file learns per-dof momentum scales
+};
+// Reads and checks FILE: a model file of CSympNet-ID (a one-step map with γ). Refuses any other
+// file, or another model kind, with an OptionError for `init` that names the file.
+std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file);
+
 struct IdentifyConfig {
   // null: chosen by validation loss between an LA core (by dimension, with step polynomials
   // when steps vary) and a G core (docs/identification.md); else the core used.
@@ -74,6 +93,9 @@ struct IdentifyConfig {
   long target_blocks = 20;    // a long trajectory is cut into about this many segments
   double level = 0.95;        // interval level
   int threads = 1;
+  // Start from this model file's architecture, θ and units instead of fresh cores; AdamW then
+  // runs only when `epochs` is given (0: none, LM alone refines the file's θ).
+  std::shared_ptr<const IdentifyInit> init;
   // Refuses a value out of its range with an OptionError naming it by its key.
   void validate() const;
 };
@@ -82,7 +104,9 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c);
 // The one place an IdentifyConfig is built from a front end's settings (the CLI's options,
 // Python's `identify` keywords): the defaults above, overridden by each key given. Keys:
 // core, seed, window, balanced, normalize, dof_scales, epochs, lr, lm_iterations,
-// val_fraction, blocks, level, threads. A key not in that list is refused by name; a value
+// val_fraction, blocks, level, threads, init (a model file's path: load_identify_init; it
+// refuses a given core, normalize = false with a file that has a normalisation, and dof_scales
+// that disagree with the file). A key not in that list is refused by name; a value
 // misspelt or out of its range with an OptionError naming its key (IdentifyConfig::validate,
 // which identify() calls again), before any work.
 IdentifyConfig make_identify_config(const nlohmann::json& settings);

@@ -32,6 +32,9 @@ std::string model_checksum(const nlohmann::json& model, const nlohmann::json& me
 nlohmann::json model_to_json(const Model& model, const Vector& theta,
                              const nlohmann::json& meta = nlohmann::json::object());
 SavedModel model_from_json(const nlohmann::json& doc, const std::string& where = "model");
+// The model of an architecture (a model file's "model" entry), with a file's checks: its sizes
+// bounded before anything is built. Errors are prefixed by `where`.
+Model model_from_spec(const nlohmann::json& spec, const std::string& where = "model");
 // Parses the text of a model file; `where` (the path) prefixes every message.
 SavedModel model_from_text(const std::string& text, const std::string& where);
 

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "../src/kernels/registry.hpp"
 #include "../src/kernels/targets.hpp"
 #include "cli_support.hpp"
 
@@ -32,7 +33,10 @@ TEST_F(KernelsCli, ListsEveryFamilyAndTheSwitchForcesThePortableCode) {
     EXPECT_NE(plain.out.find(name), std::string::npos) << name << "\n" << plain.out;
   }
   EXPECT_EQ(count(plain.out, "\n"), 11) << plain.out;  // 10 families and the arithmetic
-  EXPECT_NE(plain.out.find("arithmetic: sse2 (default)"), std::string::npos) << plain.out;
+  EXPECT_NE(plain.out.find(std::string("arithmetic: ") +
+                           kernels::to_string(kernels::kDefaultArithmetic) + " (default)"),
+            std::string::npos)
+      << plain.out;
   const auto& cpu = kernels::cpu();
   if (kernels::kernels_built() && cpu.avx512f && cpu.avx512vl) {
     // All but the AVX product kernel and the two fma kernels (not the arithmetic).
@@ -89,8 +93,8 @@ TEST_F(KernelsCli, PortableRunsWriteTheKernelsBits) {
 
 // The fma arithmetic end to end: a training run gives the same model on 1 and 2 threads, with
 // the kernels and with the portable std::fma reference (CSYMPNET_KERNELS=portable), and from the
-// variable or the option; its report and model file record it; it differs from the default
-// run, whose report and model do not mention it. An unknown value stops the command with an
+// variable or the option; it differs from the sse2 run; reports and model files record the
+// arithmetic when it is not the default, and only then. An unknown value stops the command with an
 // error that names the variable.
 TEST_F(KernelsCli, FmaArithmeticIsThreadAndKernelInvariantAndRecorded) {
   for (const char* preset : {"s2", "s3"}) {
@@ -110,7 +114,7 @@ TEST_F(KernelsCli, FmaArithmeticIsThreadAndKernelInvariantAndRecorded) {
     const CliResult ro =
         run(common + out("fmao").string() + " --arithmetic fma", "CSYMPNET_ARITHMETIC=sse2");
     ASSERT_EQ(ro.code, 0) << ro.err;
-    const CliResult rd = run(common + out("sse2").string(), "CSYMPNET_ARITHMETIC=");
+    const CliResult rd = run(common + out("sse2").string(), "CSYMPNET_ARITHMETIC=sse2");
     ASSERT_EQ(rd.code, 0) << rd.err;
 
     const std::string model = slurp(out("fma1") / "model.json");
@@ -119,13 +123,16 @@ TEST_F(KernelsCli, FmaArithmeticIsThreadAndKernelInvariantAndRecorded) {
     EXPECT_EQ(slurp(out("fmao") / "model.json"), model);
     EXPECT_NE(slurp(out("sse2") / "model.json"), model);
 
-    const auto report = nlohmann::json::parse(slurp(out("fma1") / "report.json"));
-    EXPECT_EQ(report.at("config").value("arithmetic", ""), "fma");
-    EXPECT_EQ(nlohmann::json::parse(model).at("meta").value("arithmetic", ""), "fma");
-    const auto plain = nlohmann::json::parse(slurp(out("sse2") / "report.json"));
-    EXPECT_FALSE(plain.at("config").contains("arithmetic"));
-    const auto plain_model = nlohmann::json::parse(slurp(out("sse2") / "model.json"));
-    EXPECT_FALSE(plain_model.at("meta").contains("arithmetic"));
+    // Recorded where it is not the default (and then by name), absent where it is.
+    const auto recorded = [&](const char* tag, const char* name) {
+      const auto report = nlohmann::json::parse(slurp(out(tag) / "report.json"));
+      const auto file = nlohmann::json::parse(slurp(out(tag) / "model.json"));
+      const bool is_default = kernels::to_string(kernels::kDefaultArithmetic) == std::string(name);
+      EXPECT_EQ(report.at("config").value("arithmetic", "absent"), is_default ? "absent" : name);
+      EXPECT_EQ(file.at("meta").value("arithmetic", "absent"), is_default ? "absent" : name);
+    };
+    recorded("fma1", "fma");
+    recorded("sse2", "sse2");
   }
   const CliResult bad = run("kernels", "CSYMPNET_ARITHMETIC=avx512");
   EXPECT_EQ(bad.code, 1);

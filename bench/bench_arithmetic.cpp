@@ -1,10 +1,11 @@
 // The cores' products in both arithmetics (src/kernels/registry.hpp: Arithmetic) and in the
 // system BLAS, on the shapes the cores run, one thread:
 //
-//   arith/<sse2|fma|openblas>/MxKxN/<epilogue>[/bt]
+//   arith/<sse2|fma|fma-avx2|openblas>/MxKxN/<epilogue>[/bt]
 //       sse2      detail::core_product* in the sse2 arithmetic: the SSE2-order kernels where
 //                 they cover the shape, else Eigen's GEMM (every k > 256 at m = 100)
 //       fma       the same entry points in the fma arithmetic (fma_product.hpp)
+//       fma-avx2  the fma arithmetic's AVX2 + FMA kernel, forced (what CPUs without AVX-512 run)
 //       openblas  dgemm from libblas.so.3 (OpenBLAS where Debian's alternative selects it),
 //                 single-threaded; beta = 0 for store, 1 for add (add_scaled is not a dgemm:
 //                 it is timed as add)
@@ -16,6 +17,7 @@
 #include <random>
 #include <string>
 
+#include "../src/kernels/fma_product.hpp"
 #include "../src/kernels/registry.hpp"
 #include "../src/models/core_product.hpp"
 #include "../src/train/lapack.hpp"
@@ -31,7 +33,7 @@ namespace {
 
 using kernels::Epilogue;
 
-enum class Engine { kSse2, kFma, kOpenBlas };
+enum class Engine { kSse2, kFma, kFmaAvx2, kOpenBlas };
 
 struct Case {
   Index m, k, n;
@@ -79,6 +81,21 @@ void run_case(benchmark::State& state, const Case& pc) {
       benchmark::DoNotOptimize(c.data());
       benchmark::ClobberMemory();
     }
+  } else if (pc.engine == Engine::kFmaAvx2) {
+    const Index bl = pc.bt ? pc.n : 1, bj = pc.bt ? 1 : pc.k;
+    const auto call = [&] {
+      return kernels::fma_kernel_using("avx2", 0, pc.m, pc.n, pc.k, a.data(), pc.m, b_store.data(),
+                                       bl, bj, c.data(), pc.m, pc.mode, h.data());
+    };
+    if (!call()) {
+      state.SkipWithError("the AVX2 fma kernel is not available here");
+      return;
+    }
+    for (auto _ : state) {
+      call();
+      benchmark::DoNotOptimize(c.data());
+      benchmark::ClobberMemory();
+    }
   } else {
     const kernels::UseArithmetic use(pc.engine == Engine::kFma ? kernels::Arithmetic::kFma
                                                                : kernels::Arithmetic::kSse2);
@@ -98,8 +115,11 @@ void run_case(benchmark::State& state, const Case& pc) {
 
 void add(Index m, Index k, Index n, Epilogue mode, bool bt) {
   const char* modes[] = {"store", "add", "add_scaled"};
-  for (const Engine e : {Engine::kSse2, Engine::kFma, Engine::kOpenBlas}) {
-    const char* engine = e == Engine::kSse2 ? "sse2" : e == Engine::kFma ? "fma" : "openblas";
+  for (const Engine e : {Engine::kSse2, Engine::kFma, Engine::kFmaAvx2, Engine::kOpenBlas}) {
+    const char* engine = e == Engine::kSse2      ? "sse2"
+                         : e == Engine::kFma     ? "fma"
+                         : e == Engine::kFmaAvx2 ? "fma-avx2"
+                                                 : "openblas";
     std::string name = std::string("arith/") + engine + "/" + std::to_string(m) + "x" +
                        std::to_string(k) + "x" + std::to_string(n) + "/" +
                        modes[static_cast<int>(mode)];

@@ -234,9 +234,10 @@ CLI::Option* add_arithmetic_option(CLI::App& cmd) {
           [](const std::string& v) {
             kernels::set_arithmetic(kernels::parse_arithmetic(v, "--arithmetic"));
           },
-          "Arithmetic of the SympNet cores' matrix products: sse2 (Eigen's SSE2 order, the "
-          "default) or fma (one fused multiply-add chain per entry: the same bits on every "
-          "CPU); overrides CSYMPNET_ARITHMETIC")
+          std::string("Arithmetic of the SympNet cores' matrix products: sse2 (Eigen's SSE2 "
+                      "order) or fma (one fused multiply-add chain per entry: the same bits on "
+                      "every CPU); overrides CSYMPNET_ARITHMETIC (default: ") +
+              kernels::to_string(kernels::kDefaultArithmetic) + ")")
       ->check(CLI::IsMember({"sse2", "fma"}));
 }
 

@@ -192,9 +192,11 @@ const char* to_string(Arithmetic a) {
 Arithmetic parse_arithmetic(const std::string& value, const std::string& where) {
   if (value == "sse2") return Arithmetic::kSse2;
   if (value == "fma") return Arithmetic::kFma;
-  throw Error(where + " = '" + value +
-              "': unknown arithmetic; expected 'sse2' (Eigen's SSE2 order, the default) or "
-              "'fma' (one fused multiply-add chain per entry)");
+  const bool sse2_default = kDefaultArithmetic == Arithmetic::kSse2;
+  throw Error(
+      where + " = '" + value + "': unknown arithmetic; expected 'sse2' (Eigen's SSE2 order" +
+      (sse2_default ? ", the default" : "") + ") or 'fma' (one fused multiply-add chain per entry" +
+      (sse2_default ? "" : ", the default") + ")");
 }
 
 Arithmetic arithmetic() {

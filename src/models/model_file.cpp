@@ -59,8 +59,8 @@ nlohmann::json model_to_json(const Model& model, const Vector& theta, const nloh
   nlohmann::json params = nlohmann::json::array();
   for (Index i = 0; i < theta.size(); ++i) params.push_back(theta(i));
   const nlohmann::json spec = model.hyperparams();
-  // Parameters trained in the non-default arithmetic of the cores' products say so (a default
-  // file stays as it was).
+  // The arithmetic of the cores' products in the writing process (which trained the parameters,
+  // for every writer here), where it is not the default; a default file stays as it was.
   nlohmann::json m = meta;
   if (kernels::arithmetic() != kernels::kDefaultArithmetic && m.is_object() &&
       !m.contains("arithmetic")) {

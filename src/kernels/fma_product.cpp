@@ -2,6 +2,7 @@
 // index that the kernels share, their self-checks and the choice among them.
 #include "fma_product.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -19,12 +20,16 @@ namespace {
 // kInnerBlock x 8 block of B in L1 (at m = 100: 200 KiB and 16 KiB).
 constexpr Index kInnerBlock = 256;
 
+// Columns per panel when the inner index is blocked: the partials of one panel (m x kPanel)
+// are all the scratch a product needs, whatever n is.
+constexpr Index kPanel = 512;
+
 // Partials of the inner blocks; one per thread (the column-split passes run products on
 // several threads at once).
-std::vector<double>& partials(Index size) {
+double* partials(Index size) {
   thread_local std::vector<double> buf;
   if (buf.size() < static_cast<std::size_t>(size)) buf.resize(static_cast<std::size_t>(size));
-  return buf;
+  return buf.data();
 }
 
 void run_blocked(FmaKernel kernel, const FmaArgs& p, Index kc) {
@@ -32,14 +37,23 @@ void run_blocked(FmaKernel kernel, const FmaArgs& p, Index kc) {
     kernel(p, 0, p.k, nullptr, 0, nullptr, 0);
     return;
   }
-  // kStore keeps the partials in C itself; the other epilogues need C until the end.
-  const bool in_c = p.mode == Epilogue::kStore;
-  double* part = in_c ? p.c : partials(p.m * p.n).data();
-  const Index ldp = in_c ? p.ldc : p.m;
-  kernel(p, 0, kc, nullptr, 0, part, ldp);
-  Index l = kc;
-  for (; p.k - l > kc; l += kc) kernel(p, l, l + kc, part, ldp, part, ldp);
-  kernel(p, l, p.k, part, ldp, nullptr, 0);
+  // Panel by panel of columns (an entry's chain does not depend on its panel), each through
+  // every inner block. kStore keeps the partials in C itself; the other epilogues need C
+  // until the end.
+  for (Index j0 = 0; j0 < p.n; j0 += kPanel) {
+    FmaArgs q = p;
+    q.n = std::min(kPanel, p.n - j0);
+    q.b = p.b + j0 * p.bj;
+    q.c = p.c + j0 * p.ldc;
+    q.h = p.h + j0;
+    const bool in_c = p.mode == Epilogue::kStore;
+    double* part = in_c ? q.c : partials(q.m * q.n);
+    const Index ldp = in_c ? q.ldc : q.m;
+    kernel(q, 0, kc, nullptr, 0, part, ldp);
+    Index l = kc;
+    for (; q.k - l > kc; l += kc) kernel(q, l, l + kc, part, ldp, part, ldp);
+    kernel(q, l, q.k, part, ldp, nullptr, 0);
+  }
 }
 
 #ifdef CSYMPNET_FMA_KERNELS
@@ -62,8 +76,8 @@ FmaKernel chosen() {
 
 // Checks once, on random operands, that a kernel gives the reference's bits: every epilogue,
 // B stored by columns and by rows, every tile height (m from 1 to 25 covers 1 to 3 masked and
-// whole vectors of both kernels) and width, and several inner blocks (k > kInnerBlock, and a
-// small block forced at k = 23).
+// whole vectors of both kernels) and width, several inner blocks (k > kInnerBlock, and small
+// blocks forced), and more than one panel of columns.
 bool agrees_with_reference(FmaKernel kernel) {
   std::mt19937_64 gen(20261126);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -74,7 +88,7 @@ bool agrees_with_reference(FmaKernel kernel) {
                           {7, 17, 23, 4},           {10, 13, 10, kInnerBlock},
                           {13, 7, 31, kInnerBlock}, {17, 11, 2, kInnerBlock},
                           {25, 9, 40, 7},           {24, 16, 529, kInnerBlock},
-                          {9, 8, 300, kInnerBlock}};
+                          {9, 8, 300, kInnerBlock}, {3, kPanel + 3, 5, 2}};
   for (const Shape& s : shapes) {
     const Index m = s.m, n = s.n, k = s.k;
     Matrix a(m, k), b(k, n), d(m, n);

@@ -123,16 +123,26 @@ TEST(FmaProduct, EveryKernelGivesTheReferenceBits) {
 }
 
 // The cores' large inner dimensions (the parameter gradients' sums over N samples): 100 x N
-// times N x 100 with B stored by rows, at N = 4000.
-TEST(FmaProduct, LargeInnerDimensionOfTheGradients) {
+// times N x 100 with B stored by rows, at N = 4000; and a blocked inner dimension with more
+// columns than one panel (each panel's columns, and their factors h_j, continue from their own
+// partials), every epilogue.
+TEST(FmaProduct, LargeInnerDimensions) {
   std::mt19937_64 gen(11);
   const Operands o = random_operands(gen, 100, 100, 4000, true, 0);
   const Matrix ref = reference(o, Epilogue::kAdd);
+  const Operands wide = random_operands(gen, 5, 1100, 700, false, 1);
   for (const char* isa : expected_kernels()) {
     Matrix mine = o.c0;
     ASSERT_TRUE(kernels::fma_kernel_using(isa, 0, o.m, o.n, o.k, o.a.data(), o.m, o.b(), o.bl(),
                                           o.bj(), mine.data(), o.ldc, Epilogue::kAdd, nullptr));
     expect_same_bits(mine, ref, isa);
+    for (const Epilogue e : kEpilogues) {
+      Matrix w = wide.c0;
+      ASSERT_TRUE(kernels::fma_kernel_using(isa, 0, wide.m, wide.n, wide.k, wide.a.data(), wide.m,
+                                            wide.b(), wide.bl(), wide.bj(), w.data(), wide.ldc, e,
+                                            wide.h.data()));
+      expect_same_bits(w, reference(wide, e), std::string(isa) + " wide");
+    }
   }
 }
 

@@ -10,15 +10,21 @@
 namespace csympnet::cli {
 
 std::string kernels_summary() {
+  // The arithmetic of the cores' products, where it is not the default (it changes results).
+  const std::string arithmetic =
+      kernels::arithmetic() == kernels::kDefaultArithmetic
+          ? ""
+          : std::string("\narithmetic: ") + kernels::to_string(kernels::arithmetic());
   std::string running;
   for (const kernels::KernelStatus& s : kernels::report()) {
     if (s.runs) running += (running.empty() ? "" : ", ") + s.name + " (" + s.isa + ")";
   }
   if (kernels::portable_forced_by_environment()) {
-    return "kernels: portable code only (CSYMPNET_KERNELS=portable)";
+    return "kernels: portable code only (CSYMPNET_KERNELS=portable)" + arithmetic;
   }
   return "kernels: " + (running.empty() ? std::string("portable code only") : running) +
-         " (`csympnet kernels` for each; CSYMPNET_KERNELS=portable forces the portable code)";
+         " (`csympnet kernels` for each; CSYMPNET_KERNELS=portable forces the portable code)" +
+         arithmetic;
 }
 
 void add_kernels(CLI::App& app) {

@@ -132,6 +132,7 @@ void add_run(CLI::App& app) {
   cmd->add_flag("--warm-start", args->warm_start,
                 "CSympNet-ID: start beta at the closed-form estimate of gamma from the data");
   add_threads_option(*cmd, args->threads);
+  add_arithmetic_option(*cmd);
   cmd->add_option("--out", args->out, "Output directory")->required()->check(kOutputPath);
   cmd->add_flag("--force", args->force, "Allow writing into a non-empty output directory");
   cmd->add_flag("-q,--quiet", args->quiet, "No progress line");

@@ -116,6 +116,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(kWholeNumber)
       ->check(library_range(kBootstrapRange));
   add_threads_option(cmd, a.threads);
+  add_arithmetic_option(cmd);
   cmd.add_option("--out", a.out, "Output directory")->required()->check(kOutputPath);
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
   cmd.add_flag("-q,--quiet", a.quiet, "No progress line");

@@ -4,6 +4,8 @@
 
 #include <atomic>
 
+#include "kernels/registry.hpp"
+
 namespace csympnet::cli {
 
 namespace {
@@ -30,6 +32,9 @@ void add_all_commands(CLI::App& app) {
   add_rollout(app);
   add_reproduce(app);
   add_kernels(app);
+  // A bad CSYMPNET_ARITHMETIC stops every command before it starts work (--arithmetic, parsed
+  // by then, overrides the variable and keeps it unread).
+  app.parse_complete_callback([] { (void)kernels::arithmetic(); });
 }
 
 }  // namespace csympnet::cli

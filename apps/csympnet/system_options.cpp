@@ -13,6 +13,7 @@
 #include "csympnet/core/thread_team.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/train/trainer.hpp"
+#include "kernels/registry.hpp"
 
 namespace csympnet::cli {
 
@@ -225,6 +226,20 @@ CLI::Option* add_threads_option(CLI::App& cmd, int& threads) {
                   "on one); results are identical for any value (default 1)")
       ->check(kWholeNumber)
       ->check(library_range(kThreadsRange));
+}
+
+CLI::Option* add_arithmetic_option(CLI::App& cmd) {
+  return cmd
+      .add_option_function<std::string>(
+          "--arithmetic",
+          [](const std::string& v) {
+            kernels::set_arithmetic(kernels::parse_arithmetic(v, "--arithmetic"));
+          },
+          std::string("Arithmetic of the SympNet cores' matrix products: sse2 (Eigen's SSE2 "
+                      "order) or fma (one fused multiply-add chain per entry: the same bits on "
+                      "every CPU); overrides CSYMPNET_ARITHMETIC (default: ") +
+              kernels::to_string(kernels::kDefaultArithmetic) + ")")
+      ->check(CLI::IsMember({"sse2", "fma"}));
 }
 
 void SystemOverrides::add_to(CLI::App& cmd) {

@@ -69,6 +69,9 @@ CLI::Option* add_columns_option(CLI::App& cmd, std::string& spec);
 
 // --threads N of the training commands: TrainOptions::threads.
 CLI::Option* add_threads_option(CLI::App& cmd, int& threads);
+// --arithmetic sse2|fma: sets the process's arithmetic of the cores' products
+// (kernels::set_arithmetic) as it is parsed.
+CLI::Option* add_arithmetic_option(CLI::App& cmd);
 
 struct SystemOverrides {
   std::optional<int> d;

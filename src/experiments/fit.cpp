@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "../kernels/registry.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
@@ -72,6 +73,9 @@ void to_json(nlohmann::json& j, const FitConfig& c) {
   j = {{"model", to_string(c.model)},    {"core", c.core},   {"seed", c.seed},
        {"val_fraction", c.val_fraction}, {"train", c.train}, {"beta_init", c.beta_init},
        {"warm_start", c.warm_start},     {"refine", refine}, {"bootstrap", bootstrap}};
+  // As in a run's configuration (run.cpp): recorded only when not the default.
+  if (kernels::arithmetic() != kernels::kDefaultArithmetic)
+    j["arithmetic"] = kernels::to_string(kernels::arithmetic());
 }
 
 FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "../kernels/registry.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/rng.hpp"
@@ -835,6 +836,9 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"architecture", r.model.hyperparams()}};
   if (r.config.init)
     j["init"] = {{"file", r.config.init->file}, {"checksum", r.config.init->checksum}};
+  // As a run's configuration records it (run.cpp): only when not the default.
+  if (kernels::arithmetic() != kernels::kDefaultArithmetic)
+    j["arithmetic"] = kernels::to_string(kernels::arithmetic());
   return j;
 }
 

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "../kernels/registry.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/rng.hpp"
@@ -77,6 +78,11 @@ void to_json(nlohmann::json& j, const RunConfig& c) {
                     : "one-step: mean over pairs of |z1 - Phi_h(z0)|^2"}};
   if (c.refine.method != RefineMethod::kNone) j["refine"] = c.refine;
   if (c.warm_start) j["warm_start"] = true;
+  // The arithmetic of the cores' products changes results (rounding-level); recorded, and so
+  // part of a suite run's cache key, only when it is not the default, so that reports and keys
+  // of default runs stay as they were.
+  if (kernels::arithmetic() != kernels::kDefaultArithmetic)
+    j["arithmetic"] = kernels::to_string(kernels::arithmetic());
 }
 
 RunData generate_run_data(const RunConfig& c) {

@@ -170,6 +170,8 @@ bool product_avx_self_check() {
 
 bool product_kernel_covers(Index m, Index k, Index n) {
   if (m < 1 || k < 1 || n < 1) return false;
+  // The fma order is the same for every shape and split (fma_product.hpp).
+  if (arithmetic() == Arithmetic::kFma) return true;
   // The decision is the one the cores' calls meet: sse2_order_product() declines without writing
   // when the kernels do not cover the shape, whatever the values.
   const Matrix a = Matrix::Zero(m, k);

@@ -68,6 +68,7 @@ bool sse2_order_product(const Eigen::MatrixBase<ADerived>& a, const Eigen::Matri
 
 // Whether the kernels compute a b for A m x k and B k x n, both column-major: then the
 // product's entries do not depend on how its columns are split into calls (at multiples of 4).
+// In the fma arithmetic (registry.hpp) every shape is covered: its order never depends on them.
 bool product_kernel_covers(Index m, Index k, Index n);
 
 }  // namespace csympnet::kernels

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <mutex>
 
+#include "csympnet/core/error.hpp"
 #include "targets.hpp"
 
 namespace csympnet::kernels {
@@ -18,6 +19,9 @@ bool conformal_rows_self_check();
 bool column_scaling_self_check();
 bool adamw_self_check();
 bool conformal_rows_built();  // built on any x86 GCC or clang build (no Eigen order involved)
+bool fma_product_avx512_self_check();
+bool fma_product_avx2_self_check();
+bool fma_kernels_built();  // built on any x86 GCC build (the order is Eigen's nowhere)
 
 namespace internal {
 std::atomic<int> g_forced{0};
@@ -44,6 +48,9 @@ bool avx(const CpuFeatures& c) {
 bool avx512f_vl(const CpuFeatures& c) {
   return c.avx512f && c.avx512vl;
 }
+bool avx2_fma(const CpuFeatures& c) {
+  return c.avx2 && c.fma;
+}
 
 // In Family order.
 const Row kRows[kFamilies] = {
@@ -55,6 +62,8 @@ const Row kRows[kFamilies] = {
     {"conformal_rows", "avx512f", conformal_rows_built, avx512f},
     {"column_scaling", "avx512f", kernels_built, avx512f},
     {"adamw", "avx512f", kernels_built, avx512f},
+    {"fma_product", "avx512f", fma_kernels_built, avx512f},
+    {"fma_product", "avx2+fma", fma_kernels_built, avx2_fma},
 };
 
 std::atomic<bool (*)()> g_supplied[kFamilies] = {};
@@ -75,6 +84,10 @@ bool (*check_of(Family f))() {
       return column_scaling_self_check;
     case Family::kAdamW:
       return adamw_self_check;
+    case Family::kFmaProductAvx512:
+      return fma_product_avx512_self_check;
+    case Family::kFmaProductAvx2:
+      return fma_product_avx2_self_check;
     default:
       return g_supplied[static_cast<int>(f)].load(std::memory_order_acquire);
   }
@@ -100,7 +113,9 @@ void settle_once(Family f) {
     const Row& r = kRows[i];
     const char* why = "";
     if (!r.built()) {
-      why = "not built (this build's Eigen is not the SSE2 path without FMA, or not GCC on x86)";
+      why = r.built == fma_kernels_built ? "not built (not GCC on x86)"
+                                         : "not built (this build's Eigen is not the SSE2 path "
+                                           "without FMA, or not GCC on x86)";
     } else if (!r.cpu_has(cpu())) {
       why = "the CPU lacks it";
     } else if (check_of(f) == nullptr) {
@@ -154,7 +169,75 @@ bool supply_check(Family f, bool (*check)()) {
   return true;
 }
 
+namespace {
+
+// −1 until the first arithmetic() or set_arithmetic(); then an Arithmetic.
+std::atomic<int> g_arithmetic{-1};
+std::atomic<bool> g_arithmetic_env{false};
+std::mutex g_arithmetic_mutex;
+
+bool is_product(Family f) {
+  return f == Family::kProductAvx512 || f == Family::kProductAvx;
+}
+bool is_fma_product(Family f) {
+  return f == Family::kFmaProductAvx512 || f == Family::kFmaProductAvx2;
+}
+
+}  // namespace
+
+const char* to_string(Arithmetic a) {
+  return a == Arithmetic::kFma ? "fma" : "sse2";
+}
+
+Arithmetic parse_arithmetic(const std::string& value, const std::string& where) {
+  if (value == "sse2") return Arithmetic::kSse2;
+  if (value == "fma") return Arithmetic::kFma;
+  const bool sse2_default = kDefaultArithmetic == Arithmetic::kSse2;
+  throw Error(
+      where + " = '" + value + "': unknown arithmetic; expected 'sse2' (Eigen's SSE2 order" +
+      (sse2_default ? ", the default" : "") + ") or 'fma' (one fused multiply-add chain per entry" +
+      (sse2_default ? "" : ", the default") + ")");
+}
+
+Arithmetic arithmetic() {
+  const int a = g_arithmetic.load(std::memory_order_acquire);
+  if (a >= 0) return static_cast<Arithmetic>(a);
+  const std::lock_guard<std::mutex> lock(g_arithmetic_mutex);
+  if (g_arithmetic.load(std::memory_order_acquire) < 0) {
+    const char* v = std::getenv("CSYMPNET_ARITHMETIC");
+    Arithmetic chosen = kDefaultArithmetic;
+    if (v != nullptr && v[0] != '\0') {
+      chosen = parse_arithmetic(v, "CSYMPNET_ARITHMETIC");  // throws, leaving it unsettled
+      g_arithmetic_env.store(true, std::memory_order_relaxed);
+    }
+    g_arithmetic.store(static_cast<int>(chosen), std::memory_order_release);
+  }
+  return static_cast<Arithmetic>(g_arithmetic.load(std::memory_order_acquire));
+}
+
+void set_arithmetic(Arithmetic a) {
+  const std::lock_guard<std::mutex> lock(g_arithmetic_mutex);
+  g_arithmetic_env.store(false, std::memory_order_relaxed);
+  g_arithmetic.store(static_cast<int>(a), std::memory_order_release);
+}
+
+bool arithmetic_from_environment() {
+  (void)arithmetic();
+  return g_arithmetic_env.load(std::memory_order_relaxed);
+}
+
+UseArithmetic::UseArithmetic(Arithmetic a)
+    : previous_(arithmetic()), previous_from_environment_(arithmetic_from_environment()) {
+  set_arithmetic(a);
+}
+
+UseArithmetic::~UseArithmetic() {
+  set_arithmetic(previous_);
+  g_arithmetic_env.store(previous_from_environment_, std::memory_order_relaxed);
+}
+
 std::vector<KernelStatus> report() {
+  const Arithmetic mode = arithmetic();
   std::vector<KernelStatus> out;
   for (int i = 0; i < kFamilies; ++i) {
     const auto f = static_cast<Family>(i);
@@ -163,9 +246,19 @@ std::vector<KernelStatus> report() {
     s.isa = kRows[i].isa;
     const bool ok = available(f);
     s.runs = ok && !portable_forced();
-    if (s.runs && f == Family::kProductAvx && use(Family::kProductAvx512)) {
+    if (s.runs && is_product(f) && mode != Arithmetic::kSse2) {
+      s.runs = false;
+      s.why = std::string("not chosen: the arithmetic is ") + to_string(mode);
+    } else if (s.runs && is_fma_product(f) && mode != Arithmetic::kFma) {
+      s.runs = false;
+      s.why = std::string("not chosen: the arithmetic is ") + to_string(mode) +
+              " (CSYMPNET_ARITHMETIC=fma selects it)";
+    } else if (s.runs && f == Family::kProductAvx && use(Family::kProductAvx512)) {
       s.runs = false;  // the products take the AVX-512 kernel first
       s.why = "not chosen: the avx512f product kernel runs";
+    } else if (s.runs && f == Family::kFmaProductAvx2 && use(Family::kFmaProductAvx512)) {
+      s.runs = false;
+      s.why = "not chosen: the avx512f fma_product kernel runs";
     } else if (s.runs) {
       s.why = "runs";
     } else if (!ok) {
@@ -186,6 +279,12 @@ std::string report_text() {
     text += s.name + " " + s.isa + ": " + (s.runs ? std::string("runs") : "portable, " + s.why);
     text += '\n';
   }
+  const Arithmetic mode = arithmetic();
+  text += std::string("arithmetic: ") + to_string(mode) +
+          (arithmetic_from_environment() ? " (CSYMPNET_ARITHMETIC)"
+           : mode == kDefaultArithmetic  ? " (default)"
+                                         : " (set)") +
+          '\n';
   return text;
 }
 

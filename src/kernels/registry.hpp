@@ -5,8 +5,12 @@
 //   * its self-check, run once per process, gave the portable code's results to the bit, and
 //   * the portable path is not forced: CSYMPNET_KERNELS=portable in the environment (read once)
 //     or a ForcePortable guard alive in this process.
-// Everywhere else the portable code (Eigen's own expressions, SSE2 without FMA) runs; both give
-// the same bits, so a forced or declined kernel costs time, never results.
+// Everywhere else the portable code (Eigen's own expressions, SSE2 without FMA, or for the fma
+// products their std::fma reference) runs; both give the same bits, so a forced or declined
+// kernel costs time, never results.
+//
+// One choice does change results: the arithmetic of the cores' matrix products (Arithmetic
+// below), set once per process.
 //
 // The first three are settled once per family and cached; use() reads two atomics after that.
 #pragma once
@@ -18,14 +22,16 @@
 namespace csympnet::kernels {
 
 enum class Family : int {
-  kProductAvx512,  // the cores' matrix products in Eigen's SSE2 summation order (product.hpp)
-  kProductAvx,     // the same with 256-bit registers, where AVX-512 is missing
-  kSigmoid,        // σ over a contiguous array (sigmoid.hpp)
-  kScaledExp,      // exp(c h_j), CSympNet-ID's conformal factors (scaled_exp.hpp)
-  kD1Sweeps,       // LA-SympNet's d = 1 forward and backward sweeps (d1_sweeps.hpp)
-  kConformalRows,  // CSympNet-ID's d = 1 row split, join and β terms (conformal_rows.hpp)
-  kColumnScaling,  // per-column scalings by h and bias outer products (column_scaling.hpp)
-  kAdamW,          // AdamW's elementwise update (adamw_update.hpp)
+  kProductAvx512,     // the cores' matrix products in Eigen's SSE2 summation order (product.hpp)
+  kProductAvx,        // the same with 256-bit registers, where AVX-512 is missing
+  kSigmoid,           // σ over a contiguous array (sigmoid.hpp)
+  kScaledExp,         // exp(c h_j), CSympNet-ID's conformal factors (scaled_exp.hpp)
+  kD1Sweeps,          // LA-SympNet's d = 1 forward and backward sweeps (d1_sweeps.hpp)
+  kConformalRows,     // CSympNet-ID's d = 1 row split, join and β terms (conformal_rows.hpp)
+  kColumnScaling,     // per-column scalings by h and bias outer products (column_scaling.hpp)
+  kAdamW,             // AdamW's elementwise update (adamw_update.hpp)
+  kFmaProductAvx512,  // the cores' matrix products in the fma arithmetic (fma_product.hpp)
+  kFmaProductAvx2,    // the same with AVX2 + FMA, where AVX-512 is missing
   kCount
 };
 
@@ -67,6 +73,46 @@ class ForcePortable {
 // loops) has its self-check supplied from there, before its first use. Returns true.
 bool supply_check(Family f, bool (*check)());
 
+// The arithmetic of the SympNet cores' matrix products (docs/architecture.md, "Arithmetic of
+// the products"):
+//   kSse2: Eigen's SSE2 order, separate multiplies and adds (product.hpp): the portable build's
+//          bits, which the sse2-order kernels reproduce;
+//   kFma:  one chain of fused multiply-adds per entry (fma_product.hpp): the same bits on every
+//          CPU and thread count, rounding-level different from kSse2.
+enum class Arithmetic : int { kSse2, kFma };
+
+// The default, where neither the environment nor set_arithmetic() chooses.
+inline constexpr Arithmetic kDefaultArithmetic = Arithmetic::kSse2;
+
+// "sse2" or "fma".
+const char* to_string(Arithmetic a);
+// "sse2" or "fma" to the Arithmetic; anything else throws Error naming `where` (the option or
+// variable it came from) and the values expected.
+Arithmetic parse_arithmetic(const std::string& value, const std::string& where);
+
+// The process's arithmetic: the last set_arithmetic(), else CSYMPNET_ARITHMETIC=sse2|fma from
+// the environment (read once; empty counts as unset), else kDefaultArithmetic. Throws Error for
+// another value of the variable. Cheap after the first call (one atomic load).
+Arithmetic arithmetic();
+// Sets the process's arithmetic (the command line's --arithmetic, and tests), overriding the
+// environment. Set it before any product runs: a model trained partly in each has no single one.
+void set_arithmetic(Arithmetic a);
+// Whether arithmetic() came from CSYMPNET_ARITHMETIC (and no set_arithmetic() since).
+bool arithmetic_from_environment();
+
+// Sets the arithmetic for the guard's lifetime and then restores the previous one (tests).
+class UseArithmetic {
+ public:
+  explicit UseArithmetic(Arithmetic a);
+  ~UseArithmetic();
+  UseArithmetic(const UseArithmetic&) = delete;
+  UseArithmetic& operator=(const UseArithmetic&) = delete;
+
+ private:
+  Arithmetic previous_;
+  bool previous_from_environment_;
+};
+
 struct KernelStatus {
   std::string name;  // the family
   std::string isa;   // the instruction set its kernel needs
@@ -76,7 +122,8 @@ struct KernelStatus {
 
 // Every family, in Family order, settled (self-checks run) if they were not yet.
 std::vector<KernelStatus> report();
-// report() as text, one line per family: "name  isa  runs" or "name  isa  portable: why".
+// report() as text, one line per family: "name isa: runs" or "name isa: portable, why"; then one
+// line "arithmetic: sse2|fma (default|CSYMPNET_ARITHMETIC|set)".
 std::string report_text();
 
 }  // namespace csympnet::kernels

@@ -12,6 +12,7 @@ CpuFeatures probe() {
   __builtin_cpu_init();
   f.avx = __builtin_cpu_supports("avx") != 0;
   f.avx2 = __builtin_cpu_supports("avx2") != 0;
+  f.fma = __builtin_cpu_supports("fma") != 0;
   f.avx512f = __builtin_cpu_supports("avx512f") != 0;
   f.avx512vl = __builtin_cpu_supports("avx512vl") != 0;
   f.avx512dq = __builtin_cpu_supports("avx512dq") != 0;

@@ -8,6 +8,7 @@ namespace csympnet::kernels {
 struct CpuFeatures {
   bool avx = false;
   bool avx2 = false;
+  bool fma = false;
   bool avx512f = false;
   bool avx512vl = false;
   bool avx512dq = false;

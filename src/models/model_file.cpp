@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "../kernels/registry.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/hash.hpp"
 #include "csympnet/io/files.hpp"
@@ -58,9 +59,19 @@ nlohmann::json model_to_json(const Model& model, const Vector& theta, const nloh
   nlohmann::json params = nlohmann::json::array();
   for (Index i = 0; i < theta.size(); ++i) params.push_back(theta(i));
   const nlohmann::json spec = model.hyperparams();
-  return {{"format", kModelFormat}, {"version", kModelFormatVersion},
-          {"model", spec},          {"n_params", model.n_params()},
-          {"meta", meta},           {"checksum", model_checksum(spec, meta, theta)},
+  // The arithmetic of the cores' products in the writing process (which trained the parameters,
+  // for every writer here), where it is not the default; a default file stays as it was.
+  nlohmann::json m = meta;
+  if (kernels::arithmetic() != kernels::kDefaultArithmetic && m.is_object() &&
+      !m.contains("arithmetic")) {
+    m["arithmetic"] = kernels::to_string(kernels::arithmetic());
+  }
+  return {{"format", kModelFormat},
+          {"version", kModelFormatVersion},
+          {"model", spec},
+          {"n_params", model.n_params()},
+          {"meta", m},
+          {"checksum", model_checksum(spec, m, theta)},
           {"params", params}};
 }
 

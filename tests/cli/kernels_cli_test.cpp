@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "../src/kernels/registry.hpp"
 #include "../src/kernels/targets.hpp"
 #include "cli_support.hpp"
 
@@ -25,18 +26,30 @@ int count(const std::string& text, const std::string& what) {
 }
 
 TEST_F(KernelsCli, ListsEveryFamilyAndTheSwitchForcesThePortableCode) {
-  const CliResult plain = run("kernels", "CSYMPNET_KERNELS=");
+  const CliResult plain = run("kernels", "CSYMPNET_KERNELS= CSYMPNET_ARITHMETIC=");
   ASSERT_EQ(plain.code, 0) << plain.err;
   for (const char* name : {"product", "sigmoid", "scaled_exp", "d1_sweeps", "conformal_rows",
-                           "column_scaling", "adamw"}) {
+                           "column_scaling", "adamw", "fma_product"}) {
     EXPECT_NE(plain.out.find(name), std::string::npos) << name << "\n" << plain.out;
   }
-  EXPECT_EQ(count(plain.out, "\n"), 8) << plain.out;
+  EXPECT_EQ(count(plain.out, "\n"), 11) << plain.out;  // 10 families and the arithmetic
+  EXPECT_NE(plain.out.find(std::string("arithmetic: ") +
+                           kernels::to_string(kernels::kDefaultArithmetic) + " (default)"),
+            std::string::npos)
+      << plain.out;
   const auto& cpu = kernels::cpu();
   if (kernels::kernels_built() && cpu.avx512f && cpu.avx512vl) {
-    EXPECT_EQ(count(plain.out, ": runs"), 7) << plain.out;  // all but the AVX product kernel
+    // All but the AVX product kernel and the two fma kernels (not the arithmetic).
+    EXPECT_EQ(count(plain.out, ": runs"), 7) << plain.out;
+    const CliResult fma = run("kernels", "CSYMPNET_KERNELS= CSYMPNET_ARITHMETIC=fma");
+    ASSERT_EQ(fma.code, 0) << fma.err;
+    EXPECT_NE(fma.out.find("fma_product avx512f: runs"), std::string::npos) << fma.out;
+    EXPECT_NE(fma.out.find("product avx512f: portable, not chosen: the arithmetic is fma"),
+              std::string::npos)
+        << fma.out;
+    EXPECT_NE(fma.out.find("arithmetic: fma (CSYMPNET_ARITHMETIC)"), std::string::npos) << fma.out;
   }
-  const CliResult forced = run("kernels", "CSYMPNET_KERNELS=portable");
+  const CliResult forced = run("kernels", "CSYMPNET_KERNELS=portable CSYMPNET_ARITHMETIC=");
   ASSERT_EQ(forced.code, 0) << forced.err;
   EXPECT_EQ(count(forced.out, ": runs"), 0) << forced.out;
   // Every family that ran (or was available but not chosen) now says why it does not.
@@ -76,6 +89,59 @@ TEST_F(KernelsCli, PortableRunsWriteTheKernelsBits) {
       EXPECT_EQ(slurp(a / "rollout.csv"), slurp(b / "rollout.csv"));
     }
   }
+}
+
+// The fma arithmetic end to end: a training run gives the same model on 1 and 2 threads, with
+// the kernels and with the portable std::fma reference (CSYMPNET_KERNELS=portable), and from the
+// variable or the option; it differs from the sse2 run; reports and model files record the
+// arithmetic when it is not the default, and only then. An unknown value stops the command with an
+// error that names the variable.
+TEST_F(KernelsCli, FmaArithmeticIsThreadAndKernelInvariantAndRecorded) {
+  for (const char* preset : {"s2", "s3"}) {
+    SCOPED_TRACE(preset);
+    const std::string common =
+        std::string("run --preset ") + preset + " --seed 5 --epochs 30 --quiet --out ";
+    const auto out = [&](const char* tag) { return dir_ / (std::string(preset) + "_" + tag); };
+    const CliResult r1 =
+        run(common + out("fma1").string() + " --threads 1", "CSYMPNET_ARITHMETIC=fma");
+    ASSERT_EQ(r1.code, 0) << r1.err;
+    const CliResult r2 =
+        run(common + out("fma2").string() + " --threads 2", "CSYMPNET_ARITHMETIC=fma");
+    ASSERT_EQ(r2.code, 0) << r2.err;
+    const CliResult rp = run(common + out("fmap").string() + " --threads 2",
+                             "CSYMPNET_ARITHMETIC=fma CSYMPNET_KERNELS=portable");
+    ASSERT_EQ(rp.code, 0) << rp.err;
+    const CliResult ro =
+        run(common + out("fmao").string() + " --arithmetic fma", "CSYMPNET_ARITHMETIC=sse2");
+    ASSERT_EQ(ro.code, 0) << ro.err;
+    const CliResult rd = run(common + out("sse2").string(), "CSYMPNET_ARITHMETIC=sse2");
+    ASSERT_EQ(rd.code, 0) << rd.err;
+
+    const std::string model = slurp(out("fma1") / "model.json");
+    EXPECT_EQ(slurp(out("fma2") / "model.json"), model);
+    EXPECT_EQ(slurp(out("fmap") / "model.json"), model);
+    EXPECT_EQ(slurp(out("fmao") / "model.json"), model);
+    EXPECT_NE(slurp(out("sse2") / "model.json"), model);
+
+    // Recorded where it is not the default (and then by name), absent where it is.
+    const auto recorded = [&](const char* tag, const char* name) {
+      const auto report = nlohmann::json::parse(slurp(out(tag) / "report.json"));
+      const auto file = nlohmann::json::parse(slurp(out(tag) / "model.json"));
+      const bool is_default = kernels::to_string(kernels::kDefaultArithmetic) == std::string(name);
+      EXPECT_EQ(report.at("config").value("arithmetic", "absent"), is_default ? "absent" : name);
+      EXPECT_EQ(file.at("meta").value("arithmetic", "absent"), is_default ? "absent" : name);
+    };
+    recorded("fma1", "fma");
+    recorded("sse2", "sse2");
+  }
+  const CliResult bad = run("kernels", "CSYMPNET_ARITHMETIC=avx512");
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.err.find("CSYMPNET_ARITHMETIC = 'avx512'"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("expected 'sse2'"), std::string::npos) << bad.err;
+  const CliResult bad_option =
+      run("run --preset s2 --arithmetic avx --out " + (dir_ / "bad").string());
+  EXPECT_EQ(bad_option.code, 2);
+  EXPECT_NE(bad_option.err.find("--arithmetic"), std::string::npos) << bad_option.err;
 }
 
 }  // namespace

@@ -16,7 +16,8 @@ using kernels::Family;
 
 constexpr Family kAll[] = {Family::kProductAvx512, Family::kProductAvx, Family::kSigmoid,
                            Family::kScaledExp,     Family::kD1Sweeps,   Family::kConformalRows,
-                           Family::kColumnScaling, Family::kAdamW};
+                           Family::kColumnScaling, Family::kAdamW,      Family::kFmaProductAvx512,
+                           Family::kFmaProductAvx2};
 
 bool avx512_machine() {
   return kernels::kernels_built() && kernels::cpu().avx512f && kernels::cpu().avx512vl;
@@ -30,9 +31,17 @@ TEST(KernelsRegistry, EveryFamilyRunsOnAnAvx512Machine) {
     EXPECT_TRUE(kernels::available(f)) << static_cast<int>(f);
     EXPECT_TRUE(kernels::use(f)) << static_cast<int>(f);
   }
+  const bool fma = kernels::arithmetic() == kernels::Arithmetic::kFma;
   for (const kernels::KernelStatus& s : kernels::report()) {
-    if (s.name == "product" && s.isa == "avx") {
-      EXPECT_FALSE(s.runs) << "the AVX-512 product kernel is chosen first";
+    if ((s.name == "product" && s.isa == "avx") ||
+        (s.name == "fma_product" && s.isa != "avx512f")) {
+      EXPECT_FALSE(s.runs) << "the AVX-512 kernel is chosen first";
+      continue;
+    }
+    if (s.name == (fma ? "product" : "fma_product")) {
+      // The product families of the other arithmetic.
+      EXPECT_FALSE(s.runs) << s.name;
+      EXPECT_NE(s.why.find("not chosen: the arithmetic is"), std::string::npos) << s.why;
       continue;
     }
     EXPECT_TRUE(s.runs) << s.name << " " << s.isa << ": " << s.why;
@@ -45,9 +54,12 @@ TEST(KernelsRegistry, ReportListsEveryFamilyOnce) {
   ASSERT_EQ(report.size(), std::size(kAll));
   const std::string text = kernels::report_text();
   for (const char* name : {"product", "sigmoid", "scaled_exp", "d1_sweeps", "conformal_rows",
-                           "column_scaling", "adamw"}) {
+                           "column_scaling", "adamw", "fma_product"}) {
     EXPECT_NE(text.find(name), std::string::npos) << name;
   }
+  EXPECT_NE(text.find(std::string("arithmetic: ") + kernels::to_string(kernels::arithmetic())),
+            std::string::npos)
+      << text;
   for (const kernels::KernelStatus& s : report) EXPECT_FALSE(s.why.empty()) << s.name;
 }
 
@@ -81,9 +93,9 @@ TEST(KernelsRegistry, AKernelRunsOnlyWhereTheCpuHasItsInstructions) {
   const kernels::CpuFeatures& cpu = kernels::cpu();
   EXPECT_EQ(&cpu, &kernels::cpu());  // probed once
   if (!cpu.avx512f) {
-    for (const Family f :
-         {Family::kProductAvx512, Family::kSigmoid, Family::kScaledExp, Family::kD1Sweeps,
-          Family::kConformalRows, Family::kColumnScaling, Family::kAdamW}) {
+    for (const Family f : {Family::kProductAvx512, Family::kSigmoid, Family::kScaledExp,
+                           Family::kD1Sweeps, Family::kConformalRows, Family::kColumnScaling,
+                           Family::kAdamW, Family::kFmaProductAvx512}) {
       EXPECT_FALSE(kernels::available(f));
     }
   }
@@ -92,6 +104,9 @@ TEST(KernelsRegistry, AKernelRunsOnlyWhereTheCpuHasItsInstructions) {
   }
   if (!cpu.avx) {
     EXPECT_FALSE(kernels::available(Family::kProductAvx));
+  }
+  if (!cpu.avx2 || !cpu.fma) {
+    EXPECT_FALSE(kernels::available(Family::kFmaProductAvx2));
   }
   if (!kernels::kernels_built()) {
     EXPECT_FALSE(kernels::available(Family::kProductAvx512));

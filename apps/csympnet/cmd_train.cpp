@@ -117,7 +117,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(library_range(kBootstrapRange));
   add_threads_option(cmd, a.threads);
   cmd.add_option("--chunk-pairs", a.chunk_pairs,
-                 "Pairs per chunk of the loss's sums (default 0: one chunk up to 4096 pairs, 512 "
+                 "Pairs per chunk of the loss's sums (default 0: one chunk up to 4096 pairs, 256 "
                  "above); the result depends on it, not on --threads or mpirun's ranks")
       ->check(kWholeNumber)
       ->check(library_range(kChunkPairsRange));

@@ -35,7 +35,7 @@ class MpiTrain : public ::testing::Test {
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     // 6000 pairs of a damped rotation (h = 0.1, γ = 0.2): 4800 training pairs after the
-    // validation split, ten chunks of 512.
+    // validation split, 19 chunks of 256.
     std::ofstream csv(dir_ / "pairs.csv");
     csv << "h,q1,p1,next_q1,next_p1\n";
     std::mt19937_64 gen(3);
@@ -75,8 +75,8 @@ TEST_F(MpiTrain, SameModelOnAnyThreadsAndRanks) {
   ASSERT_EQ(run("", train("plain")), 0) << slurp(dir_ / "log.txt");
   const auto report = nlohmann::json::parse(slurp(dir_ / "plain/report.json"));
   EXPECT_EQ(report["pairs_train"], 4800);
-  EXPECT_EQ(report["training"]["chunks"], 10);
-  EXPECT_EQ(report["training"]["chunk_pairs"], 512);
+  EXPECT_EQ(report["training"]["chunks"], 19);
+  EXPECT_EQ(report["training"]["chunk_pairs"], 256);
   const std::string model = slurp(dir_ / "plain/model.json");
   ASSERT_EQ(run("", train("threads") + " --threads 2"), 0) << slurp(dir_ / "log.txt");
   EXPECT_EQ(slurp(dir_ / "threads/model.json"), model);

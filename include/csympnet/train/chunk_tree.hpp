@@ -25,7 +25,7 @@ namespace csympnet {
 // backward pass (and its column-split threads); every paper preset is far below it.
 inline constexpr Index kOneChunkMaxPairs = 4096;
 // The chunk above that: fastest per pair at d = 100 on one thread (docs/benchmarks.md).
-inline constexpr Index kDefaultChunkPairs = 512;
+inline constexpr Index kDefaultChunkPairs = 256;
 
 // How n pairs are cut: chunks [i·C, min((i+1)·C, n)).
 struct ChunkPlan {

@@ -35,6 +35,13 @@ ChunkedOneStepLoss::ChunkedOneStepLoss(const OneStepMap& map, const PairSet& pai
       chunks_.push_back(select_pairs(pairs, index_range(plan_.begin(c), plan_.end(c))));
   }
   if (threads > 1) team_ = std::make_shared<ThreadTeam>(threads);
+  if (team_ && !batches && plan_.chunks() <= 1) {
+    // One chunk: the team serves only the column split; without one, no idle workers.
+    const LossSplit& split =
+        splits_.emplace(pairs.size(), plan_loss_split(map, pairs.size(), team_.get()))
+            .first->second;
+    if (!split.active()) team_.reset();
+  }
   caches_.resize(static_cast<std::size_t>(threads));
   grads_.resize(static_cast<std::size_t>(threads));
 }

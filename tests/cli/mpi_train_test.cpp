@@ -107,6 +107,35 @@ TEST_F(MpiTrain, SameModelOnAnyThreadsAndRanks) {
   EXPECT_EQ(slurp(dir_ / "np2_batch/model.json"), batch_model);
 }
 
+// A signal that reaches one rank only: the ranks agree at the next validation and stop
+// together (no rank waits forever in a collective), and rank 0 saves the best checkpoint.
+TEST_F(MpiTrain, ASignalToOneRankStopsAllAtTheSameEpoch) {
+  if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
+  const fs::path out = dir_ / "signalled";
+  const std::string log = (dir_ / "log.txt").string();
+  // Rank 1 is found by its environment (Linux /proc), then sent SIGTERM once it runs.
+  const std::string cmd =
+      mpirun(2) + std::string(CSYMPNET_CLI_PATH) + " train " + (dir_ / "pairs.csv").string() +
+      " --core la:2:3 --epochs 100000000 --val-every 10 -q --out " + out.string() + " >" + log +
+      " 2>&1 </dev/null & job=$!; i=0; while [ $i -lt 600 ]; do "
+      "for p in $(pgrep -f '" +
+      out.string() +
+      "'); do "
+      "if tr '\\0' '\\n' </proc/$p/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=1 && "
+      "[ -e '" +
+      (out / "report.json").string() + "' -o -d '" + out.string() +
+      "' ]; then "
+      "sleep 0.5; kill -TERM $p; i=600; fi; done; sleep 0.05; i=$((i+1)); done; wait $job";
+  const int status = std::system(cmd.c_str());
+  EXPECT_NE(status, 0) << slurp(dir_ / "log.txt");  // the signalled rank's 143
+  ASSERT_TRUE(fs::exists(out / "report.json")) << slurp(dir_ / "log.txt");
+  const auto report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(report["training"]["stop_reason"], "callback");
+  EXPECT_LT(report["epochs"].get<long>(), 100000000);
+  EXPECT_NE(slurp(dir_ / "log.txt").find("rank 1 stopped with the others"), std::string::npos)
+      << slurp(dir_ / "log.txt");
+}
+
 TEST_F(MpiTrain, SeveralRanksRefuseWhatTheyCannotShare) {
   if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
   // fit's identify recipe, and later stages of the classic one: refused, not run K times.

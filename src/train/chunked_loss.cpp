@@ -21,6 +21,7 @@ ChunkedOneStepLoss::ChunkedOneStepLoss(const OneStepMap& map, const PairSet& pai
                                        bool batches)
     : map_(&map),
       comm_(&comm),
+      batches_(batches),
       requested_chunk_pairs_(chunk_pairs),
       plan_(plan_chunks(pairs.size(), chunk_pairs)) {
   require(threads >= 1 && threads <= ThreadTeam::kMaxThreads, "chunked loss: bad thread count");
@@ -77,8 +78,8 @@ double ChunkedOneStepLoss::chunked(ConstParams theta, const ChunkPlan& plan, Vec
 }
 
 double ChunkedOneStepLoss::loss(ConstParams theta, Vector* grad) {
-  if (plan_.chunks() <= 1) return one_chunk(theta, all_.size() > 0 ? all_ : chunks_.at(0), grad);
-  if (all_.size() > 0)
+  if (plan_.chunks() <= 1) return one_chunk(theta, batches_ ? all_ : chunks_.at(0), grad);
+  if (batches_)
     return chunked(
         theta, plan_, grad,
         [this](Index c) { return select_pairs(all_, index_range(plan_.begin(c), plan_.end(c))); },
@@ -90,7 +91,7 @@ double ChunkedOneStepLoss::loss(ConstParams theta, Vector* grad) {
 
 double ChunkedOneStepLoss::batch_loss(ConstParams theta, const std::vector<Index>& batch,
                                       Vector* grad) {
-  require(all_.size() > 0, "chunked loss: built without the pairs for batches");
+  require(batches_, "chunked loss: built without the pairs for batches");
   require(!batch.empty(), "chunked loss: an empty batch");
   const ChunkPlan plan = plan_chunks(static_cast<Index>(batch.size()), requested_chunk_pairs_);
   if (plan.chunks() <= 1) return one_chunk(theta, select_pairs(all_, batch), grad);

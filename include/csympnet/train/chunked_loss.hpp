@@ -44,6 +44,7 @@ class ChunkedOneStepLoss {
 
   const OneStepMap* map_;
   const Communicator* comm_;
+  bool batches_;
   Index requested_chunk_pairs_;
   ChunkPlan plan_;
   Index first_chunk_ = 0;        // this rank's first chunk (plan_)

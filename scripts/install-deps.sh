@@ -36,6 +36,7 @@ packages=(
   python3-setuptools   # ... its build backend, offline (pip install --no-build-isolation)
   python3-wheel        # ... and pip wheel
   openmpi-bin          # reproduce: mpirun across ranks (tested in make test)
+  libopenmpi-dev       # train: one training over mpirun's ranks (optional: CSYMPNET_MPI)
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
   liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf
   libopenblas0-pthread # ... through OpenBLAS (Debian alternatives), not the reference BLAS

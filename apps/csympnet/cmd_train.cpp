@@ -11,6 +11,7 @@
 
 #include "commands.hpp"
 #include "core_option.hpp"
+#include "csympnet/core/communicator.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/experiments/fit.hpp"
@@ -38,7 +39,7 @@ struct FitArgs {
   std::optional<std::string> model, lr_schedule, refine, refine_solver;
   std::optional<double> lr, val_fraction, beta_init;
   std::optional<std::uint64_t> seed;
-  std::optional<long> epochs, val_every, refine_iterations, bootstrap;
+  std::optional<long> epochs, val_every, refine_iterations, bootstrap, chunk_pairs, batch_size;
   bool no_beta_decay = false, quiet = false, force = false;
   bool warm_start;
   int threads = 1;
@@ -117,6 +118,16 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
       ->check(library_range(kBootstrapRange));
   add_threads_option(cmd, a.threads);
   add_arithmetic_option(cmd);
+  cmd.add_option("--chunk-pairs", a.chunk_pairs,
+                 "Pairs per chunk of the loss's sums (default 0: one chunk up to 4096 pairs, 256 "
+                 "above); the result depends on it, not on --threads or mpirun's ranks")
+      ->check(kWholeNumber)
+      ->check(library_range(kChunkPairsRange));
+  cmd.add_option("--batch-size", a.batch_size,
+                 "Mini-batches of this many pairs, reshuffled each epoch (default 0: one "
+                 "full-batch step per epoch)")
+      ->check(kWholeNumber)
+      ->check(library_range(kBatchSizeRange));
   cmd.add_option("--out", a.out, "Output directory")->required()->check(kOutputPath);
   cmd.add_flag("--force", a.force, "Allow writing into a non-empty output directory");
   cmd.add_flag("-q,--quiet", a.quiet, "No progress line");
@@ -132,6 +143,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   s.epochs = a.epochs;
   s.val_every = a.val_every;
   s.threads = a.threads;
+  s.chunk_pairs = a.chunk_pairs;
+  s.batch_size = a.batch_size;
   s.lr = a.lr;
   s.lr_schedule = a.lr_schedule;
   if (a.no_beta_decay) s.decay_damping = false;
@@ -141,20 +154,37 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   s.refine_solver = a.refine_solver;
   s.bootstrap = a.bootstrap;
   // Every option checked (ranges, spellings, the rules between them) before any work.
-  const FitConfig c = at_boundary([&] { return make_fit_config(a.classic, s); });
-  const OutputDir out_dir = prepare_output_dir(a.out, a.force);
+  FitConfig c = at_boundary([&] { return make_fit_config(a.classic, s); });
+  // Under mpirun: one training over the ranks, its AdamW stage only; rank 0 alone talks and
+  // writes (docs/architecture.md, "One training over MPI ranks").
+  const Communicator& comm = process_communicator();
+  const bool lead = comm.rank() == 0;
+  if (comm.size() > 1) {
+    if (c.refine_method != RefineMethod::kNone || c.bootstrap_replicates.value_or(1) != 0)
+      throw Error("under mpirun with " + std::to_string(comm.size()) +
+                  " ranks only the AdamW stage runs over the ranks; expected --refine none "
+                  "--bootstrap 0 (train's defaults), or one process for the later stages");
+    c.train.communicator = &comm;
+  }
+  std::optional<OutputDir> out_dir;
+  if (lead) out_dir.emplace(prepare_output_dir(a.out, a.force));
   // Trajectory files keep the trajectory of each pair, so the bootstrap can resample them.
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
   const ColumnMap columns = parse_column_map(a.columns);
-  const CsvInput input = read_csv_input(a.data, columns);  // once: a pipe or "-" works too
-  const PairSet data = parse_any_as_pairs(input.text, input.name);
+  PairSet data;
   std::vector<Index> groups;
-  if (input.kind == CsvKind::kTrajectories) {
-    const std::vector<Trajectory> trajs = parse_trajectories_csv(input.text, input.name);
-    for (std::size_t k = 0; k < trajs.size(); ++k)
-      groups.insert(groups.end(), static_cast<std::size_t>(trajs[k].steps()),
-                    static_cast<Index>(k));
+  std::string data_name;
+  {  // the text goes once parsed: at 40,000 pairs of d = 100 it is 300 MB
+    const CsvInput input = read_csv_input(a.data, columns);  // once: a pipe or "-" works too
+    data_name = input.name;
+    data = parse_any_as_pairs(input.text, input.name);
+    if (input.kind == CsvKind::kTrajectories) {
+      const std::vector<Trajectory> trajs = parse_trajectories_csv(input.text, input.name);
+      for (std::size_t k = 0; k < trajs.size(); ++k)
+        groups.insert(groups.end(), static_cast<std::size_t>(trajs[k].steps()),
+                      static_cast<Index>(k));
+    }
   }
   std::optional<PairSet> val;
   if (!a.val.empty()) {
@@ -162,13 +192,23 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     val = parse_any_as_pairs(val_input.text, val_input.name);
     if (val->d() != data.d())
       throw Error("--val " + a.val + " has d = " + std::to_string(val->d()) + " (" +
-                  std::to_string(2 * val->d()) + " state columns) but " + input.name + " has d = " +
+                  std::to_string(2 * val->d()) + " state columns) but " + data_name + " has d = " +
                   std::to_string(data.d()) + "; expected validation data of the same system");
   }
   FitResult r;
   {
-    ProgressLine progress(a.quiet);
-    r = fit_pairs(data, val, c, progress.callback(), groups, [] { return interrupted(); });
+    ProgressLine progress(a.quiet || !lead);
+    ProgressCallback line = progress.callback();
+    // A signal may reach the ranks at different epochs: they agree at each validation.
+    if (comm.size() > 1)
+      line = [line, &comm](const TrainProgress& p) { return !comm.any(!line(p)); };
+    r = fit_pairs(data, val, c, line, groups, [] { return interrupted(); });
+  }
+  if (!lead) {  // the same result as rank 0's, which reports it
+    if (interrupted())
+      throw Interrupted("rank " + std::to_string(comm.rank()) +
+                        " stopped with the others; rank 0 saved the best checkpoint in " + a.out);
+    return;
   }
   const auto gamma = r.model.damping_rate(r.theta);
   nlohmann::json report = fit_report(r);
@@ -178,7 +218,7 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
   const auto quality = [&report](const char* key) { return report["quality"][key].get<double>(); };
   // One set: the report, the wall times (apart, so the report stays bit-identical run to
   // run) and the model, committed together.
-  out_dir.commit(
+  out_dir->commit(
       {{"report.json", json_file_text(report)},
        {"timings.json",
         json_file_text({{"train_seconds", r.training.seconds},
@@ -237,6 +277,14 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
+  if (launcher_size() > 1)
+    throw Error("fit's identify recipe runs in one process, not over mpirun's " +
+                std::to_string(launcher_size()) +
+                " ranks (each would fit alone); expected one process, or `train` (or `fit "
+                "--recipe classic --refine none --bootstrap 0`) for a training over the ranks");
+  for (const char* only_train : {"--chunk-pairs", "--batch-size"})
+    if (cmd.count(only_train) > 0)
+      throw CLI::ValidationError(only_train, "belongs to train and --recipe classic");
   for (const char* classic :
        {"--refine", "--refine-iterations", "--refine-solver", "--bootstrap", "--warm-start",
         "--val", "--beta-init", "--no-beta-decay", "--lr-schedule", "--val-every"})

@@ -6,9 +6,24 @@
 #include <CLI/CLI.hpp>
 
 #include "commands.hpp"
+#include "csympnet/core/communicator.hpp"
 #include "csympnet/core/error.hpp"
 #include "interrupt.hpp"
 #include "system_options.hpp"
+
+namespace {
+
+// Under mpirun (csympnet/core/communicator.hpp) every rank returns here. An outcome all ranks
+// share (done, interrupted, not identified, a usage error) ends MPI with them; a failure ends
+// the whole job, since the other ranks may be waiting for this one in a collective.
+int finish(int code, bool shared) {
+  if (!csympnet::process_communicator_started()) return code;
+  if (!shared) csympnet::process_communicator().abort(code);
+  csympnet::finish_process_communicator();
+  return code;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -20,32 +35,32 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     // CLI11 prints the message; every usage error exits 2 (CLI11's own codes are 100-127,
     // which scripts cannot tell apart from other failures), --help and --version exit 0.
-    return app.exit(e) == 0 ? 0 : 2;
+    return finish(app.exit(e) == 0 ? 0 : 2, true);
   } catch (const csympnet::cli::Interrupted& e) {
     std::fprintf(stderr, "csympnet: interrupted by %s: %s\n", csympnet::cli::interrupt_name(),
                  e.what());
-    return csympnet::cli::interrupt_exit_code();
+    return finish(csympnet::cli::interrupt_exit_code(), true);
   } catch (const csympnet::cli::NotIdentified& e) {
     std::fprintf(stderr, "csympnet: not identified: %s\n", e.what());
-    return csympnet::cli::kNotIdentifiedExitCode;
+    return finish(csympnet::cli::kNotIdentifiedExitCode, true);
   } catch (const csympnet::OptionError& e) {
     // An option the library refused once the data were read (a beta_init too large for the
     // data's steps): named as the command line spells it.
     std::fprintf(stderr, "csympnet: error: %s\n", e.message(csympnet::cli::cli_spelling()).c_str());
-    return 1;
+    return finish(1, false);
   } catch (const csympnet::Error& e) {
     // After a signal, a failure is its consequence (a read cut short by EINTR): say so, and
     // exit with the signal's code.
     if (csympnet::cli::interrupted()) {
       std::fprintf(stderr, "csympnet: interrupted by %s: %s\n", csympnet::cli::interrupt_name(),
                    e.what());
-      return csympnet::cli::interrupt_exit_code();
+      return finish(csympnet::cli::interrupt_exit_code(), false);
     }
     std::fprintf(stderr, "csympnet: error: %s\n", e.what());
-    return 1;
+    return finish(1, false);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "csympnet: internal error: %s\n", e.what());
-    return 3;
+    return finish(3, false);
   }
-  return 0;
+  return finish(0, true);
 }

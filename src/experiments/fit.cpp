@@ -91,6 +91,8 @@ FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
   }
   if (s.val_every) c.train.val_every = *s.val_every;
   if (s.threads) c.train.threads = *s.threads;
+  if (s.chunk_pairs) c.train.chunk_pairs = *s.chunk_pairs;
+  if (s.batch_size) c.train.batch_size = *s.batch_size;
   if (s.lr) c.train.adamw.lr = *s.lr;
   if (s.weight_decay) c.train.adamw.weight_decay = *s.weight_decay;
   if (s.decay_damping) c.train.adamw.decay_damping = *s.decay_damping;
@@ -117,6 +119,7 @@ FitConfig make_fit_config(const FitConfig& recipe, const FitSettings& s) {
                         "the model's size");
   }
   if (s.bootstrap) c.bootstrap_replicates = *s.bootstrap;
+  c.train.shuffle_seed = c.seed;  // the mini-batch order follows the fit's seed
   c.validate();
   return c;
 }

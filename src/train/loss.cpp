@@ -6,13 +6,20 @@ namespace csympnet {
 
 double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pairs, Vector* grad,
                      ForwardCache* cache) {
+  return one_step_loss_part(map, theta, pairs, pairs.size(), grad, cache);
+}
+
+double one_step_loss_part(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
+                          Index n_mean, Vector* grad, ForwardCache* cache) {
+  require(n_mean >= pairs.size(),
+          "one_step_loss_part: the mean runs over fewer pairs than the part");
   ForwardCache local;
   ForwardCache* c = grad != nullptr ? (cache != nullptr ? cache : &local) : nullptr;
   // In place: the same elementwise differences and products as `Φ̂ − z1` and `(2/N) r`, without
   // two temporaries per epoch.
   Matrix residual = map.forward(theta, pairs.z0, pairs.h, c);
   residual -= pairs.z1;
-  const double n = static_cast<double>(pairs.size());
+  const double n = static_cast<double>(n_mean);
   const double loss = residual.squaredNorm() / n;
   if (grad != nullptr) {
     grad->setZero(map.n_params());

@@ -1,11 +1,14 @@
 #include "csympnet/train/trainer.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numeric>
 #include <sstream>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/rng.hpp"
 #include "csympnet/core/thread_team.hpp"
 #include "csympnet/train/loss.hpp"
 
@@ -17,6 +20,8 @@ void TrainOptions::validate() const {
   adamw.validate();
   kLrFinalFractionRange.check(lr_final_fraction);
   kThreadsRange.check(static_cast<long>(threads));
+  kChunkPairsRange.check(chunk_pairs);
+  kBatchSizeRange.check(batch_size);
 }
 
 double TrainOptions::lr_at(long epoch) const {
@@ -34,8 +39,10 @@ void to_json(nlohmann::json& j, const TrainOptions& o) {
        {"adamw", o.adamw},
        {"lr_schedule", to_string(o.lr_schedule)},
        {"lr_final_fraction", o.lr_final_fraction},
-       {"batch", "full"},
+       {"batch", o.batch_size > 0 ? nlohmann::json(o.batch_size) : nlohmann::json("full")},
        {"checkpoint", "best-validation"}};
+  if (o.batch_size > 0) j["shuffle_seed"] = o.shuffle_seed;
+  if (o.chunk_pairs > 0) j["chunk_pairs"] = o.chunk_pairs;
 }
 
 void from_json(const nlohmann::json& j, TrainOptions& o) {
@@ -45,6 +52,10 @@ void from_json(const nlohmann::json& j, TrainOptions& o) {
   if (j.contains("lr_schedule"))
     o.lr_schedule = parse_lr_schedule(j.at("lr_schedule").get<std::string>());
   o.lr_final_fraction = j.value("lr_final_fraction", o.lr_final_fraction);
+  if (j.contains("batch") && j.at("batch").is_number_integer())
+    o.batch_size = j.at("batch").get<long>();
+  o.shuffle_seed = j.value("shuffle_seed", o.shuffle_seed);
+  o.chunk_pairs = j.value("chunk_pairs", o.chunk_pairs);
 }
 
 const std::vector<std::string>& lr_schedule_names() {
@@ -93,6 +104,12 @@ void to_json(nlohmann::json& j, const TrainSummary& s) {
        {"final_train_loss", s.final_train_loss},
        {"seconds", s.seconds},
        {"stop_reason", to_string(s.stop_reason)}};
+  if (s.chunks > 1) {
+    j["chunk_pairs"] = s.chunk_pairs;
+    j["chunks"] = s.chunks;
+  }
+  if (s.steps != s.epochs_run) j["steps"] = s.steps;
+  if (s.bytes_sent_per_step > 0) j["bytes_sent_per_step"] = s.bytes_sent_per_step;
 }
 
 TrainSummary train_parameters(const Objective& objective, Vector& theta,
@@ -115,16 +132,50 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
       theta, callbacks, rate);
   TrainSummary summary;
   summary.stop_reason = StopReason::kBudget;
+  summary.chunk_pairs = objective.chunk_pairs;
+  summary.chunks = objective.chunks;
+  const bool batches = options.batch_size > 0;
+  require(!batches || objective.batch_loss,
+          "train: mini-batches (batch_size > 0) need an objective built for them");
+  // The mini-batch order: a permutation of the pairs, shuffled again every epoch.
+  Rng shuffle(options.shuffle_seed, "minibatch");
+  std::vector<Index> order(static_cast<std::size_t>(batches ? objective.train_pairs : 0));
+  std::iota(order.begin(), order.end(), Index{0});
+  const Index batch = batches ? std::min<Index>(options.batch_size, objective.train_pairs) : 0;
   double train_loss = std::numeric_limits<double>::quiet_NaN();
   for (long epoch = 1; epoch <= options.epochs; ++epoch) {
-    train_loss = objective.train_loss(theta, grad);
-    if (!std::isfinite(train_loss) || !grad.allFinite()) {
+    if (options.lr_schedule != LrSchedule::kConstant) opt.set_lr(options.lr_at(epoch));
+    bool finite = true;
+    if (!batches) {
+      train_loss = objective.train_loss(theta, grad);
+      finite = std::isfinite(train_loss) && grad.allFinite();
+      if (finite) opt.step(theta, grad);
+      summary.steps += finite ? 1 : 0;
+    } else {
+      // Fisher–Yates with our own RNG: the same order on every platform and every rank.
+      for (Index i = static_cast<Index>(order.size()) - 1; i > 0; --i) {
+        const auto j = static_cast<Index>(shuffle.next_u64() % static_cast<std::uint64_t>(i + 1));
+        std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
+      }
+      // The epoch's training loss: the batches' losses weighted by their sizes, before each
+      // one's step.
+      train_loss = 0.0;
+      for (Index b = 0; b < static_cast<Index>(order.size()) && finite; b += batch) {
+        const Index e = std::min<Index>(b + batch, static_cast<Index>(order.size()));
+        const std::vector<Index> ids(order.begin() + b, order.begin() + e);
+        const double l = objective.batch_loss(theta, grad, ids);
+        finite = std::isfinite(l) && grad.allFinite();
+        if (!finite) break;
+        train_loss += l * static_cast<double>(e - b) / static_cast<double>(order.size());
+        opt.step(theta, grad);
+        ++summary.steps;
+      }
+    }
+    if (!finite) {
       // Keep the best checkpoint; the caller decides how loudly to report it.
       summary.stop_reason = StopReason::kDiverged;
       break;
     }
-    if (options.lr_schedule != LrSchedule::kConstant) opt.set_lr(options.lr_at(epoch));
-    opt.step(theta, grad);
     summary.epochs_run = epoch;
     if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
     if (!monitor.accept(epoch, theta, train_loss)) {
@@ -132,6 +183,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
       break;
     }
   }
+  if (objective.bytes_sent) summary.bytes_sent_per_step = static_cast<long>(objective.bytes_sent());
   summary.best_val_loss = monitor.best_loss();
   summary.best_epoch = monitor.best_iteration();
   summary.final_train_loss = train_loss;
@@ -144,8 +196,12 @@ TrainSummary train_model(const Model& model, Vector& theta, const PairSet& train
                          const PairSet& val, const TrainOptions& options,
                          const ProgressCallback& progress) {
   options.validate();
-  return train_parameters(make_objective(model, train, val, options.threads), theta, options,
-                          progress);
+  LossPlan plan;
+  plan.threads = options.threads;
+  plan.chunk_pairs = options.chunk_pairs;
+  plan.batches = options.batch_size > 0;
+  plan.comm = options.communicator;
+  return train_parameters(make_objective(model, train, val, plan), theta, options, progress);
 }
 
 }  // namespace csympnet

@@ -597,6 +597,8 @@ std::vector<Case> option_cases() {
     add(cmd, "--bootstrap", with(not_whole, {"5"}));
     add(cmd, "--refine-iterations", with(not_whole, {"0"}));
     add(cmd, "--threads", with(not_whole, {"0", "100000"}));
+    add(cmd, "--chunk-pairs", with(not_whole, {"1000000001"}));
+    add(cmd, "--batch-size", with(not_whole, {"1000000000001"}));
     add(cmd, "--lr", with(not_numbers, {"0", "-1", "20", "1e-300"}));
     add(cmd, "--val-fraction", with(not_numbers, {"0", "1", "-0.5", "2"}));
     add(cmd, "--beta-init", with(not_numbers, {"0", "-0"}));

@@ -177,6 +177,10 @@ TEST_F(OptionRanges, RunTrainAndFit) {
   fit_cases.push_back({"--val-fraction 1", "--val-fraction", 2});
   fit_cases.push_back({"--val-fraction nan", "--val-fraction", 2});
   fit_cases.push_back({"--val " + (dir_ / "none.csv").string(), "--val", 2});
+  fit_cases.push_back({"--chunk-pairs -1", "--chunk-pairs", 2});
+  fit_cases.push_back({"--chunk-pairs 2.5", "--chunk-pairs", 2});
+  fit_cases.push_back({"--batch-size -3", "--batch-size", 2});
+  fit_cases.push_back({"--batch-size x", "--batch-size", 2});
   for (const BadOption& c : fit_cases) {
     expect_refused("fit " + data + " -q" + out(), c);
     expect_refused("train --data " + data + " -q" + out(), c);

@@ -108,7 +108,7 @@ struct FitSettings {
   nlohmann::json core;  // null: the recipe's
   std::optional<std::uint64_t> seed;
   std::optional<double> val_fraction, beta_init, lr, lr_final_fraction, weight_decay;
-  std::optional<long> epochs, val_every, refine_iterations, bootstrap;
+  std::optional<long> epochs, val_every, refine_iterations, bootstrap, chunk_pairs, batch_size;
   std::optional<int> threads;
   std::optional<std::string> lr_schedule, refine, refine_solver;
   std::optional<bool> decay_damping, warm_start;

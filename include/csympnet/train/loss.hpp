@@ -17,6 +17,12 @@ namespace csympnet {
 double one_step_loss(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
                      Vector* grad = nullptr, ForwardCache* cache = nullptr);
 
+// The part of the loss over n_mean pairs that `pairs` (a chunk of them) contribute:
+// Σ_{i in chunk} ‖z1_i − Φ̂(z0_i)‖² / n_mean, and its gradient in grad (overwritten) when not
+// null. With n_mean = pairs.size() it is one_step_loss(), operation for operation.
+double one_step_loss_part(const OneStepMap& map, ConstParams theta, const PairSet& pairs,
+                          Index n_mean, Vector* grad = nullptr, ForwardCache* cache = nullptr);
+
 // How one_step_loss() runs on a team of threads: one column range of the batch per part,
 // through the model's column-split passes (column_split.hpp). Planned once per batch size,
 // since asking whether a model splits runs a few products.

@@ -2,6 +2,7 @@
 // the lowest validation loss (the paper's checkpoint rule).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <string>
@@ -35,6 +36,10 @@ inline constexpr OptionRange kEpochsRange{.key = "epochs", .lo = 0, .hi = 1e8, .
 inline constexpr OptionRange kValEveryRange{.key = "val_every", .lo = 1, .hi = 1e8, .whole = true};
 inline constexpr OptionRange kThreadsRange{
     .key = "threads", .lo = 1, .hi = ThreadTeam::kMaxThreads, .whole = true};
+inline constexpr OptionRange kChunkPairsRange{
+    .key = "chunk_pairs", .lo = 0, .hi = 1e9, .whole = true};
+inline constexpr OptionRange kBatchSizeRange{
+    .key = "batch_size", .lo = 0, .hi = 1e12, .whole = true};
 inline constexpr OptionRange kLrFinalFractionRange{
     .key = "lr_final_fraction", .lo = 0.0, .hi = 1.0, .lo_open = true};
 
@@ -48,6 +53,18 @@ struct TrainOptions {
   // of d > 1: column_split.hpp); other models train on one. Results are the same to the bit
   // for any value, so it is not part of the configuration's JSON.
   int threads = 1;
+  // Pairs per chunk of the training and validation losses (chunk_tree.hpp); 0 (default): one
+  // chunk up to 4096 pairs (today's single pass), 256 above. The chunks fix the order of the
+  // sums, so a value other than 0 is part of the configuration (and its JSON).
+  long chunk_pairs = 0;
+  // Mini-batches: 0 (default) takes one full-batch step per epoch; B > 0 shuffles the training
+  // pairs each epoch (the stream Rng(shuffle_seed, "minibatch")) and takes one step per batch
+  // of B of them in that order (⌈N/B⌉ steps; the last batch holds the rest).
+  long batch_size = 0;
+  std::uint64_t shuffle_seed = 0;
+  // The ranks one training runs on (each its share of the chunks, the same steps on all);
+  // null: this process alone. Like threads, not part of the configuration.
+  const Communicator* communicator = nullptr;
   void validate() const;
   // adamw.lr scaled by the schedule at epoch (1-based) of the budget.
   double lr_at(long epoch) const;
@@ -70,11 +87,19 @@ struct TrainSummary {
   double final_train_loss = 0.0;
   double seconds = 0.0;
   StopReason stop_reason = StopReason::kBudget;
+  // The training loss's chunk plan (reported when it has more than one chunk) and the AdamW
+  // steps taken (more than epochs_run with mini-batches).
+  long chunk_pairs = 0;
+  long chunks = 1;
+  long steps = 0;
+  // Bytes this rank sent in the all-gather of the last training step (0 in one process).
+  long bytes_sent_per_step = 0;
   std::string brief_report() const;
 };
 void to_json(nlohmann::json& j, const TrainSummary& s);
 
-// Full-batch AdamW on `objective`, keeping the best-validation parameters (IterationMonitor,
+// AdamW on `objective` (full batch, or mini-batches when options.batch_size > 0 and the
+// objective has a batch loss), keeping the best-validation parameters (IterationMonitor,
 // callbacks.hpp): on return theta holds them. `progress` sees every validation; returning
 // false ends the run (stop reason "callback").
 TrainSummary train_parameters(const Objective& objective, Vector& theta,

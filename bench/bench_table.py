@@ -14,6 +14,11 @@ torch, at the s2-100 product shape 100x100x400), and the peak resident memory of
 benchmark process that generates P's pairs and trains on them (getrusage of the child), which
 shows how memory grows with the number of pairs (s2-100 on 400, 4,000 and 40,000 pairs).
 
+Beside csympnet's default arithmetic (sse2: the portable build's bits), the same epochs in its
+fma arithmetic (CSYMPNET_ARITHMETIC=fma, docs/architecture.md "Arithmetic of the products"),
+and one line of MPI scaling: bench/mpi_scaling.py, `csympnet train` at 40,000 pairs in d = 100
+on 1 rank, 1 rank x 2 threads and 2 ranks, models compared bit for bit.
+
 Each row gives both sides the same number of threads (--threads, default 1,2: a row per preset
 and thread count). csympnet's threads are TrainOptions::threads (the epoch split over columns,
 docs/architecture.md); PyTorch's are its intra-op pool and OpenBLAS's.
@@ -57,6 +62,10 @@ def parse_args():
                     help="seconds per timing (each repetition, and each PyTorch variant)")
     ap.add_argument("--no-torch", action="store_true", help="skip the PyTorch columns")
     ap.add_argument("--no-rss", action="store_true", help="skip the peak-memory runs")
+    ap.add_argument("--no-fma", action="store_true",
+                    help="skip the column of csympnet's fma arithmetic (CSYMPNET_ARITHMETIC=fma)")
+    ap.add_argument("--no-mpi", action="store_true",
+                    help="skip the MPI line (bench/mpi_scaling.py: 1 and 2 ranks at 40,000 pairs)")
     ap.add_argument("--json", help="also write every measurement to this file")
     return ap.parse_args()
 
@@ -93,16 +102,20 @@ def epoch_benchmark(preset, threads):
     return f"epoch/{preset}/csympnet" + (f"/threads:{threads}" if threads > 1 else "")
 
 
-def run_micro(bench, presets, thread_counts, repetitions, min_time):
+def run_micro(bench, presets, thread_counts, repetitions, min_time, arithmetic=None):
     names = "|".join(epoch_benchmark(p, t) for p in presets for t in thread_counts)
     filt = f"^({names}|dgemm/eigen/.*)(/real_time)?$"
+    env = dict(os.environ)
+    env.pop("CSYMPNET_ARITHMETIC", None)
+    if arithmetic:
+        env["CSYMPNET_ARITHMETIC"] = arithmetic
     with tempfile.NamedTemporaryFile(suffix=".json") as out:
         r = subprocess.run([bench, f"--benchmark_filter={filt}",
                             f"--benchmark_repetitions={repetitions}",
                             f"--benchmark_min_time={min_time}",
                             "--benchmark_report_aggregates_only=true",
                             f"--benchmark_out={out.name}", "--benchmark_out_format=json"],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
         if r.returncode != 0:
             sys.stderr.write(r.stderr)
             raise SystemExit("bench_table: csympnet_bench failed (see above)")
@@ -180,6 +193,21 @@ def peak_rss_mb(bench, preset, threads):
     return usage.ru_maxrss / 1024.0  # KiB on Linux
 
 
+def run_mpi_scaling(cli, workdir):
+    """bench/mpi_scaling.py at 40,000 pairs (1x1, 1x2, 2x1 ranks x threads, 2 runs each): its
+    JSON summary, or None where mpirun or an MPI build is missing."""
+    if shutil.which("mpirun") is None:
+        return None, "mpirun not found"
+    out = os.path.join(workdir, "mpi_scaling.json")
+    r = subprocess.run([sys.executable, os.path.join(HERE, "mpi_scaling.py"), "--cli", cli,
+                        "--reps", "2", "--work", os.path.join(workdir, "mpi"), "--json", out],
+                       capture_output=True, text=True)
+    if r.returncode != 0 or not os.path.exists(out):
+        return None, (r.stderr.strip().splitlines() or ["failed"])[-1]
+    with open(out) as f:
+        return json.load(f), ""
+
+
 def fmt_ms(seconds):
     ms = seconds * 1e3
     return f"{ms:.4f}" if ms < 0.1 else f"{ms:.3f}" if ms < 10 else f"{ms:.2f}"
@@ -208,8 +236,14 @@ def main():
     load_before = load_average()
     record = {"machine": cpu_model(), "cores": os.cpu_count(), "threads": thread_counts,
               "load_before": load_before}
-    micro, context = run_micro(bench, presets, thread_counts, args.repetitions, args.min_time)
+    micro, context = run_micro(bench, presets, thread_counts, args.repetitions, args.min_time,
+                               "sse2")
     record["micro"] = micro
+    micro_fma = {}
+    if not args.no_fma:
+        micro_fma, _ = run_micro(bench, presets, thread_counts, args.repetitions, args.min_time,
+                                 "fma")
+        record["micro_fma"] = micro_fma
     record["exact_product"] = context.get("exact_product", "?")
     workdir = tempfile.mkdtemp(prefix="csympnet-bench-")
     torch_env, torch_runs, rss = {}, {}, {}
@@ -222,6 +256,10 @@ def main():
             if not args.no_rss:
                 for p in presets:
                     rss[(p, t)] = peak_rss_mb(bench, p, t)
+        mpi, mpi_why = (None, "skipped (--no-mpi)")
+        if not args.no_mpi:
+            mpi, mpi_why = run_mpi_scaling(os.path.join(args.build, "bin", "csympnet"), workdir)
+        record["mpi_scaling"] = mpi
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
     record["torch"] = {str(t): {"environment": torch_env.get(t, {}),
@@ -249,7 +287,18 @@ def main():
           f"{REPRESENTATIVE_GEMM} and 1000^3): {gemm_text} GFLOP/s")
     print(f"load average: {load_before} before, {record['load_after']} after")
     header = ["preset", "threads", "pairs", "params", "FLOP/epoch", "ours ms", "PyTorch ms", "ratio",
-              "goal", "ours GFLOP/s", "of dgemm", "x floor", "peak RSS MB"]
+              "goal", "ours GFLOP/s", "of dgemm", "x floor", "peak RSS MB", "fma ms",
+              "fma ratio", "fma of dgemm"]
+    def fma_cells(p, t, tr):
+        m = micro_fma.get(epoch_benchmark(p, t))
+        if m is None:
+            return ["-", "-", "-"]
+        ratio = tr["seconds_per_epoch"] / m["seconds"] if tr else None
+        frac = m["flops"] / m["seconds"] / machine_gemm[t] if machine_gemm.get(t) else None
+        return [fmt_ms(m["seconds"]),
+                f"{ratio:.0f}x" if ratio and ratio >= 10 else f"{ratio:.2f}x" if ratio else "-",
+                f"{frac:.0%}" if frac else "-"]
+
     rows = []
     for p in presets:
         for t in thread_counts:
@@ -269,7 +318,7 @@ def main():
                          f"{ratio:.2f}x" if ratio else "-",
                          goal, f"{rate / 1e9:.2f}", f"{frac:.0%}" if frac else "-",
                          f"{1 / frac:.2f}" if frac else "-",
-                         f"{rss[(p, t)]:.0f}" if (p, t) in rss else "-"])
+                         f"{rss[(p, t)]:.0f}" if (p, t) in rss else "-"] + fma_cells(p, t, tr))
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header)]
     print("| " + " | ".join(h.ljust(w) for h, w in zip(header, widths)) + " |")
     print("|" + "|".join("-" * (w + 2) for w in widths) + "|")
@@ -288,6 +337,18 @@ def main():
         print(f"same computation: PyTorch's losses over the first "
               f"{runs[0][2]['loss_epochs_checked']} epochs match csympnet's to "
               f"{worst:.1e} (relative) on every preset")
+    if mpi:
+        rows_mpi = {(c["ranks"], c["threads"]): c for c in mpi["configs"]}
+        one, two = rows_mpi.get((1, 1)), rows_mpi.get((2, 1))
+        sent = two["bytes_sent_per_step_per_rank"] if two else []
+        print(f"MPI, `csympnet train` at {mpi['pairs']} pairs, d = 100 ({mpi['core']}): 1 rank "
+              f"{one['epoch_seconds']:.3f} s/epoch, 2 ranks {two['epoch_seconds']:.3f} s/epoch: "
+              f"{two['speedup']:.2f}x (goal >=1.7x); 1 rank x 2 threads "
+              f"{rows_mpi[(1, 2)]['speedup']:.2f}x; models bit-identical: {mpi['bit_identical']}; "
+              f"sent per rank per step {', '.join(f'{b / 1e6:.1f} MB' for b in sent)}; peak RSS "
+              f"per rank {two['peak_rss_mib_per_rank']} MiB")
+    else:
+        print(f"MPI: not measured ({mpi_why})")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(record, f, indent=1)

@@ -119,7 +119,7 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
   add_threads_option(cmd, a.threads);
   add_arithmetic_option(cmd);
   cmd.add_option("--chunk-pairs", a.chunk_pairs,
-                 "Pairs per chunk of the loss's sums (default 0: one chunk up to 4096 pairs, 256 "
+                 "Pairs per chunk of the loss's sums (default 0: one chunk up to 512 pairs, 256 "
                  "above); the result depends on it, not on --threads or mpirun's ranks")
       ->check(kWholeNumber)
       ->check(library_range(kChunkPairsRange));

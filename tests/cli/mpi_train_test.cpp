@@ -1,4 +1,4 @@
-// `train` over threads and MPI ranks: above one chunk (4096 pairs) the chunked loss gives the
+// `train` over threads and MPI ranks: above one chunk (512 pairs) the chunked loss gives the
 // same model to the bit on any number of threads and under `mpirun -np K` (K = 1, 2, 3), in
 // full-batch and mini-batch mode; fit's identify recipe refuses several ranks.
 #include <gtest/gtest.h>

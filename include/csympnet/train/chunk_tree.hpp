@@ -22,8 +22,11 @@
 namespace csympnet {
 
 // Pair counts up to this run as one chunk by default: the whole batch, as one forward and
-// backward pass (and its column-split threads); every paper preset is far below it.
-inline constexpr Index kOneChunkMaxPairs = 4096;
+// backward pass (and its column-split threads). Every paper preset and reproduction suite
+// (at most 400 training pairs) stays below it and keeps its bits; above it, chunks pay (the
+// product kernels cover the parameter gradients' sums over ≤ 256 columns, Eigen's generic
+// path runs beyond about 450: docs/benchmarks.md, "Chunk size").
+inline constexpr Index kOneChunkMaxPairs = 512;
 // The chunk above that: fastest per pair at d = 100 on one thread (docs/benchmarks.md).
 inline constexpr Index kDefaultChunkPairs = 256;
 

@@ -37,7 +37,7 @@ struct Objective {
 // chunk plan of its own (chunk_pairs; 0: plan_chunks' rule, chunk_tree.hpp).
 struct LossPlan {
   int threads = 1;                     // this process's threads
-  Index chunk_pairs = 0;               // pairs per chunk; 0: one chunk up to 4096 pairs, 256 above
+  Index chunk_pairs = 0;               // pairs per chunk; 0: one chunk up to 512 pairs, 256 above
   bool batches = false;                // every rank keeps every training pair, for batch_loss
   const Communicator* comm = nullptr;  // the ranks sharing the chunks; null: this process alone
 };

@@ -54,7 +54,7 @@ struct TrainOptions {
   // for any value, so it is not part of the configuration's JSON.
   int threads = 1;
   // Pairs per chunk of the training and validation losses (chunk_tree.hpp); 0 (default): one
-  // chunk up to 4096 pairs (today's single pass), 256 above. The chunks fix the order of the
+  // chunk up to 512 pairs (today's single pass), 256 above. The chunks fix the order of the
   // sums, so a value other than 0 is part of the configuration (and its JSON).
   long chunk_pairs = 0;
   // Mini-batches: 0 (default) takes one full-batch step per epoch; B > 0 shuffles the training

@@ -82,7 +82,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         val_fraction=0.2, beta_init=0.1, beta_decay=True, lr=1e-3, lr_schedule="cosine",
         lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=True,
         refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, threads=1,
-        progress=None, verbose=False, meta=None, _groups=None):
+        chunk_pairs=None, batch_size=None, progress=None, verbose=False, meta=None, _groups=None):
     """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs with the classic recipe: what
     `csympnet fit --recipe classic` does, with the same defaults, so the same pairs and options
     give the same parameters to the bit. For identification on your own data (any units, an
@@ -117,6 +117,11 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     Add core="la:5:20:h2" when the steps vary (docs/identification.md).
     threads: threads for each training epoch of CSympNet-ID with d > 1 (other models train
         on one); the results are the same to the bit for any value.
+    chunk_pairs: pairs per chunk of the loss's sums (default None: one chunk up to 512 training
+        pairs, 256 above); the chunks' sums follow one fixed tree, so the result depends on
+        the chunk size, never on threads (docs/training.md, "Large data sets").
+    batch_size: mini-batches of this many pairs, reshuffled each epoch (default None: one
+        full-batch step per epoch); epochs still count passes over the data.
     progress: optional callable, called after each AdamW validation and each accepted step
         of the second stage with a dict: stage ("adamw", "lm" or "lbfgs"), epoch and epochs
         (iterations and budget for lm and lbfgs), train_loss (None where the optimiser does not
@@ -173,6 +178,10 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if bootstrap is not None:
         bootstrap = _checks.integer("bootstrap", bootstrap)
     threads = _checks.integer("threads", threads, maximum=2**31 - 1)  # a C++ int
+    if chunk_pairs is not None:
+        chunk_pairs = _checks.integer("chunk_pairs", chunk_pairs)
+    if batch_size is not None:
+        batch_size = _checks.integer("batch_size", batch_size)
     groups = [] if _groups is None else [int(g) for g in _groups]
     if meta is not None and not isinstance(meta, dict):
         raise TypeError(f"meta: expected a dict, got {type(meta).__name__}")
@@ -182,7 +191,8 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
                                   beta_init, epochs, val_every, lr, lr_schedule,
                                   lr_final_fraction, weight_decay, bool(beta_decay),
                                   bool(warm_start), refine, refine_iterations, refine_solver,
-                                  bootstrap, groups, threads, callback))
+                                  bootstrap, groups, threads, chunk_pairs, batch_size,
+                                  callback))
     if meta:
         m.meta.update(meta)
     _warn_if_diverged(m)

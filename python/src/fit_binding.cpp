@@ -253,7 +253,8 @@ void bind_fit(py::module_& m) {
          std::optional<bool> decay_damping, std::optional<bool> warm_start,
          std::optional<std::string> refine, std::optional<long> refine_iterations,
          std::optional<std::string> refine_solver, std::optional<long> bootstrap,
-         std::vector<Index> groups, std::optional<int> threads, const py::object& progress) {
+         std::vector<Index> groups, std::optional<int> threads, std::optional<long> chunk_pairs,
+         std::optional<long> batch_size, const py::object& progress) {
         FitArgs a;
         FitSettings& s = a.settings;
         s.model = std::move(model);
@@ -274,6 +275,8 @@ void bind_fit(py::module_& m) {
         s.refine_solver = std::move(refine_solver);
         s.bootstrap = bootstrap;
         s.threads = threads;
+        s.chunk_pairs = chunk_pairs;
+        s.batch_size = batch_size;
         a.groups = std::move(groups);
         return fit(z0, z1, h, val, a, progress);
       },
@@ -283,7 +286,7 @@ void bind_fit(py::module_& m) {
       py::arg("lr_final_fraction"), py::arg("weight_decay"), py::arg("decay_damping"),
       py::arg("warm_start"), py::arg("refine"), py::arg("refine_iterations"),
       py::arg("refine_solver"), py::arg("bootstrap"), py::arg("groups"), py::arg("threads"),
-      py::arg("progress"), "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
+      py::arg("chunk_pairs"), py::arg("batch_size"), py::arg("progress"), "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
   m.def(
       "run",
       [](const std::string& preset, const std::string& model, std::uint64_t seed,

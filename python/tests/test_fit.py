@@ -255,6 +255,27 @@ def test_threads_give_the_same_bits():
         csympnet.run("s3", epochs=1, threads=1.5)
 
 
+def test_chunks_and_mini_batches_equal_the_cli_and_ignore_threads(tmp_path, run_cli):
+    # 400 s2 pairs (320 train) in chunks of 64 and mini-batches of 100: the chunks' sums follow
+    # one fixed tree, so threads do not change the bits; Python and `csympnet fit --recipe classic` agree.
+    pairs = csympnet.generate("s2", "train")
+    z0, z1, h = pairs
+    kw = dict(epochs=4, val_every=2, refine="none", bootstrap=0, chunk_pairs=64,
+              batch_size=100)
+    one = csympnet.fit(z0, z1, h, **kw)
+    two = csympnet.fit(z0, z1, h, threads=2, **kw)
+    assert np.array_equal(one.params, two.params)
+    whole = csympnet.fit(z0, z1, h, epochs=4, val_every=2, refine="none", bootstrap=0)
+    assert not np.array_equal(one.params, whole.params)
+    path = tmp_path / "pairs.csv"
+    csympnet.write_csv(path, pairs)
+    run_cli("fit", path, "--recipe", "classic", "--epochs", 4, "--val-every", 2, "--refine",
+            "none", "--bootstrap", 0, "--chunk-pairs", 64, "--batch-size", 100, "--out",
+            tmp_path / "out", "-q")
+    cli_model = csympnet.load(tmp_path / "out" / "model.json")
+    assert np.array_equal(cli_model.params, one.params)
+
+
 def test_fit_trajectories_forms_agree():
     trajs = _trajectories(steps=10)
     lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20, bootstrap=0)

@@ -36,6 +36,12 @@ RANGE_ROWS = [
      "interval needs at least 10 replicates"),
     ("fit-threads", ["train", "{data}", "--threads", "257"], "fit", {"threads": 257},
      "--threads", "threads", "'257' is out of range; expected a number from 1 to 256"),
+    ("fit-chunk-pairs", ["train", "{data}", "--chunk-pairs", "2000000000"], "fit",
+     {"chunk_pairs": 2000000000}, "--chunk-pairs", "chunk_pairs",
+     "'2000000000' is out of range; expected a number from 0 to 1000000000"),
+    ("fit-batch-size", ["train", "{data}", "--batch-size", "2000000000000"], "fit",
+     {"batch_size": 2000000000000}, "--batch-size", "batch_size",
+     "'2000000000000' is out of range; expected a number from 0 to 1000000000000"),
     # csympnet.identify is `csympnet fit`: IdentifyConfig's rules.
     ("identify-window", ["fit", "{data}", "--window", "65"], "identify", {"window": 65},
      "--window", "window", "'65' is out of range; expected a number from 0 to 64"),

@@ -166,6 +166,32 @@ TEST_F(MpiTrain, ASignalToOneRankStopsAllAtTheSameEpoch) {
       << slurp(dir_ / "log.txt");
 }
 
+// The same for fit: every stop poll is an agreement, so a signal to rank 1 alone stops both
+// ranks in AdamW; LM and the interval are skipped on both, and rank 0 writes the report.
+TEST_F(MpiTrain, ASignalToOneRankStopsAFitOnAllRanks) {
+  if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
+  const fs::path out = dir_ / "fit_signalled";
+  const std::string log = (dir_ / "log.txt").string();
+  const std::string cmd =
+      mpirun(2) + std::string(CSYMPNET_CLI_PATH) + " fit " + (dir_ / "pairs.csv").string() +
+      " --core la:2:3 --epochs 100000000 --lm-iterations 3 -q --out " + out.string() + " >" + log +
+      " 2>&1 </dev/null & job=$!; i=0; while [ $i -lt 600 ]; do for p in $(pgrep -f '" +
+      out.string() +
+      "'); do if tr '\\0' '\\n' </proc/$p/environ 2>/dev/null | grep -qx "
+      "OMPI_COMM_WORLD_RANK=1; then sleep 1; kill -TERM $p; i=600; fi; done; sleep 0.05; "
+      "i=$((i+1)); done; wait $job";
+  const int status = std::system(cmd.c_str());
+  EXPECT_NE(status, 0) << slurp(dir_ / "log.txt");
+  ASSERT_TRUE(fs::exists(out / "report.json")) << slurp(dir_ / "log.txt");
+  const auto report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_TRUE(report["stopped"].get<bool>());
+  EXPECT_LT(report["training"]["epochs_run"].get<long>(), 100000000);
+  EXPECT_EQ(report["lm"]["iterations"], 0);
+  EXPECT_TRUE(report["interval"].is_null());
+  EXPECT_NE(slurp(dir_ / "log.txt").find("rank 1 stopped with the others"), std::string::npos)
+      << slurp(dir_ / "log.txt");
+}
+
 TEST_F(MpiTrain, SeveralRanksRefuseWhatTheyCannotShare) {
   if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
   // Later stages of the classic recipe: refused, not run K times.

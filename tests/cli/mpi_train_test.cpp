@@ -135,6 +135,21 @@ TEST_F(MpiTrain, FitGivesTheSameReportAndModelOnAnyRanks) {
     EXPECT_EQ(slurp(dir_ / out / "model.json"), model);
     EXPECT_EQ(slurp(dir_ / out / "report.json"), report);
   }
+  // 800 training windows: one chunk, the single pass computed on every rank.
+  {
+    std::ifstream in(dir_ / "pairs.csv");
+    std::ofstream small(dir_ / "small.csv");
+    std::string line;
+    for (int i = 0; i <= 1000 && std::getline(in, line); ++i) small << line << '\n';
+  }
+  const std::string small_args = "fit " + (dir_ / "small.csv").string() +
+                                 " --core la:2:3 --epochs 6 --lm-iterations 3 -q --out ";
+  const int small_plain = run("", small_args + (dir_ / "small").string());
+  ASSERT_TRUE(small_plain == 0 || small_plain == 3) << slurp(dir_ / "log.txt");
+  ASSERT_EQ(run(mpirun(2), small_args + (dir_ / "small_np2").string()), small_plain)
+      << slurp(dir_ / "log.txt");
+  EXPECT_EQ(slurp(dir_ / "small_np2/model.json"), slurp(dir_ / "small/model.json"));
+  EXPECT_EQ(slurp(dir_ / "small_np2/report.json"), slurp(dir_ / "small/report.json"));
 }
 
 // A signal that reaches one rank only: the ranks agree at the next validation and stop

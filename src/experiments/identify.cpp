@@ -342,24 +342,28 @@ NormalEquations normal_equations_over_ranks(const OneStepMap& map, ConstParams t
   if (with_scores)
     for (Index b : w.block) blocks = std::max(blocks, b + 1);
   const ChunkPlan plan = plan_chunks(w.size(), kLmChunkWindows);
-  const Index width = p * p + p + 1 + p * blocks;  // [A, g, cost, scores]
+  const Index lower = p * (p + 1) / 2;             // A's lower triangle, column by column
+  const Index width = lower + p + 1 + p * blocks;  // [A, g, cost, scores]
   const auto value = [&](Index c, int /*part*/, Vector& out) {
     const WindowSet part = select_windows(w, index_range(plan.begin(c), plan.end(c)));
     const NormalEquations one =
         window_normal_equations(map, theta, part, balanced, scale, with_scores);
     out.setZero();
-    out.head(p * p) = Eigen::Map<const Vector>(one.a.data(), p * p);
-    out.segment(p * p, p) = one.g;
-    out(p * p + p) = one.cost;
+    for (Index j = 0, at = 0; j < p; at += p - j, ++j)
+      out.segment(at, p - j) = one.a.col(j).tail(p - j);
+    out.segment(lower, p) = one.g;
+    out(lower + p) = one.cost;
     if (with_scores)  // the chunk's blocks are numbered as the whole set's, from 0 on
-      out.segment(p * p + p + 1, one.scores.size()) =
+      out.segment(lower + p + 1, one.scores.size()) =
           Eigen::Map<const Vector>(one.scores.data(), one.scores.size());
   };
   const Vector total = tree_sum(plan.chunks(), width, value, nullptr, comm);
-  ne.a = Eigen::Map<const Matrix>(total.data(), p, p);
-  ne.g = total.segment(p * p, p);
-  ne.cost = total(p * p + p);
-  if (with_scores) ne.scores = Eigen::Map<const Matrix>(total.data() + p * p + p + 1, p, blocks);
+  ne.a.setZero(p, p);
+  for (Index j = 0, at = 0; j < p; at += p - j, ++j)
+    ne.a.col(j).tail(p - j) = total.segment(at, p - j);
+  ne.g = total.segment(lower, p);
+  ne.cost = total(lower + p);
+  if (with_scores) ne.scores = Eigen::Map<const Matrix>(total.data() + lower + p + 1, p, blocks);
   return ne;
 }
 

@@ -323,8 +323,9 @@ constexpr Index kLmChunkWindows = 1024;
 // kLmOneChunkMaxWindows windows the routine itself on every rank; above, chunks of
 // kLmChunkWindows windows, each the routine on its windows, summed over the fixed tree of
 // chunk_tree.hpp, each rank computing its share. `should_stop` must give every rank the same
-// answer (a collective agreement): it is polled per chunk of the routine in the first case,
-// once before the chunks in the second.
+// answer (a collective agreement): it is polled per chunk of the routine in the first case;
+// in the second per chunk of 1,024 windows in one process, but once before the chunks over
+// several ranks, which own different numbers of chunks and cannot agree in between.
 NormalEquations normal_equations_over_ranks(const OneStepMap& map, ConstParams theta,
                                             const WindowSet& w, bool balanced, double scale,
                                             bool with_scores,
@@ -332,12 +333,15 @@ NormalEquations normal_equations_over_ranks(const OneStepMap& map, ConstParams t
                                             const Communicator& comm) {
   if (w.size() <= kLmOneChunkMaxWindows)
     return window_normal_equations(map, theta, w, balanced, scale, with_scores, should_stop);
+  const Index p = map.n_params();
   NormalEquations ne;
-  if (should_stop && should_stop()) {
+  ne.a.setZero(p, p);  // sized, as the routine's are, even when stopped
+  ne.g.setZero(p);
+  const bool poll_each = comm.size() == 1 && should_stop;
+  if (!poll_each && should_stop && should_stop()) {
     ne.stopped = true;
     return ne;
   }
-  const Index p = map.n_params();
   Index blocks = 0;
   if (with_scores)
     for (Index b : w.block) blocks = std::max(blocks, b + 1);
@@ -345,6 +349,12 @@ NormalEquations normal_equations_over_ranks(const OneStepMap& map, ConstParams t
   const Index lower = p * (p + 1) / 2;             // A's lower triangle, column by column
   const Index width = lower + p + 1 + p * blocks;  // [A, g, cost, scores]
   const auto value = [&](Index c, int /*part*/, Vector& out) {
+    // One process, chunks in order: once stopped, the rest are skipped and never polled.
+    if (poll_each && !ne.stopped && should_stop()) ne.stopped = true;
+    if (ne.stopped) {
+      out.setZero();
+      return;
+    }
     const WindowSet part = select_windows(w, index_range(plan.begin(c), plan.end(c)));
     const NormalEquations one =
         window_normal_equations(map, theta, part, balanced, scale, with_scores);
@@ -358,7 +368,7 @@ NormalEquations normal_equations_over_ranks(const OneStepMap& map, ConstParams t
           Eigen::Map<const Vector>(one.scores.data(), one.scores.size());
   };
   const Vector total = tree_sum(plan.chunks(), width, value, nullptr, comm);
-  ne.a.setZero(p, p);
+  if (ne.stopped) return ne;  // incomplete sums: not to be used
   for (Index j = 0, at = 0; j < p; at += p - j, ++j)
     ne.a.col(j).tail(p - j) = total.segment(at, p - j);
   ne.g = total.segment(lower, p);

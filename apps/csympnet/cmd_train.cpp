@@ -277,11 +277,6 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
-  if (launcher_size() > 1)
-    throw Error("fit's identify recipe runs in one process, not over mpirun's " +
-                std::to_string(launcher_size()) +
-                " ranks (each would fit alone); expected one process, or `train` (or `fit "
-                "--recipe classic --refine none --bootstrap 0`) for a training over the ranks");
   for (const char* only_train : {"--chunk-pairs", "--batch-size"})
     if (cmd.count(only_train) > 0)
       throw CLI::ValidationError(only_train, "belongs to train and --recipe classic");
@@ -308,7 +303,12 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (!a.init.empty()) settings["init"] = a.init;
   // Every option checked (ranges, spellings) before any work.
   const IdentifyConfig c = at_boundary([&] { return make_identify_config(settings); });
-  const OutputDir out_dir = prepare_output_dir(a.out, a.force);
+  // Under mpirun: one fit over the ranks, its window sums shared out; rank 0 alone talks and
+  // writes (docs/architecture.md, "Identification over MPI ranks").
+  const Communicator& comm = process_communicator();
+  const bool lead = comm.rank() == 0;
+  std::optional<OutputDir> out_dir;
+  if (lead) out_dir.emplace(prepare_output_dir(a.out, a.force));
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
   const CsvInput input = read_csv_input(a.data, parse_column_map(a.columns));  // once: a pipe works
@@ -330,14 +330,19 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
   IdentifyHooks hooks;
   hooks.should_stop = [] { return interrupted(); };
-  const bool talk = !a.quiet;
+  if (comm.size() > 1) {
+    // A signal may reach the ranks at different moments: every poll is an agreement.
+    hooks.communicator = &comm;
+    hooks.should_stop = [&comm] { return comm.any(interrupted()); };
+  }
+  const bool talk = !a.quiet && lead;
   hooks.stage = [talk](const std::string& s) {
     if (talk)
       std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
   };
   IdentifyResult r;
   {
-    ProgressLine progress(a.quiet);
+    ProgressLine progress(a.quiet || !lead);
     // AdamW on the progress line; LM one line a second at most (on a terminal, redrawn in
     // place), and the last one.
     const ProgressCallback adamw_line = progress.callback();
@@ -353,6 +358,10 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
                    p.epoch, p.epochs, p.val_loss, tty ? "" : "\n");
       return true;  // an interrupt reaches LM through should_stop
     };
+    if (comm.size() > 1)
+      hooks.progress = [line = hooks.progress, &comm](const TrainProgress& p) {
+        return !comm.any(!line(p));
+      };
 
     try {
       r = identify(trajs, pairs_only, c, hooks);
@@ -362,10 +371,16 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       throw Error(a.data + ": " + e.what());  // what the data lack: name the file
     }
   }
+  if (!lead) {  // the same result as rank 0's, which reports it
+    if (r.stopped)
+      throw Interrupted("rank " + std::to_string(comm.rank()) +
+                        " stopped with the others; rank 0 saved the best parameters in " + a.out);
+    return;
+  }
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
   if (!a.columns.empty()) report["data"]["columns"] = a.columns;
-  out_dir.commit(
+  out_dir->commit(
       {{"report.json", json_file_text(report)},
        {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
                                         {"lm_seconds", r.lm_seconds},

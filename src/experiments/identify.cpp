@@ -11,6 +11,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/core/thread_team.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/fit.hpp"
 #include "csympnet/io/files.hpp"
@@ -18,6 +19,7 @@
 #include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/models/normalized_map.hpp"
+#include "csympnet/train/chunk_tree.hpp"
 #include "csympnet/train/window_loss.hpp"
 
 namespace csympnet {
@@ -252,6 +254,137 @@ struct Candidate {
   double val_loss = std::numeric_limits<double>::infinity();
 };
 
+std::vector<Index> index_range(Index begin, Index end) {
+  std::vector<Index> idx(static_cast<std::size_t>(end - begin));
+  std::iota(idx.begin(), idx.end(), begin);
+  return idx;
+}
+
+// The window loss (and gradient) of a map on windows w, as chunks of windows summed over the
+// fixed tree of chunk_tree.hpp, each rank computing its share of the chunks and its threads
+// splitting that share: the same bits for any number of ranks and threads. Up to
+// kWindowLossOneChunkMaxWindows windows it is one chunk, window_loss() itself, on every rank,
+// so fits of that size keep the bits of earlier versions; above, chunks of kDefaultChunkPairs.
+constexpr Index kWindowLossOneChunkMaxWindows = 4096;
+
+ChunkPlan plan_window_chunks(Index windows) {
+  return plan_chunks(windows, windows <= kWindowLossOneChunkMaxWindows ? std::max<Index>(windows, 1)
+                                                                       : kDefaultChunkPairs);
+}
+
+class ChunkedWindowLoss {
+ public:
+  ChunkedWindowLoss(const OneStepMap& map, const WindowSet& w, bool balanced,
+                    const Communicator& comm, int threads)
+      : map_(&map), comm_(&comm), balanced_(balanced), plan_(plan_window_chunks(w.size())) {
+    if (plan_.chunks() <= 1) {
+      chunks_.push_back(w);
+    } else {
+      const auto [first, last] = share_of(0, plan_.chunks(), comm.rank(), comm.size());
+      first_ = first;
+      for (Index c = first; c < last; ++c)
+        chunks_.push_back(select_windows(w, index_range(plan_.begin(c), plan_.end(c))));
+      if (threads > 1) team_ = std::make_shared<ThreadTeam>(threads);
+    }
+    caches_.resize(static_cast<std::size_t>(std::max(1, threads)));
+    grads_.resize(caches_.size());
+  }
+
+  double operator()(ConstParams theta, Vector* grad) {
+    if (plan_.chunks() <= 1)
+      return window_loss(*map_, theta, chunks_.front(), balanced_, grad,
+                         grad != nullptr ? &caches_.front() : nullptr);
+    const Index p = map_->n_params();
+    const Index width = grad != nullptr ? p + 1 : 1;  // [gradient, loss]
+    const auto value = [&](Index c, int part, Vector& out) {
+      const auto t = static_cast<std::size_t>(part);
+      Vector* g = grad != nullptr ? &grads_[t] : nullptr;
+      const double l =
+          window_loss_part(*map_, theta, chunks_.at(static_cast<std::size_t>(c - first_)),
+                           balanced_, plan_.pairs, g, &caches_[t]);
+      if (g != nullptr) out.head(p) = *g;
+      out(width - 1) = l;
+    };
+    const Vector total = tree_sum(plan_.chunks(), width, value, team_.get(), *comm_);
+    if (grad != nullptr) *grad = total.head(p);
+    return total(width - 1);
+  }
+
+ private:
+  const OneStepMap* map_;
+  const Communicator* comm_;
+  bool balanced_;
+  ChunkPlan plan_;
+  Index first_ = 0;
+  std::vector<WindowSet> chunks_;  // this rank's, from chunk first_ on
+  std::shared_ptr<ThreadTeam> team_;
+  std::vector<std::vector<ForwardCache>> caches_;
+  std::vector<Vector> grads_;
+};
+
+// Windows up to this many give the normal equations as window_normal_equations() forms them
+// on one process (the bits of a fit in one process); above, chunks of kLmChunkWindows.
+constexpr Index kLmOneChunkMaxWindows = 4096;
+constexpr Index kLmChunkWindows = 1024;
+
+// window_normal_equations() over the ranks with the same bits for any number of them: up to
+// kLmOneChunkMaxWindows windows the routine itself on every rank; above, chunks of
+// kLmChunkWindows windows, each the routine on its windows, summed over the fixed tree of
+// chunk_tree.hpp, each rank computing its share. `should_stop` must give every rank the same
+// answer (a collective agreement): it is polled per chunk of the routine in the first case;
+// in the second per chunk of 1,024 windows in one process, but once before the chunks over
+// several ranks, which own different numbers of chunks and cannot agree in between.
+NormalEquations normal_equations_over_ranks(const OneStepMap& map, ConstParams theta,
+                                            const WindowSet& w, bool balanced, double scale,
+                                            bool with_scores,
+                                            const std::function<bool()>& should_stop,
+                                            const Communicator& comm) {
+  if (w.size() <= kLmOneChunkMaxWindows)
+    return window_normal_equations(map, theta, w, balanced, scale, with_scores, should_stop);
+  const Index p = map.n_params();
+  NormalEquations ne;
+  ne.a.setZero(p, p);  // sized, as the routine's are, even when stopped
+  ne.g.setZero(p);
+  const bool poll_each = comm.size() == 1 && should_stop;
+  if (!poll_each && should_stop && should_stop()) {
+    ne.stopped = true;
+    return ne;
+  }
+  Index blocks = 0;
+  if (with_scores)
+    for (Index b : w.block) blocks = std::max(blocks, b + 1);
+  const ChunkPlan plan = plan_chunks(w.size(), kLmChunkWindows);
+  const Index lower = p * (p + 1) / 2;             // A's lower triangle, column by column
+  const Index width = lower + p + 1 + p * blocks;  // [A, g, cost, scores]
+  const auto value = [&](Index c, int /*part*/, Vector& out) {
+    // One process, chunks in order: once stopped, the rest are skipped and never polled.
+    if (poll_each && !ne.stopped && should_stop()) ne.stopped = true;
+    if (ne.stopped) {
+      out.setZero();
+      return;
+    }
+    const WindowSet part = select_windows(w, index_range(plan.begin(c), plan.end(c)));
+    const NormalEquations one =
+        window_normal_equations(map, theta, part, balanced, scale, with_scores);
+    out.setZero();
+    for (Index j = 0, at = 0; j < p; at += p - j, ++j)
+      out.segment(at, p - j) = one.a.col(j).tail(p - j);
+    out.segment(lower, p) = one.g;
+    out(lower + p) = one.cost;
+    if (with_scores)  // the chunk's blocks are numbered as the whole set's, from 0 on
+      out.segment(lower + p + 1, one.scores.size()) =
+          Eigen::Map<const Vector>(one.scores.data(), one.scores.size());
+  };
+  const Vector total = tree_sum(plan.chunks(), width, value, nullptr, comm);
+  if (ne.stopped) return ne;  // incomplete sums: not to be used
+  for (Index j = 0, at = 0; j < p; at += p - j, ++j)
+    ne.a.col(j).tail(p - j) = total.segment(at, p - j);
+  ne.g = total.segment(lower, p);
+  ne.cost = total(lower + p);
+  if (with_scores) ne.scores = Eigen::Map<const Matrix>(total.data() + lower + p + 1, p, blocks);
+  return ne;
+}
+
 PairSet pairs_of(const WindowSet& w) {
   // One-step windows as a pair set, for the closed-form warm start.
   PairSet p;
@@ -282,6 +415,8 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     if (hooks.stage) hooks.stage(name);
   };
   auto stop = [&] { return hooks.should_stop && hooks.should_stop(); };
+  const Communicator& comm =
+      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
 
   // The data as given.
   std::vector<double> steps;
@@ -440,6 +575,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   }
   const bool bal = config.balanced;
   const double share = 1.0 / static_cast<double>(cand.size());
+  // A window loss alone, over the ranks.
+  auto loss_on = [&](const OneStepMap& mp, const Vector& th, const WindowSet& w) {
+    return ChunkedWindowLoss(mp, w, bal, comm, c.threads)(th, nullptr);
+  };
 
   // 4. AdamW on the window loss.
   // The AdamW budget by an estimate of an epoch's seconds (about 4 ns per sample, step and
@@ -456,10 +595,12 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   auto run_adamw = [&](Candidate& x, const std::string& label) {
     if (stop()) return;
     const OneStepMap& map = *x.inner.map;
+    auto train_loss = std::make_shared<ChunkedWindowLoss>(map, train, bal, comm, c.threads);
+    auto val_loss = std::make_shared<ChunkedWindowLoss>(map, val, bal, comm, c.threads);
     if (epochs_for(x) == 0) {  // none: the summary of the parameters as they are
       x.training = TrainSummary{};
-      x.training.best_val_loss = window_loss(map, x.theta, val, bal);
-      x.training.final_train_loss = window_loss(map, x.theta, train, bal);
+      x.training.best_val_loss = (*val_loss)(x.theta, nullptr);
+      x.training.final_train_loss = (*train_loss)(x.theta, nullptr);
       return;
     }
     stage(label);
@@ -467,11 +608,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     o.n_params = x.inner.n_params();
     o.damping_index = map.damping_param_index();
     o.damping_rate = [&map](const Vector& th) { return map.damping_rate(th); };
-    auto caches = std::make_shared<std::vector<ForwardCache>>();
-    o.train_loss = [&map, &train, bal, caches](const Vector& th, Vector& grad) {
-      return window_loss(map, th, train, bal, &grad, caches.get());
+    o.train_loss = [train_loss](const Vector& th, Vector& grad) {
+      return (*train_loss)(th, &grad);
     };
-    o.val_loss = [&map, &val, bal](const Vector& th) { return window_loss(map, th, val, bal); };
+    o.val_loss = [val_loss](const Vector& th) { return (*val_loss)(th, nullptr); };
     TrainOptions t;
     t.epochs = epochs_for(x);
     t.adamw.lr = c.lr;
@@ -520,7 +660,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     };
     prob.normal_equations = [&](ConstParams th, Matrix& a, Vector& g) {
       // Polled per chunk: a large core's normal equations take seconds.
-      NormalEquations ne = window_normal_equations(map, th, train, bal, sc, false, stop);
+      NormalEquations ne = normal_equations_over_ranks(map, th, train, bal, sc, false, stop, comm);
       a = std::move(ne.a);
       g = std::move(ne.g);
     };
@@ -528,9 +668,10 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     callbacks.progress = hooks.progress;
     callbacks.should_stop = stop;
     callbacks.patience = kLmPatience;
+    ChunkedWindowLoss val_loss(map, val, bal, comm, c.threads);
     IterationMonitor monitor(
-        "lm", budget, [&](const Vector& th) { return window_loss(map, th, val, bal); }, x.theta,
-        callbacks, [&map](const Vector& th) { return map.damping_rate(th); });
+        "lm", budget, [&](const Vector& th) { return val_loss(th, nullptr); }, x.theta, callbacks,
+        [&map](const Vector& th) { return map.damping_rate(th); });
     prob.should_stop = [&monitor] { return monitor.interrupted(); };
     const auto t0 = std::chrono::steady_clock::now();
     LmSettings ls;
@@ -559,7 +700,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     // take seconds); the winner continues below.
     const long budget = cand.size() > 1 ? lm_budget(x, 10.0, 2) : lm_budget(x, 25.0);
     run_lm(x, budget, "LM" + of);
-    x.val_loss = window_loss(*x.inner.map, x.theta, val, bal);
+    x.val_loss = loss_on(*x.inner.map, x.theta, val);
     if (!std::isfinite(x.val_loss)) x.val_loss = std::numeric_limits<double>::infinity();
     tried.push_back({{"core", x.core},
                      {"params", x.inner.n_params()},
@@ -673,12 +814,13 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
   const double tau = r.normalization.time_scale;
   const double gamma_n = map.damping_rate(r.theta).value_or(0.0);
   r.gamma = gamma_n / tau;
-  r.quality.train_loss = window_loss(map, r.theta, train, bal);
-  r.quality.val_loss = window_loss(map, r.theta, val, bal);
+  r.quality.train_loss = loss_on(map, r.theta, train);
+  r.quality.val_loss = loss_on(map, r.theta, val);
   if (!r.stopped && lm_fits && r.training.stop_reason != StopReason::kDiverged) {
     stage("interval");
     const auto t_interval = std::chrono::steady_clock::now();
-    const NormalEquations ne = window_normal_equations(map, r.theta, train, bal, scale, true, stop);
+    const NormalEquations ne =
+        normal_equations_over_ranks(map, r.theta, train, bal, scale, true, stop, comm);
     if (ne.stopped) {
       r.stopped = true;  // interrupted: no interval
     } else {

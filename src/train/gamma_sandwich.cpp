@@ -71,6 +71,10 @@ double bisect_quantile(double p, Cdf cdf) {
 double solve_unit(const Matrix& a, Index k, double mu, Vector& u) {
   const Index n = a.rows();
   const Vector diag = a.diagonal().cwiseMax(1e-300);
+  // One OpenBLAS thread, as in LM: its threaded dpotrf changes the interval's last bits with
+  // the thread count (a plain run on a multi-core machine against an mpirun rank bound to a
+  // core), and the interval is part of the report that must not depend on it.
+  const lapack::SingleThreaded one_thread;
   Matrix lhs(n, n);
   for (int tries = 0; tries < 40; ++tries, mu *= 10.0) {
     lhs = a;

@@ -143,7 +143,13 @@ Matrix roll(const OneStepMap& map, ConstParams theta, const WindowSet& w, Index 
 
 double window_loss(const OneStepMap& map, ConstParams theta, const WindowSet& w, bool balanced,
                    Vector* grad, std::vector<ForwardCache>* kept) {
+  return window_loss_part(map, theta, w, balanced, w.size(), grad, kept);
+}
+
+double window_loss_part(const OneStepMap& map, ConstParams theta, const WindowSet& w, bool balanced,
+                        Index total, Vector* grad, std::vector<ForwardCache>* kept) {
   check(map, theta, w);
+  require(total >= w.size(), "window_loss_part: the total is below the windows given");
   const Balance bal = balance_of(map, theta, balanced);
   const Index n = w.size(), d = w.dim() / 2;
   std::vector<ForwardCache> local;
@@ -159,7 +165,7 @@ double window_loss(const OneStepMap& map, ConstParams theta, const WindowSet& w,
     loss += r.col(i).head(d).squaredNorm() + w2 * p2;
     beta_term += span(i) * w2 * p2;
   }
-  const double inv_n = 1.0 / static_cast<double>(n);
+  const double inv_n = 1.0 / static_cast<double>(total);
   if (grad == nullptr) return loss * inv_n;
   grad->setZero(map.n_params());
   // dL/dΦ̂ᵐ = (2/N) W² r; then back through the m steps.

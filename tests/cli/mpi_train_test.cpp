@@ -1,6 +1,8 @@
-// `train` over threads and MPI ranks: above one chunk (512 pairs) the chunked loss gives the
-// same model to the bit on any number of threads and under `mpirun -np K` (K = 1, 2, 3), in
-// full-batch and mini-batch mode; fit's identify recipe refuses several ranks.
+// `train` and `fit` over threads and MPI ranks: above one chunk (512 pairs or 4096 windows) the
+// chunked sums give the same model to the bit on any number of threads and under
+// `mpirun -np K` (K = 1, 2, 3): train in full-batch and mini-batch mode, fit's identify recipe
+// (AdamW, LM and the interval) with its report too; the classic recipe's later stages refuse
+// several ranks.
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -107,6 +109,49 @@ TEST_F(MpiTrain, SameModelOnAnyThreadsAndRanks) {
   EXPECT_EQ(slurp(dir_ / "np2_batch/model.json"), batch_model);
 }
 
+// fit's identify recipe on 4800 training windows: the window loss in 19 chunks, LM's normal
+// equations and the interval's scores in 5 chunks of 1024 windows, all summed over the fixed
+// tree; the same report and model from one process and from 1, 2 or 3 ranks, written by rank 0.
+TEST_F(MpiTrain, FitGivesTheSameReportAndModelOnAnyRanks) {
+  const std::string args = "fit " + (dir_ / "pairs.csv").string() +
+                           " --core la:2:3 --epochs 6 --lm-iterations 3 -q --out ";
+  const int plain = run("", args + (dir_ / "fit").string());
+  ASSERT_TRUE(plain == 0 || plain == 3) << slurp(dir_ / "log.txt");  // 3: not identified
+  const std::string report = slurp(dir_ / "fit/report.json");
+  const std::string model = slurp(dir_ / "fit/model.json");
+  const auto doc = nlohmann::json::parse(report);
+  EXPECT_EQ(doc["lm"]["iterations"], 3);
+  EXPECT_GT(doc["choices"]["blocks"]["train"].get<long>(), 4096);
+  ASSERT_FALSE(doc["interval"].is_null()) << report;
+  ASSERT_EQ(run("", args + (dir_ / "fit_threads").string() + " --threads 2"), plain);
+  EXPECT_EQ(slurp(dir_ / "fit_threads/model.json"), model);
+  EXPECT_EQ(slurp(dir_ / "fit_threads/report.json"), report);
+
+  if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
+  for (int ranks : {1, 2, 3}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks");
+    const std::string out = "fit_np" + std::to_string(ranks);
+    ASSERT_EQ(run(mpirun(ranks), args + (dir_ / out).string()), plain) << slurp(dir_ / "log.txt");
+    EXPECT_EQ(slurp(dir_ / out / "model.json"), model);
+    EXPECT_EQ(slurp(dir_ / out / "report.json"), report);
+  }
+  // 800 training windows: one chunk, the single pass computed on every rank.
+  {
+    std::ifstream in(dir_ / "pairs.csv");
+    std::ofstream small(dir_ / "small.csv");
+    std::string line;
+    for (int i = 0; i <= 1000 && std::getline(in, line); ++i) small << line << '\n';
+  }
+  const std::string small_args = "fit " + (dir_ / "small.csv").string() +
+                                 " --core la:2:3 --epochs 6 --lm-iterations 3 -q --out ";
+  const int small_plain = run("", small_args + (dir_ / "small").string());
+  ASSERT_TRUE(small_plain == 0 || small_plain == 3) << slurp(dir_ / "log.txt");
+  ASSERT_EQ(run(mpirun(2), small_args + (dir_ / "small_np2").string()), small_plain)
+      << slurp(dir_ / "log.txt");
+  EXPECT_EQ(slurp(dir_ / "small_np2/model.json"), slurp(dir_ / "small/model.json"));
+  EXPECT_EQ(slurp(dir_ / "small_np2/report.json"), slurp(dir_ / "small/report.json"));
+}
+
 // A signal that reaches one rank only: the ranks agree at the next validation and stop
 // together (no rank waits forever in a collective), and rank 0 saves the best checkpoint.
 TEST_F(MpiTrain, ASignalToOneRankStopsAllAtTheSameEpoch) {
@@ -136,13 +181,35 @@ TEST_F(MpiTrain, ASignalToOneRankStopsAllAtTheSameEpoch) {
       << slurp(dir_ / "log.txt");
 }
 
+// The same for fit: every stop poll is an agreement, so a signal to rank 1 alone stops both
+// ranks in AdamW; LM and the interval are skipped on both, and rank 0 writes the report.
+TEST_F(MpiTrain, ASignalToOneRankStopsAFitOnAllRanks) {
+  if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
+  const fs::path out = dir_ / "fit_signalled";
+  const std::string log = (dir_ / "log.txt").string();
+  const std::string cmd =
+      mpirun(2) + std::string(CSYMPNET_CLI_PATH) + " fit " + (dir_ / "pairs.csv").string() +
+      " --core la:2:3 --epochs 100000000 --lm-iterations 3 -q --out " + out.string() + " >" + log +
+      " 2>&1 </dev/null & job=$!; i=0; while [ $i -lt 600 ]; do for p in $(pgrep -f '" +
+      out.string() +
+      "'); do if tr '\\0' '\\n' </proc/$p/environ 2>/dev/null | grep -qx "
+      "OMPI_COMM_WORLD_RANK=1; then sleep 1; kill -TERM $p; i=600; fi; done; sleep 0.05; "
+      "i=$((i+1)); done; wait $job";
+  const int status = std::system(cmd.c_str());
+  EXPECT_NE(status, 0) << slurp(dir_ / "log.txt");
+  ASSERT_TRUE(fs::exists(out / "report.json")) << slurp(dir_ / "log.txt");
+  const auto report = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_TRUE(report["stopped"].get<bool>());
+  EXPECT_LT(report["training"]["epochs_run"].get<long>(), 100000000);
+  EXPECT_EQ(report["lm"]["iterations"], 0);
+  EXPECT_TRUE(report["interval"].is_null());
+  EXPECT_NE(slurp(dir_ / "log.txt").find("rank 1 stopped with the others"), std::string::npos)
+      << slurp(dir_ / "log.txt");
+}
+
 TEST_F(MpiTrain, SeveralRanksRefuseWhatTheyCannotShare) {
   if (!have_mpirun() || !csympnet::built_with_mpi()) GTEST_SKIP() << "needs mpirun and MPI";
-  // fit's identify recipe, and later stages of the classic one: refused, not run K times.
-  EXPECT_EQ(run(mpirun(2),
-                "fit " + (dir_ / "pairs.csv").string() + " -q --out " + (dir_ / "fit").string()),
-            1);
-  EXPECT_NE(slurp(dir_ / "log.txt").find("runs in one process"), std::string::npos);
+  // Later stages of the classic recipe: refused, not run K times.
   EXPECT_EQ(run(mpirun(2), train("lm") + " --refine lm"), 1);
   EXPECT_NE(slurp(dir_ / "log.txt").find("--refine none --bootstrap 0"), std::string::npos);
   EXPECT_FALSE(fs::exists(dir_ / "lm" / "model.json"));

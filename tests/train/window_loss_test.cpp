@@ -1,10 +1,11 @@
 // The window loss (train/window_loss.hpp): its gradient and Jacobian rows against central
 // differences (the balancing's β term included), its reduction to the one-step loss, and the
-// chunked normal equations against the explicit J.
+// chunked normal equations against the explicit J; the chunks' shares add up to the loss.
 #include "csympnet/train/window_loss.hpp"
 
 #include <gtest/gtest.h>
 
+#include "csympnet/core/error.hpp"
 #include "csympnet/train/loss.hpp"
 #include "support/gradient_check.hpp"
 #include "support/model_fixtures.hpp"
@@ -79,6 +80,36 @@ TEST_P(WindowLossTest, JacobianRowsMatchFiniteDifferencesAndTheGradient) {
   window_loss(*map, theta, w, c.balanced, &grad);
   const Vector from_jac = (2.0 / static_cast<double>(w.size())) * jac(theta).transpose() * r(theta);
   EXPECT_LE((grad - from_jac).norm(), 1e-12 * (1.0 + grad.norm()));
+}
+
+// The shares of the chunks of a partition add up to the loss and its gradient (what fit sums
+// over ranks), and the share of the whole set is the loss to the bit.
+TEST_P(WindowLossTest, ChunkSharesAddUpToTheLoss) {
+  const Case c = GetParam();
+  const auto map = make_one_step_map(nlohmann::json::parse(c.spec));
+  Rng rng(25, c.spec);
+  const Vector theta = random_theta(*map, rng, 0.3, 0.6);
+  const WindowSet w = windows_from_trajectories(random_trajectories(map->dim(), 3, 12, rng), c.m);
+  Vector grad;
+  const double loss = window_loss(*map, theta, w, c.balanced, &grad);
+  Vector whole_grad;
+  EXPECT_EQ(window_loss_part(*map, theta, w, c.balanced, w.size(), &whole_grad), loss);
+  EXPECT_EQ(whole_grad, grad);
+  double sum = 0.0;
+  Vector sum_grad = Vector::Zero(map->n_params());
+  for (Index first = 0; first < w.size(); first += 7) {
+    std::vector<Index> idx;
+    for (Index i = first; i < std::min<Index>(first + 7, w.size()); ++i) idx.push_back(i);
+    Vector g;
+    sum += window_loss_part(*map, theta, select_windows(w, idx), c.balanced, w.size(), &g);
+    sum_grad += g;
+    // Without a gradient, the same share.
+    EXPECT_EQ(window_loss_part(*map, theta, select_windows(w, idx), c.balanced, w.size()),
+              window_loss_part(*map, theta, select_windows(w, idx), c.balanced, w.size(), &g));
+  }
+  EXPECT_NEAR(sum, loss, 1e-13 * loss);
+  EXPECT_LE((sum_grad - grad).norm(), 1e-12 * (1.0 + grad.norm()));
+  EXPECT_THROW(window_loss_part(*map, theta, w, c.balanced, w.size() - 1), Error);
 }
 
 TEST_P(WindowLossTest, ChunkedNormalEquationsMatchTheExplicitJacobian) {

@@ -22,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "csympnet/core/communicator.hpp"
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/data/normalization.hpp"
 #include "csympnet/models/model.hpp"
@@ -120,6 +121,12 @@ struct IdentifyHooks {
   ProgressCallback progress;
   std::function<void(const std::string& stage)> stage;
   std::function<bool()> should_stop;
+  // The ranks sharing the window sums (null: this process alone). Every rank then calls
+  // identify() with the same data and settings, and `progress` and `should_stop` must give
+  // every rank the same answer (an agreement over the ranks): the result has the same bits on
+  // every rank and for any number of ranks (docs/architecture.md, "Identification over MPI
+  // ranks").
+  const Communicator* communicator = nullptr;
 };
 
 struct IdentifyQuality {

@@ -56,6 +56,12 @@ WindowSet select_windows(const WindowSet& w, const std::vector<Index>& idx);
 // may be kept across calls so that a training loop does not reallocate every epoch.
 double window_loss(const OneStepMap& map, ConstParams theta, const WindowSet& w, bool balanced,
                    Vector* grad = nullptr, std::vector<ForwardCache>* caches = nullptr);
+// The share of a loss over `total` windows that the windows w contribute,
+// (1/total) Σ_{i ∈ w} ‖r_i‖², and its gradient: the shares of the chunks of a partition of the
+// windows sum to L (chunk_tree.hpp). window_loss(w) is window_loss_part(w, w.size()).
+double window_loss_part(const OneStepMap& map, ConstParams theta, const WindowSet& w, bool balanced,
+                        Index total, Vector* grad = nullptr,
+                        std::vector<ForwardCache>* caches = nullptr);
 
 // The residuals r (sample-major, N·2d, not divided by √N).
 Vector window_residuals(const OneStepMap& map, ConstParams theta, const WindowSet& w,

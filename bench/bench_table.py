@@ -185,11 +185,14 @@ def peak_rss_mb(bench, preset, threads):
     csympnet_bench running epoch/P/csympnet (at least one epoch), ru_maxrss of the child."""
     name = epoch_benchmark(preset, threads)
     proc = subprocess.Popen([bench, f"--benchmark_filter=^{name}(/real_time)?$",
-                             "--benchmark_min_time=0.01"], stdout=subprocess.DEVNULL)
+                             "--benchmark_min_time=0.01"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    err = proc.stderr.read()  # Google Benchmark's banner, or the error
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
-        raise SystemExit(f"bench_table: csympnet_bench {name} failed")
+        sys.stderr.write(err)
+        raise SystemExit(f"bench_table: csympnet_bench {name} failed (see above)")
     return usage.ru_maxrss / 1024.0  # KiB on Linux
 
 

@@ -286,7 +286,8 @@ void bind_fit(py::module_& m) {
       py::arg("lr_final_fraction"), py::arg("weight_decay"), py::arg("decay_damping"),
       py::arg("warm_start"), py::arg("refine"), py::arg("refine_iterations"),
       py::arg("refine_solver"), py::arg("bootstrap"), py::arg("groups"), py::arg("threads"),
-      py::arg("chunk_pairs"), py::arg("batch_size"), py::arg("progress"), "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
+      py::arg("chunk_pairs"), py::arg("batch_size"), py::arg("progress"),
+      "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
   m.def(
       "run",
       [](const std::string& preset, const std::string& model, std::uint64_t seed,

@@ -68,6 +68,10 @@ void print_run_summary(const RunArgs& args, const RunResult& r) {
   row("E|lambda_hat - lambda*|", d.lambda_abs_err_mean,
       paper ? paper->lambda_abs_err_mean : std::nullopt);
   row("structure residual (max)", d.structure_residual_max, std::nullopt);
+  if (d.gamma_hat)
+    std::printf(
+        "  gamma_hat is a training outcome on the preset, with no interval; `csympnet fit` "
+        "identifies gamma on your own data, with an interval and checks\n");
   std::printf("  wrote %s/{report.json,model.json,rollout.csv,reference.csv,energy.csv}\n",
               args.out.c_str());
 }

@@ -109,11 +109,9 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
                  "blas_normal_cholesky above 1000 parameters)")
       ->check(one_of(linear_solver_names()));
   cmd.add_option("--bootstrap", a.bootstrap,
-                 "Bootstrap replicates for an interval of gamma_hat (0: none; >= 10) (default: " +
-                     (recipe.bootstrap_replicates
-                          ? std::to_string(*recipe.bootstrap_replicates) + ")"
-                          : std::to_string(kAutoBootstrapReplicates) + " up to " +
-                                std::to_string(kMaxLmParams) + " parameters, else none)"))
+                 "Bootstrap replicates: the spread of gamma_hat over refits on resampled "
+                 "trajectories, in report.json (0: none; >= 10) (default: none). Not an "
+                 "interval: plain `fit` identifies gamma with one")
       ->check(kWholeNumber)
       ->check(library_range(kBootstrapRange));
   add_threads_option(cmd, a.threads);
@@ -227,14 +225,14 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
        {"model.json",
         model_file_text(r.model, r.theta,
                         {{"data", a.data}, {"seed", r.config.seed}, {"train", r.config.train}})}});
+  if (gamma)
+    std::printf("gamma_hat = %.10g per time unit of the data (%s)\n", *gamma, kNoIntervalNote);
   if (gamma && r.interval)
-    std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% %s)\n", *gamma,
-                0.5 * (r.interval->high - r.interval->low), r.interval->low, r.interval->high,
-                100.0 * r.interval->level, "bootstrap interval");
-  else if (gamma && !r.interval_note.empty())
-    std::printf("gamma_hat = %.10g (%s)\n", *gamma, r.interval_note.c_str());
-  else if (gamma)
-    std::printf("gamma_hat = %.10g\n", *gamma);
+    std::printf(
+        "bootstrap spread of gamma_hat over %ld refits: [%.6g, %.6g] (not an interval; "
+        "report.json \"bootstrap\")\n",
+        r.interval->replicates, r.interval->low, r.interval->high);
+  if (!r.scale_note.empty()) std::fprintf(stderr, "csympnet: warning: %s\n", r.scale_note.c_str());
   if (verbose_summary || !a.quiet) {
     std::printf("%s, d = %lld, %lld training / %lld validation pairs, %lld params\n",
                 to_string(r.config.model).c_str(), static_cast<long long>(r.train.d()),
@@ -274,6 +272,16 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                       ") and its report are in " + a.out);
   }
 }
+// The checks of the model's assumptions: a failed one always, in words; the others unless
+// quiet.
+void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
+  for (const ModelCheck& k : checks) {
+    if (k.passed && quiet) continue;
+    const char* mark = !k.applicable ? "untestable" : k.passed ? "ok" : "FAILED";
+    std::printf("check %-15s %-10s %s\n", k.name.c_str(), mark, k.sentence.c_str());
+  }
+}
+
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
@@ -392,12 +400,15 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
         }())}});
   if (r.identified) {
     const SandwichInterval& s = *r.interval;
-    std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] (%g%% interval, %s, %ld blocks)\n",
-                r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level, s.method.c_str(),
-                s.blocks);
+    std::printf(
+        "gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per time unit of the data (%g%% interval, "
+        "%s, %ld blocks)\n",
+        r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level, s.method.c_str(),
+        s.blocks);
   } else {
-    std::printf("gamma_hat: not identified\n");
+    std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }
+  print_checks(r.checks, a.quiet);
   if (!a.quiet) {
     std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
                 static_cast<long long>(r.model.dim() / 2),
@@ -418,7 +429,9 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (!r.identified) {
     std::string why;
     for (const auto& x : r.reasons) why += (why.empty() ? "" : "; ") + x;
-    throw NotIdentified(why + " (report: " + (fs::path(a.out) / "report.json").string() + ")");
+    why += " (report: " + (fs::path(a.out) / "report.json").string() + ")";
+    if (r.rejected) throw ModelRejected(why);
+    throw NotIdentified(why);
   }
 }
 }  // namespace

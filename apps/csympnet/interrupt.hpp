@@ -28,4 +28,13 @@ class NotIdentified : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 constexpr int kNotIdentifiedExitCode = 4;
+
+// Thrown by `fit` after it has written its report when a check of the model's assumptions
+// fails (the data break the model: energy gain, amplitude-dependent or mode-dependent damping,
+// structured residuals); main() prints it and exits with kModelRejectedExitCode.
+class ModelRejected : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+constexpr int kModelRejectedExitCode = 5;
 }  // namespace csympnet::cli

@@ -43,6 +43,9 @@ int main(int argc, char** argv) {
   } catch (const csympnet::cli::NotIdentified& e) {
     std::fprintf(stderr, "csympnet: not identified: %s\n", e.what());
     return finish(csympnet::cli::kNotIdentifiedExitCode, true);
+  } catch (const csympnet::cli::ModelRejected& e) {
+    std::fprintf(stderr, "csympnet: model rejected: %s\n", e.what());
+    return finish(csympnet::cli::kModelRejectedExitCode, true);
   } catch (const csympnet::OptionError& e) {
     // An option the library refused once the data were read (a beta_init too large for the
     // data's steps): named as the command line spells it.

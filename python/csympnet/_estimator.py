@@ -68,8 +68,11 @@ class CSympNetID:
     After fit:
         gamma_           γ̂ in the data's time units, or None when the data do not identify γ
         gamma_interval_  (low, high) at `level`, or None
-        identified_      False when the data do not identify γ (`reasons_` says why)
+        identified_      False when the data do not identify γ or break the model's
+                         assumptions (`reasons_` says why)
+        verdict_         "identified", "not identified" or "model rejected"
         reasons_         list of str
+        checks_          list of dict: the model's assumptions tested (as report_["checks"])
         model_           the learned csympnet.Model (predict, rollout, save, ...)
         report_          the full report (dict), as `csympnet fit` writes it
         n_features_in_   2d, the state's length
@@ -162,6 +165,8 @@ class CSympNetID:
         self.report_ = result.report
         self.identified_ = result.identified
         self.reasons_ = result.reasons
+        self.verdict_ = result.verdict
+        self.checks_ = result.checks
         self.gamma_ = result.gamma if result.identified else None
         self.gamma_interval_ = result.interval if result.identified else None
         self.n_features_in_ = 2 * result.model.d

@@ -83,10 +83,12 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         lr_final_fraction=1e-3, weight_decay=5e-4, val_every=10, warm_start=True,
         refine="auto", refine_iterations=None, refine_solver=None, bootstrap=None, threads=1,
         chunk_pairs=None, batch_size=None, progress=None, verbose=False, meta=None, _groups=None):
-    """Fits a one-step map z1 ≈ Φ̂_h(z0) to snapshot pairs with the classic recipe: what
+    """Trains a one-step map z1 ≈ Φ̂_h(z0) on snapshot pairs with the classic recipe: what
     `csympnet fit --recipe classic` does, with the same defaults, so the same pairs and options
-    give the same parameters to the bit. For identification on your own data (any units, an
-    interval for every model size, a verdict) use `csympnet.identify`.
+    give the same parameters to the bit. The map's `gamma` is a training outcome, with no
+    interval (`gamma_interval` is None). To identify γ on your own data (any units, an
+    interval, checks of the model's assumptions, a verdict) use `csympnet.identify` or
+    `csympnet.CSympNetID`.
 
     z0, z1: states (N, 2d), N ≥ 2, rows (q1..qd, p1..pd); h: steps (N,) or one step for all.
     model: "csympnet" (CSympNet-ID, identifies γ̂) or "sympnet" (symplectic, no damping).
@@ -110,10 +112,10 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         "dense_normal_cholesky", both Ceres, or "blas_normal_cholesky", the normal
         equations formed once per Jacobian with BLAS: the fastest for thousands of
         parameters; only with refine="lm": "auto" picks it) tune it.
-    bootstrap: replicates of a percentile bootstrap for `model.gamma_interval` (0: none;
-        at least 10 otherwise). Default: 100 for csympnet with at most 1000 parameters,
-        else none (`meta["gamma_interval_note"]` says why). From `fit_trajectories` it
-        resamples whole trajectories.
+    bootstrap: replicates of a bootstrap of γ̂ over refits on resampled pairs (from
+        `fit_trajectories`: whole trajectories), at least 10, or 0/None (default: none). Its
+        spread is in `model.meta["bootstrap"]`; it is not an interval for γ (it has not
+        passed the identification's checks, and with few trajectories it collapses).
     Add core="la:5:20:h2" when the steps vary (docs/identification.md).
     threads: threads for each training epoch of CSympNet-ID with d > 1 (other models train
         on one); the results are the same to the bit for any value.
@@ -131,7 +133,9 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
         bootstrap), with tqdm where it is installed; with `progress` too, both run.
     meta: dict merged into the model's `meta` (saved with it), e.g. {"system": {...}}.
 
-    Returns a Model holding the best-validation parameters; its `gamma` is γ̂. Training runs
+    Returns a Model holding the best-validation parameters; its `gamma` is γ̂ as trained
+    (`meta["gamma_interval_note"]` says where to get an interval; `meta["warnings"]` holds a
+    warning about the data's scale, which is also issued as a UserWarning). Training runs
     without the GIL; Ctrl-C stops it with KeyboardInterrupt.
     """
     _checks.choice("model", model, FIT_MODELS)
@@ -196,6 +200,8 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if meta:
         m.meta.update(meta)
     _warn_if_diverged(m)
+    for text in m.meta.get("warnings", []):
+        warnings.warn("csympnet.fit: " + text, UserWarning, stacklevel=2)
     return m
 
 

@@ -21,6 +21,12 @@ class NotIdentifiedWarning(UserWarning):
     """The data do not identify γ; `Identification.reasons` says why."""
 
 
+class ModelRejectedWarning(NotIdentifiedWarning):
+    """The data break an assumption of the model (energy gain, damping that depends on the
+    amplitude or differs between modes, structured residuals); `Identification.checks` and
+    `reasons` say which, and what the data show instead. A NotIdentifiedWarning too."""
+
+
 class Identification:
     """The result of `identify`: the model (in the data's own units), γ̂, its interval and
     the verdict.
@@ -30,25 +36,35 @@ class Identification:
       gamma       γ̂ in the data's time units
       interval    (low, high), or None when none could be formed
       level       the interval's level
-      identified  False when the data do not identify γ (then `reasons` says why and
-                  `gamma` must not be read as a measurement)
-      reasons     list of str
+      gamma       γ̂ in the data's time units; None unless identified (as CSympNetID.gamma_)
+      interval    (low, high); None unless identified
+      level       the interval's level
+      identified  False when the data do not identify γ or break the model's assumptions
+                  (then `reasons` says why)
+      verdict     "identified", "not identified" or "model rejected"
+      reasons     list of str: failed checks first
+      checks      list of dict: each assumption tested, with its statistic, p-value,
+                  effect size, threshold, passed, and a sentence in words
+      estimate    the fitted γ̂ whatever the verdict (for inspection, not a measurement)
       report      the full report (dict), the same as `csympnet fit` writes
     """
 
     def __init__(self, model, report):
         self.model = model
         self.report = report
-        self.gamma = report["gamma_hat"]
-        low, high = report["gamma_ci_low"], report["gamma_ci_high"]
-        self.interval = None if low is None else (low, high)
-        self.level = report["gamma_ci_level"]
         self.identified = bool(report["identified"])
+        self.verdict = report["verdict"]
+        self.estimate = report["gamma_hat"]
+        self.gamma = report["gamma_hat"] if self.identified else None
+        low, high = report["gamma_ci_low"], report["gamma_ci_high"]
+        self.interval = None if low is None or not self.identified else (low, high)
+        self.level = report["gamma_ci_level"]
         self.reasons = list(report["reasons"])
+        self.checks = list(report["checks"])
 
     def __repr__(self):
         if not self.identified:
-            return f"Identification(not identified: {'; '.join(self.reasons) or 'interrupted'})"
+            return f"Identification({self.verdict}: {'; '.join(self.reasons) or 'interrupted'})"
         low, high = self.interval
         return (f"Identification(gamma={self.gamma:.6g}, {100 * self.level:g}% interval "
                 f"[{low:.6g}, {high:.6g}])")
@@ -139,6 +155,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
                                                  callback)
     result = Identification(Model(core_model), json.loads(report_text))
     if not result.identified:
-        warnings.warn("csympnet.identify: not identified: " + "; ".join(result.reasons),
-                      NotIdentifiedWarning, stacklevel=2)
+        rejected = result.verdict == "model rejected"
+        warnings.warn(f"csympnet.identify: {result.verdict}: " + "; ".join(result.reasons),
+                      ModelRejectedWarning if rejected else NotIdentifiedWarning, stacklevel=2)
     return result

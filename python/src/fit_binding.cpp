@@ -121,14 +121,15 @@ std::unique_ptr<PyModel> fit(const DArray& z0, const DArray& z1, const DArray& h
 
   auto out = std::make_unique<PyModel>();
   out->training = r.training;
-  if (r.interval) out->gamma_interval = std::pair{r.interval->low, r.interval->high};
+  // A map trained with the classic recipe: γ̂ is a training outcome with no interval
+  // (kNoIntervalNote); a bootstrap asked for is its spread, in meta["bootstrap"].
   const nlohmann::json train_json = r.config.train;
   out->meta = {{"source", "python fit"},        {"seed", r.config.seed},
                {"train", train_json},           {"config", r.config},
                {"pairs_train", r.train.size()}, {"pairs_val", r.val.size()}};
-  if (out->gamma_interval)
-    out->meta["gamma_interval"] = {out->gamma_interval->first, out->gamma_interval->second};
+  if (r.interval) out->meta["bootstrap"] = *r.interval;
   if (!r.interval_note.empty()) out->meta["gamma_interval_note"] = r.interval_note;
+  if (!r.scale_note.empty()) out->meta["warnings"] = {r.scale_note};
   out->model = std::move(r.model);
   out->theta = std::move(r.theta);
   return out;
@@ -216,7 +217,9 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   const nlohmann::json report = identify_report(r);
   auto out = std::make_unique<PyModel>();
   out->training = r.training;
-  if (r.interval) out->gamma_interval = std::pair{r.interval->low, r.interval->high};
+  // Only an identified γ̂ carries its interval (as in the report's gamma_ci_low/high).
+  if (r.identified && r.interval)
+    out->gamma_interval = std::pair{r.interval->low, r.interval->high};
   out->meta = {{"source", "python identify"}, {"seed", r.config.seed}, {"recipe", "identify"}};
   if (out->gamma_interval)
     out->meta["gamma_interval"] = {out->gamma_interval->first, out->gamma_interval->second};

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <sstream>
 
 #include "../kernels/registry.hpp"
 #include "csympnet/core/error.hpp"
@@ -237,6 +238,24 @@ void check_beta_start(double beta, double h_max, bool from_warm_start) {
               "; the data decay too fast for their steps to identify gamma");
 }
 
+namespace {
+
+// The classic recipe trains in the data's own units: states far from order 1 make its loss
+// tiny or huge, and its optimiser's steps (and the warm start's fit) no longer fit the data.
+std::string scale_note(const PairSet& train) {
+  const double scale = train.z0.cwiseAbs().maxCoeff();
+  if (scale >= 1e-3 && scale <= 1e3) return {};
+  std::ostringstream s;
+  s.precision(3);
+  s << "the states are of order " << scale
+    << ": this recipe trains in the data's own units, where the optimiser's steps do not fit "
+       "states of that size, and gamma_hat may be far off; `csympnet fit` (its default recipe) "
+       "removes units first";
+  return s.str();
+}
+
+}  // namespace
+
 FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
                     const FitConfig& config, const ProgressCallback& progress,
                     const std::vector<Index>& groups, const std::function<bool()>& should_stop) {
@@ -262,6 +281,7 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
     if (!groups.empty())
       for (Index i : train_idx) r.train_groups.push_back(groups[static_cast<std::size_t>(i)]);
   }
+  r.scale_note = scale_note(train);
   nlohmann::json spec = {
       {"type", to_string(config.model)}, {"d", train.d()}, {"core", r.config.core}};
   if (config.model == FitModel::kCSympNet) {
@@ -290,19 +310,11 @@ FitResult fit_pairs(const PairSet& train, const std::optional<PairSet>& val,
   else
     resolve_auto_refine(r.config.refine, r.train.size(), r.train.dim(), r.model.n_params());
   r.config.refine_method = r.config.refine.method;
-  if (config.bootstrap_replicates) {
-    r.config.bootstrap.replicates = *config.bootstrap_replicates;
-  } else {
-    r.config.bootstrap.replicates = 0;
-    if (config.model == FitModel::kCSympNet && r.model.n_params() <= kMaxLmParams) {
-      r.config.bootstrap.replicates = kAutoBootstrapReplicates;
-    } else if (config.model == FitModel::kCSympNet) {
-      r.interval_note = "no interval by default for " + std::to_string(r.model.n_params()) +
-                        " parameters (more than " + std::to_string(kMaxLmParams) +
-                        "): each bootstrap replicate refits them; ask for one with --bootstrap N "
-                        "(Python: bootstrap=N)";
-    }
-  }
+  // This recipe trains a map; it claims no interval for γ̂. The bootstrap runs only when asked
+  // for, and its spread is reported as such (report "bootstrap"), not as an interval: it has
+  // not passed the identification's checks, and resampling few groups collapses it.
+  r.config.bootstrap.replicates = config.bootstrap_replicates.value_or(0);
+  if (config.model == FitModel::kCSympNet) r.interval_note = std::string(kNoIntervalNote);
   r.config.bootstrap_replicates = r.config.bootstrap.replicates;
   r.config.bootstrap.refine = config.replicate_refine
                                   ? *config.replicate_refine
@@ -368,12 +380,12 @@ nlohmann::json fit_report(const FitResult& r) {
       {"best_val_loss", quality.val_loss},
       {"train_loss", quality.train_loss},
       {"gamma_hat", gamma ? nlohmann::json(*gamma) : nlohmann::json(nullptr)},
-      {"gamma_ci_low", g ? nlohmann::json(g->low) : nlohmann::json(nullptr)},
-      {"gamma_ci_high", g ? nlohmann::json(g->high) : nlohmann::json(nullptr)},
-      {"gamma_ci_level", g ? nlohmann::json(g->level) : nlohmann::json(nullptr)},
-      {"gamma_ci_method",
-       g ? nlohmann::json("percentile bootstrap over " + g->resample) : nlohmann::json(nullptr)},
-      {"gamma_ci_replicates", g ? g->replicates : 0},
+      {"gamma_ci_low", nullptr},
+      {"gamma_ci_high", nullptr},
+      {"gamma_note",
+       "a training outcome, with no interval: `csympnet fit` (its default recipe) "
+       "identifies gamma with an interval and checks of the model's assumptions"},
+      // When asked for: the spread of γ̂ over refits on resampled groups, not an interval.
       {"bootstrap", g ? nlohmann::json(*g) : nlohmann::json(nullptr)},
       {"warm_start", r.warm_start
                          ? nlohmann::json({{"gamma", r.warm_start->gamma},
@@ -386,6 +398,7 @@ nlohmann::json fit_report(const FitResult& r) {
       {"config", r.config},
       {"architecture", r.model.hyperparams()}};
   if (gamma && !r.interval_note.empty()) report["gamma_ci_note"] = r.interval_note;
+  if (!r.scale_note.empty()) report["warnings"] = {r.scale_note};
   if (r.stopped) report["interrupted"] = true;  // a partial result: see training/refine
   return report;
 }

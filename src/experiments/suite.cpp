@@ -120,54 +120,8 @@ std::string compact(double x) {
   return buf;
 }
 
-}  // namespace
-
-SuiteSpec parse_suite(const json& doc, const std::string& where) {
-  require(doc.is_object(), [&] { return where + ": expected a JSON object describing a suite"; });
-  reject_unknown_keys(
-      doc, where,
-      {"name", "title", "kind", "vary", "columns", "presets", "models", "seeds", "sigmas",
-       "n_train", "h_tests", "reference", "epochs", "extra_jacobians", "comment"});
-  SuiteSpec s;
-  require(doc.contains("name") && doc.at("name").is_string() &&
-              !doc.at("name").get<std::string>().empty(),
-          [&] { return where + ": missing key 'name' (expected a non-empty string)"; });
-  s.name = doc.at("name").get<std::string>();
-  for (const char c : s.name)
-    require(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_', [&] {
-      return where + ": name '" + s.name + "' may hold only letters, digits, '-' and '_'";
-    });
-  for (const char* key : {"title", "kind", "vary", "comment"})
-    if (doc.contains(key) && !doc.at(key).is_string())
-      throw Error(where + ": key '" + key + "' = " + doc.at(key).dump().substr(0, 80) +
-                  ", expected a string");
-  s.title = doc.value("title", s.name);
-  s.kind = doc.value("kind", std::string("table"));
-  require(s.kind == "table" || s.kind == "grid", [&] {
-    return where + ": key 'kind' = '" + s.kind + "', expected \"table\" or \"grid\"";
-  });
-  s.presets = string_list(doc, "presets", where, preset_names());
-  s.models = string_list(doc, "models", where, model_types());
-  require(doc.contains("seeds"),
-          [&] { return where + ": missing key 'seeds' (expected a list of integers)"; });
-  for (const auto& v : doc.at("seeds")) {
-    require(v.is_number_integer() && v.get<std::int64_t>() >= 0,
-            [&] { return where + ": key 'seeds' holds " + v.dump() + ", expected integers >= 0"; });
-    s.seeds.push_back(v.get<std::uint64_t>());
-  }
-  require(!s.seeds.empty(),
-          [&] { return where + ": key 'seeds' is empty, expected at least one seed"; });
-  reject_repeats(s.seeds, where, "seeds");
-  if (doc.contains("sigmas")) s.sigmas = number_list(doc.at("sigmas"), where, "sigmas", 0, false);
-  if (doc.contains("h_tests"))
-    s.h_tests = number_list(doc.at("h_tests"), where, "h_tests", 0, true);
-  if (doc.contains("extra_jacobians")) {
-    require(doc.at("extra_jacobians").is_boolean(), [&] {
-      return where + ": key 'extra_jacobians' = " + doc.at("extra_jacobians").dump() +
-             ", expected true or false";
-    });
-    s.extra_jacobians = doc.at("extra_jacobians").get<bool>();
-  }
+// The optional per-preset run settings of a suite: n_train, reference, epochs.
+void parse_run_options(const json& doc, const std::string& where, SuiteSpec& s) {
   if (doc.contains("n_train")) {
     s.n_train = doc.at("n_train");
     require(s.n_train.is_object(), [&] {
@@ -232,6 +186,57 @@ SuiteSpec parse_suite(const json& doc, const std::string& where) {
       }
     }
   }
+}
+
+}  // namespace
+
+SuiteSpec parse_suite(const json& doc, const std::string& where) {
+  require(doc.is_object(), [&] { return where + ": expected a JSON object describing a suite"; });
+  reject_unknown_keys(
+      doc, where,
+      {"name", "title", "kind", "vary", "columns", "presets", "models", "seeds", "sigmas",
+       "n_train", "h_tests", "reference", "epochs", "extra_jacobians", "comment"});
+  SuiteSpec s;
+  require(doc.contains("name") && doc.at("name").is_string() &&
+              !doc.at("name").get<std::string>().empty(),
+          [&] { return where + ": missing key 'name' (expected a non-empty string)"; });
+  s.name = doc.at("name").get<std::string>();
+  for (const char c : s.name)
+    require(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_', [&] {
+      return where + ": name '" + s.name + "' may hold only letters, digits, '-' and '_'";
+    });
+  for (const char* key : {"title", "kind", "vary", "comment"})
+    if (doc.contains(key) && !doc.at(key).is_string())
+      throw Error(where + ": key '" + key + "' = " + doc.at(key).dump().substr(0, 80) +
+                  ", expected a string");
+  s.title = doc.value("title", s.name);
+  s.kind = doc.value("kind", std::string("table"));
+  require(s.kind == "table" || s.kind == "grid", [&] {
+    return where + ": key 'kind' = '" + s.kind + "', expected \"table\" or \"grid\"";
+  });
+  s.presets = string_list(doc, "presets", where, preset_names());
+  s.models = string_list(doc, "models", where, model_types());
+  require(doc.contains("seeds"),
+          [&] { return where + ": missing key 'seeds' (expected a list of integers)"; });
+  for (const auto& v : doc.at("seeds")) {
+    require(v.is_number_integer() && v.get<std::int64_t>() >= 0,
+            [&] { return where + ": key 'seeds' holds " + v.dump() + ", expected integers >= 0"; });
+    s.seeds.push_back(v.get<std::uint64_t>());
+  }
+  require(!s.seeds.empty(),
+          [&] { return where + ": key 'seeds' is empty, expected at least one seed"; });
+  reject_repeats(s.seeds, where, "seeds");
+  if (doc.contains("sigmas")) s.sigmas = number_list(doc.at("sigmas"), where, "sigmas", 0, false);
+  if (doc.contains("h_tests"))
+    s.h_tests = number_list(doc.at("h_tests"), where, "h_tests", 0, true);
+  if (doc.contains("extra_jacobians")) {
+    require(doc.at("extra_jacobians").is_boolean(), [&] {
+      return where + ": key 'extra_jacobians' = " + doc.at("extra_jacobians").dump() +
+             ", expected true or false";
+    });
+    s.extra_jacobians = doc.at("extra_jacobians").get<bool>();
+  }
+  parse_run_options(doc, where, s);
   if (s.kind == "grid") {
     require(doc.contains("vary") && doc.at("vary").is_string(), [&] {
       return where + ": a grid suite needs key 'vary' (\"sigma\", \"n_train\" or \"h_test\")";

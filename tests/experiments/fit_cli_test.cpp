@@ -56,7 +56,9 @@ std::vector<Trajectory> oscillator_trajectories() {
   return trajs;
 }
 
-TEST(FitCli, PrintsAndWritesTheInterval) {
+// The classic recipe trains a map: γ̂ is printed as a training outcome with no interval, and
+// a bootstrap asked for is reported as its spread, never as gamma_ci_low/high.
+TEST(FitCli, ClassicRecipePrintsNoIntervalAndReportsTheBootstrapAsASpread) {
   testing::TempDir dir;
   const fs::path data = dir.path() / "traj.csv", out = dir.path() / "fit";
   write_trajectories_csv(data.string(), oscillator_trajectories());
@@ -70,12 +72,15 @@ TEST(FitCli, PrintsAndWritesTheInterval) {
       << slurp(stdout_file);
   const std::string printed = slurp(stdout_file);
   EXPECT_NE(printed.find("gamma_hat = "), std::string::npos) << printed;
-  EXPECT_NE(printed.find(" ± "), std::string::npos) << printed;
+  EXPECT_EQ(printed.find(" ± "), std::string::npos) << printed;
+  EXPECT_NE(printed.find("no interval"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("not an interval"), std::string::npos) << printed;
   const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
-  ASSERT_TRUE(rep["gamma_ci_low"].is_number() && rep["gamma_ci_high"].is_number()) << rep.dump();
-  EXPECT_LT(rep["gamma_ci_low"].get<double>(), rep["gamma_ci_high"].get<double>());
-  EXPECT_EQ(rep["gamma_ci_replicates"], 10);
-  EXPECT_EQ(rep["gamma_ci_method"], "percentile bootstrap over trajectories");
+  EXPECT_TRUE(rep["gamma_ci_low"].is_null() && rep["gamma_ci_high"].is_null()) << rep.dump();
+  ASSERT_TRUE(rep["bootstrap"].is_object()) << rep.dump();
+  EXPECT_EQ(rep["bootstrap"]["replicates"], 10);
+  EXPECT_EQ(rep["bootstrap"]["resample"], "trajectories");
+  EXPECT_LT(rep["bootstrap"]["low"].get<double>(), rep["bootstrap"]["high"].get<double>());
   EXPECT_EQ(rep["refine"]["method"], "lm");
   EXPECT_EQ(rep["warm_start"]["method"], "midpoint");
   EXPECT_LT(rep["quality"]["structure_residual_max"].get<double>(), 1e-12);
@@ -87,8 +92,8 @@ TEST(FitCli, PrintsAndWritesTheInterval) {
 }
 
 TEST(FitCli, ClassicRecipeDefaults) {
-  // `fit --recipe classic` with no other options: warm start, LM (s1-sized), a 100-replicate
-  // interval. `train` on the same data keeps the paper's recipe.
+  // `fit --recipe classic` with no other options: warm start, LM (s1-sized), no interval and
+  // no bootstrap. `train` on the same data keeps the paper's recipe.
   testing::TempDir dir;
   const fs::path data = dir.path() / "traj.csv";
   write_trajectories_csv(data.string(), oscillator_trajectories());
@@ -99,12 +104,13 @@ TEST(FitCli, ClassicRecipeDefaults) {
                   stdout_file.string() + " 2>&1"),
             0)
       << slurp(stdout_file);
-  EXPECT_NE(slurp(stdout_file).find(" ± "), std::string::npos) << slurp(stdout_file);
+  EXPECT_EQ(slurp(stdout_file).find(" ± "), std::string::npos) << slurp(stdout_file);
   auto rep = nlohmann::json::parse(slurp(dir.path() / "fit" / "report.json"));
   EXPECT_EQ(rep["refine"]["method"], "lm");
   EXPECT_EQ(rep["config"]["refine"]["linear_solver"], "dense_qr");
   EXPECT_EQ(rep["warm_start"]["method"], "midpoint");
-  EXPECT_EQ(rep["gamma_ci_replicates"], 100);
+  EXPECT_TRUE(rep["gamma_ci_low"].is_null());
+  EXPECT_TRUE(rep["bootstrap"].is_null());
 
   ASSERT_EQ(
       shell(cli + " train --data " + data.string() + " --out " + (dir.path() / "train").string() +
@@ -116,7 +122,7 @@ TEST(FitCli, ClassicRecipeDefaults) {
   EXPECT_EQ(rep["warm_start"], "off");
   EXPECT_TRUE(rep["gamma_ci_low"].is_null());
 
-  // Above 1000 parameters the default takes no interval, and says so; --no-warm-start and
+  // Any size: no interval, and the note says where one comes from; --no-warm-start and
   // --refine none switch the rest off.
   ASSERT_EQ(
       shell(cli + " fit " + data.string() + " --out " + (dir.path() / "big").string() +
@@ -125,11 +131,10 @@ TEST(FitCli, ClassicRecipeDefaults) {
       0)
       << slurp(stdout_file);
   const std::string printed = slurp(stdout_file);
-  EXPECT_NE(printed.find("no interval by default for 1209 parameters"), std::string::npos)
-      << printed;
+  EXPECT_NE(printed.find("no interval: this recipe trains a map"), std::string::npos) << printed;
   rep = nlohmann::json::parse(slurp(dir.path() / "big" / "report.json"));
   EXPECT_TRUE(rep["gamma_ci_low"].is_null());
-  EXPECT_NE(rep["gamma_ci_note"].get<std::string>().find("--bootstrap N"), std::string::npos);
+  EXPECT_NE(rep["gamma_ci_note"].get<std::string>().find("csympnet fit"), std::string::npos);
   EXPECT_EQ(rep["warm_start"], "off");
   EXPECT_EQ(rep["refine"]["method"], "none");
 }

@@ -54,7 +54,8 @@ inline constexpr OptionRange kValFractionRange{.key = "val_fraction", .lo = 0.01
 // choose, and FitResult::config holds what it chose. A default-constructed FitConfig is
 // identification(), the documented default recipe (docs/identification.md, "the classic
 // recipe"): CSympNet-ID, epochs by dimension, the cosine-annealed rate from 1e-3, a warm
-// start, the second stage and the bootstrap interval chosen by size.
+// start and the second stage chosen by size. It trains a map: γ̂ is a training outcome,
+// with no interval.
 struct FitConfig {
   FitModel model = FitModel::kCSympNet;
   nlohmann::json core;        // symplectic core; null → default_core_for(d)
@@ -76,20 +77,19 @@ struct FitConfig {
   // it (iterations, linear solver, tolerances); fit_pairs sets refine.method.
   std::optional<RefineMethod> refine_method;
   RefineOptions refine;
-  // Replicates of the bootstrap interval for γ̂ (CSympNet-ID), 0 = off; nullopt →
-  // kAutoBootstrapReplicates for CSympNet-ID with at most kMaxLmParams parameters (each
-  // replicate is a few LM iterations: seconds in all), else none, and
-  // FitResult::interval_note says why.
+  // Replicates of a bootstrap of γ̂ over refits on resampled groups (CSympNet-ID), 0 or
+  // nullopt = off. Its spread is reported as such ("bootstrap"), never as an interval: the
+  // classic recipe trains a map, and only identify() (experiments/identify.hpp) gives γ̂ an
+  // interval, after the checks of the model's assumptions.
   std::optional<long> bootstrap_replicates;
   // Each replicate's second stage; nullopt → default_replicate_refine_for(refine).
   std::optional<RefineOptions> replicate_refine;
   // The interval's level; fit_pairs sets its replicates, refine and seed from the above.
   BootstrapOptions bootstrap;
 
-  // The recipes (docs/identification.md). identification(): warm start, a second stage and
-  // a bootstrap interval chosen by size; what `csympnet fit --recipe classic` and Python's
-  // `fit` run. adamw_only(): AdamW alone, from beta_init, no interval; what `csympnet train`
-  // runs unless told otherwise.
+  // The recipes (docs/identification.md). identification(): warm start and a second stage
+  // chosen by size; what `csympnet fit --recipe classic` and Python's `fit` run. adamw_only():
+  // AdamW alone, from beta_init, no interval; what `csympnet train` runs unless told otherwise.
   static FitConfig identification();
   static FitConfig adamw_only();
 
@@ -130,7 +130,11 @@ long default_epochs_for(Index d);
 // Up to kMaxLmParams, Ceres' dense QR (the better conditioned); up to kMaxNormalLmParams, the
 // normal equations on BLAS (train/levenberg_marquardt.hpp), whose P × P matrix and its
 // factor take 2 · 8 P² bytes (580 MB at the limit).
-constexpr long kAutoBootstrapReplicates = 100;
+constexpr long kAutoBootstrapReplicates = 100;  // what --bootstrap suggests; never automatic
+// Why a map trained by fit_pairs carries no interval for γ̂.
+inline constexpr const char* kNoIntervalNote =
+    "no interval: this recipe trains a map; `csympnet fit` with its default recipe (Python: "
+    "csympnet.identify, CSympNetID) identifies gamma with an interval and checks";
 constexpr double kMaxJacobianEntries = 2.5e7;
 constexpr Index kMaxLmParams = 1000;
 constexpr double kMaxNormalLmJacobianEntries = 5e7;
@@ -173,7 +177,9 @@ struct FitResult {
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;  // why no warm start was used, when config asked for one
   std::optional<GammaInterval> interval;
-  std::string interval_note;  // why there is no interval, when the chosen bootstrap skipped it
+  std::string interval_note;  // why γ̂ has no interval (this recipe trains a map)
+  // Set when the data's scale is far from 1: this recipe trains in the data's own units.
+  std::string scale_note;
   PairSet train;
   std::vector<Index> train_groups;  // trajectory of each training pair (empty: unknown)
   PairSet val;

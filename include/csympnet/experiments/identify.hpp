@@ -9,7 +9,8 @@
 //        validation kept; the lowest validation loss wins and continues LM
 //     ─> interval: cluster-robust sandwich over the training blocks (train/gamma_sandwich.hpp),
 //        inflated by the held-out over training loss when above 1
-//     ─> verdict: identified, or not and why
+//     ─> checks of the model's assumptions on every block (experiments/model_checks.hpp)
+//     ─> verdict: identified; not identified, and why; or the model rejected by a check
 //     ─> the model in the user's units (NormalizedMap), exactly conformally symplectic.
 #pragma once
 
@@ -25,6 +26,7 @@
 #include "csympnet/core/communicator.hpp"
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/data/normalization.hpp"
+#include "csympnet/experiments/model_checks.hpp"
 #include "csympnet/models/model.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "csympnet/train/gamma_warm_start.hpp"
@@ -146,7 +148,12 @@ struct IdentifyResult {
   double gamma = 0.0;                        // γ̂ in the user's time units
   std::optional<SandwichInterval> interval;  // in the user's time units
   bool identified = false;
-  std::vector<std::string> reasons;  // why not, when not
+  // A check of the model's assumptions failed (then not identified): the data break the model.
+  bool rejected = false;
+  // "identified", "not identified", "model rejected" or "interrupted".
+  std::string verdict;
+  std::vector<std::string> reasons;  // why not, when not: failed checks first
+  std::vector<ModelCheck> checks;    // the assumptions tested (empty when no interval was formed)
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;
   TrainSummary training;

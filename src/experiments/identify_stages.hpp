@@ -1,0 +1,135 @@
+// The stages of identify() (experiments/identify.hpp), each a function or class with one job,
+// handing a typed state to the next (docs/architecture.md, "The identification in stages"):
+//
+//   inspect_data    the data as given: dimension, steps, a summary for the report
+//   choose_units    normalisation (or the init file's units), the normalised trajectories
+//   split_blocks    blocks, held-out blocks, window length, training and validation windows
+//   warm_start      γ₀ from the data, the dof scales, β's start
+//   CandidateFit    per candidate core: AdamW, Levenberg–Marquardt (budgets by work)
+//   choose_core     the lowest validation loss wins and continues LM
+//   adapt_windows   longer windows when the one-step residuals show noise, not misfit
+//   interval        cluster-robust sandwich over the training blocks, held-out inflation
+//   measure_quality held-out residuals, the null model, the structure residual
+//   run_checks      the model's assumptions tested (experiments/model_checks.hpp)
+//   verdict         identified, not identified (and why), or the model rejected
+//
+// Private to the library (src/experiments).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/core/communicator.hpp"
+#include "csympnet/experiments/identify.hpp"
+#include "csympnet/train/window_loss.hpp"
+
+namespace csympnet::detail {
+
+// What the data are, before anything is fitted.
+struct DataFacts {
+  Index d = 0;
+  double h_min = 0.0, h_max = 0.0;
+  bool varying_steps = false;
+  nlohmann::json summary;  // the report's "data"
+};
+DataFacts inspect_data(const std::vector<Trajectory>& trajs, bool pairs_only);
+
+// The units the fit works in: the normalisation chosen (or the init file's), recorded in
+// r.normalization and r.choices, and the data in those units.
+std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool pairs_only,
+                                     const IdentifyConfig& config, IdentifyResult& r);
+
+// Blocks and windows.
+struct BlockSplit {
+  std::vector<Trajectory> blocks;  // every block, normalised, in order
+  std::vector<Trajectory> train_blocks, val_blocks;
+  Index m = 1;            // the window length in use
+  Index m_long = 1;       // the length an automatic window may grow to
+  bool adaptive = false;  // an automatic window: starts at one step, may grow (adapt_windows)
+  WindowSet train, val;   // windows of m steps; training blocks numbered 0 … B_t − 1
+  void set_window(Index len);
+};
+BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
+                        const IdentifyConfig& config, nlohmann::json& choices);
+
+// γ₀ (r.warm_start) and the dof scales (r.config.dof_scales); returns β's start.
+double warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given, IdentifyResult& r);
+
+// The candidate cores when none is given (LA and G, by dimension).
+std::vector<nlohmann::json> default_cores(Index d, bool varying_steps);
+std::string core_name(const nlohmann::json& core);
+
+// One candidate model and how far its training got.
+struct Candidate {
+  nlohmann::json core;
+  Model inner;
+  Vector theta;
+  TrainSummary training;
+  LmReport lm;
+  long lm_best_iteration = 0;
+  double lm_seconds = 0.0;
+  double val_loss = std::numeric_limits<double>::infinity();
+};
+std::vector<Candidate> make_candidates(const std::vector<nlohmann::json>& cores, Index d,
+                                       double beta_init, const IdentifyConfig& c,
+                                       std::uint64_t seed);
+
+// Training of candidates on the split's windows: AdamW and LM with their budgets by work.
+class CandidateFit {
+ public:
+  CandidateFit(const IdentifyConfig& given, const IdentifyConfig& resolved,
+               const IdentifyHooks& hooks, const Communicator& comm, const BlockSplit& split,
+               double share);
+  long epochs_for(const Candidate& x) const;
+  // LM iterations for about `target` seconds on one core (at least `floor`; 0 with more
+  // than 6,000 parameters).
+  long lm_budget(const Candidate& x, double target, long floor = 5) const;
+  void adamw(Candidate& x, const std::string& label) const;
+  void lm(Candidate& x, long budget, const std::string& label);
+  double loss(const Candidate& x, const WindowSet& w) const;
+  bool stop_requested() const;
+  // Remembers a stop requested now (polled between stages).
+  void note_stop() {
+    if (stop_requested()) stopped_ = true;
+  }
+  bool stopped() const { return stopped_; }
+  const BlockSplit& split() const { return *split_; }
+
+ private:
+  const IdentifyConfig* given_;
+  const IdentifyConfig* c_;
+  const IdentifyHooks* hooks_;
+  const Communicator* comm_;
+  const BlockSplit* split_;
+  double share_;
+  bool stopped_ = false;
+};
+
+inline constexpr long kLmPatience = 100;
+
+// Every candidate trained; the lowest validation loss wins and continues LM. Records the
+// choice in r (choices, config) and returns the winner's index.
+std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
+                        bool varying_steps, const IdentifyConfig& given, IdentifyResult& r);
+
+// Longer windows when noise dominates misfit (an automatic window only); LM continues on them.
+void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
+                   const IdentifyConfig& given, IdentifyResult& r);
+
+// γ̂'s interval in the user's time units (r.interval), from the training windows.
+void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<Trajectory>& nt,
+              const IdentifyHooks& hooks, const Communicator& comm, IdentifyResult& r);
+
+// r.quality from the validation windows.
+void measure_quality(const OneStepMap& map, const BlockSplit& split, Index d, IdentifyResult& r);
+
+// r.checks: the model's assumptions on every block.
+void run_checks(const OneStepMap& map, const BlockSplit& split, const IdentifyHooks& hooks,
+                IdentifyResult& r);
+
+// r.reasons, r.identified, r.rejected.
+void verdict(const BlockSplit& split, double h_max, bool lm_fits, IdentifyResult& r);
+
+}  // namespace csympnet::detail

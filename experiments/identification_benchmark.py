@@ -7,8 +7,10 @@ Command (from the repository root; needs only /usr/bin/python3 with NumPy):
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idbench   # 120 cases
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/b --fit-args="--epochs 2000"
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idq --quick --only-peers
+    /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idv --violations  # 60
 
-Options: --cases N (default 120; 8 with --quick), --quick (8 cases of small size), --seed S
+Options: --cases N (default 120, 8 with --quick; with --violations 60, 10 with --quick),
+--quick (a few cases of small size), --violations (only violation cases, below), --seed S
 (default 1; everything is deterministic given the seed), --only-peers (skip csympnet),
 --systems a,b,... (a subset of the systems below), --csympnet PATH (default
 build/bin/csympnet under the repository root), --fit-args="..." (extra options for every
@@ -53,12 +55,47 @@ Strata (every case has one value of each; values are assigned in balanced, shuff
     sigma        0, 1e-3, 1e-2, 5e-2: Gaussian measurement noise on every stored coordinate, std
                  sigma times that coordinate's std over the file (the dynamics are noise-free)
 
+Violation cases (--violations; without it the case plan and data are as described above):
+the same strata plus "violation", balanced like the others, one of
+
+    nonuniform-1.5, nonuniform-3, nonuniform-30  (toda, fpu-alpha, fpu-beta, henon-heiles,
+                 coupled-pendulums) dp/dt = -grad V - C p, C = M V diag(rates) V^T with V the
+                 modes of the linearisation at q = 0 (K V = M V diag(freq^2), V^T M V = I,
+                 K by central differences of grad), so that each linear mode a obeys
+                 a'' + rate_i a' + freq_i^2 a = 0; the rates are spread geometrically from gamma
+                 to 1.5 / 3 / 30 gamma and assigned to the modes in a seeded random order
+    coulomb-0.2, coulomb-0.5, coulomb-0.9  (d = 1 systems) -gamma_v p - mu tanh(p / eps),
+                 eps = 1e-3 omega A0; the dry friction's equivalent rate 4 mu / (pi omega A0) is
+                 20 / 50 / 90 % of gamma = gamma_v + gamma_c. omega A0 = sqrt(2 E0), E0 the
+                 median initial energy above the potential's minimum
+    quadratic-drag  (d = 1) -gamma_v p - c |p| p, the drag's equivalent rate c (8 / (3 pi))
+                 omega A0 = gamma / 2, gamma_v = gamma / 2
+    periodic-force  (any system) -grad V - gamma p + f0_i cos(Omega t + phi_i) on every p_i,
+                 Omega = omega_max U(0.6, 0.9) (redrawn to stay >= 5% from every linear mode
+                 frequency when possible), f0_i = 0.05 A0_i m_i min_k |freq_k^2 - Omega^2| with
+                 A0_i half the spread of q_i in the same data without the force
+    drifting-equilibrium  (all but softened-central) grad V evaluated at q - v t, |v_i| times
+                 the longest trajectory's duration = 20% of the spread of q_i (as above)
+    energy-gain  (any system) gamma = -r omega_max < 0; every trajectory is cut to at most
+                 max(6, 2 ln 4 / |gamma| / h0 + 1) samples (linear amplitude growth <= 4)
+
+with t the time since each trajectory's start. These are integrated by the same RK4 with the
+right-hand side dp/dt = f(t, q, p); the integrator check is made on the first case of each
+violation kind. results.json records per case "violation": kind, size, parameters, rates in
+the file's time units (coulomb, drag: gamma_viscous and the equivalent parts; nonuniform:
+modal_rates; energy gain: the negative gamma), gamma_reference (the case's gamma_true: the drawn
+gamma, i.e. the equivalent total at A0, or the mean modal rate for nonuniform) and
+gamma_reference_range ([min, max] modal rate for nonuniform, else the point). Errors are
+relative to |gamma_reference|; "confident wrong" on a violation case: identified with an
+interval outside gamma_reference_range (no error threshold).
+
 Each case is a trajectories CSV (`traj,t,q1..qd,p1..pd`, numbers written with repr) that is
 given to three methods:
 
     csympnet  `csympnet fit DATA --out DIR -q [--fit-args]`; reads DIR/report.json (gamma_hat,
-              gamma_ci_low/high, identified). Exit 0: identified; exit 4: "not identified"
-              (counted apart, never as a wrong number); anything else, or the timeout: failed.
+              gamma_ci_low/high, identified, verdict, checks). Exit 0: identified; exit 4: "not
+              identified"; exit 5: "model rejected" (a model check failed; both counted apart,
+              never as a wrong number); anything else, or the timeout: failed.
     sindy     sparse regression of dp/dt: derivatives and smoothed states from a local cubic
               fit (7 samples, tricube weights, any spacing) per trajectory, then STLSQ
               (threshold 0.01 on unit-scaled columns and targets, ridge 1e-10, 10 passes) on a
@@ -82,9 +119,17 @@ Per case: relative error |gamma_hat - gamma| / gamma, whether the 95% interval c
 interval's width / gamma, identified or not, wall seconds. "Confident wrong": identified, the
 interval misses gamma and the relative error exceeds 0.1. The tables (stdout, DIR/summary.md)
 give, per stratum value and method: n, median / 90th percentile / worst relative error (over the
-cases with a number), coverage (covering / cases with an interval), not identified, failed,
-confident wrong, relative error > 0.1, median wall seconds. DIR/results.json holds every case's
-configuration (system, parameters, seed, strata, true gamma, paths) and every method's result.
+cases with a number), coverage (covering / cases with an interval), not identified, rejected,
+failed, confident wrong, relative error > 0.1, median wall seconds. With csympnet results, also
+its model checks (report.json "checks": dissipation, linear_damping, one_rate, residuals; a
+check fails when "passed" is false): on valid cases the false-alarm rate of each check and of
+any check (failed / applicable, failed / all), overall and per sigma and shape; on violation
+cases, per kind and size, the detection rate of each check and of any check, the shares
+rejected / not identified / identified, failed, and the confident wrong count, with those cases
+listed; and csympnet's verdict counts (identified / not identified / rejected / failed) per
+stratum value. DIR/results.json holds every case's
+configuration (system, parameters, seed, strata, true gamma, paths) and every method's result
+(csympnet's with its verdict and checks).
 The case files stay in DIR/cases/<id>/data.csv, csympnet's output in DIR/cases/<id>/csympnet/.
 
 Ctrl-C (SIGINT) or SIGTERM stops at once: running fits are killed, the finished cases are
@@ -118,6 +163,11 @@ SHAPE_STRATA = ["long", "few", "many"]
 STEPS_STRATA = ["regular", "irregular", "gaps"]
 SIGMA_STRATA = [0.0, 1e-3, 1e-2, 5e-2]
 METHODS = ["csympnet", "sindy", "oracle"]
+VIOLATION_STRATA = ["nonuniform-1.5", "nonuniform-3", "nonuniform-30", "coulomb-0.2",
+                    "coulomb-0.5", "coulomb-0.9", "quadratic-drag", "periodic-force",
+                    "drifting-equilibrium", "energy-gain"]
+CHECK_NAMES = ["dissipation", "linear_damping", "one_rate", "residuals"]
+VERDICTS = ["identified", "not identified", "rejected", "failed"]
 
 GEN_OMEGA_DT = 1e-3      # omega_max * RK4 substep when generating data
 ORACLE_OMEGA_DT = 1e-2   # omega_max * RK4 substep inside the oracle's one-step predictions
@@ -334,28 +384,206 @@ def rk4(grad, theta, minv, gamma, q, p, dt, n):
     return q, p
 
 
+def rk4_t(minv, dpdt, t, q, p, dt, n):
+    """n classical RK4 steps of size dt (a scalar or one per column) from time t (one per
+    column) of dq/dt = minv p, dp/dt = dpdt(t, q, p): the general right-hand side of the
+    violation cases (dissipation other than -gamma p, forcing, a moving potential)."""
+    half = 0.5 * dt
+    sixth = dt / 6.0
+    for _ in range(n):
+        k1q = p if minv is None else minv * p
+        k1p = dpdt(t, q, p)
+        p2 = p + half * k1p
+        q2 = q + half * k1q
+        k2q = p2 if minv is None else minv * p2
+        k2p = dpdt(t + half, q2, p2)
+        p3 = p + half * k2p
+        q3 = q + half * k2q
+        k3q = p3 if minv is None else minv * p3
+        k3p = dpdt(t + half, q3, p3)
+        p4 = p + dt * k3p
+        q4 = q + dt * k3q
+        k4q = p4 if minv is None else minv * p4
+        k4p = dpdt(t + dt, q4, p4)
+        q = q + sixth * (k1q + 2.0 * (k2q + k3q) + k4q)
+        p = p + sixth * (k1p + 2.0 * (k2p + k3p) + k4p)
+        t = t + dt
+    return q, p
+
+
 def inverse_masses(s):
     return None if s["masses"] is None else 1.0 / np.asarray(s["masses"])[:, None]
 
 
-def integrate(s, gamma, q0, p0, steps, substep):
+def integrate(s, gamma, q0, p0, steps, substep, dpdt=None):
     """steps: (m, K) step sizes per trajectory, 0 once a trajectory has ended. Every sample
     interval is split into the same number of substeps across trajectories (<= substep each).
-    Returns Q, P of shape (K + 1, d, m)."""
+    dpdt(t, q, p), if given, replaces -grad V(q) - gamma p (t: time since each trajectory's
+    start). Returns Q, P of shape (K + 1, d, m)."""
     m, K = steps.shape
     Q = np.empty((K + 1,) + q0.shape)
     P = np.empty_like(Q)
     Q[0], P[0] = q0, p0
     q, p = q0, p0
     minv = inverse_masses(s)
+    t = np.zeros(m)
     for k in range(K):
         if k % 16 == 0:
             check_stop()
         h = steps[:, k]
         n = max(1, int(math.ceil(float(h.max()) / substep)))
-        q, p = rk4(s["grad"], s["theta"], minv, gamma, q, p, h / n, n)
+        if dpdt is None:
+            q, p = rk4(s["grad"], s["theta"], minv, gamma, q, p, h / n, n)
+        else:
+            q, p = rk4_t(minv, dpdt, t, q, p, h / n, n)
+            t = t + h
         Q[k + 1], P[k + 1] = q, p
     return Q, P
+
+
+# ----------------------------------------------------------------------------------------------
+# Violation cases: data that break one assumption of the model class
+
+
+D1_SYSTEMS = ["pendulum", "duffing", "morse", "linear"]
+VIOLATION_SYSTEMS = {
+    "nonuniform": ["toda", "fpu-alpha", "fpu-beta", "henon-heiles", "coupled-pendulums"],
+    "coulomb": D1_SYSTEMS,
+    "quadratic-drag": D1_SYSTEMS,
+    "periodic-force": SYSTEM_NAMES,
+    "drifting-equilibrium": [x for x in SYSTEM_NAMES if x != "softened-central"],
+    "energy-gain": SYSTEM_NAMES,
+}
+
+# V(q) - min V for the d = 1 systems (theta as in make_system)
+POTENTIAL_1D = {
+    "pendulum": lambda q, th: th[0] * (1.0 - np.cos(q)),
+    "duffing": lambda q, th: -th[0] * q * q / 2 + th[1] * q ** 4 / 4 + th[0] ** 2 / (4 * th[1]),
+    "morse": lambda q, th: th[0] * (1.0 - np.exp(-th[1] * q)) ** 2,
+    "linear": lambda q, th: th[0] * q * q / 2,
+}
+
+
+def violation_family(kind):
+    """'nonuniform-3' -> ('nonuniform', 3.0); 'periodic-force' -> ('periodic-force', None)"""
+    for fam in ("nonuniform", "coulomb"):
+        if kind.startswith(fam + "-"):
+            return fam, float(kind[len(fam) + 1:])
+    return kind, None
+
+
+def linear_modes(s):
+    """Linearisation at q = 0: stiffness K (central differences of grad), masses M; returns the
+    modal frequencies (ascending) and V with K V = M V diag(freq^2), V^T M V = I."""
+    d = s["d"]
+    h = 1e-5
+    K = np.empty((d, d))
+    for j in range(d):
+        e = np.zeros((d, 1))
+        e[j] = h
+        K[:, j] = (s["grad"](e, s["theta"]) - s["grad"](-e, s["theta"]))[:, 0] / (2 * h)
+    K = 0.5 * (K + K.T)
+    m = np.ones(d) if s["masses"] is None else np.asarray(s["masses"], dtype=float)
+    w = 1.0 / np.sqrt(m)
+    w2, U = np.linalg.eigh(w[:, None] * K * w[None, :])
+    return np.sqrt(np.maximum(w2, 0.0)), w[:, None] * U, m
+
+
+def violation_setup(kind, s, gamma, q0, p0, steps, substep, vrng):
+    """The right-hand side dp/dt = f(t, q, p) of a violation case (None: -grad V - gamma p with
+    the case's gamma, i.e. energy gain with gamma < 0) and its parameters (natural units)."""
+    fam, size = violation_family(kind)
+    grad, th = s["grad"], s["theta"]
+    d = s["d"]
+    omega = s["omega_max"]
+    info = {"kind": kind, "family": fam, "size": size}
+    if fam == "energy-gain":
+        return None, info
+    if fam == "nonuniform":
+        # dp/dt = -grad V - C p with C = M V diag(rates) V^T: the linearised modes a (q = V a,
+        # p = M V da/dt) obey a'' + rate_i a' + freq_i^2 a = 0
+        freqs, V, m = linear_modes(s)
+        rates = gamma * size ** (np.arange(d) / (d - 1))
+        rates = rates[vrng.permutation(d)]
+        C = (m[:, None] * V) @ np.diag(rates) @ V.T
+        info.update(modal_frequencies=freqs.tolist(), modal_rates=rates.tolist(),
+                    damping_matrix=C.tolist())
+        return (lambda t, q, p: -grad(q, th) - C @ p), info
+    if fam in ("coulomb", "quadratic-drag"):
+        e0 = p0[0] ** 2 / 2 + POTENTIAL_1D[s["name"]](q0[0], th)  # d = 1, unit mass
+        wa0 = math.sqrt(2.0 * float(np.median(e0)))  # velocity amplitude omega A0
+        info.update(A0=wa0 / omega, velocity_amplitude=wa0)
+        if fam == "coulomb":
+            # equivalent linear rate of dry friction mu at amplitude A0: 4 mu / (pi omega A0)
+            g_c = size * gamma
+            g_v = gamma - g_c
+            mu = g_c * math.pi * wa0 / 4.0
+            eps = 1e-3 * wa0
+            info.update(gamma_viscous=g_v, gamma_coulomb_equivalent=g_c, mu=mu, eps=eps)
+            return (lambda t, q, p: -grad(q, th) - g_v * p - mu * np.tanh(p / eps)), info
+        # quadratic drag c |p| p: equivalent rate c (8 / (3 pi)) omega A0
+        g_q = 0.5 * gamma
+        g_v = gamma - g_q
+        cq = g_q * 3.0 * math.pi / (8.0 * wa0)
+        info.update(gamma_viscous=g_v, gamma_quadratic_equivalent=g_q, c=cq)
+        return (lambda t, q, p: -grad(q, th) - g_v * p - cq * np.abs(p) * p), info
+    # periodic force, drifting equilibrium: sized from the q spread of the valid model's data
+    Q, _ = integrate(s, gamma, q0, p0, steps, substep)
+    spread = Q.max(axis=(0, 2)) - Q.min(axis=(0, 2))
+    info["q_spread"] = spread.tolist()
+    if fam == "periodic-force":
+        freqs = np.array([omega]) if d == 1 else linear_modes(s)[0]
+        m = np.ones(d) if s["masses"] is None else np.asarray(s["masses"], dtype=float)
+        best = None
+        for _ in range(50):  # off resonance with every linear mode where possible
+            big = omega * vrng.uniform(0.6, 0.9)
+            gap = float(np.min(np.abs(freqs / big - 1.0)))
+            if best is None or gap > best[1]:
+                best = (big, gap)
+            if gap >= 0.05:
+                break
+        big = best[0]
+        denom = float(np.min(np.abs(freqs ** 2 - big ** 2)))
+        a0 = 0.5 * spread
+        f0 = 0.05 * a0 * m * denom  # steady amplitude f0 / (m |freq^2 - Omega^2|) <= 5% of A0
+        phase = vrng.uniform(0.0, 2.0 * math.pi, d)
+        info.update(Omega=big, Omega_over_omega=big / omega, f0=f0.tolist(),
+                    phase=phase.tolist(), A0=a0.tolist(), nearest_mode_gap=best[1])
+        return (lambda t, q, p: -grad(q, th) - gamma * p
+                + f0[:, None] * np.cos(big * t[None, :] + phase[:, None])), info
+    if fam == "drifting-equilibrium":
+        duration = float(steps.sum(axis=1).max())
+        v = 0.2 * spread / duration * np.sign(vrng.uniform(-1.0, 1.0, d))
+        info.update(drift_velocity=v.tolist(), duration=duration)
+        return (lambda t, q, p: -grad(q - v[:, None] * t[None, :], th) - gamma * p), info
+    raise ValueError(f"unknown violation {kind!r}")
+
+
+def violation_record(kind, v, gamma, c):
+    """results.json's record of a violation case; rates in the file's time units (/ c).
+    gamma_reference: the rate an answer is judged against (the drawn gamma: for coulomb and
+    quadratic drag the equivalent total at A0, negative for energy gain; for nonuniform the
+    mean modal rate); an interval misses when it lies outside gamma_reference_range (for
+    nonuniform [min, max] of the modal rates, else the point)."""
+    rec = {k: x for k, x in v.items() if k != "damping_matrix"}
+    rec["damping_matrix_natural"] = v.get("damping_matrix")
+    rec["gamma_drawn"] = gamma / c
+    if v["family"] == "nonuniform":
+        rates = np.asarray(v["modal_rates"]) / c
+        rec["modal_rates"] = rates.tolist()
+        rec["modal_rates_natural"] = v["modal_rates"]
+        rec["gamma_reference"] = float(rates.mean())
+        rec["gamma_reference_range"] = [float(rates.min()), float(rates.max())]
+    else:
+        rec["gamma_reference"] = gamma / c
+        rec["gamma_reference_range"] = [gamma / c, gamma / c]
+    for k in ("gamma_viscous", "gamma_coulomb_equivalent", "gamma_quadratic_equivalent"):
+        if k in v:
+            rec[k] = v[k] / c
+            rec[k + "_natural"] = v[k]
+    if rec.get("damping_matrix_natural") is None:
+        del rec["damping_matrix_natural"]
+    return rec
 
 
 # ----------------------------------------------------------------------------------------------
@@ -378,6 +606,38 @@ def plan(n, seed, systems):
     return cases
 
 
+def plan_violations(n, seed, systems):
+    """Violation cases: the strata of plan() plus "violation" (VIOLATION_STRATA, balanced);
+    each family's systems (VIOLATION_SYSTEMS within --systems) are taken in turn, shuffled."""
+    rng = np.random.default_rng([seed, 2])
+    kinds = [k for k in VIOLATION_STRATA
+             if any(x in systems for x in VIOLATION_SYSTEMS[violation_family(k)[0]])]
+    if not kinds:
+        raise ValueError("no violation kind has a system among --systems")
+
+    def balanced(values):
+        vals = [values[i % len(values)] for i in range(n)]
+        return [vals[i] for i in rng.permutation(n)]
+    cols = [balanced(kinds), balanced(RATIO_STRATA), balanced(UNITS_STRATA),
+            balanced(SHAPE_STRATA), balanced(STEPS_STRATA), balanced(SIGMA_STRATA)]
+    pools = {}
+    for fam, names in VIOLATION_SYSTEMS.items():
+        allowed = [x for x in names if x in systems]
+        pools[fam] = [allowed[i] for i in rng.permutation(len(allowed))] if allowed else []
+    used = {}
+    cases = []
+    for i, (kind, ratio, units, shape, steps, sigma) in enumerate(zip(*cols)):
+        fam = violation_family(kind)[0]
+        pool = pools[fam]
+        system = pool[used.get(fam, 0) % len(pool)]
+        used[fam] = used.get(fam, 0) + 1
+        cases.append({"index": i, "id": f"v{i:03d}-{kind}-{system}", "system": system,
+                      "seed": [seed, 100000 + i],
+                      "strata": {"violation": kind, "ratio": ratio, "units": units,
+                                 "shape": shape, "steps": steps, "sigma": sigma}})
+    return cases
+
+
 def log_uniform(rng, lo, hi):
     return math.exp(rng.uniform(math.log(lo), math.log(hi)))
 
@@ -394,12 +654,16 @@ def generate(case, quick, check_integrator):
     lo, hi = RATIO_DECADE[st["ratio"]]
     r = 10.0 ** rng.uniform(lo, hi)
     gamma = r * omega
+    kind = st.get("violation")
+    if kind == "energy-gain":
+        gamma = -gamma
+    g_abs = abs(gamma)
     spp = log_uniform(rng, 10.0, 40.0)
     period = 2.0 * math.pi / omega
     h0 = period / spp
     if st["shape"] == "long":
         # >= ~20 fastest periods, or 5 decay times 1/gamma when these are shorter
-        duration = min(20.0 * period, max(5.0 / gamma, 2.0 * period)) * rng.uniform(1.0, 1.5)
+        duration = min(20.0 * period, max(5.0 / g_abs, 2.0 * period)) * rng.uniform(1.0, 1.5)
         cap = 400 if quick else 2000
         lengths = [int(min(cap, max(300, round(duration / h0))))]
     elif st["shape"] == "few":
@@ -408,6 +672,9 @@ def generate(case, quick, check_integrator):
     else:
         m = int(rng.integers(30, 41 if quick else 101))
         lengths = [int(rng.integers(8, 13 if quick else 21)) for _ in range(m)]
+    if kind == "energy-gain":  # the amplitude grows as exp(|gamma| t / 2): at most 4 times
+        n_cap = max(6, int(2.0 * math.log(4.0) / g_abs / h0) + 1)
+        lengths = [min(n, n_cap) for n in lengths]
     if st["steps"] == "gaps":  # generate more so that the counts above hold after the drop
         kept = lengths
         lengths = [max(n + 1, int(round(n / 0.9))) for n in lengths]
@@ -421,10 +688,14 @@ def generate(case, quick, check_integrator):
             steps[j, :n - 1] = h0
     q0, p0 = s["init"](rng, m)
     substep = GEN_OMEGA_DT / omega
-    Q, P = integrate(s, gamma, q0, p0, steps, substep)
+    dpdt, vinfo = None, None
+    if kind is not None:
+        dpdt, vinfo = violation_setup(kind, s, gamma, q0, p0, steps, substep,
+                                      np.random.default_rng(case["seed"] + [2]))
+    Q, P = integrate(s, gamma, q0, p0, steps, substep, dpdt)
     check = None
     if check_integrator:
-        Q2, P2 = integrate(s, gamma, q0, p0, steps, substep / 2)
+        Q2, P2 = integrate(s, gamma, q0, p0, steps, substep / 2, dpdt)
         diffs, spreads, norms = [], [], []
         for j, n in enumerate(lengths):
             za = np.concatenate([Q[:n, :, j], P[:n, :, j]], axis=1)
@@ -481,6 +752,9 @@ def generate(case, quick, check_integrator):
         "units": {"s_q": s_q, "s_p": s_p, "q_offset": [float(x) for x in offset], "time_scale": c},
         "integrator_check": check,
     }
+    if vinfo is not None:
+        info["violation"] = violation_record(kind, vinfo, gamma, c)
+        info["gamma_true"] = info["violation"]["gamma_reference"]
     return files, info, s
 
 
@@ -737,6 +1011,28 @@ def num(v):
     return float(v) if math.isfinite(float(v)) else None
 
 
+def parse_checks(checks):
+    """report.json's "checks" (one object per assumption) as a list of dicts, or None"""
+    if not isinstance(checks, list):
+        return None
+    out = []
+    for ch in checks:
+        if not isinstance(ch, dict):
+            continue
+        rec = {"name": str(ch.get("name", "?")),
+               "applicable": ch.get("applicable") if isinstance(ch.get("applicable"), bool)
+               else None,
+               "passed": ch.get("passed") if isinstance(ch.get("passed"), bool) else None}
+        for k in ("statistic", "p_value", "alpha", "effect", "effect_threshold",
+                  "detectable_effect"):
+            rec[k] = num(ch.get(k))
+        for k in ("assumption", "sentence"):
+            rec[k] = ch.get(k) if isinstance(ch.get(k), str) else None
+        rec["details"] = ch.get("details")
+        out.append(rec)
+    return out
+
+
 def run_csympnet(exe, data, outdir, extra, timeout):
     cmd = [exe, "fit", data, "--out", outdir, "-q", *extra]
     t0 = time.monotonic()
@@ -749,13 +1045,23 @@ def run_csympnet(exe, data, outdir, extra, timeout):
         return res
     rep_path = os.path.join(outdir, "report.json")
     rep = None
-    if rc in (0, 4) and os.path.exists(rep_path):
+    if rc in (0, 4, 5) and os.path.exists(rep_path):
         try:
             with open(rep_path) as f:
                 rep = json.load(f)
         except (OSError, ValueError) as e:
             res.update(status="failed", reason=f"unreadable report.json: {e}")
             return res
+    if rep is not None:
+        res["verdict"] = rep.get("verdict")
+        res["checks"] = parse_checks(rep.get("checks"))
+    if rc == 5 and rep is not None:  # model rejected: a verdict, counted apart
+        failed = [ch.get("sentence") or ch["name"] for ch in res["checks"] or []
+                  if ch["passed"] is False]
+        res.update(status="rejected", identified=False,
+                   reason="; ".join(failed) or rep.get("not_identified_reason", last_err),
+                   gamma_hat=num(rep.get("gamma_hat")))
+        return res
     if rc == 4:
         res.update(status="not_identified", identified=False,
                    reason=(rep or {}).get("not_identified_reason", last_err),
@@ -798,6 +1104,27 @@ def score(res, gamma):
     return res
 
 
+def score_violation(res, v):
+    """Violation cases: the relative error against gamma_reference; an interval that lies
+    outside gamma_reference_range is a confident answer on violated data (confident_wrong)."""
+    if res.get("status") != "ok":
+        return res
+    gamma = v["gamma_reference"]
+    ref_lo, ref_hi = v["gamma_reference_range"]
+    g = res.get("gamma_hat")
+    res["rel_err"] = abs(g - gamma) / abs(gamma)
+    lo, hi = res.get("ci_low"), res.get("ci_high")
+    if lo is not None and hi is not None:
+        res["covers"] = bool(lo <= gamma <= hi)
+        res["rel_width"] = (hi - lo) / abs(gamma)
+        res["confident_wrong"] = bool(hi < ref_lo or lo > ref_hi)
+    else:
+        res["covers"] = None
+        res["rel_width"] = None
+        res["confident_wrong"] = None
+    return res
+
+
 def run_case(case, args, check_integrator, exe, extra):
     check_stop()
     cdir = os.path.join(args.out, "cases", case["id"])
@@ -810,6 +1137,10 @@ def run_case(case, args, check_integrator, exe, extra):
     write_csv(data, files, info["d"])
     case["paths"] = {"data": os.path.relpath(data, args.out)}
     gamma = info["gamma_true"]
+    scorer = score
+    if "violation" in info:
+        def scorer(res, gamma, v=info["violation"]):
+            return score_violation(res, v)
     methods = {}
     t0 = time.monotonic()
     try:
@@ -821,7 +1152,7 @@ def run_case(case, args, check_integrator, exe, extra):
     except Exception as e:  # a peer that breaks on a case is a failure of that peer
         res = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
     res["seconds"] = time.monotonic() - t0
-    methods["sindy"] = score(res, gamma)
+    methods["sindy"] = scorer(res, gamma)
     t0 = time.monotonic()
     try:
         o = oracle(files, info, s, np.random.default_rng(case["seed"] + [1]))
@@ -832,7 +1163,7 @@ def run_case(case, args, check_integrator, exe, extra):
     except Exception as e:
         res = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
     res["seconds"] = time.monotonic() - t0
-    methods["oracle"] = score(res, gamma)
+    methods["oracle"] = scorer(res, gamma)
     if args.only_peers:
         methods["csympnet"] = {"status": "skipped"}
     else:
@@ -840,7 +1171,7 @@ def run_case(case, args, check_integrator, exe, extra):
         if os.path.isdir(outdir):
             shutil.rmtree(outdir)
         case["paths"]["csympnet_out"] = os.path.relpath(outdir, args.out)
-        methods["csympnet"] = score(run_csympnet(exe, data, outdir, extra, args.timeout), gamma)
+        methods["csympnet"] = scorer(run_csympnet(exe, data, outdir, extra, args.timeout), gamma)
     case["methods"] = methods
     return case
 
@@ -874,6 +1205,7 @@ def method_stats(cases, method):
         "with_interval": len(with_ci),
         "coverage": (sum(1 for r in with_ci if r["covers"]) / len(with_ci)) if with_ci else None,
         "not_identified": sum(1 for r in rs if r.get("status") == "not_identified"),
+        "rejected": sum(1 for r in rs if r.get("status") == "rejected"),
         "failed": sum(1 for r in rs if r.get("status") == "failed"),
         "confident_wrong": (sum(1 for r in rs if r.get("confident_wrong")) if method != "sindy"
                             else None),
@@ -889,12 +1221,21 @@ GROUPS = [("all", lambda c: "all"), ("system", lambda c: c["system"]),
           ("sigma", lambda c: f"{c['strata']['sigma']:g}")]
 
 
+def groups_for(cases):
+    """GROUPS, with the violation stratum after "all" when there are violation cases"""
+    if any("violation" in c["strata"] for c in cases):
+        return GROUPS[:1] + [("violation", lambda c: c["strata"].get("violation", "none"))] \
+            + GROUPS[1:]
+    return GROUPS
+
+
 def group_values(gname, key, cases):
     values = []
     for c in cases:
         if key(c) not in values:
             values.append(key(c))
-    order = {"system": SYSTEM_NAMES, "gamma ratio": RATIO_STRATA, "units": UNITS_STRATA,
+    order = {"violation": VIOLATION_STRATA, "system": SYSTEM_NAMES,
+             "gamma ratio": RATIO_STRATA, "units": UNITS_STRATA,
              "shape": SHAPE_STRATA, "steps": STEPS_STRATA,
              "sigma": [f"{s:g}" for s in SIGMA_STRATA]}.get(gname)
     if order:
@@ -904,7 +1245,7 @@ def group_values(gname, key, cases):
 
 def summarize(cases):
     out = {}
-    for gname, key in GROUPS:
+    for gname, key in groups_for(cases):
         out[gname] = {v: {m: method_stats([c for c in cases if key(c) == v], m) for m in METHODS}
                       for v in group_values(gname, key, cases)}
     return out
@@ -912,12 +1253,12 @@ def summarize(cases):
 
 def tables(summary):
     lines = []
-    head = ("| {} | method | n | median | p90 | worst | coverage | not id. | failed | "
+    head = ("| {} | method | n | median | p90 | worst | coverage | not id. | rejected | failed | "
             "conf. wrong | err>0.1 | median s |")
     for gname, groups in summary.items():
         lines.append(f"### {gname}\n")
         lines.append(head.format(gname))
-        lines.append("|" + "---|" * 12)
+        lines.append("|" + "---|" * 13)
         for v, per in groups.items():
             for m in METHODS:
                 st = per.get(m)
@@ -929,7 +1270,7 @@ def tables(summary):
                 cw = "n/a" if st["confident_wrong"] is None else str(st["confident_wrong"])
                 lines.append(f"| {v} | {m} | {st['n']} | {fmt(st['median'])} | {fmt(st['p90'])} | "
                              f"{fmt(st['worst'])} | {cov} | {st['not_identified']} | "
-                             f"{st['failed']} | {cw} | {st['err_gt_0.1']} | "
+                             f"{st['rejected']} | {st['failed']} | {cw} | {st['err_gt_0.1']} | "
                              f"{fmt(st['median_seconds'], 's')} |")
         lines.append("")
     return "\n".join(lines)
@@ -950,9 +1291,136 @@ def integrator_table(cases):
 
 def case_counts(cases):
     lines = ["### cases per stratum value\n"]
-    for gname, key in GROUPS[1:]:
+    for gname, key in groups_for(cases)[1:]:
         counts = {v: sum(1 for c in cases if key(c) == v) for v in group_values(gname, key, cases)}
         lines.append(f"- {gname}: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+    return "\n".join(lines) + "\n"
+
+
+def csympnet_result(c):
+    r = c.get("methods", {}).get("csympnet")
+    return None if r is None or r.get("status") == "skipped" else r
+
+
+def verdict_of(r):
+    return {"ok": "identified", "not_identified": "not identified",
+            "rejected": "rejected"}.get(r.get("status"), "failed")
+
+
+def check_names(cases):
+    names = list(CHECK_NAMES)
+    for c in cases:
+        for ch in csympnet_result(c).get("checks") or []:
+            if ch["name"] not in names:
+                names.append(ch["name"])
+    return names
+
+
+def check_counts(cases, names):
+    """per check name: (applicable, failed) over the cases' csympnet checks, and the number of
+    cases with any failed check"""
+    per = {nm: [0, 0] for nm in names}
+    anyf = 0
+    for c in cases:
+        chs = csympnet_result(c).get("checks") or []
+        for ch in chs:
+            if ch["applicable"] is not False:
+                per[ch["name"]][0] += 1
+            if ch["passed"] is False:
+                per[ch["name"]][1] += 1
+        anyf += any(ch["passed"] is False for ch in chs)
+    return per, anyf
+
+
+def false_alarm_tables(cases):
+    """valid cases: per check, failed / applicable and failed / all; overall, per sigma, shape"""
+    cs = [c for c in cases if "violation" not in c["strata"] and csympnet_result(c)
+          and csympnet_result(c).get("checks") is not None]
+    if not cs:
+        return ""
+    names = check_names(cs)
+    lines = ["### csympnet model checks on valid data: false alarms\n",
+             "Per check: failed / applicable (rate), then failed / all cases of the row. "
+             "'any': cases with at least one failed check / all.\n",
+             "| stratum | value | n | " + " | ".join(names) + " | any |",
+             "|" + "---|" * (len(names) + 4)]
+    groups = [("all", lambda c: "all"), ("sigma", lambda c: f"{c['strata']['sigma']:g}"),
+              ("shape", lambda c: c["strata"]["shape"])]
+    for gname, key in groups:
+        for v in group_values(gname, key, cs):
+            sub = [c for c in cs if key(c) == v]
+            per, anyf = check_counts(sub, names)
+            n = len(sub)
+            cells = []
+            for nm in names:
+                a, f = per[nm]
+                rate = f"{f / a:.2f}" if a else "n/a"
+                cells.append(f"{f}/{a} ({rate}); {f / n:.2f} of all")
+            lines.append(f"| {gname} | {v} | {n} | " + " | ".join(cells)
+                         + f" | {anyf}/{n} ({anyf / n:.2f}) |")
+    return "\n".join(lines) + "\n"
+
+
+def violation_tables(cases):
+    """violation cases: per kind and size, detection rate of each check and of any check,
+    verdict shares, confident answers whose interval misses the true / equivalent gamma"""
+    cs = [c for c in cases if "violation" in c["strata"] and csympnet_result(c)]
+    if not cs:
+        return ""
+    names = check_names(cs)
+    lines = ["### csympnet model checks on violation data: detection\n",
+             "Per check: cases where it failed / cases (applicable in brackets when fewer). "
+             "Verdict shares over all cases of the row. 'conf. wrong': identified with an "
+             "interval outside the true gamma (coulomb, quadratic drag: the equivalent total at "
+             "A0; nonuniform: outside [min, max] of the modal rates; energy gain: the negative "
+             "gamma).\n",
+             "| violation | n | " + " | ".join(names)
+             + " | any | rejected | not identified | identified | failed | conf. wrong |",
+             "|" + "---|" * (len(names) + 8)]
+    wrong = []
+    key = lambda c: c["strata"]["violation"]  # noqa: E731
+    for v in group_values("violation", key, cs):
+        sub = [c for c in cs if key(c) == v]
+        n = len(sub)
+        per, anyf = check_counts(sub, names)
+        cells = []
+        for nm in names:
+            a, f = per[nm]
+            cells.append(f"{f / n:.2f} ({f}/{n}" + (f", appl. {a})" if a < n else ")"))
+        verd = [verdict_of(csympnet_result(c)) for c in sub]
+        shares = [f"{verd.count(x) / n:.2f}" for x in ("rejected", "not identified",
+                                                        "identified")]
+        cw = [c for c in sub if csympnet_result(c).get("confident_wrong")]
+        wrong += cw
+        lines.append(f"| {v} | {n} | " + " | ".join(cells) + f" | {anyf / n:.2f} ({anyf}/{n}) | "
+                     + " | ".join(shares) + f" | {verd.count('failed')} | {len(cw)} |")
+    lines.append("")
+    if wrong:
+        lines.append("Confident answers on violated data (identified, interval misses):\n")
+        for c in wrong:
+            r = csympnet_result(c)
+            ref = c["violation"]["gamma_reference_range"]
+            ref_s = f"{ref[0]:.3e}" if ref[0] == ref[1] else f"[{ref[0]:.3e}, {ref[1]:.3e}]"
+            lines.append(f"- {c['id']} ({c['strata']['shape']}, sigma {c['strata']['sigma']:g}):"
+                         f" gamma_hat {r['gamma_hat']:.3e}, interval [{r['ci_low']:.3e}, "
+                         f"{r['ci_high']:.3e}], true {ref_s}")
+    else:
+        lines.append("No confident answer on violated data.")
+    return "\n".join(lines) + "\n"
+
+
+def verdict_tables(cases):
+    """csympnet's verdict counts per stratum value"""
+    cs = [c for c in cases if csympnet_result(c)]
+    if not cs:
+        return ""
+    lines = ["### csympnet verdicts per stratum\n",
+             "| stratum | value | n | " + " | ".join(VERDICTS) + " |", "|" + "---|" * 7]
+    for gname, key in groups_for(cs):
+        for v in group_values(gname, key, cs):
+            verd = [verdict_of(csympnet_result(c)) for c in cs if key(c) == v]
+            lines.append(f"| {gname} | {v} | {len(verd)} | "
+                         + " | ".join(str(verd.count(x)) for x in VERDICTS) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -976,13 +1444,23 @@ def write_outputs(args, meta, cases, interrupted=False):
     notes = (f"Notes: the oracle fits in natural units (it is given the true unit scales, q "
              f"offsets and time scale); sindy has no interval (coverage n/a) and no "
              f"'confident wrong'; error statistics are over the cases with a number "
-             f"(not identified and failed cases are counted apart). sindy: local cubic fit over "
-             f"{SG_WINDOW} samples, STLSQ threshold {STLSQ_THRESHOLD:g}, ridge {STLSQ_RIDGE:g}. "
+             f"(not identified, rejected and failed cases are counted apart). sindy: local "
+             f"cubic fit over {SG_WINDOW} samples, STLSQ threshold {STLSQ_THRESHOLD:g}, ridge "
+             f"{STLSQ_RIDGE:g}. "
              f"The oracle's one-step least squares treats the noisy starting state of each step as "
              f"exact (errors in variables), so with noise it is biased and its interval can miss; "
              f"on noise-free data its residuals are integration error, not noise, so its "
              f"interval (width ~1e-9 relative) says nothing about coverage there.")
-    body = "\n".join([case_counts(done), integrator_table(done), tables(summary)])
+    if any("violation" in c["strata"] for c in done):
+        notes += (" Violation cases: errors are relative to |gamma_reference| (the drawn gamma; "
+                  "coulomb, quadratic drag: the equivalent total at A0; nonuniform: the mean "
+                  "modal rate; energy gain: negative); 'confident wrong' there is any interval "
+                  "outside gamma_reference_range (nonuniform: [min, max] modal rate), with no "
+                  "error threshold.")
+    checks = "\n".join(x for x in (false_alarm_tables(done), violation_tables(done),
+                                    verdict_tables(done)) if x)
+    body = "\n".join([case_counts(done), integrator_table(done), tables(summary)]
+                     + ([checks] if checks else []))
     md = "\n".join([
         "# Identification benchmark" + (" (interrupted, partial)" if interrupted else ""), "",
         f"- command: `{meta['command']}`", f"- date: {meta['date']}",
@@ -1022,6 +1500,8 @@ def progress(i, n, c):
             continue
         if r.get("status") == "ok":
             parts.append(f"{m} {r['rel_err']:.1e}")
+        elif r.get("status") == "rejected":
+            parts.append(f"{m} rejected")
         else:
             parts.append(f"{m} {r.get('status')}")
     print(f"[{i}/{n}] {c['id']} d={c['d']} {c['strata']['ratio']} {c['strata']['units']} "
@@ -1037,7 +1517,10 @@ def main():
         epilog="See the top of this file for the systems, strata and peers.")
     ap.add_argument("--out", required=True, help="output directory")
     ap.add_argument("--cases", type=int, default=None,
-                    help="number of cases (default 120; 8 with --quick)")
+                    help="number of cases (default 120, 8 with --quick; with --violations 60, "
+                         "10 with --quick)")
+    ap.add_argument("--violations", action="store_true",
+                    help="run only violation cases (data that break one assumption)")
     ap.add_argument("--quick", action="store_true", help="a small subset of small cases")
     ap.add_argument("--seed", type=int, default=1, help="default 1")
     ap.add_argument("--only-peers", action="store_true", help="skip csympnet")
@@ -1055,7 +1538,10 @@ def main():
         ap.error("--seed must be >= 0")
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
-    n = args.cases if args.cases is not None else (8 if args.quick else 120)
+    if args.violations:
+        n = args.cases if args.cases is not None else (10 if args.quick else 60)
+    else:
+        n = args.cases if args.cases is not None else (8 if args.quick else 120)
     if n < 1:
         ap.error("--cases must be >= 1")
     systems = SYSTEM_NAMES
@@ -1083,15 +1569,23 @@ def main():
             "csympnet": None if args.only_peers else exe,
             "csympnet_version": ("skipped (--only-peers)" if args.only_peers
                                  else csympnet_version(exe)),
-            "seed": args.seed, "quick": args.quick, "fit_args": extra, "timeout": args.timeout,
+            "seed": args.seed, "quick": args.quick, "violations": args.violations,
+            "fit_args": extra, "timeout": args.timeout,
             "settings": {"gen_omega_dt": GEN_OMEGA_DT, "oracle_omega_dt": ORACLE_OMEGA_DT,
                          "sg_window": SG_WINDOW, "sg_degree": SG_DEGREE,
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,
                          "library_cap": LIBRARY_CAP}}
-    cases = plan(n, args.seed, systems)
+    if args.violations:
+        try:
+            cases = plan_violations(n, args.seed, systems)
+        except ValueError as e:
+            ap.error(str(e))
+    else:
+        cases = plan(n, args.seed, systems)
     first = {}
-    for c in cases:
-        first.setdefault(c["system"], c["index"])
+    for c in cases:  # the integrator check: first case of each system (violation kind)
+        first.setdefault(c["strata"]["violation"] if args.violations else c["system"],
+                         c["index"])
     checked = set(first.values())
 
     got = {"signal": signal.SIGINT}

@@ -52,9 +52,16 @@ def test_sympnet_has_no_gamma(s1_pairs):
     assert model.type == "sympnet" and model.gamma is None and model.n_params == 114
 
 
-def test_gamma_interval_is_none_or_brackets_gamma(s1_model):
-    ci = s1_model.gamma_interval
-    assert ci is None or (ci[0] <= s1_model.gamma <= ci[1])
+def test_fit_claims_no_interval_and_says_where_one_comes_from(s1_model):
+    assert s1_model.gamma is not None and s1_model.gamma_interval is None
+    assert "identify" in s1_model.meta["gamma_interval_note"]
+
+
+def test_fit_warns_on_states_far_from_order_one(s1_pairs):
+    z0, z1, h = s1_pairs
+    with pytest.warns(UserWarning, match="of order"):
+        model = csympnet.fit(z0 * 1e-9, z1 * 1e-9, h, epochs=20, refine="none")
+    assert model.gamma_interval is None and "warnings" in model.meta
 
 
 def test_fit_equals_cli_fit_bit_for_bit(tmp_path, run_cli, s1_pairs):
@@ -221,8 +228,12 @@ def test_identification_options_equal_cli_fit_bit_for_bit(tmp_path, run_cli):
     assert np.array_equal(py_model.params, cli_model.params)
     assert report["gamma_hat"] == py_model.gamma
     assert report["bootstrap"]["resample"] == "trajectories"
-    assert py_model.gamma_interval == (report["gamma_ci_low"], report["gamma_ci_high"])
-    assert py_model.gamma_interval[0] < py_model.gamma_interval[1]
+    # A training recipe claims no interval: the bootstrap asked for is a spread, in meta.
+    assert py_model.gamma_interval is None
+    assert report["gamma_ci_low"] is None and report["gamma_ci_high"] is None
+    assert py_model.meta["bootstrap"]["low"] == report["bootstrap"]["low"]
+    assert py_model.meta["bootstrap"]["high"] == report["bootstrap"]["high"]
+    assert "csympnet fit" in py_model.meta["gamma_interval_note"]
 
 
 def test_identification_options_are_checked(s1_pairs):

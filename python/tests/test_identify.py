@@ -90,3 +90,22 @@ def test_pairs_and_checks():
         csympnet.identify(z, t, pairs=pairs)
     with pytest.raises(ValueError):
         csympnet.identify(z, t, level=1.5)
+
+
+def test_growing_motion_is_rejected_with_a_warning_and_its_rate():
+    t, z = damped_oscillator(n=200, gamma=-0.1, sigma=1e-2, seed=5)
+    with pytest.warns(csympnet.ModelRejectedWarning, match="the motion grows"):
+        r = csympnet.identify(z, t, **SMALL)
+    assert not r.identified and r.verdict == "model rejected"
+    assert r.gamma is None and r.interval is None and r.estimate is not None
+    names = [c["name"] for c in r.checks]
+    assert names == ["dissipation", "linear_damping", "one_rate", "residuals"]
+    growth = r.checks[0]
+    assert growth["passed"] is False
+    low, high = growth["details"]["reversed_time_fit"]["interval"]
+    assert low < 0.1 < high
+    # The estimator says the same (one pipeline).
+    with pytest.warns(csympnet.NotIdentifiedWarning):
+        est = csympnet.CSympNetID(**SMALL).fit(z, t)
+    assert est.verdict_ == "model rejected" and est.gamma_ is None
+    assert est.checks_ == r.checks

@@ -209,6 +209,8 @@ void measure_growth(const std::vector<Trajectory>& trajs, bool pairs_only,
   const IdentifyResult rev = identify_once(reversed_in_time(trajs), pairs_only, config, hooks);
   if (rev.stopped) {
     r.stopped = true;
+    r.identified = false;
+    r.verdict = "interrupted";
     return;
   }
   nlohmann::json g = {{"rate", rev.gamma}, {"verdict", rev.verdict}, {"reasons", rev.reasons}};

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 
 #include <nlohmann/json.hpp>
+#include <unsupported/Eigen/MatrixFunctions>
 
 #include "csympnet/data/csv.hpp"
 #include "csympnet/data/generate.hpp"
@@ -230,6 +231,77 @@ TEST(FitCli, ClassicOptionsNeedTheClassicRecipe) {
                   (dir.path() / "o").string() + " --bootstrap 10 -q > " + err.string() + " 2>&1"),
             2);
   EXPECT_NE(slurp(err).find("--recipe classic"), std::string::npos) << slurp(err);
+}
+
+}  // namespace
+}  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+// One record of a linear oscillator, dq/dt = p, dp/dt = −q − gamma p, exact flow, 1% noise.
+std::vector<Trajectory> linear_record(double gamma, int points, double h, std::uint64_t seed) {
+  Matrix a(2, 2);
+  a << 0.0, 1.0, -1.0, -gamma;
+  const Matrix step = (a * h).exp();
+  Rng rng(seed, "fit-cli-record");
+  Trajectory t;
+  t.t.resize(points);
+  t.z.resize(2, points);
+  t.t(0) = 0.0;
+  t.z.col(0) << 0.5, 0.0;
+  for (int k = 1; k < points; ++k) {
+    t.t(k) = k * h;
+    t.z.col(k) = step * t.z.col(k - 1);
+  }
+  for (int k = 0; k < points; ++k)
+    for (int i = 0; i < 2; ++i) t.z(i, k) += 0.01 * 0.3 * rng.normal();
+  return {t};
+}
+
+// Growing motion: not "no damping" but the model rejected, named as growth, with a rate whose
+// interval (from the fit in reversed time) covers the truth; exit 5 and the checks in the report.
+TEST(FitCli, GrowingMotionIsRejectedAndNamedWithItsRate) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "grow.csv", out = dir.path() / "fit";
+  write_trajectories_csv(data.string(), linear_record(-0.1, 160, 0.1, 3));
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
+                  stdout_file.string() + " 2>&1"),
+            5)
+      << slurp(stdout_file);
+  const std::string printed = slurp(stdout_file);
+  EXPECT_NE(printed.find("gamma_hat: model rejected"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("the motion grows"), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("from no damping"), std::string::npos) << printed;
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(rep["verdict"], "model rejected");
+  EXPECT_EQ(rep["identified"], false);
+  EXPECT_TRUE(rep["gamma_ci_low"].is_null());
+  ASSERT_EQ(rep["checks"].size(), 4u);
+  const auto& g = rep["checks"][0];
+  EXPECT_EQ(g["name"], "dissipation");
+  EXPECT_EQ(g["passed"], false);
+  const auto& rev = g["details"]["reversed_time_fit"];
+  ASSERT_TRUE(rev.contains("interval")) << rev.dump();
+  EXPECT_LT(rev["interval"][0].get<double>(), 0.1);
+  EXPECT_GT(rev["interval"][1].get<double>(), 0.1);
+}
+
+// A valid record passes every check and keeps its interval.
+TEST(FitCli, ValidDampedRecordPassesTheChecks) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "decay.csv", out = dir.path() / "fit";
+  write_trajectories_csv(data.string(), linear_record(0.1, 300, 0.2, 4));
+  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > /dev/null"),
+            0);
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(rep["verdict"], "identified");
+  for (const auto& c : rep["checks"]) EXPECT_EQ(c["passed"], true) << c.dump();
+  EXPECT_LT(rep["gamma_ci_low"].get<double>(), 0.1);
+  EXPECT_GT(rep["gamma_ci_high"].get<double>(), 0.1);
 }
 
 }  // namespace

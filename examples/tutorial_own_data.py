@@ -7,6 +7,9 @@ sensor noise and a jittery sample clock. It stands in for your own file; step 1 
 steps 2-5 are what you would run on yours. docs/tutorial.md walks through the same steps.
 
     PYTHONPATH=build/python /usr/bin/python3 examples/tutorial_own_data.py [--out DIR]
+
+`--write-record PATH` writes step 1's CSV alone and stops (no csympnet needed): that is how
+examples/pendulum_record.csv, the record `make demo` fits, was made.
 """
 
 import argparse
@@ -14,8 +17,6 @@ import os
 
 import numpy as np
 
-import csympnet
-from csympnet import plot
 
 # The truth, which the fit does not see: θ'' = −(g/L) sin θ − γ θ'.
 GAMMA = 0.12  # 1/s
@@ -57,7 +58,14 @@ def write_measurement(path):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", default="tutorial-out", help="output directory")
+    parser.add_argument("--write-record", metavar="PATH",
+                        help="write step 1's CSV to PATH and stop")
     args = parser.parse_args()
+    if args.write_record:
+        write_measurement(args.write_record)
+        return
+    import csympnet  # not needed to write the record
+    from csympnet import plot
     os.makedirs(args.out, exist_ok=True)
     csv = os.path.join(args.out, "pendulum.csv")
     write_measurement(csv)

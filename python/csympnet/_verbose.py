@@ -10,7 +10,10 @@ try:
 except ImportError:  # tqdm is optional
     _tqdm = None
 
-_STAGE_NAMES = {"adamw": "AdamW", "lm": "LM", "lbfgs": "L-BFGS", "bootstrap": "bootstrap"}
+# The bar's name of each stage. An LM or L-BFGS bar's total is a cap that the optimiser
+# usually does not reach: it stops early when it has converged.
+_STAGE_NAMES = {"adamw": "AdamW epochs", "lm": "Levenberg-Marquardt (LM) iterations, at most",
+                "lbfgs": "L-BFGS iterations, at most", "bootstrap": "bootstrap replicates"}
 
 
 class _Bars:
@@ -33,7 +36,7 @@ class _Bars:
                 self._bar = _tqdm(total=p["epochs"], desc=_STAGE_NAMES.get(stage, stage),
                                   unit=unit, file=self._file, leave=True, dynamic_ncols=True)
         self._last = p["epoch"]
-        info = {} if p.get("val_loss") is None else {"val": f"{p['val_loss']:.3e}"}
+        info = {} if p.get("val_loss") is None else {"held-out loss": f"{p['val_loss']:.3e}"}
         if p.get("gamma") is not None:
             info["gamma"] = f"{p['gamma']:.6g}"
         if self._bar is not None:

@@ -46,8 +46,8 @@ SIZES = {
 #: Units shown in axis labels, by quantity: t (time), q and p (states), H (energy), E (the
 #: accumulated L2 error, whose unit is that of the states times the square root of time's).
 #: Override with `units={"t": "s", ...}`; an empty string shows no unit. When E is not given
-#: but t, q or p are, E's unit is made from them ("deg s$^{1/2}$"; "deg, deg/s (mixed)
-#: s$^{1/2}$" when q and p differ).
+#: but t, q or p are, E's unit is made from them ("m s$^{1/2}$"; "(deg, deg/s) s$^{1/2}$"
+#: when q and p differ, since E sums both).
 DEFAULT_UNITS = {"t": "a.u.", "q": "a.u.", "p": "a.u.", "H": "a.u.", "E": "a.u."}
 
 #: The featured model's colour.
@@ -129,7 +129,7 @@ def _units(units):
 
 def _error_unit(q, p, t):
     """The unit of E = (Σ‖z − ẑ‖² Δt)^{1/2}: the states' unit times the square root of time's."""
-    states = q if q == p else f"{q}, {p} (mixed)"
+    states = q if q == p else f"({q}, {p})" if q and p else q or p
     if not t:
         return states
     return f"{states} {t}$^{{1/2}}$" if states else f"{t}$^{{1/2}}$"
@@ -146,6 +146,8 @@ def _label(text, unit="", log=False, wrap=26):
     if not notes:
         return text
     note = f"({', '.join(notes)})"
+    if len(note) > wrap and len(notes) > 1:  # too long for one line: the unit, then the rest
+        note = f"({notes[0]},\n{', '.join(notes[1:])})"
     return f"{text}\n{note}" if len(text) + len(note) > wrap else f"{text} {note}"
 
 

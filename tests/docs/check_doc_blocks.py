@@ -4,15 +4,16 @@
     check_doc_blocks.py --source ROOT --work DIR [FILE.md...]   (default: README.md docs/*.md)
 
 A Markdown file opts in with the line `<!-- docs-test: run -->`. Its ```python blocks then run
-in order, in one namespace, in DIR (where `examples` links to ROOT/examples), as a reader
-pasting them into one session would run them. A block whose first line starts with
+in order, in one namespace, in DIR (where `examples` and `experiments` link to ROOT's), as a
+reader pasting them into one session would run them. A block whose first line starts with
 `# not run by make test:` is skipped (the rest of that line says why, visibly). A fence with no
-language (or `text`) directly after a python block is the output that block claims: what the
-block prints must match it, text exactly (runs of spaces aside) and every number to the digits
-the text shows (0.12037 matches a printed 0.120371, not 0.12041).
+language (or `text`) directly after a python or sh block is the output that block claims: what
+the block prints must match it, text exactly (runs of spaces aside) and every number to the
+digits the text shows (0.12037 matches a printed 0.120371, not 0.12041). An sh block runs (bash,
+in DIR, with the directory of $CSYMPNET_CLI first on PATH) only when it claims an output.
 
-In a file that has not opted in, a python block followed by such an output block is an error:
-every block that claims an output is run.
+In a file that has not opted in, a block followed by such an output block is an error: every
+block that claims an output is run.
 """
 
 import argparse
@@ -21,6 +22,7 @@ import glob
 import io
 import os
 import re
+import subprocess
 import sys
 import time
 import traceback
@@ -48,7 +50,7 @@ def blocks(path):
     # separate the two.
     for k, b in enumerate(out):
         b["claims"] = None
-        if b["lang"] == "python" and k + 1 < len(out):
+        if b["lang"] in ("python", "sh") and k + 1 < len(out):
             nxt = out[k + 1]
             between = lines[b["end"]:nxt["line"] - 1]
             if nxt["lang"] in ("", "text") and not any(s.strip() for s in between):
@@ -84,25 +86,38 @@ def run_file(path, work):
     found = blocks(path)
     if OPT_IN not in text:
         for b in found:
-            if b["lang"] == "python" and b["claims"] is not None:
-                failures.append(f"{path}:{b['line']}: a python block claims an output (line "
+            if b["claims"] is not None:
+                failures.append(f"{path}:{b['line']}: a {b['lang']} block claims an output (line "
                                 f"{b['claims']['line']}) but the file is not run: add {OPT_IN}")
         return failures, ran, skipped
     namespace = {"__name__": "__main__"}
     for b in found:
-        if b["lang"] != "python":
+        if b["lang"] not in ("python", "sh") or (b["lang"] == "sh" and b["claims"] is None):
             continue
         if b["text"].lstrip().startswith(SKIP):
             skipped += 1
             continue
         out = io.StringIO()
         t0 = time.monotonic()
-        try:
-            with contextlib.redirect_stdout(out):
-                exec(compile(b["text"], f"{path}:{b['line']}", "exec"), namespace)
-        except Exception:
-            failures.append(f"{path}:{b['line']}: the block raised\n{traceback.format_exc()}")
-            break
+        if b["lang"] == "sh":
+            env = dict(os.environ)
+            cli = env.get("CSYMPNET_CLI")
+            if cli:
+                env["PATH"] = os.path.dirname(os.path.abspath(cli)) + os.pathsep + env["PATH"]
+            p = subprocess.run(["bash", "-e", "-c", b["text"]], env=env, capture_output=True,
+                               text=True)
+            if p.returncode != 0:
+                failures.append(f"{path}:{b['line']}: the block exited with {p.returncode}\n"
+                                f"{p.stderr}")
+                continue
+            out.write(p.stdout)
+        else:
+            try:
+                with contextlib.redirect_stdout(out):
+                    exec(compile(b["text"], f"{path}:{b['line']}", "exec"), namespace)
+            except Exception:
+                failures.append(f"{path}:{b['line']}: the block raised\n{traceback.format_exc()}")
+                break
         ran += 1
         printed = out.getvalue().strip()
         print(f"{path}:{b['line']}: ran in {time.monotonic() - t0:.1f} s", file=sys.stderr)
@@ -127,9 +142,10 @@ def main():
         [os.path.join(source, "README.md")]
         + sorted(glob.glob(os.path.join(source, "docs", "*.md"))))
     os.makedirs(args.work, exist_ok=True)
-    link = os.path.join(args.work, "examples")
-    if not os.path.lexists(link):
-        os.symlink(os.path.join(source, "examples"), link)
+    for name in ("examples", "experiments"):
+        link = os.path.join(args.work, name)
+        if not os.path.lexists(link):
+            os.symlink(os.path.join(source, name), link)
     os.chdir(args.work)
     failures = []
     for f in files:

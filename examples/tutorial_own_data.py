@@ -104,6 +104,13 @@ def main():
     # What this example promises, checked, so that `make test` notices if it stops holding.
     assert low <= GAMMA <= high, "the interval should cover the true damping rate here"
     assert scores["rollout_nrmse"] < 0.1 and scores["valid_fraction_mean"] > 0.5
+    # The record shipped beside this file (what `make demo` and docs/tutorial.md fit) is the
+    # one step 1 writes.
+    shipped = os.path.join(os.path.dirname(os.path.abspath(__file__)), "pendulum_record.csv")
+    if os.path.exists(shipped):
+        ours, theirs = (np.loadtxt(f, delimiter=",", skiprows=1) for f in (csv, shipped))
+        assert ours.shape == theirs.shape and np.allclose(ours, theirs, rtol=1e-9, atol=1e-12), \
+            f"{shipped} is not what write_measurement() writes: regenerate it with --write-record"
 
 
 if __name__ == "__main__":

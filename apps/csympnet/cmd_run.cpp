@@ -121,12 +121,13 @@ void add_run(CLI::App& app) {
                   "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
       ->check(library_range(kRefineIterationsRange));
-  cmd->add_option("--refine-solver", args->refine_solver,
-                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
-                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
-                  "many parameters) (default: dense_qr where one Ceres iteration is small enough to "
-                  "stop within a second of Ctrl-C, else blas_normal_cholesky; report.json's "
-                  "config.refine.linear_solver says which)")
+  cmd->add_option(
+         "--refine-solver", args->refine_solver,
+         "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
+         "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
+         "many parameters) (default: dense_qr where one Ceres iteration is small enough to "
+         "stop within a second of Ctrl-C, else blas_normal_cholesky; report.json's "
+         "config.refine.linear_solver says which)")
       ->check(one_of(linear_solver_names()));
   cmd->add_option("--core", args->core,
                   "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)")

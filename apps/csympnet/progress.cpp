@@ -2,9 +2,10 @@
 
 #include "interrupt.hpp"
 
+#include "csympnet/train/termination_words.hpp"
+
 #include <unistd.h>
 
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -21,26 +22,14 @@ const char* stage_words(const char* stage) {
 }
 
 std::string ending_words(const std::string& termination) {
-  // csympnet's LM says "function tolerance reached", Ceres "Function tolerance reached. ...".
-  auto starts = [&](const char* prefix) {
-    const std::size_t n = std::strlen(prefix);
-    if (termination.size() < n) return false;
-    for (std::size_t i = 0; i < n; ++i)
-      if (std::tolower(static_cast<unsigned char>(termination[i])) != prefix[i]) return false;
-    return true;
-  };
-  if (starts("maximum number of iterations reached")) return "used the full iteration budget";
-  if (starts("function tolerance reached")) return "converged: the loss stopped changing";
-  if (starts("gradient tolerance reached")) return "converged: the gradient is negligible";
-  if (starts("parameter tolerance reached")) return "converged: the parameters stopped changing";
-  return termination;
+  return termination_words(termination);
 }
 
 std::string lm_summary_words(long iterations, long accepted, long kept_iterate,
                              const std::string& termination) {
   return "Levenberg-Marquardt: " + std::to_string(iterations) + " iterations (" +
-         std::to_string(accepted) + " accepted), " + ending_words(termination) +
-         "; kept iterate " + std::to_string(kept_iterate) + ", the best on held-out data";
+         std::to_string(accepted) + " accepted), " + ending_words(termination) + "; kept iterate " +
+         std::to_string(kept_iterate) + ", the best on held-out data";
 }
 
 ProgressLine::ProgressLine(bool quiet)

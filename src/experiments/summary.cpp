@@ -331,7 +331,8 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
   std::string& tex = f.latex;
   md = "# " + s.title + "\n\n";
   if (s.kind == "table") {
-    md += "Each metric: ours, the paper's value where it reports one, and ours / paper.[^ratio]\n\n";
+    md +=
+        "Each metric: ours, the paper's value where it reports one, and ours / paper.[^ratio]\n\n";
     csv = "preset,model,metric,ours,paper,ratio\n";
     tex = "% " + s.title + "\n% Needs \\usepackage{booktabs}.\n" +
           latex_open(latex_caption_title(s.title) +

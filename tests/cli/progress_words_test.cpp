@@ -16,8 +16,7 @@ TEST(ProgressWords, StagesAreNamedInFull) {
 }
 
 TEST(ProgressWords, AnEndOfBudgetOrAConvergenceIsSaidPlainly) {
-  EXPECT_EQ(ending_words("maximum number of iterations reached"),
-            "used the full iteration budget");
+  EXPECT_EQ(ending_words("maximum number of iterations reached"), "used the full iteration budget");
   EXPECT_EQ(ending_words("Maximum number of iterations reached. Number of iterations: 300."),
             "used the full iteration budget");
   EXPECT_EQ(ending_words("function tolerance reached"), "converged: the loss stopped changing");

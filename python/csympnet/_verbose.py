@@ -10,10 +10,12 @@ try:
 except ImportError:  # tqdm is optional
     _tqdm = None
 
-# The bar's name of each stage. An LM or L-BFGS bar's total is a cap that the optimiser
-# usually does not reach: it stops early when it has converged.
-_STAGE_NAMES = {"adamw": "AdamW epochs", "lm": "Levenberg-Marquardt (LM) iterations, at most",
-                "lbfgs": "L-BFGS iterations, at most", "bootstrap": "bootstrap replicates"}
+# The bar's name of each stage.
+_STAGE_NAMES = {"adamw": "AdamW epochs", "lm": "LM iterations (Levenberg-Marquardt)",
+                "lbfgs": "L-BFGS iterations", "bootstrap": "bootstrap replicates"}
+# An LM or L-BFGS budget is a cap that the optimiser usually does not reach (it stops once it
+# has converged): its bar ends full where the stage ended, and the plain line says "at most".
+_CAPPED = ("lm", "lbfgs")
 
 
 class _Bars:
@@ -47,12 +49,17 @@ class _Bars:
             if now - self._printed >= 1.0 or p["epoch"] == p["epochs"]:
                 self._printed = now
                 fields = "  ".join(f"{k} {v}" for k, v in info.items())
-                print(f"{_STAGE_NAMES.get(stage, stage)} {p['epoch']}/{p['epochs']}  {fields}",
-                      file=self._file, flush=True)
+                count = (f"{p['epoch']} (at most {p['epochs']})" if stage in _CAPPED
+                         else f"{p['epoch']}/{p['epochs']}")
+                print(f"{_STAGE_NAMES.get(stage, stage)} {count}  {fields}", file=self._file,
+                      flush=True)
         return True
 
     def close(self):
         if self._bar is not None:
+            if self._stage in _CAPPED and self._bar.n < (self._bar.total or 0):
+                self._bar.total = self._bar.n  # ended before the cap: done, not cut short
+                self._bar.refresh()
             self._bar.close()
             self._bar = None
 

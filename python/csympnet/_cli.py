@@ -3,7 +3,8 @@ line (`csympnet --help`), which `pip install` bundles in the package as csympnet
 
 Where it looks, in order: the environment variable CSYMPNET_CLI (a path to the program); the
 bundled copy; the build tree's bin/csympnet when the package is imported from a CMake build
-directory (PYTHONPATH=build/python); a compiled `csympnet` on PATH (`cmake --install`).
+directory (PYTHONPATH=build/python); <prefix>/bin/csympnet when the package was installed by
+`cmake --install` into <prefix>; a compiled `csympnet` on PATH.
 """
 
 import os
@@ -36,9 +37,13 @@ def find_cli(environ=None, package_dir=None, path=None):
     given = environ.get("CSYMPNET_CLI")
     if given:
         return given if _is_program(given) else None
+    up = lambda n: os.path.abspath(os.path.join(package_dir, *[os.pardir] * n))
     candidates = [os.path.join(package_dir, "_bin", "csympnet"),
                   # <build>/python/csympnet -> <build>/bin/csympnet
-                  os.path.join(os.path.dirname(os.path.dirname(package_dir)), "bin", "csympnet")]
+                  os.path.join(up(2), "bin", "csympnet"),
+                  # `cmake --install`: <prefix>/lib/python3.X/dist-packages/csympnet ->
+                  # <prefix>/bin/csympnet
+                  os.path.join(up(4), "bin", "csympnet")]
     for c in candidates:
         if _is_program(c):
             return c

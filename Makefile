@@ -32,7 +32,7 @@ test: build
 
 # The documentation site: the guide (docs/*.md) and the Python API reference, in
 # $(BUILD)/docs/html (open index.html).
-docs: build
+docs: build-demo
 	@PYTHONPATH=$(BUILD)/python /usr/bin/python3 -m sphinx -q -b html -d $(BUILD)/docs/doctrees docs $(BUILD)/docs/html
 	@echo "docs: $(BUILD)/docs/html/index.html"
 

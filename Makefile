@@ -5,23 +5,34 @@ JOBS  ?= $(shell nproc)
 ASAN_OPTIONS_CI ?= detect_leaks=1:abort_on_error=1
 CLI   := $(BUILD)/bin/csympnet
 
-.PHONY: all deps build test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo bench docs format clean
+# ccache, where installed, caches compiles across builds and build directories.
+LAUNCHER := $(if $(shell command -v ccache 2>/dev/null),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+
+.PHONY: all deps configure build build-demo test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo bench docs format clean
 
 all: build
 
 deps:
 	@bash scripts/install-deps.sh
 
-build: deps
-	@cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release >/dev/null
+configure: deps
+	@cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release $(LAUNCHER) >/dev/null
+
+# Everything: the library, the CLI, the Python module, the test programs and the benchmarks.
+build: configure
 	@cmake --build $(BUILD) -j $(JOBS)
+
+# What `make demo` runs and nothing else: the CLI and the Python module (CMake target
+# csympnet_programs), not the test programs or the benchmarks.
+build-demo: configure
+	@cmake --build $(BUILD) -j $(JOBS) --target csympnet_programs
 
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
 # The documentation site: the guide (docs/*.md) and the Python API reference, in
 # $(BUILD)/docs/html (open index.html).
-docs: build
+docs: build-demo
 	@PYTHONPATH=$(BUILD)/python /usr/bin/python3 -m sphinx -q -b html -d $(BUILD)/docs/doctrees docs $(BUILD)/docs/html
 	@echo "docs: $(BUILD)/docs/html/index.html"
 
@@ -66,9 +77,17 @@ fuzz-merge: fuzz-build
 fuzz-hours:
 	@awk -F'|' '$$5 ~ /^ *[0-9]+ *$$/ {s += $$5} END {printf "fuzzed %.0f CPU s = %.2f CPU hours\n", s, s / 3600}' fuzz/hours.md
 
-# The quick reproduction: Tables 2-4 at seed 42 beside the paper's numbers (docs/reproduce.md).
-# A rerun resumes: finished runs are cached in results/quick/runs.
-demo: build
+# The main job on a record shaped like a user's (examples/pendulum_record.csv: a damped
+# pendulum in degrees, with its own column names): γ̂ with its interval. Then the quick
+# reproduction: Tables 2-4 at seed 42 beside the paper's numbers (docs/reproduce.md). A rerun
+# resumes: finished runs are cached in results/quick/runs.
+DEMO_FIT := $(CLI) fit examples/pendulum_record.csv \
+  --columns t=time_s,q1=angle_deg,p1=angular_velocity_deg_s --out results/demo-fit --force -q
+demo: build-demo
+	@echo "== csympnet fit on examples/pendulum_record.csv (true gamma 0.12 1/s) =="
+	@echo "$(DEMO_FIT)" | tr -s ' '
+	@$(DEMO_FIT)
+	@echo "== csympnet reproduce --suite quick: Tables 2-4 beside the paper =="
 	@$(CLI) reproduce --suite quick --out results/quick
 
 # One table, measured in one run: ms per training epoch, csympnet vs PyTorch (float64, same

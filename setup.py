@@ -1,6 +1,8 @@
-# Builds csympnet._core with the project's own CMake build (only the target csympnet_python:
-# the library and the bindings, no tests, no CLI) and puts it beside python/csympnet/*.py.
-# The metadata is in pyproject.toml; the version is CMakeLists.txt's project version.
+# Builds csympnet._core with the project's own CMake build (the targets csympnet_python, the
+# library and the bindings, and csympnet, the command line; no tests) and puts the module beside
+# python/csympnet/*.py and the command line in csympnet/_bin/, where the `csympnet` console
+# script and `python -m csympnet` run it (python/csympnet/_cli.py). The metadata is in
+# pyproject.toml; the version is CMakeLists.txt's project version.
 #
 # Environment:
 #   CSYMPNET_CMAKE_BUILD_DIR  an existing CMake build directory of this source tree to build
@@ -10,6 +12,8 @@
 #   CSYMPNET_CMAKE_ARGS       extra arguments for that configure step (space-separated), e.g.
 #                             "-DCMAKE_CXX_COMPILER_LAUNCHER=ccache".
 #   CMAKE_BUILD_PARALLEL_LEVEL  compile jobs (default: the number of CPUs).
+#   CSYMPNET_BUNDLE_CLI=0     leave the command line out (the `csympnet` command then looks
+#                             for it elsewhere: CSYMPNET_CLI, PATH).
 import os
 import re
 import shlex
@@ -60,12 +64,14 @@ class CMakeBuild(build_ext):
             subprocess.run(args, check=True)
         env = dict(os.environ)
         env.setdefault("CMAKE_BUILD_PARALLEL_LEVEL", str(os.cpu_count() or 1))
+        bundle_cli = os.environ.get("CSYMPNET_BUNDLE_CLI", "1") != "0"
+        targets = ["csympnet_python"] + (["csympnet"] if bundle_cli else [])
         try:
-            subprocess.run([cmake, "--build", build_dir, "--target", "csympnet_python"],
+            subprocess.run([cmake, "--build", build_dir, "--target", *targets],
                            check=True, env=env)
         except subprocess.CalledProcessError as e:
             raise RuntimeError(
-                f"csympnet: building the target csympnet_python in {build_dir} failed; if "
+                f"csympnet: building the targets {' '.join(targets)} in {build_dir} failed; if "
                 "CMake said 'Python module NOT built', that build directory was configured "
                 "without Python 3 headers, NumPy or pybind11") from e
 
@@ -82,6 +88,12 @@ class CMakeBuild(build_ext):
         os.makedirs(os.path.dirname(target), exist_ok=True)
         shutil.copyfile(built, target)
         shutil.copymode(built, target)
+        if bundle_cli:
+            cli = os.path.join(build_dir, "bin", "csympnet")
+            bundled = os.path.join(os.path.dirname(target), "_bin", "csympnet")
+            os.makedirs(os.path.dirname(bundled), exist_ok=True)
+            shutil.copyfile(cli, bundled)
+            shutil.copymode(cli, bundled)
 
 
 # setuptools' scratch files (build_base, the egg-info) stay out of the source tree's python/:

@@ -7,6 +7,9 @@ sensor noise and a jittery sample clock. It stands in for your own file; step 1 
 steps 2-5 are what you would run on yours. docs/tutorial.md walks through the same steps.
 
     PYTHONPATH=build/python /usr/bin/python3 examples/tutorial_own_data.py [--out DIR]
+
+`--write-record PATH` writes step 1's CSV alone and stops (no csympnet needed): that is how
+examples/pendulum_record.csv, the record `make demo` fits, was made.
 """
 
 import argparse
@@ -14,8 +17,6 @@ import os
 
 import numpy as np
 
-import csympnet
-from csympnet import plot
 
 # The truth, which the fit does not see: θ'' = −(g/L) sin θ − γ θ'.
 GAMMA = 0.12  # 1/s
@@ -57,7 +58,14 @@ def write_measurement(path):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", default="tutorial-out", help="output directory")
+    parser.add_argument("--write-record", metavar="PATH",
+                        help="write step 1's CSV to PATH and stop")
     args = parser.parse_args()
+    if args.write_record:
+        write_measurement(args.write_record)
+        return
+    import csympnet  # not needed to write the record
+    from csympnet import plot
     os.makedirs(args.out, exist_ok=True)
     csv = os.path.join(args.out, "pendulum.csv")
     write_measurement(csv)
@@ -96,6 +104,13 @@ def main():
     # What this example promises, checked, so that `make test` notices if it stops holding.
     assert low <= GAMMA <= high, "the interval should cover the true damping rate here"
     assert scores["rollout_nrmse"] < 0.1 and scores["valid_fraction_mean"] > 0.5
+    # The record shipped beside this file (what `make demo` and docs/tutorial.md fit) is the
+    # one step 1 writes.
+    shipped = os.path.join(os.path.dirname(os.path.abspath(__file__)), "pendulum_record.csv")
+    if os.path.exists(shipped):
+        ours, theirs = (np.loadtxt(f, delimiter=",", skiprows=1) for f in (csv, shipped))
+        assert ours.shape == theirs.shape and np.allclose(ours, theirs, rtol=1e-9, atol=1e-12), \
+            f"{shipped} is not what write_measurement() writes: regenerate it with --write-record"
 
 
 if __name__ == "__main__":

@@ -80,9 +80,12 @@ def rollout_figures(plot, summary, records, suite, figdir, size):
             energies[model] = np.array(tr["energy_pred"], dtype=float)
         if not preds:
             continue
-        title = f"{summary[suite]['title'].split(':')[0]}: {preset}, first test trajectory"
+        caption = (f"{summary[suite]['title'].split(':')[0]}, preset {preset}: every model's "
+                   "rollout from the first test trajectory against the reference solution "
+                   "(dashed).")
         plot.rollout_figure(t, preds, ref, energies=energies, energy_ref=e_ref, size=size,
-                            path=os.path.join(figdir, f"{suite}-{preset}-rollout"), title=title)
+                            path=os.path.join(figdir, f"{suite}-{preset}-rollout"),
+                            caption=caption)
 
 
 def cells_by(summary, suite, preset, key, sigma=None):

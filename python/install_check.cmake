@@ -12,6 +12,15 @@ assert os.path.realpath(csympnet.__file__).startswith(os.path.realpath(sys.argv[
 from csympnet import plot
 m = csympnet.fit(*csympnet.generate("s1", "train"), epochs=20)
 assert m.predict([0.5, -0.2], 0.1).shape == (2,)
+# python -m csympnet finds the installed command line, <prefix>/bin/csympnet, with nothing
+# else to go on (no CSYMPNET_CLI, no csympnet on PATH).
+from csympnet import _cli
+env = {"PATH": "/usr/bin:/bin"}
+assert _cli.find_cli(env) == os.path.join(os.getcwd(), "bin", "csympnet"), _cli.find_cli(env)
+import subprocess
+out = subprocess.run([sys.executable, "-m", "csympnet", "--version"], env={**env,
+                     "PYTHONPATH": sys.argv[1]}, capture_output=True, text=True, check=True)
+assert csympnet.__version__ in out.stdout, out
 print("installed csympnet", csympnet.__version__, "at", os.path.dirname(csympnet.__file__))
 ]=])
 execute_process(COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${PACKAGE_DIR} PYTHONDONTWRITEBYTECODE=1

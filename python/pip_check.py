@@ -3,7 +3,8 @@
   pip_check.py venv  --source S --build-dir B --work W
       a fresh venv (--system-site-packages: NumPy is Debian's), `pip install
       --no-build-isolation --no-deps --no-index S` reusing the CMake build directory B, then
-      import csympnet from a directory outside S and fit and predict.
+      import csympnet from a directory outside S and fit and predict; run the `csympnet`
+      command and `python -m csympnet`, which run the bundled command line.
   pip_check.py wheel --source S --build-dir B --work W
       `pip wheel` S into W/wheels, check what the wheel holds, install it into a fresh venv
       and import it the same way.
@@ -100,6 +101,7 @@ def main():
         expected = {f"csympnet/{os.path.basename(p)}"
                     for p in glob.glob(os.path.join(source, "python", "csympnet", "*.py"))}
         expected.add("csympnet/_core" + sysconfig.get_config_var("EXT_SUFFIX"))
+        expected.add("csympnet/_bin/csympnet")
         expected.add(f"csympnet-{version}.dist-info/LICENSE")
         missing = expected - names
         assert not missing, f"the wheel lacks {sorted(missing)}; it holds {sorted(names)}"
@@ -107,6 +109,24 @@ def main():
         print(f"{os.path.basename(found[0])}: {len(names)} files, {os.path.getsize(found[0])} bytes")
         run([python, "-m", "pip", "install", "--no-deps", "--no-index", "--no-cache-dir", found[0]])
     check_import(python, venv, version, source)
+    check_command(venv, version)
+
+
+def check_command(venv, version):
+    """The console script `csympnet` and `python -m csympnet` run the bundled command line."""
+    bundled = glob.glob(os.path.join(venv, "lib", "python*", "site-packages", "csympnet", "_bin",
+                                     "csympnet"))
+    assert len(bundled) == 1 and os.access(bundled[0], os.X_OK), bundled
+    env = dict(os.environ)
+    env.pop("CSYMPNET_CLI", None)
+    env["PATH"] = "/usr/bin:/bin"  # nothing but the venv's own command can answer
+    for cmd in ([os.path.join(venv, "bin", "csympnet"), "--version"],
+                [os.path.join(venv, "bin", "python"), "-m", "csympnet", "--version"]):
+        with tempfile.TemporaryDirectory(prefix="csympnet-cli-") as cwd:
+            out = subprocess.run(cmd, check=True, cwd=cwd, env=env, capture_output=True,
+                                 text=True).stdout
+        assert version in out, (cmd, out)
+        print(f"{' '.join(os.path.basename(c) for c in cmd)}: {out.strip()}")
 
 
 if __name__ == "__main__":

@@ -125,10 +125,13 @@ void add_run(CLI::App& app) {
                   "Iterations of the second stage (default 300)")
       ->check(kWholeNumber)
       ->check(library_range(kRefineIterationsRange));
-  cmd->add_option("--refine-solver", args->refine_solver,
-                  "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
-                  "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
-                  "many parameters) (default: dense_qr)")
+  cmd->add_option(
+         "--refine-solver", args->refine_solver,
+         "LM linear solver: dense_qr, dense_normal_cholesky (both Ceres) or "
+         "blas_normal_cholesky (JᵀJ formed once per Jacobian with BLAS; fastest for "
+         "many parameters) (default: dense_qr where one Ceres iteration is small enough to "
+         "stop within a second of Ctrl-C, else blas_normal_cholesky; report.json's "
+         "config.refine.linear_solver says which)")
       ->check(one_of(linear_solver_names()));
   cmd->add_option("--core", args->core,
                   "Symplectic core of csympnet/sympnet: la:L:m or g:L:w (default: the preset's)")
@@ -159,7 +162,10 @@ void add_run(CLI::App& app) {
     c.beta_init = args->beta_init;
     c.refine.method = parse_refine_method(args->refine);
     if (args->refine_iterations) c.refine.iterations = *args->refine_iterations;
-    if (args->refine_solver) c.refine.linear_solver = parse_linear_solver(*args->refine_solver);
+    if (args->refine_solver)
+      c.refine.linear_solver = parse_linear_solver(*args->refine_solver);
+    else
+      c.auto_linear_solver = true;
     c.warm_start = args->warm_start;
     // Every option checked (ranges, the rules between them) before any work.
     at_boundary([&] { c.validate(); });

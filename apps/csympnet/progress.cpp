@@ -2,13 +2,35 @@
 
 #include "interrupt.hpp"
 
+#include "csympnet/train/termination_words.hpp"
+
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <string>
 
 namespace csympnet::cli {
+
+const char* stage_words(const char* stage) {
+  if (std::strcmp(stage, "adamw") == 0) return "AdamW epoch";
+  if (std::strcmp(stage, "bootstrap") == 0) return "bootstrap replicate";
+  if (std::strcmp(stage, "lm") == 0) return "Levenberg-Marquardt iteration";
+  if (std::strcmp(stage, "lbfgs") == 0) return "L-BFGS iteration";
+  return stage;
+}
+
+std::string ending_words(const std::string& termination) {
+  return termination_words(termination);
+}
+
+std::string lm_summary_words(long iterations, long accepted, long kept_iterate,
+                             const std::string& termination) {
+  return "Levenberg-Marquardt: " + std::to_string(iterations) + " iterations (" +
+         std::to_string(accepted) + " accepted), " + ending_words(termination) + "; kept iterate " +
+         std::to_string(kept_iterate) + ", the best on held-out data";
+}
 
 ProgressLine::ProgressLine(bool quiet)
     : active_(!quiet && isatty(STDERR_FILENO) == 1), start_(std::chrono::steady_clock::now()) {}
@@ -32,14 +54,15 @@ ProgressCallback ProgressLine::callback() {
                                    : 0.0;
     const bool adamw = std::strcmp(p.stage, "adamw") == 0;
     const bool bootstrap = std::strcmp(p.stage, "bootstrap") == 0;
-    std::fprintf(stderr, "\r\033[K%s %ld/%ld  ",
-                 adamw       ? "epoch"
-                 : bootstrap ? "bootstrap replicate"
-                             : p.stage,
-                 p.epoch, p.epochs);
-    if (!std::isnan(p.train_loss)) std::fprintf(stderr, "loss %.3e  ", p.train_loss);
+    // An LM or L-BFGS budget is a cap: "iteration 12, at most 300", not "12/300".
+    if (adamw || bootstrap)
+      std::fprintf(stderr, "\r\033[K%s %ld/%ld  ", stage_words(p.stage), p.epoch, p.epochs);
+    else
+      std::fprintf(stderr, "\r\033[K%s %ld (at most %ld)  ", stage_words(p.stage), p.epoch,
+                   p.epochs);
+    if (!std::isnan(p.train_loss)) std::fprintf(stderr, "train loss %.3e  ", p.train_loss);
     if (!std::isnan(p.val_loss))
-      std::fprintf(stderr, "val %.3e  best %.3e  ", p.val_loss, p.best_val_loss);
+      std::fprintf(stderr, "held-out loss %.3e (best %.3e)  ", p.val_loss, p.best_val_loss);
     if (!std::isnan(p.gamma_hat)) std::fprintf(stderr, "gamma_hat %.7f  ", p.gamma_hat);
     // An LM or L-BFGS budget is a cap that tolerances usually end sooner: no ETA for them.
     if (adamw || bootstrap) std::fprintf(stderr, "ETA %.1fs", eta);

@@ -5,10 +5,26 @@
 #pragma once
 
 #include <chrono>
+#include <string>
 
 #include "csympnet/train/trainer.hpp"
 
 namespace csympnet::cli {
+
+// The progress line's name of a stage ("adamw" -> "AdamW epoch", "lm" -> "Levenberg-Marquardt
+// iteration", ...).
+const char* stage_words(const char* stage);
+// A second stage's termination message in plain words: "maximum number of iterations
+// reached" -> "used the full iteration budget", Ceres' "Function tolerance reached. ..." ->
+// "converged: the loss stopped changing"; other messages unchanged.
+std::string ending_words(const std::string& termination);
+// The summary line of an LM stage, e.g. "Levenberg-Marquardt: 300 iterations (290 accepted),
+// used the full iteration budget; kept iterate 62, the best on held-out data".
+std::string lm_summary_words(long iterations, long accepted, long kept_iterate,
+                             const std::string& termination);
+// The name of the validation residual that `train` and `fit` print (val_relative_residual):
+// the held-out error as a share of what the data move.
+inline constexpr const char* kHeldOutResidualWords = "held-out error relative to the motion";
 
 class ProgressLine {
  public:

@@ -35,7 +35,7 @@ torch). See docs/python.md.
 from . import _core
 from ._core import Error
 from ._data import Pairs, System, Trajectory, generate, model_types, read_csv, systems, write_csv
-from ._estimator import CSympNetID
+from ._estimator import CSympNetID, NoTimesWarning
 from ._fit import RunResult, fit, fit_trajectories, run
 from ._identify import Identification, ModelRejectedWarning, NotIdentifiedWarning, identify
 from ._model import Model, from_json, load
@@ -47,7 +47,8 @@ ValueError). The message names the argument, file or line and what was expected.
 Error.__module__ = "csympnet"
 
 __all__ = [
-    "CSympNetID", "Error", "Identification", "Model", "ModelRejectedWarning", "NotIdentifiedWarning", "Pairs", "RunResult", "System",
+    "CSympNetID", "Error", "Identification", "Model", "ModelRejectedWarning", "NoTimesWarning",
+    "NotIdentifiedWarning", "Pairs", "RunResult", "System",
     "Trajectory", "fit", "fit_trajectories", "from_json", "generate", "identify", "load",
     "model_types", "read_csv", "run", "systems", "write_csv",
 ]

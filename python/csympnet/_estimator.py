@@ -15,6 +15,12 @@ from . import _checks
 from ._identify import NotIdentifiedWarning, identify
 
 
+class NoTimesWarning(UserWarning):
+    """Warned by CSympNetID.fit when neither times nor t_default are given: the samples are
+    then taken one time unit apart, so gamma_ is a rate per sample, not per second (or
+    whatever unit your clock has). Pass t (times or one step) or t_default to fit."""
+
+
 def _times(t, n_rows, t_default, name="t"):
     """Sample times for n_rows states: t None (steps of t_default), a step, or the times."""
     if t is None:
@@ -61,8 +67,9 @@ class CSympNetID:
     Hyperparameters are those of `csympnet.identify` (core, seed, window, loss, normalize,
     epochs, lr, lm_iterations, val_fraction, blocks, level, dof_scales, threads, init: the
     path of a model file to start from), plus
-        t_default: the step between samples when fit, score or simulate get no times
-            (PySINDy's t_default);
+        t_default: the step between samples when fit gets no times (PySINDy's t_default).
+            Left at None, fit takes a step of 1 and warns (NoTimesWarning): γ̂ is then per
+            sample. score and simulate without times use dt_, the step fitted;
         verbose: progress bars on stderr for each stage (tqdm where it is installed).
 
     After fit:
@@ -81,7 +88,7 @@ class CSympNetID:
 
     def __init__(self, *, core=None, seed=42, window=0, loss="balanced", normalize=True,
                  epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
-                 dof_scales="auto", threads=1, init=None, t_default=1.0, verbose=False):
+                 dof_scales="auto", threads=1, init=None, t_default=None, verbose=False):
         self.core = core
         self.seed = seed
         self.window = window
@@ -143,18 +150,24 @@ class CSympNetID:
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
             "val_fraction", "blocks", "level", "dof_scales", "threads", "init")}
         options["verbose"] = self.verbose
+        t_default = 1.0 if self.t_default is None else self.t_default
+        if t is None and self.t_default is None:
+            warnings.warn(
+                "CSympNetID.fit: no times given (t) and no t_default: the samples are taken 1 "
+                "time unit apart, so gamma_ is per sample, not per unit of time; pass the "
+                "sample times or the step as t, or set t_default", NoTimesWarning, stacklevel=2)
         if x_next is not None:
             z0, _ = _checks.states("x", x, allow_single=False)
             z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
             if z1.shape != z0.shape:
                 raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
-            h = _checks.steps("t", self.t_default if t is None else t, z0.shape[0])
+            h = _checks.steps("t", t_default if t is None else t, z0.shape[0])
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", NotIdentifiedWarning)
                 result = identify(pairs=(z0, z1, h), **options)
             steps = h
         else:
-            trajs = _trajectories(x, t, self.t_default)
+            trajs = _trajectories(x, t, t_default)
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", NotIdentifiedWarning)
                 result = identify([z for _, z in trajs], [tt for tt, _ in trajs], **options)
@@ -184,10 +197,18 @@ class CSympNetID:
         self._check_fitted()
         return self.model_.predict(x, self.dt_ if h is None else h)
 
-    def simulate(self, x0, t):
+    def simulate(self, x0, t=None, *, steps=None):
         """The learned map iterated from x0 at the times t (t[0] is x0's time): an array
-        (len(t), 2d) whose first row is x0 (PySINDy's simulate). The steps may vary."""
+        (len(t), 2d) whose first row is x0 (PySINDy's simulate). The steps may vary.
+        Without t, `steps` steps of dt_ (the step fitted): an array (steps + 1, 2d)."""
         self._check_fitted()
+        if t is None:
+            if steps is None:
+                raise ValueError("simulate: give the times t, or steps= (steps of dt_)")
+            n = _checks.integer("steps", steps, minimum=1)
+            return self.model_.rollout(x0, self.dt_, steps=n)
+        if steps is not None:
+            raise ValueError("simulate: give either the times t or steps=, not both")
         times = _checks.vector("t", t)
         if times.shape[0] < 2:
             raise ValueError("t: expected at least two times (x0's and one more)")
@@ -196,20 +217,20 @@ class CSympNetID:
     def score(self, x, t=None, *, x_next=None):
         """R² of one-step predictions over the increments: 1 − Σ‖Φ̂_h(z_n) − z_{n+1}‖² /
         Σ‖Δz_n − mean Δz‖², over every consecutive pair of the trajectories (or the pairs),
-        taken as fit takes them. 1 is perfect; predicting no change at all scores about 0.
-        It is `model_.score(...)["one_step_r2"]`; Model.score also gives rollout errors."""
+        taken as fit takes them, except that without times the step is dt_, the step fitted
+        (as in predict). 1 is perfect; predicting no change at all scores about 0. It is `model_.score(...)["one_step_r2"]`; Model.score also gives rollout errors."""
         self._check_fitted()
         if x_next is not None:
             z0, _ = _checks.states("x", x, dim=self.n_features_in_, allow_single=False)
             z1, _ = _checks.states("x_next", x_next, dim=self.n_features_in_, allow_single=False)
             if z1.shape != z0.shape:
                 raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
-            h = _checks.steps("t", self.t_default if t is None else t, z0.shape[0])
+            h = _checks.steps("t", self.dt_ if t is None else t, z0.shape[0])
             # Each pair as a trajectory of two points.
             trajs_z = [np.stack([a, b]) for a, b in zip(z0, z1)]
             trajs_t = [np.array([0.0, hj]) for hj in h]
         else:
-            trajs = _trajectories(x, t, self.t_default)
+            trajs = _trajectories(x, t, self.dt_)
             trajs_z = [z for _, z in trajs]
             trajs_t = [tt for tt, _ in trajs]
         return float(self.model_.score(trajs_z, trajs_t)["one_step_r2"])

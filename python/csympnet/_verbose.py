@@ -10,7 +10,12 @@ try:
 except ImportError:  # tqdm is optional
     _tqdm = None
 
-_STAGE_NAMES = {"adamw": "AdamW", "lm": "LM", "lbfgs": "L-BFGS", "bootstrap": "bootstrap"}
+# The bar's name of each stage.
+_STAGE_NAMES = {"adamw": "AdamW epochs", "lm": "LM iterations (Levenberg-Marquardt)",
+                "lbfgs": "L-BFGS iterations", "bootstrap": "bootstrap replicates"}
+# An LM or L-BFGS budget is a cap that the optimiser usually does not reach (it stops once it
+# has converged): its bar ends full where the stage ended, and the plain line says "at most".
+_CAPPED = ("lm", "lbfgs")
 
 
 class _Bars:
@@ -33,7 +38,7 @@ class _Bars:
                 self._bar = _tqdm(total=p["epochs"], desc=_STAGE_NAMES.get(stage, stage),
                                   unit=unit, file=self._file, leave=True, dynamic_ncols=True)
         self._last = p["epoch"]
-        info = {} if p.get("val_loss") is None else {"val": f"{p['val_loss']:.3e}"}
+        info = {} if p.get("val_loss") is None else {"held-out loss": f"{p['val_loss']:.3e}"}
         if p.get("gamma") is not None:
             info["gamma"] = f"{p['gamma']:.6g}"
         if self._bar is not None:
@@ -44,12 +49,17 @@ class _Bars:
             if now - self._printed >= 1.0 or p["epoch"] == p["epochs"]:
                 self._printed = now
                 fields = "  ".join(f"{k} {v}" for k, v in info.items())
-                print(f"{_STAGE_NAMES.get(stage, stage)} {p['epoch']}/{p['epochs']}  {fields}",
-                      file=self._file, flush=True)
+                count = (f"{p['epoch']} (at most {p['epochs']})" if stage in _CAPPED
+                         else f"{p['epoch']}/{p['epochs']}")
+                print(f"{_STAGE_NAMES.get(stage, stage)} {count}  {fields}", file=self._file,
+                      flush=True)
         return True
 
     def close(self):
         if self._bar is not None:
+            if self._stage in _CAPPED and self._bar.n < (self._bar.total or 0):
+                self._bar.total = self._bar.n  # ended before the cap: done, not cut short
+                self._bar.refresh()
             self._bar.close()
             self._bar = None
 

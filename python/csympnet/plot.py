@@ -45,7 +45,9 @@ SIZES = {
 
 #: Units shown in axis labels, by quantity: t (time), q and p (states), H (energy), E (the
 #: accumulated L2 error, whose unit is that of the states times the square root of time's).
-#: Override with `units={"t": "s", ...}`; an empty string shows no unit.
+#: Override with `units={"t": "s", ...}`; an empty string shows no unit. When E is not given
+#: but t, q or p are, E's unit is made from them ("m s$^{1/2}$"; "(deg, deg/s) s$^{1/2}$"
+#: when q and p differ, since E sums both).
 DEFAULT_UNITS = {"t": "a.u.", "q": "a.u.", "p": "a.u.", "H": "a.u.", "E": "a.u."}
 
 #: The featured model's colour.
@@ -63,6 +65,13 @@ _COLORS = list(MODEL_COLORS.values()) + ["#bcbd22", "#393b79", "#637939", "#8c6d
 _REFERENCE = {"color": "black", "ls": "--", "lw": 1.1, "zorder": 6}
 _FEATURED = {"color": FEATURED_COLOR, "ls": "-", "lw": 2.0, "zorder": 5, "alpha": 1.0}
 _OTHER = {"ls": "-", "lw": 0.9, "zorder": 2, "alpha": 0.8}
+# Models that are not featured also differ by dash pattern and by open markers, placed at
+# staggered positions along each curve, so that curves lying on one another (the Hamiltonian
+# baselines on S1) each stay visible; the same pattern for a model type in every figure.
+_DASHES = ["-", (0, (5, 1.5)), (0, (1.5, 1.2)), (0, (6, 1.5, 1.5, 1.5)), (0, (3, 1.5)),
+           (0, (8, 2)), (0, (1, 1, 1, 1, 4, 1)), (0, (2, 2))]
+_MARKERS = ["o", "s", "^", "v", "D", "x", "+", "<", ">", "p"]
+_MODEL_ORDER = list(MODEL_COLORS)
 
 # PDF and PostScript text as embedded TrueType (Type 42) fonts, which journals' submission
 # systems accept, instead of matplotlib's default Type 3 fonts.
@@ -112,7 +121,18 @@ def _units(units):
     unknown = sorted(set(units) - set(DEFAULT_UNITS))
     if unknown:
         raise ValueError(f"units: unknown quantities {unknown}; known: {sorted(DEFAULT_UNITS)}")
-    return {**DEFAULT_UNITS, **{k: str(v) for k, v in units.items()}}
+    out = {**DEFAULT_UNITS, **{k: str(v) for k, v in units.items()}}
+    if "E" not in units and any(k in units for k in ("t", "q", "p")):
+        out["E"] = _error_unit(out["q"], out["p"], out["t"])
+    return out
+
+
+def _error_unit(q, p, t):
+    """The unit of E = (Σ‖z − ẑ‖² Δt)^{1/2}: the states' unit times the square root of time's."""
+    states = q if q == p else f"({q}, {p})" if q and p else q or p
+    if not t:
+        return states
+    return f"{states} {t}$^{{1/2}}$" if states else f"{t}$^{{1/2}}$"
 
 
 def _label(text, unit="", log=False, wrap=26):
@@ -126,6 +146,8 @@ def _label(text, unit="", log=False, wrap=26):
     if not notes:
         return text
     note = f"({', '.join(notes)})"
+    if len(note) > wrap and len(notes) > 1:  # too long for one line: the unit, then the rest
+        note = f"({notes[0]},\n{', '.join(notes[1:])})"
     return f"{text}\n{note}" if len(text) + len(note) > wrap else f"{text} {note}"
 
 
@@ -148,6 +170,7 @@ def _styles(labels, featured):
     labels = list(labels)
     taken = {MODEL_COLORS[k] for k in labels if k in MODEL_COLORS and k != featured}
     free = iter([c for c in _COLORS if c not in taken] or _COLORS)
+    others = [k for k in labels if k != featured]
     out = {}
     for label in labels:
         if label == featured:
@@ -157,7 +180,25 @@ def _styles(labels, featured):
             if color is None:  # more labels than colours: start again
                 free = iter(_COLORS)
                 color = next(free)
-            out[label] = {**_OTHER, "color": color}
+            k = (_MODEL_ORDER.index(label) if label in MODEL_COLORS
+                 else len(_MODEL_ORDER) + others.index(label))
+            j = others.index(label)
+            out[label] = {**_OTHER, "color": color, "ls": _DASHES[k % len(_DASHES)],
+                          "marker": _MARKERS[k % len(_MARKERS)], "markersize": 3.2,
+                          "fillstyle": "none", "markeredgewidth": 0.7,
+                          "zorder": 2 + 0.01 * j, "_stagger": (j, len(others))}
+    return out
+
+
+def _line_style(style, n_points):
+    """A _styles entry as matplotlib's keywords for a curve of n_points: markers every tenth
+    of the curve, the j-th of n curves starting j/n of that spacing later, so that markers of
+    curves lying on one another sit side by side."""
+    out = {k: v for k, v in style.items() if k != "_stagger"}
+    if "_stagger" in style and n_points > 1:
+        j, n = style["_stagger"]
+        step = max(1, n_points // 10)
+        out["markevery"] = ((j * step) // max(n, 1), step)
     return out
 
 
@@ -169,11 +210,12 @@ def _legend_order(handles, featured):
     return sorted(handles, key=rank)  # stable: the others keep their order
 
 
-def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0):
+def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0, caption_h=0.0):
     """A figure of `n_panels` panels on a grid of `ncols` columns, sized by the preset: panels
     are width/ncols wide and aspect times that high. With legend entries, a legend axes: the
     grid's free cell when there is one, else a row below the panels.
-    Returns (figure, [axes], legend axes or None)."""
+    With caption_h > 0, a last row that high (inches) for a caption: the axes
+    `figure.caption_ax`. Returns (figure, [axes], legend axes or None)."""
     width, height, p = _preset(size)
     ncols = max(1, min(ncols, n_panels))
     nrows = math.ceil(n_panels / ncols)
@@ -189,9 +231,9 @@ def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0):
     panel_h = width / ncols * aspect
     if height is not None:  # an explicit (width, height): the panels share what the legend leaves
         panel_h = max(height - legend_h, 0.5) / nrows
-    fig = Figure(figsize=(width, nrows * panel_h + legend_h), layout="constrained")
+    fig = Figure(figsize=(width, nrows * panel_h + legend_h + caption_h), layout="constrained")
     FigureCanvasAgg(fig)
-    ratios = [panel_h] * nrows + ([legend_h] if legend_h else [])
+    ratios = [panel_h] * nrows + ([legend_h] if legend_h else []) + ([caption_h] if caption_h else [])
     gs = fig.add_gridspec(len(ratios), ncols, height_ratios=ratios)
     axes = [fig.add_subplot(gs[i // ncols, i % ncols]) for i in range(n_panels)]
     legend_ax = None
@@ -202,6 +244,10 @@ def _figure(size, n_panels=1, *, ncols=1, aspect=0.75, entries=0):
     if legend_ax is not None:
         legend_ax.axis("off")
         legend_ax.in_slot = in_slot  # read by _put_legend
+    fig.caption_ax = None
+    if caption_h:
+        fig.caption_ax = fig.add_subplot(gs[len(ratios) - 1, :])
+        fig.caption_ax.axis("off")
     return fig, axes, legend_ax
 
 
@@ -307,7 +353,7 @@ def _curves(ax, series, reference, featured):
     """Draws {label: (x, y)} and the reference (x, y) or None in the house style."""
     styles = _styles(series, featured)
     for label, (x, y) in series.items():
-        ax.plot(x, y, label=_name(label), **styles[label])
+        ax.plot(x, y, label=_name(label), **_line_style(styles[label], len(x)))
     if reference is not None:
         ax.plot(*reference, label="reference", **_REFERENCE)
 
@@ -449,9 +495,14 @@ def energy(t, energies, reference=None, *, log=None, highlight=None, units=None,
 
 
 def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None, coord=0,
-                   highlight=None, units=None, size="page", ncols=None, path=None, title=None):
+                   highlight=None, units=None, size="page", ncols=None, path=None, title=None,
+                   caption=None):
     """The paper's rollout figure: phase portrait (q_i, p_i), q_i(t), accumulated error and,
     when `energies` ({label: (n+1,)}) is given, energy, with one legend for all panels.
+
+    title: a heading above the panels. caption: a sentence set below the figure, in the text's
+    size and weight, as a paper's caption ("Table 2, S1: rollouts from the first test
+    trajectory.").
 
     The panels wrap onto rows of `ncols` (default: all four in one row for size="page", two
     per row for "column"); the legend takes a free cell of the grid or a row below it."""
@@ -460,9 +511,14 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
     panels = 4 if energies is not None else 3
     if ncols is None:
         ncols = 2 if _preset(size)[0] < 5.0 else 4
+    width, _, p = _preset(size)
+    caption_h = 0.0
+    if caption:  # about half an em per character, 1.35 lines of the small font each
+        per_line = max(20, int(width * 72.0 / (0.5 * p["small"])))
+        caption_h = math.ceil(len(caption) / per_line) * p["small"] * 1.35 / 72.0 + 0.04
     with _rc(size):
         fig, axes, legend_ax = _figure(size, panels, ncols=ncols, aspect=0.9,
-                                       entries=len(preds) + 1)
+                                       entries=len(preds) + 1, caption_h=caption_h)
         common = {"highlight": featured if featured is not None else False, "units": units,
                   "size": size}
         phase_portrait(preds, reference, coord=coord, ax=axes[0], **common)
@@ -483,6 +539,9 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
                     inside=False)
         if title:
             fig.suptitle(title)
+        if caption:
+            fig.caption_ax.text(0.0, 1.0, caption, ha="left", va="top", wrap=True,
+                                fontsize=p["small"], transform=fig.caption_ax.transAxes)
         return _finish(fig, path)
 
 

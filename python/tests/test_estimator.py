@@ -162,3 +162,32 @@ def test_model_score_is_what_evaluate_data_reports(fitted, run_cli, tmp_path):
     assert report["gamma_true"] is None
     with pytest.raises(ValueError, match="states have 4 components, expected 2d = 2"):
         fitted.model_.score(np.zeros((5, 4)), np.arange(5.0))
+
+
+def test_score_and_simulate_without_times_use_the_fitted_step(fitted, long_run):
+    """After fit(z, t), score(z) and simulate(z0, steps=n) step by dt_, as predict does, not
+    by t_default."""
+    held_t, held_z = trajectory([-0.4, 0.3], 200, seed=1)
+    assert fitted.t_default is None and fitted.dt_ == pytest.approx(STEP)
+    assert fitted.score(held_z) == fitted.score(held_z, fitted.dt_)
+    assert fitted.score(held_z) > 0.99
+    assert fitted.score(held_z[:-1], x_next=held_z[1:]) == fitted.score(held_z)
+    sim = fitted.simulate(held_z[0], steps=49)
+    assert sim.shape == (50, 2)
+    assert np.array_equal(sim, fitted.model_.rollout(held_z[0], fitted.dt_, steps=49))
+    with pytest.raises(ValueError, match="steps"):
+        fitted.simulate(held_z[0])
+    with pytest.raises(ValueError, match="not both"):
+        fitted.simulate(held_z[0], held_t[:5], steps=4)
+
+
+def test_fit_without_times_warns_that_gamma_is_per_sample(long_run):
+    t, z = long_run
+    assert issubclass(csympnet.NoTimesWarning, UserWarning)
+    with pytest.warns(csympnet.NoTimesWarning, match="per sample"):
+        est = csympnet.CSympNetID(**FAST).fit(z[:300])
+    assert est.dt_ == 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", csympnet.NoTimesWarning)
+        csympnet.CSympNetID(t_default=STEP, **FAST).fit(z[:300])  # a step given: no warning
+        csympnet.CSympNetID(**FAST).fit(z[:300], t[:300])

@@ -312,3 +312,37 @@ def test_each_model_type_keeps_its_colour_across_figures():
     # Labels that are not model types get distinct colours, none of them the featured one.
     c = colours(plot.trajectory(T, {f"run {i}": REF for i in range(20)}, None))
     assert len(set(list(c.values())[:12])) == 12 and plot.FEATURED_COLOR not in c.values()
+
+
+def test_error_unit_follows_the_units_passed():
+    fig = plot.accumulated_error(T, PREDS, REF, log=False, units={"t": "s", "q": "m", "p": "m"})
+    assert fig.axes[0].get_ylabel() == "$L^2$ error $E(t)$\n(m s$^{1/2}$)"
+    fig = plot.accumulated_error(T, PREDS, REF, log=True,
+                                 units={"t": "s", "q": "deg", "p": "deg/s"})
+    assert fig.axes[0].get_ylabel() == "$L^2$ error $E(t)$\n((deg, deg/s) s$^{1/2}$,\nlog scale)"
+    fig = plot.rollout_figure(T, PREDS, REF, units={"t": "s", "q": "deg", "p": "deg/s"})
+    assert "a.u." not in fig.axes[2].get_ylabel()
+
+
+def test_curves_lying_on_one_another_stay_distinguishable():
+    # On S1 the four Hamiltonian baselines' rollouts coincide: each needs its own dashes and
+    # markers, the markers at different points of the curve.
+    same = damped(T, gamma=0.02)
+    preds = {"csympnet": REF, "dhnn": same, "dhnn2": same, "phnn": same, "phnn2": same}
+    fig = plot.trajectory(T, preds, REF)
+    lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+    four = [lines[k] for k in ("DHNN", "DHNN2", "pHNN", "pHNN2")]
+    assert len({ln.get_marker() for ln in four}) == 4
+    assert len({str(ln._unscaled_dash_pattern) for ln in four}) == 4
+    assert len({ln.get_markevery()[0] for ln in four}) == 4
+
+
+def test_a_caption_goes_below_the_panels(tmp_path):
+    fig = plot.rollout_figure(T, PREDS, REF, caption="Table 2, preset s1: rollouts.",
+                              path=tmp_path / "cap")
+    assert fig._suptitle is None
+    texts = [t for ax in fig.axes for t in ax.texts if t.get_text() == "Table 2, preset s1: rollouts."]
+    assert len(texts) == 1
+    fig.canvas.draw()
+    cap = texts[0].get_window_extent()
+    assert all(cap.y1 <= ax.get_window_extent().y0 + 1 for ax in fig.axes[:3])

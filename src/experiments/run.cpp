@@ -129,13 +129,22 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
   Rng init_rng(c.seed, "init");
   r.model.init_params(init_rng, r.theta);
 
+  // The second stage's options as used: with auto_linear_solver, Ceres' solver where one of
+  // its iterations stays small enough to stop within a second of Ctrl-C, else csympnet's LM.
+  RefineOptions refine = c.refine;
+  const Index n_residuals = r.data.train.size() * r.data.train.dim();
+  if (c.auto_linear_solver && refine.method == RefineMethod::kLm && r.model.is_map() &&
+      refine.linear_solver != LinearSolver::kBlasNormalCholesky &&
+      ceres_iteration_flops(refine.linear_solver, n_residuals, r.model.n_params()) >
+          kMaxCeresIterationFlops)
+    refine.linear_solver = LinearSolver::kBlasNormalCholesky;
   if (r.model.is_map())  // a second stage that could not be interrupted: refused up front
-    check_refine_fits(c.refine, r.data.train.size() * r.data.train.dim(), r.model.n_params());
+    check_refine_fits(refine, n_residuals, r.model.n_params());
   r.training = train_model(r.model, r.theta, r.data.train, r.data.val, c.train, progress);
   const bool stopped = r.training.stop_reason == StopReason::kCallback;
   if (stopped && !evaluate_if_stopped) return r;
   if (r.model.is_map() && !stopped)
-    r.refine = refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, c.refine,
+    r.refine = refine_one_step_map(*r.model.map, r.theta, r.data.train, r.data.val, refine,
                                    {progress, should_stop});
 
   const System sys(c.preset.system);
@@ -179,6 +188,8 @@ RunResult run_experiment(const RunConfig& c, const ProgressCallback& progress,
                          {"groups", r.warm_start->groups}};
   rep["architecture"] = r.model.hyperparams();
   rep["config"] = c;
+  if (c.refine.method != RefineMethod::kNone)  // the solver used, when chosen by size
+    rep["config"]["refine"]["linear_solver"] = to_string(refine.linear_solver);
   rep["csympnet_version"] = CSYMPNET_VERSION;  // the project version (CMakeLists.txt)
   return r;
 }

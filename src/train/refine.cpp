@@ -12,6 +12,7 @@
 #include "csympnet/train/levenberg_marquardt.hpp"
 #include "csympnet/train/loss.hpp"
 #include "csympnet/train/residual_jacobian.hpp"
+#include "csympnet/train/termination_words.hpp"
 
 namespace csympnet {
 
@@ -118,9 +119,9 @@ void from_json(const nlohmann::json& j, RefineOptions& o) {
 std::string RefineSummary::brief_report() const {
   std::ostringstream s;
   s << "refine " << to_string(method) << ": " << iterations << " iterations in " << seconds
-    << " s; train loss " << train_loss_before << " -> " << train_loss_after << ", validation loss "
-    << val_loss_before << " -> " << val_loss_after << " (iterate " << best_iteration << "; "
-    << termination << ")";
+    << " s, " << termination_words(termination) << "; kept iterate " << best_iteration
+    << "; train loss " << train_loss_before << " -> " << train_loss_after << ", validation loss "
+    << val_loss_before << " -> " << val_loss_after;
   return s.str();
 }
 

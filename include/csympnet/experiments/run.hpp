@@ -45,6 +45,11 @@ struct RunConfig {
   // Second stage after AdamW for map models (default none: the paper's recipe). Written to
   // the config only when on, so the cache keys of existing runs do not change.
   RefineOptions refine;
+  // LM's linear solver chosen by the problem's size (the CLI's default when --refine-solver is
+  // not given): refine.linear_solver (dense_qr) when one Ceres iteration fits
+  // kMaxCeresIterationFlops, else blas_normal_cholesky. The solver used is what the report's
+  // config records; this flag itself is not written, so cache keys do not change.
+  bool auto_linear_solver = false;
   // CSympNet-ID: replace beta_init by the closed-form estimate γ₀ from the training pairs
   // (default off; written to the config only when on).
   bool warm_start = false;

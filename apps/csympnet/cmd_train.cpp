@@ -247,8 +247,8 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
     std::printf("%s\n", r.training.brief_report().c_str());
     if (r.refine.method != RefineMethod::kNone)
       std::printf("%s\n", r.refine.brief_report().c_str());
-    std::printf("train loss %.3e, validation loss %.3e, unexplained share of a step %.2e\n",
-                quality("train_loss"), quality("val_loss"), quality("val_relative_residual"));
+    std::printf("train loss %.3e, held-out loss %.3e, %s of a step %.2e\n", quality("train_loss"),
+                quality("val_loss"), kHeldOutResidualWords, quality("val_relative_residual"));
     std::printf(
         "structure residual mean %.2e, max %.2e; wrote %s/{report.json,model.json,timings.json}\n",
         quality("structure_residual_mean"), quality("structure_residual_max"), a.out.c_str());
@@ -415,13 +415,14 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
                 static_cast<long long>(r.model.n_params()), r.config.window,
                 r.config.core.dump().c_str());
     std::printf("%s\n", r.training.brief_report().c_str());
-    std::printf("LM: %ld iterations (%ld accepted), kept iterate %ld: %s\n", r.lm.iterations,
-                r.lm.accepted, r.lm_best_iteration, r.lm.message.c_str());
+    std::printf("%s\n",
+                lm_summary_words(r.lm.iterations, r.lm.accepted, r.lm_best_iteration, r.lm.message)
+                    .c_str());
     std::printf(
-        "train loss %.3e, validation loss %.3e, unexplained share of a window %.2e, "
-        "structure residual max %.2e\n",
-        r.quality.train_loss, r.quality.val_loss, r.quality.val_relative_residual,
-        r.quality.structure_residual_max);
+        "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
+        "max %.2e\n",
+        r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
+        r.quality.val_relative_residual, r.quality.structure_residual_max);
     std::printf("wrote %s/{report.json,model.json,timings.json}\n", a.out.c_str());
   }
   if (r.stopped)

@@ -184,7 +184,7 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
   std::vector<double> x, y, w;
   std::vector<std::pair<double, double>> xw;
   for (const BlockProfile& b : bs) {
-    if (b.samples < 2 || !(b.a > 0.0) || !(b.energy > 0.0)) continue;
+    if (b.samples < 1 || !(b.a > 0.0) || !(b.energy > 0.0)) continue;
     x.push_back(std::log(b.energy));
     y.push_back(c - b.g / b.a);
     w.push_back(b.a);

@@ -348,6 +348,35 @@ TEST(ModelChecks, DryFrictionIsDetected) {
   std::printf("dry friction (half the dissipation) detected: %d of %d\n", detected, cases);
 }
 
+// Pairs (each its own block, as a pairs file gives) at amplitudes from 0.2 to 2: the rate per
+// pair still shows dry friction's trend with amplitude.
+TEST(ModelChecks, DryFrictionIsDetectedInPairs) {
+  int detected = 0;
+  const int cases = 20;
+  for (int n = 0; n < cases; ++n) {
+    Rng rng(n, "checks-coulomb-pairs");
+    const Matrix k = Matrix::Identity(1, 1);
+    const double gv = 0.05, mu = gv * M_PI / 4.0;
+    const Dissipation f = [gv, mu](double, const Vector&, const Vector& p) -> Vector {
+      return -gv * p - mu * (p / 1e-3).array().tanh().matrix();
+    };
+    std::vector<Trajectory> pairs;
+    for (int j = 0; j < 400; ++j) {
+      const double amp = std::exp(rng.uniform(std::log(0.2), std::log(2.0)));
+      const double phase = rng.uniform(0.0, 2.0 * M_PI);
+      Vector z0(2);
+      z0 << amp * std::cos(phase), amp * std::sin(phase);
+      Trajectory t = integrate(k, f, z0, 0.3, 2);
+      for (Index i = 0; i < t.z.size(); ++i) t.z.data()[i] += 0.005 * rng.normal();
+      pairs.push_back(t);
+    }
+    const ModelCheck& l = by_name(run(k, 2 * gv, pairs), "linear_damping");
+    if (!l.passed && l.sentence.find("Coulomb") != std::string::npos) ++detected;
+  }
+  EXPECT_GE(detected, cases * 9 / 10);
+  std::printf("dry friction detected in pairs: %d of %d\n", detected, cases);
+}
+
 // Two modes of a chain damped at rates in ratio 3: the full damping matrix predicts held-out
 // blocks better than one rate, and its eigenvalues are the modal rates.
 TEST(ModelChecks, ModeDependentDampingIsDetectedWithTheRates) {

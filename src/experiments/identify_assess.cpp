@@ -14,6 +14,10 @@ namespace csympnet::detail {
 
 namespace {
 
+// The model's held-out quality below which it has learned no dynamics (the verdict's reasons).
+constexpr double kMaxUnexplainedShare = 0.9;  // of the motion over a window
+constexpr double kMaxNullRatio = 0.5;         // squared error over a pure contraction's
+
 std::string fmt(double v) {
   std::ostringstream s;
   s.precision(4);
@@ -147,12 +151,12 @@ void identification_reasons(const BlockSplit& split, double h_max, bool lm_fits,
   const WindowSet& train = split.train;
   if ((train.zm - train.z0).norm() == 0.0)
     reason("the states do not change over any step: there is no motion to learn from");
-  else if (r.quality.val_relative_residual > 0.9)
+  else if (r.quality.val_relative_residual > kMaxUnexplainedShare)
     reason(
         "the model explains less than 10% of the motion over a window on held-out data "
         "(unexplained share " +
         fmt(r.quality.val_relative_residual) + ")");
-  if (r.quality.null_ratio > 0.5)
+  if (r.quality.null_ratio > kMaxNullRatio)
     reason("on held-out data the model predicts only " + fmt(100.0 * (1.0 - r.quality.null_ratio)) +
            "% better than a pure contraction towards a fixed point: it has learned no dynamics "
            "to tell damping from");
@@ -169,6 +173,20 @@ void identification_reasons(const BlockSplit& split, double h_max, bool lm_fits,
 }  // namespace
 
 void verdict(const BlockSplit& split, double h_max, bool lm_fits, IdentifyResult& r) {
+  // A model that explains little of the held-out motion cannot test its own assumptions: its
+  // checks are reported, undecided, and the verdict is "not identified" for that reason.
+  const bool usable = r.quality.val_relative_residual <= kMaxUnexplainedShare &&
+                      r.quality.null_ratio <= kMaxNullRatio &&
+                      r.training.stop_reason != StopReason::kDiverged;
+  for (ModelCheck& k : r.checks)
+    if (!usable && !k.passed) {
+      k.passed = true;
+      k.applicable = false;
+      k.sentence =
+          "not decided: the model explains too little of the held-out motion to test "
+          "its assumptions (" +
+          k.sentence + ")";
+    }
   // The checks first: a broken assumption is the finding, and it explains the rest.
   bool growing = false;
   for (const ModelCheck& k : r.checks) {

@@ -182,5 +182,26 @@ TEST(IdentifyStages, VerdictPutsFailedChecksFirstAndNamesGrowthInsteadOfNoDampin
   EXPECT_EQ(modes.reasons.size(), 1u);
 }
 
+// A model that explains too little cannot test its assumptions: the check is kept, undecided,
+// and the verdict is "not identified" with the quality reason.
+TEST(IdentifyStages, VerdictLeavesChecksUndecidedWhenTheModelExplainsTooLittle) {
+  IdentifyResult poor = interval_result(0.09, 0.11);
+  poor.quality.val_relative_residual = 0.95;
+  ModelCheck m;
+  m.name = "one_rate";
+  m.assumption = "one damping rate for every mode";
+  m.passed = false;
+  m.sentence = "the modes damp at different rates";
+  poor.checks = {m};
+  verdict(moving_split(), 0.1, true, poor);
+  EXPECT_EQ(poor.verdict, "not identified");
+  EXPECT_FALSE(poor.rejected);
+  EXPECT_TRUE(poor.checks[0].passed);
+  EXPECT_FALSE(poor.checks[0].applicable);
+  EXPECT_NE(poor.checks[0].sentence.find("not decided"), std::string::npos);
+  ASSERT_EQ(poor.reasons.size(), 1u);
+  EXPECT_NE(poor.reasons[0].find("less than 10% of the motion"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace csympnet::detail

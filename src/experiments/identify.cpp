@@ -17,6 +17,7 @@
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/json_text.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/train/chunk_tree.hpp"
@@ -75,9 +76,12 @@ std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) 
   nlohmann::json doc;
   SavedModel saved;
   try {
-    doc = parse_json_text(read_text_file(file), file, "a csympnet model file");
+    doc = parse_json_text(read_text_file(file), file, "a csympnet model file",
+                          model_file_limits());
     saved = model_from_json(doc, file);
   } catch (const OptionError&) {
+    throw;
+  } catch (const StopRequested&) {
     throw;
   } catch (const Error& e) {
     throw OptionError("init", e.what());
@@ -92,6 +96,13 @@ std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) 
     throw OptionError("init", file + ": a model of type '" + out->model.type() +
                                   "'; expected a CSympNet-ID (\"type\": \"csympnet\"), the "
                                   "one-step map with a damping rate that fit refines");
+  // The rules --beta-init follows hold for a model file's β too (a β of 0 used to surface
+  // later as a failure blamed on the data).
+  const double beta = out->theta(*out->model.damping_param_index());
+  if (beta == 0.0)
+    throw OptionError("init", file +
+                                  ": its damping parameter beta is 0; expected a nonzero beta, "
+                                  "as --beta-init requires (a model csympnet fitted)");
   out->inner_spec = spec;
   if (spec.contains("normalization")) {
     Normalization n;
@@ -457,6 +468,19 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                           ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
                                         : fit_normalization(trajs))
                           : identity_normalization(d);
+  }
+  if (init != nullptr && init->normalization) {
+    // The init file's time scale must suit these data's steps: the steps in its units must
+    // be normal, finite numbers (a τ of 1e-308 used to surface as an error blamed on the data).
+    const double tau = r.normalization.time_scale;
+    const double lo = h_min / tau, hi = h_max / tau;
+    if (!(std::isfinite(hi) && hi <= 1e150 && lo >= std::numeric_limits<double>::min()))
+      throw OptionError("init", init->file + ": its time scale " + number_text(tau) +
+                                    " puts the data's steps (" + number_text(h_min) + " to " +
+                                    number_text(h_max) + ") at " + number_text(lo) + " to " +
+                                    number_text(hi) +
+                                    " in its units, beyond what can be computed with; expected "
+                                    "a model fitted on data with steps like these");
   }
   const std::vector<Trajectory> nt = normalize(r.normalization, trajs);
 

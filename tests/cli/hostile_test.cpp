@@ -1298,9 +1298,10 @@ INSTANTIATE_TEST_SUITE_P(Output, Hostile, ::testing::ValuesIn(output_cases()), c
 TEST(HostileSuite, HasAtLeast300Cases) {
   const std::size_t n = csv_cases().size() + model_cases().size() + option_cases().size() +
                         output_cases().size() + message_cases().size();
-  std::printf("hostile cases: %zu csv, %zu model files, %zu options, %zu output targets\n",
-              csv_cases().size(), model_cases().size(), option_cases().size(),
-              output_cases().size());
+  std::printf(
+      "hostile cases: %zu csv, %zu model files, %zu options, %zu output targets, %zu messages\n",
+      csv_cases().size(), model_cases().size(), option_cases().size(), output_cases().size(),
+      message_cases().size());
   EXPECT_GE(n, 300u);
 }
 

@@ -160,7 +160,9 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
     });
     ++steps;
     // A step costs microseconds to milliseconds; a span of 1e12 takes up to the whole budget.
-    if ((steps & 63) == 0) throw_if_stop_requested("dopri5: the integration");
+    // Polled only once a call is long (an ordinary step takes tens of steps): a training
+    // stopped by a signal still evaluates its best checkpoint with the same integrator.
+    if (steps >= 4096 && (steps & 63) == 0) throw_if_stop_requested("dopri5: the integration");
     const double remaining = h - t;
     const bool last = dt >= remaining;
     if (last) dt = remaining;

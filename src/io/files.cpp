@@ -16,6 +16,7 @@
 #include <set>
 #include <sstream>
 #include <system_error>
+#include <vector>
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/stop.hpp"
@@ -276,13 +277,6 @@ void write_text_atomic(const std::string& path, const std::string& content) {
 void OutputDir::commit(const OutputFiles& files) const {
   require(fd_ >= 0, "OutputDir::commit: the directory is not held");
   commit_files(dir_, files);
-  // The set is written: now, and only now, the temporaries of writers proven dead go.
-  std::error_code ec;
-  for (fs::directory_iterator it(dir_, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    std::error_code ignored;
-    if (is_stale_temp(dir_, name)) fs::remove(it->path(), ignored);
-  }
 }
 
 void commit_files(const std::string& directory, const OutputFiles& files) {
@@ -435,13 +429,16 @@ OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
     throw;
   }
   // What is there besides our lock and the temporaries of writers proven dead? Nothing is
-  // removed here: the command has not decided to write yet (a refusal must leave the
-  // directory as it was). Those temporaries go after a successful commit.
+  // removed while this is decided (a refusal must leave the directory as it was).
   bool empty = true;
+  std::vector<fs::path> stale;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (name == kOutputLockName) continue;
-    if (is_stale_temp(dir, name)) continue;
+    if (is_stale_temp(dir, name)) {
+      stale.push_back(it->path());
+      continue;
+    }
     empty = false;
   }
   if (ec) {
@@ -455,6 +452,11 @@ OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
     throw Error("output directory '" + dir +
                 "' is not empty and writing there would overwrite its contents; expected an "
                 "empty or new directory, or pass --force to write anyway");
+  }
+  // The command writes here: now the dead writers' temporaries go.
+  for (const fs::path& p : stale) {
+    std::error_code ignored;
+    fs::remove(p, ignored);
   }
 }
 

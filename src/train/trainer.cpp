@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/core/thread_team.hpp"
 #include "csympnet/train/loss.hpp"
@@ -143,7 +144,7 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   std::iota(order.begin(), order.end(), Index{0});
   const Index batch = batches ? std::min<Index>(options.batch_size, objective.train_pairs) : 0;
   double train_loss = std::numeric_limits<double>::quiet_NaN();
-  for (long epoch = 1; epoch <= options.epochs; ++epoch) {
+  for (long epoch = 1; epoch <= options.epochs; ++epoch) try {
     if (options.lr_schedule != LrSchedule::kConstant) opt.set_lr(options.lr_at(epoch));
     bool finite = true;
     if (!batches) {
@@ -182,6 +183,11 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
       summary.stop_reason = StopReason::kCallback;
       break;
     }
+  } catch (const StopRequested&) {
+    // A stop request seen inside a loss (a vector-field model's integrator on a stiff field):
+    // the same as one seen at a validation, the best checkpoint so far is kept.
+    summary.stop_reason = StopReason::kCallback;
+    break;
   }
   if (objective.bytes_sent) summary.bytes_sent_per_step = static_cast<long>(objective.bytes_sent());
   summary.best_val_loss = monitor.best_loss();

@@ -968,7 +968,7 @@ TEST_F(HostileFiles, ARefusedCommandDeletesNoFileThatLooksLikeATemporary) {
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(slurp(dir_ / "v" / live), "in flight");
   EXPECT_EQ(slurp(dir_ / "u" / ".notes.tmp.1.2.3"), "precious\n");
-  // A dead writer's temporary does not count, and goes once the new set is written.
+  // A dead writer's temporary does not count, and goes once the command writes there.
   const pid_t child = ::fork();
   if (child == 0) ::_exit(0);
   ::waitpid(child, nullptr, 0);

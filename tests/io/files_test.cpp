@@ -184,14 +184,15 @@ TEST(PrepareOutputDir, StaleTemporariesAreRemovedNotCounted) {
   EXPECT_TRUE(is_stale_temp(out, ".report.json.tmp." + pid + ".0.99"));
   EXPECT_FALSE(is_stale_temp(out, ".report.json.tmp.1.0.99"));  // pid 1 runs
   EXPECT_FALSE(is_stale_temp(out, ".x.tmp." + std::to_string(::getpid()) + ".0.1"));
-  { const OutputDir held = prepare_output_dir(out, false); }  // not counted ...
-  EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 2);  // ... kept
-  {
-    const OutputDir held = prepare_output_dir(out, false);
-    held.commit({{"report.json", "new"}});
-  }
-  EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 1);  // removed
-  EXPECT_TRUE(fs::exists(fs::path(out) / "report.json"));
+  // A refused taking removes nothing ...
+  write_text_atomic(out + "/notes.txt", "mine");
+  EXPECT_THROW({ const OutputDir held = prepare_output_dir(out, false); }, Error);
+  EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 3);
+  fs::remove(fs::path(out) / "notes.txt");
+  // ... a directory holding only dead writers' temporaries counts as empty, and taking it
+  // removes them.
+  { const OutputDir held = prepare_output_dir(out, false); }
+  EXPECT_TRUE(fs::is_empty(out));
 }
 
 // A set of files is committed as one: all written, replacing an old set whole.

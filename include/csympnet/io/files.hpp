@@ -38,8 +38,8 @@ using OutputFiles = std::vector<std::pair<std::string, std::string>>;
 //  - An existing directory with anything in it is refused unless `force`, so a run never
 //    silently overwrites an earlier one. The lock file and the temporary files a dead
 //    writer left (".NAME.tmp.PID.N.T" whose PID is not running, see is_stale_temp) do not
-//    count; the latter are removed after the next successful commit, never before (a
-//    refused command leaves the directory as it was).
+//    count; the latter are removed once the directory is taken (empty, or `force`), never
+//    by a refused command, which leaves the directory as it was.
 //  - On release the lock file is removed, and a directory this object created is removed if
 //    nothing was written into it (a failed run leaves no empty directory behind).
 class [[nodiscard]] OutputDir {

@@ -225,14 +225,13 @@ void add_rollout(CLI::App& app) {
         next = map.step(z, *h);
       } catch (const StopRequested&) {
         throw Interrupted("rollout stopped during step " + std::to_string(n) +
-                          "; the rows printed are the rollout up to step " +
-                          std::to_string(n - 1));
+                          "; the rows printed are the rollout up to step " + std::to_string(n - 1));
       } catch (const Error& e) {
         // A vector-field model's integrator gave up (its step budget, a state that blew up).
         const std::string why = e.what();
-        throw Error("rollout: step " + std::to_string(n) + " (t = " +
-                    number_text(static_cast<double>(n) * *h) + ", --h " + number_text(*h) +
-                    ") failed: " + why +
+        throw Error("rollout: step " + std::to_string(n) +
+                    " (t = " + number_text(static_cast<double>(n) * *h) + ", --h " +
+                    number_text(*h) + ") failed: " + why +
                     (why.find("expected") != std::string::npos
                          ? std::string()
                          : "; expected a model that can be iterated at --h " + number_text(*h) +

@@ -92,7 +92,8 @@ std::string columns_example(const std::vector<std::string_view>& fields) {
   if (names.size() < 3 || names.size() > 41) return "--columns t=TIME,q1=POSITION,p1=MOMENTUM";
   out += "t=" + names[first];
   const std::size_t d = (names.size() - first - 1) / 2;
-  for (std::size_t i = 0; i < d; ++i) out += ",q" + std::to_string(i + 1) + "=" + names[first + 1 + i];
+  for (std::size_t i = 0; i < d; ++i)
+    out += ",q" + std::to_string(i + 1) + "=" + names[first + 1 + i];
   for (std::size_t i = 0; i < d; ++i)
     out += ",p" + std::to_string(i + 1) + "=" + names[first + 1 + d + i];
   return "--columns " + out;
@@ -112,7 +113,8 @@ Header parse_header(const CsvText& f) {
                 "; expected a pairs header '" + kPairsForm + "' (d=1: 'h,q1,p1,next_q1,next_p1')" +
                 " or a trajectories header '" + kTrajForm +
                 "' (d=1: 'traj,t,q1,p1' or 't,q1,p1'), or name your columns with --columns, "
-                "e.g. " + columns_example(fields));
+                "e.g. " +
+                columns_example(fields));
   }
   // A name given twice would be counted twice below (two q1 read as d = 2).
   for (std::size_t c = 0; c < fields.size(); ++c)
@@ -148,15 +150,15 @@ Header parse_header(const CsvText& f) {
       known_ok = known_ok && kn["next_q"] == kn["q"] && kn["next_p"] == kn["q"];
     if (known_ok && first_unknown < fields.size()) {
       std::string map;
-      for (std::string_view k : known) map += (map.empty() ? "" : ",") + std::string(k) + "=" + std::string(k);
+      for (std::string_view k : known)
+        map += (map.empty() ? "" : ",") + std::string(k) + "=" + std::string(k);
       const std::string_view bad = fields[first_unknown];
-      throw Error(where + "header column " + std::to_string(first_unknown + 1) + " " +
-                  (bad.empty() ? std::string("is empty (a trailing comma?)")
-                               : quote(bad) + " is not a column csympnet reads") +
-                  "; expected only the columns '" +
-                  (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
-                  "', or --columns naming the ones to read (it drops the others): --columns " +
-                  map);
+      throw Error(
+          where + "header column " + std::to_string(first_unknown + 1) + " " +
+          (bad.empty() ? std::string("is empty (a trailing comma?)")
+                       : quote(bad) + " is not a column csympnet reads") +
+          "; expected only the columns '" + (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
+          "', or --columns naming the ones to read (it drops the others): --columns " + map);
     }
     std::string counts = std::to_string(n["q"]) + " q and " + std::to_string(n["p"]) + " p";
     if (h.kind == CsvKind::kPairs)
@@ -276,7 +278,7 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
   Pending cur;
   bool started = false;
   std::unordered_map<long long, std::size_t> seen;  // id -> index in `done` (closed runs)
-  std::string id_text;                               // the current id as written
+  std::string id_text;                              // the current id as written
 
   for_each_row(f, h, [&](const Line& line, const std::vector<std::string_view>& fields) {
     long long id = 0;
@@ -391,7 +393,8 @@ CsvInput read_csv_input(const std::string& path, const ColumnMap& map) {
   in.name = path == "-" ? std::string("standard input") : path;
   std::string original = read_text_file(path);
   // The file's own header line, for messages about the header --columns made from it.
-  const std::string own_header = original.substr(0, std::min(original.find('\n'), std::size_t{200}));
+  const std::string own_header =
+      original.substr(0, std::min(original.find('\n'), std::size_t{200}));
   in.text = apply_column_map(std::move(original), in.name, map);
   try {
     in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;

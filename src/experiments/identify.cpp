@@ -11,13 +11,13 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/core/thread_team.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/fit.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/json_text.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
-#include "csympnet/core/stop.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/train/chunk_tree.hpp"
@@ -76,8 +76,7 @@ std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) 
   nlohmann::json doc;
   SavedModel saved;
   try {
-    doc = parse_json_text(read_text_file(file), file, "a csympnet model file",
-                          model_file_limits());
+    doc = parse_json_text(read_text_file(file), file, "a csympnet model file", model_file_limits());
     saved = model_from_json(doc, file);
   } catch (const OptionError&) {
     throw;

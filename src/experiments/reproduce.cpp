@@ -10,8 +10,8 @@
 #include <thread>
 
 #include "csympnet/core/error.hpp"
-#include "csympnet/core/stop.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/io/files.hpp"

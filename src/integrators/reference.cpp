@@ -39,7 +39,8 @@ void splitting_steps(const System& sys, Matrix& Q, Matrix& P, double delta, Inde
   // A substep costs O(d N): poll each one for a large block, every 1,024 for a small one.
   const Index poll_mask = Q.size() >= 65536 ? 0 : 1023;
   for (Index s = 0; s < n; ++s) {
-    if ((s & poll_mask) == poll_mask) throw_if_stop_requested("the splitting reference integration");
+    if ((s & poll_mask) == poll_mask)
+      throw_if_stop_requested("the splitting reference integration");
     P *= a;          // scale
     P -= half * G;   // kick
     Q += delta * P;  // drift
@@ -229,8 +230,8 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
       if (last || t >= h) t = h;
     }
     require(std::isfinite(dt) && dt > 0.0 && (t >= h || t + dt > t), [&] {
-      return "the rk reference's step size underflowed (dt = " + num(dt) + ") at t = " +
-             num(t_before) + " of a step of " + num(h) +
+      return "the rk reference's step size underflowed (dt = " + num(dt) +
+             ") at t = " + num(t_before) + " of a step of " + num(h) +
              "; expected a system and step the rk reference can integrate";
     });
   }

@@ -242,9 +242,8 @@ void roll_forward(const fs::path& dir) {
     }
     if (!why.empty())
       throw Error("cannot complete the set of files an interrupted csympnet left in '" +
-                  dir.string() + "': renaming '" + tmp + "' over '" + target + "' failed (" +
-                  why + "); the journal '" + kCommitJournal +
-                  "' is kept; expected '" + target +
+                  dir.string() + "': renaming '" + tmp + "' over '" + target + "' failed (" + why +
+                  "); the journal '" + kCommitJournal + "' is kept; expected '" + target +
                   "' to be a regular file or absent (move it away and run again)");
   }
   sync_directory(dir);

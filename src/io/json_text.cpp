@@ -24,8 +24,7 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& where
       throw Error(where + ": nested deeper than " + std::to_string(limits.max_depth) +
                   " levels of objects and arrays; expected " + expected);
   };
-  const json::parser_callback_t watch = [&](int depth, json::parse_event_t event,
-                                            json& parsed) {
+  const json::parser_callback_t watch = [&](int depth, json::parse_event_t event, json& parsed) {
     if ((++events & 0xFFFF) == 0) throw_if_stop_requested("reading " + where);
     switch (event) {
       case json::parse_event_t::object_start:
@@ -58,12 +57,10 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& where
                         std::to_string(limits.max_bulk_values) + " values; expected at most " +
                         std::to_string(limits.max_bulk_values) + " in " + expected);
         } else if (++other > limits.max_other_values) {
-          throw Error(where + ": holds more than " + std::to_string(limits.max_other_values) +
-                      " values" +
-                      (limits.bulk_key.empty() ? std::string()
-                                               : " outside \"" + limits.bulk_key + "\"") +
-                      "; expected at most " + std::to_string(limits.max_other_values) + " in " +
-                      expected);
+          throw Error(
+              where + ": holds more than " + std::to_string(limits.max_other_values) + " values" +
+              (limits.bulk_key.empty() ? std::string() : " outside \"" + limits.bulk_key + "\"") +
+              "; expected at most " + std::to_string(limits.max_other_values) + " in " + expected);
         }
         break;
     }

@@ -769,8 +769,7 @@ struct Timed : Outcome {
   double after_signal = -1;  // seconds from the signal to the exit
 };
 
-Timed spawn_with(const std::vector<std::string>& args, const fs::path& cwd,
-                 const SpawnOptions& o) {
+Timed spawn_with(const std::vector<std::string>& args, const fs::path& cwd, const SpawnOptions& o) {
   const fs::path out = o.stdout_path.empty() ? cwd / ".hostile_stdout" : fs::path(o.stdout_path);
   const fs::path err = cwd / ".hostile_stderr";
   const pid_t pid = ::fork();
@@ -793,7 +792,7 @@ Timed spawn_with(const std::vector<std::string>& args, const fs::path& cwd,
     ::close(e);
     if (o.address_space_kb > 0) {
       const rlim_t bytes = static_cast<rlim_t>(o.address_space_kb) * 1024;
-      const struct rlimit lim{bytes, bytes};
+      const struct rlimit lim { bytes, bytes };
       ::setrlimit(RLIMIT_AS, &lim);
     }
     std::vector<std::string> all{CSYMPNET_CLI_PATH};
@@ -884,9 +883,9 @@ bool names_a_fifo(const fs::path& p) {
 // refused by name and stays what it was.
 TEST_F(HostileFiles, GenerateRefusesAFifoADeviceAndASymlinkAsItsOutput) {
   ASSERT_EQ(::mkfifo((dir_ / "fifo").c_str(), 0644), 0);
-  Timed r = spawn_with({"generate", "--preset", "s1", "--split", "train", "--n", "2", "--out",
-                        "fifo", "--force"},
-                       dir_, {});
+  Timed r = spawn_with(
+      {"generate", "--preset", "s1", "--split", "train", "--n", "2", "--out", "fifo", "--force"},
+      dir_, {});
   expect_refusal(r, {"'fifo'", "FIFO", "regular file"});
   EXPECT_TRUE(names_a_fifo(dir_ / "fifo"));
   fs::create_symlink("d.csv", dir_ / "link");
@@ -953,8 +952,8 @@ TEST_F(HostileFiles, ARollForwardThatCannotRenameKeepsItsJournalAndSaysSo) {
 TEST_F(HostileFiles, ARefusedCommandDeletesNoFileThatLooksLikeATemporary) {
   write_file(dir_ / "u" / ".notes.tmp.1.2.3", "precious\n");
   write_file(dir_ / "u" / "data.txt", "x\n");
-  Timed r = spawn_with({"fit", "d.csv", "--recipe", "classic", "--epochs", "2", "--refine",
-                        "none", "--bootstrap", "0", "-q", "--out", "u"},
+  Timed r = spawn_with({"fit", "d.csv", "--recipe", "classic", "--epochs", "2", "--refine", "none",
+                        "--bootstrap", "0", "-q", "--out", "u"},
                        dir_, {});
   expect_refusal(r, {"not empty"});
   EXPECT_EQ(slurp(dir_ / "u" / ".notes.tmp.1.2.3"), "precious\n");
@@ -963,8 +962,8 @@ TEST_F(HostileFiles, ARefusedCommandDeletesNoFileThatLooksLikeATemporary) {
   write_file(dir_ / "v" / live, "in flight");
   r = spawn_with({"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "v"}, dir_, {});
   expect_refusal(r, {"not empty"});
-  r = spawn_with({"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "v", "--force"},
-                 dir_, {});
+  r = spawn_with({"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "v", "--force"}, dir_,
+                 {});
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(slurp(dir_ / "v" / live), "in flight");
   EXPECT_EQ(slurp(dir_ / "u" / ".notes.tmp.1.2.3"), "precious\n");
@@ -1067,8 +1066,8 @@ TEST_F(HostileFiles, ReadingALargeFileStopsOnASignalAndTheCommandEnds) {
   }
   SpawnOptions o;
   o.signal_after = 0.3;
-  const Timed r = spawn_with({"train", "--data", "big.csv", "--epochs", "100000", "--out", "o"},
-                             dir_, o);
+  const Timed r =
+      spawn_with({"train", "--data", "big.csv", "--epochs", "100000", "--out", "o"}, dir_, o);
   ASSERT_FALSE(r.hung);
   EXPECT_EQ(r.code, 130) << r.err;
   EXPECT_LT(r.after_signal, 1.0);
@@ -1096,11 +1095,11 @@ TEST_F(HostileFiles, ModelFilesBeyondWhatAModelHoldsAreRefusedUnderAMemoryLimit)
   Timed r = spawn_with(
       {"rollout", "--model", "big.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}, dir_, o);
   expect_refusal(r, {"big.json", "1000000 values outside \"params\""});
-  write_file(dir_ / "deep.json", "{\"meta\":" + std::string(1000, '[') + std::string(1000, ']') +
-                                     "}");
-  r = spawn_with({"rollout", "--model", "deep.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps",
-                  "2"},
-                 dir_, o);
+  write_file(dir_ / "deep.json",
+             "{\"meta\":" + std::string(1000, '[') + std::string(1000, ']') + "}");
+  r = spawn_with(
+      {"rollout", "--model", "deep.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}, dir_,
+      o);
   expect_refusal(r, {"deep.json", "nested deeper than 64"});
 }
 
@@ -1140,9 +1139,9 @@ TEST_F(HostileFiles, MessagesNameTheRealCause) {
   json blowup = json::parse(base_model());
   for (auto& v : blowup["params"]) v = 1e300;
   write_file(dir_ / "blowup.json", resigned(blowup));
-  r = spawn_with({"rollout", "--model", "blowup.json", "--z0", "0.1,0.2", "--h", "1e-7", "--steps",
-                  "3"},
-                 dir_, {});
+  r = spawn_with(
+      {"rollout", "--model", "blowup.json", "--z0", "0.1,0.2", "--h", "1e-7", "--steps", "3"}, dir_,
+      {});
   expect_refusal(r, {"--h 1e-07"});  // and t = 1e-07, not 0.000000
   EXPECT_EQ(r.err.find("0.000000"), std::string::npos) << r.err;
 }
@@ -1166,24 +1165,27 @@ std::vector<Case> message_cases() {
     return a;
   };
   // One extra column: named, with --columns to drop it.
-  cases.push_back({"msg_extra_column",
-                   files({{"d.csv", [&] {
-                             std::string out = "traj,t,q1,p1,temp\n";
-                             std::stringstream in(traj_body);
-                             for (std::string l; std::getline(in, l);) out += l + ",20\n";
-                             return out;
-                           }()}}),
-                   train("d.csv"),
-                   {1},
-                   {"header column 5 'temp' is not a column", "--columns traj=traj,t=t,q1=q1,p1=p1"},
-                   {"out"},
-                   {},
-                   {"the same number"}});
+  cases.push_back(
+      {"msg_extra_column",
+       files({{"d.csv",
+               [&] {
+                 std::string out = "traj,t,q1,p1,temp\n";
+                 std::stringstream in(traj_body);
+                 for (std::string l; std::getline(in, l);) out += l + ",20\n";
+                 return out;
+               }()}}),
+       train("d.csv"),
+       {1},
+       {"header column 5 'temp' is not a column", "--columns traj=traj,t=t,q1=q1,p1=p1"},
+       {"out"},
+       {},
+       {"the same number"}});
   cases.push_back({"msg_trailing_comma",
                    files({{"d.csv", "h,q1,p1,next_q1,next_p1,\n" + pairs_body}}),
                    train("d.csv"),
                    {1},
-                   {"header column 6 is empty (a trailing comma?)", "--columns h=h,q1=q1,p1=p1,next_q1=next_q1,next_p1=next_p1"},
+                   {"header column 6 is empty (a trailing comma?)",
+                    "--columns h=h,q1=q1,p1=p1,next_q1=next_q1,next_p1=next_p1"},
                    {"out"}});
   // An unrecognised header: --columns, with the user's own names.
   cases.push_back({"msg_unrecognised_header",
@@ -1230,15 +1232,15 @@ std::vector<Case> message_cases() {
                    {},
                    {"9223372036854775807"}});
   // A system that blows up: the options to check, not the library's internals.
-  cases.push_back({"msg_generate_omega_huge",
-                   nullptr,
-                   {"generate", "--preset", "s1", "--split", "test", "--omega", "1e308", "--out",
-                    "g.csv"},
-                   {1},
-                   {"--omega"},
-                   {"g.csv"},
-                   {},
-                   {"generate_test_set", "max_redraws"}});
+  cases.push_back(
+      {"msg_generate_omega_huge",
+       nullptr,
+       {"generate", "--preset", "s1", "--split", "test", "--omega", "1e308", "--out", "g.csv"},
+       {1},
+       {"--omega"},
+       {"g.csv"},
+       {},
+       {"generate_test_set", "max_redraws"}});
   // --columns: the user's header is quoted, not the one the mapping built.
   cases.push_back({"msg_columns_quotes_the_users_header",
                    files({{"d.csv", "t,q1,p1\n0,1,0\n0.1,0.9,0.1\n"}}),
@@ -1248,8 +1250,9 @@ std::vector<Case> message_cases() {
                    {"out"}});
   // Ids -0 and 0 are one integer: said so, not reported as a time error.
   cases.push_back({"msg_minus_zero_id",
-                   files({{"d.csv", "traj,t,q1,p1\n0,0,1,0\n0,0.1,0.9,0.1\n-0,0,1,0\n"
-                                    "-0,0.1,0.9,0.1\n"}}),
+                   files({{"d.csv",
+                           "traj,t,q1,p1\n0,0,1,0\n0,0.1,0.9,0.1\n-0,0,1,0\n"
+                           "-0,0.1,0.9,0.1\n"}}),
                    train("d.csv"),
                    {1},
                    {"d.csv:4:", "'-0' is the same integer as '0'"},
@@ -1258,7 +1261,8 @@ std::vector<Case> message_cases() {
                    {"column 't'"}});
   // States scaled by 1e-170: their squares underflow, which is not "does not vary".
   cases.push_back({"msg_tiny_states",
-                   files({{"d.csv", [] {
+                   files({{"d.csv",
+                           [] {
                              std::ostringstream s;
                              s.precision(17);
                              s << "t,q1,p1\n";
@@ -1276,7 +1280,9 @@ std::vector<Case> message_cases() {
   // evaluate --data with a model whose meta.system is a label, not a system: evaluated on
   // the data, no --preset asked for.
   cases.push_back({"msg_evaluate_meta_system_string",
-                   files({{"t.csv", trajs}, {"m.json", [] {
+                   files({{"t.csv", trajs},
+                          {"m.json",
+                           [] {
                              json doc = json::parse(base_model());
                              doc["meta"]["system"] = "pendulum rig 3";
                              return resigned(doc);

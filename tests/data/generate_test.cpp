@@ -194,8 +194,7 @@ TEST(Generate, GivesUpAfterMaxRedraws) {
     ADD_FAILURE() << "no error";
   } catch (const Error& e) {
     // Said in the user's terms: the options to check, not the library's parameter names.
-    EXPECT_NE(std::string(e.what()).find("starts were drawn again"), std::string::npos)
-        << e.what();
+    EXPECT_NE(std::string(e.what()).find("starts were drawn again"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("--omega"), std::string::npos) << e.what();
     EXPECT_EQ(std::string(e.what()).find("max_redraws"), std::string::npos) << e.what();
   }

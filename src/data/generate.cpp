@@ -55,7 +55,9 @@ void from_json(const nlohmann::json& j, StepSpec& s) {
   require(j.is_object(),
           [&] { return "steps: expected a JSON object, got " + std::string(j.type_name()); });
   StepSpec out;
-  for (const auto& [key, value] : j.items()) {
+  for (const auto& item : j.items()) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& key = item.key();
+    const nlohmann::json& value = item.value();
     require(key == "h_min" || key == "h_max",
             [&] { return "steps: unknown key \"" + key + "\" (allowed: h_min, h_max)"; });
     require(value.is_number(),

@@ -77,9 +77,11 @@ void to_json(nlohmann::json& j, const Normalization& n) {
 void from_json(const nlohmann::json& j, Normalization& n) {
   const std::string where = "normalization";
   require(j.is_object(), [&] { return where + ": expected an object"; });
-  for (const auto& [key, value] : j.items())
+  for (const auto& item : j.items()) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& key = item.key();
     require(key == "q_shift" || key == "q_scale" || key == "p_scale" || key == "time_scale",
             [&] { return where + ": unknown key '" + key + "'"; });
+  }
   auto vec = [&](const char* key) {
     require(j.contains(key) && j.at(key).is_array(),
             [&] { return where + ": missing array '" + key + "'"; });

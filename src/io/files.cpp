@@ -285,17 +285,18 @@ void commit_files(const std::string& directory, const OutputFiles& files) {
     std::error_code ignored;
     for (const fs::path& t : temps) fs::remove(t, ignored);
   };
-  // 1. Every new file complete on disk, under a temporary name: a failure here (a full disk)
-  //    leaves the old set untouched.
   // 0. Every target replaceable (a regular file or absent) before anything is written: a
   //    directory or a FIFO where a result file belongs would fail its rename half way through
   //    the set.
-  for (const auto& [name, content] : files) {
+  for (const auto& file : files) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& name = file.first;
     require(is_output_file_name(name), [&] {
       return "OutputDir::commit: '" + name + "' is not NAME or SUB/NAME of plain names";
     });
     check_replaceable((dir / name).string());
   }
+  // 1. Every new file complete on disk, under a temporary name: a failure here (a full disk)
+  //    leaves the old set untouched.
   std::string journal;
   try {
     for (const auto& [name, content] : files) {

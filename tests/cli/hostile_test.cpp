@@ -1072,6 +1072,25 @@ TEST_F(HostileFiles, ReadingALargeFileStopsOnASignalAndTheCommandEnds) {
   EXPECT_EQ(r.code, 130) << r.err;
   EXPECT_LT(r.after_signal, 1.0);
   EXPECT_FALSE(fs::exists(dir_ / "o")) << "it went on to train";
+  // A model file of 6 million parameters (about 80 MB): its parse polls too (SIGINT acted
+  // after 43.6 s on a 100 MB model file).
+  {
+    json doc = json::parse(base_model());
+    std::string text = doc.dump();
+    std::string params = "\"params\":[";
+    params.reserve(80000000);
+    for (int i = 0; i < 6000000; ++i) params += i ? ",0.12345678901234" : "0.12345678901234";
+    params += "],";
+    text.insert(1, params);
+    const std::size_t dup = text.rfind("\"params\"");  // the original key: renamed
+    text.replace(dup, 8, "\"unused\"");
+    write_file(dir_ / "big.json", text);
+  }
+  const Timed m = spawn_with(
+      {"rollout", "--model", "big.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}, dir_, o);
+  ASSERT_FALSE(m.hung);
+  EXPECT_EQ(m.code, 130) << m.err;
+  EXPECT_LT(m.after_signal, 1.0);
 }
 
 // A model file is bounded by what a model can hold, checked while it is parsed: a 30 MB file

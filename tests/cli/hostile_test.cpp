@@ -742,7 +742,13 @@ std::vector<Case> output_cases() {
   cases.push_back({"stale_temp_only",
                    [data](const fs::path& d) {
                      data(d);
-                     write_file(d / "res" / ".report.json.tmp.99999.0.1", "partial");
+                     // A dead writer's: the pid of a child that has exited (a fixed number
+                     // could be a running process, whose temporary counts as content).
+                     const pid_t dead = ::fork();
+                     if (dead == 0) ::_exit(0);
+                     ::waitpid(dead, nullptr, 0);
+                     write_file(d / "res" / (".report.json.tmp." + std::to_string(dead) + ".0.1"),
+                                "partial");
                    },
                    train_to("res"),
                    {0},

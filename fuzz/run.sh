@@ -48,7 +48,7 @@ for t in "${targets[@]}"; do
   dict=()
   [ -f "fuzz/$t.dict" ] && dict=(-dict="fuzz/$t.dict")
   /usr/bin/time -f '%U %S' -o "$build/time-$t.txt" \
-    nice -n "$nice_level" "$bin" "${dict[@]}" -max_total_time="$seconds" -timeout="${FUZZ_TIMEOUT:-30}" -rss_limit_mb=2048 \
+    nice -n "$nice_level" "$bin" "${dict[@]}" -max_total_time="$seconds" -timeout="${FUZZ_TIMEOUT:-30}" -rss_limit_mb="${FUZZ_RSS_MB:-2048}" \
     -max_len="$maxlen" -print_final_stats=1 -artifact_prefix="$art/" "$work" >"$out" 2>&1
   rc=$?
   wall=$(( $(date -u +%s) - start ))

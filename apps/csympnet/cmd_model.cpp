@@ -10,6 +10,7 @@
 
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/diagnostics/observed.hpp"
@@ -18,6 +19,7 @@
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "interrupt.hpp"
+#include "standard_streams.hpp"
 #include "system_options.hpp"
 
 namespace csympnet::cli {
@@ -84,7 +86,9 @@ void add_evaluate(CLI::App& app) {
     std::optional<RunConfig> c;
     if (!a->preset.empty()) {
       c = default_run_config(a->preset, "csympnet");
-    } else if (saved.meta.contains("system")) {
+    } else if (saved.meta.contains("system") && saved.meta["system"].is_object()) {
+      // Only an object is a system (what `run` writes); a plain string or any other value
+      // (a label a user or another tool put there) records none.
       c = default_run_config("s1", "csympnet");
       try {
         c->preset.system = saved.meta["system"].get<SystemSpec>();
@@ -203,13 +207,13 @@ void add_rollout(CLI::App& app) {
     std::string line = "t";
     for (Index i = 1; i <= d; ++i) line += ",q" + std::to_string(i);
     for (Index i = 1; i <= d; ++i) line += ",p" + std::to_string(i);
-    std::printf("%s\n", line.c_str());
+    print_line(line);
     // Streamed, a row per step: memory stays constant for any --steps, and a signal stops it
     // within a few thousand steps (the rows printed are the rollout up to there).
     auto print = [&](Index n) {
       std::string row = round_trip_text(static_cast<double>(n) * *h);
       for (Index i = 0; i < z.size(); ++i) row += "," + round_trip_text(z(i));
-      std::printf("%s\n", row.c_str());
+      print_line(row);  // a failed write (a full disk) ends the rollout at once
     };
     print(0);
     for (Index n = 1; n <= *steps; ++n) {
@@ -219,15 +223,26 @@ void add_rollout(CLI::App& app) {
       Vector next;
       try {
         next = map.step(z, *h);
-      } catch (const Error&) {
-        next = Vector::Constant(z.size(), std::numeric_limits<double>::infinity());
+      } catch (const StopRequested&) {
+        throw Interrupted("rollout stopped during step " + std::to_string(n) +
+                          "; the rows printed are the rollout up to step " + std::to_string(n - 1));
+      } catch (const Error& e) {
+        // A vector-field model's integrator gave up (its step budget, a state that blew up).
+        const std::string why = e.what();
+        throw Error("rollout: step " + std::to_string(n) +
+                    " (t = " + number_text(static_cast<double>(n) * *h) + ", --h " +
+                    number_text(*h) + ") failed: " + why +
+                    (why.find("expected") != std::string::npos
+                         ? std::string()
+                         : "; expected a model that can be iterated at --h " + number_text(*h) +
+                               " from this --z0 (try a smaller step)"));
       }
       // Non-finite output is an error, not rows of nan: say where the rollout broke down.
       if (!next.allFinite())
         throw Error("rollout: the state is not finite after step " + std::to_string(n) +
-                    " (t = " + std::to_string(static_cast<double>(n) * *h) +
+                    " (t = " + number_text(static_cast<double>(n) * *h) +
                     "); expected a finite state: the model cannot be iterated at --h " +
-                    std::to_string(*h) + " from this --z0 (try a smaller step)");
+                    number_text(*h) + " from this --z0 (try a smaller step)");
       z = std::move(next);
       print(n);
     }

@@ -374,6 +374,8 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     try {
       r = identify(trajs, pairs_only, c, hooks);
     } catch (const OptionError& e) {  // an option the data cannot take (--window on pairs)
+      // --init names its own file: the data are not to blame.
+      if (e.message(cli_spelling()).rfind("--init", 0) == 0) throw;
       throw Error(a.data + ": " + e.message(cli_spelling()));
     } catch (const Error& e) {
       throw Error(a.data + ": " + e.what());  // what the data lack: name the file

@@ -34,7 +34,10 @@ void add_all_commands(CLI::App& app) {
   add_kernels(app);
   // A bad CSYMPNET_ARITHMETIC stops every command before it starts work (--arithmetic, parsed
   // by then, overrides the variable and keeps it unread).
-  app.parse_complete_callback([] { (void)kernels::arithmetic(); });
+  app.parse_complete_callback([] {
+    (void)kernels::arithmetic();
+    kernels::check_kernels_environment();
+  });
 }
 
 }  // namespace csympnet::cli

@@ -4,6 +4,8 @@
 
 #include <csignal>
 
+#include "csympnet/core/stop.hpp"
+
 namespace csympnet::cli {
 
 namespace {
@@ -24,6 +26,9 @@ void install_interrupt_handlers() {
   sa.sa_flags = SA_RESETHAND;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  // The library's stages without a callback (integrators, generation, file reads and parses)
+  // poll the same flag.
+  set_stop_poll(&interrupted);
 }
 
 bool interrupted() {

@@ -9,6 +9,7 @@
 #include "csympnet/core/communicator.hpp"
 #include "csympnet/core/error.hpp"
 #include "interrupt.hpp"
+#include "standard_streams.hpp"
 #include "system_options.hpp"
 
 namespace {
@@ -17,6 +18,8 @@ namespace {
 // share (done, interrupted, not identified, a usage error) ends MPI with them; a failure ends
 // the whole job, since the other ranks may be waiting for this one in a collective.
 int finish(int code, bool shared) {
+  // What went to standard output must have got there (a full disk, a closed stream).
+  code = csympnet::cli::finish_standard_output(code);
   if (!csympnet::process_communicator_started()) return code;
   if (!shared) csympnet::process_communicator().abort(code);
   csympnet::finish_process_communicator();
@@ -26,6 +29,7 @@ int finish(int code, bool shared) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  csympnet::cli::keep_standard_descriptors_taken();
   CLI::App app{
       "csympnet: conformal-symplectic map learning (CSympNet-ID) and damping identification"};
   csympnet::cli::add_all_commands(app);

@@ -47,9 +47,13 @@ std::string whole_number_error(const std::string& input, unsigned long long max,
 }
 }  // namespace
 
+// Digits beyond a long's range are left to the option's range check, which follows every use
+// and names the range the option really has (not 9223372036854775807).
 const CLI::Validator kWholeNumber(
     [](std::string& input) {
-      return whole_number_error(input, 9223372036854775807ULL, "a whole number such as 100");
+      const std::string why =
+          whole_number_error(input, 18446744073709551615ULL, "a whole number such as 100");
+      return why.find("the largest allowed") != std::string::npos ? std::string() : why;
     },
     "");
 
@@ -142,7 +146,7 @@ CLI::Validator library_range(const OptionRange& range) {
           // kWholeNumber has checked the digits; a long holds them.
           long v = 0;
           if (!CLI::detail::lexical_cast(input, v))
-            return "'" + input + "' is not a whole number; expected " + range.expected();
+            return "'" + input + "' is out of range; expected " + range.expected();
           return library_says([&] { range.check(v, input); });
         }
         double v = 0;
@@ -200,6 +204,10 @@ std::string existing(const std::string& path, bool directory) {
   const std::filesystem::file_status st = std::filesystem::status(path, ec);
   const char* what = directory ? "an existing directory" : "an existing file";
   if (path.empty()) return std::string("the path is empty; expected ") + what;
+  // A loop of symbolic links, a component that is a file, a directory that may not be
+  // searched: the system's reason, not "does not exist".
+  if (ec && ec != std::errc::no_such_file_or_directory)
+    return "'" + path + "' cannot be reached: " + ec.message() + "; expected " + what;
   if (ec || !std::filesystem::exists(st)) return "'" + path + "' does not exist; expected " + what;
   if (directory != std::filesystem::is_directory(st))
     return "'" + path + "' is " + (directory ? "not a directory" : "a directory") + "; expected " +

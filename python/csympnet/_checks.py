@@ -11,8 +11,20 @@ a csympnet.Error that names the argument as Python spells it.
 """
 
 import numbers
+import os
 
 import numpy as np
+
+
+def path(name, p):
+    """A file path argument (str, bytes or os.PathLike) → str, refused as Python's own file
+    functions refuse it: a NUL byte would cut the path short in the system call."""
+    if not isinstance(p, (str, bytes, os.PathLike)):
+        raise TypeError(f"{name}: expected a path (str, bytes or os.PathLike), got {type(p).__name__}")
+    p = os.fsdecode(os.fspath(p))
+    if "\x00" in p:
+        raise ValueError("embedded null byte")
+    return p
 
 
 def _as_real_array(name, x):

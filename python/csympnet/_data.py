@@ -164,7 +164,7 @@ def generate(preset="s1", split="train", *, seed=None, n=None, sigma=0.0, h=None
 def read_csv(path):
     """Reads a CSV of pairs (→ `Pairs`) or trajectories (→ list of `Trajectory`), with the
     CLI's reader (docs/data-formats.md): bad files raise csympnet.Error naming line and column."""
-    kind, data = _core.read_csv(str(path))
+    kind, data = _core.read_csv(_checks.path("path", path))
     if kind == "pairs":
         return Pairs(*data)
     return [Trajectory(t, z) for t, z in data]
@@ -174,15 +174,16 @@ def write_csv(path, data):
     """Writes `Pairs` (pairs format) or a list of `Trajectory` (trajectories format), each
     number as the shortest text that reads back to the same double, so the CLI reads back the
     same bits."""
+    path = _checks.path("path", path)
     if isinstance(data, Pairs):
         z0, _ = _checks.states("z0", data.z0, allow_single=False)
         z1, _ = _checks.states("z1", data.z1, dim=z0.shape[1], allow_single=False)
         if z1.shape[0] != z0.shape[0]:
             raise ValueError(f"z1: has {z1.shape[0]} states, expected {z0.shape[0]} (as z0)")
         hs = _checks.steps("h", data.h, z0.shape[0])
-        _core.write_pairs_csv(str(path), z0, z1, hs)
+        _core.write_pairs_csv(path, z0, z1, hs)
     else:
-        _core.write_trajectories_csv(str(path), trajectory_list(data))
+        _core.write_trajectories_csv(path, trajectory_list(data))
 
 
 def trajectory_list(trajs, name="trajectories", dim=None):

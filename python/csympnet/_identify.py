@@ -149,7 +149,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     if init is not None:
         if not isinstance(init, (str, os.PathLike)):
             raise TypeError(f"init: expected the path of a model file, got {type(init).__name__}")
-        config["init"] = os.fspath(init)
+        config["init"] = _checks.path("init", init)
     with progress_callback(progress, verbose) as callback:
         core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
                                                  callback)

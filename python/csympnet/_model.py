@@ -1,7 +1,6 @@
 """csympnet.Model: a trained model, and csympnet.load."""
 
 import json
-import os
 
 import numpy as np
 
@@ -243,7 +242,7 @@ class Model:
     def save(self, path):
         """Writes the model file (JSON, io/model_file.hpp; atomically) with `meta`. The CLI reads
         it (`csympnet evaluate --model`, `csympnet rollout --model`) and predicts the same bits."""
-        path = os.fspath(path)
+        path = _checks.path("path", path)
         self._m.save(path, json.dumps(self.meta))
 
     def to_json(self):
@@ -253,7 +252,7 @@ class Model:
 
 def load(path):
     """Reads a model file written by the CLI (`run`, `train`, `fit`) or by `Model.save`."""
-    path = os.fspath(path)
+    path = _checks.path("path", path)
     return Model(_core.load(path))
 
 

@@ -30,7 +30,7 @@ except ImportError as _e:  # torch is optional: csympnet itself needs none
         "csympnet.torch needs PyTorch, which is not installed: install python3-torch "
         "(Debian, Ubuntu) or torch (pip install torch)") from _e
 
-from . import _core
+from . import _checks, _core
 from ._fit import _core_spec
 from ._model import Model
 from ._torch_cores import Core, GSympNet, LASympNet
@@ -142,7 +142,7 @@ def save(module, path, *, meta=None, overwrite=False):
     """Writes the module as a csympnet model file (versioned, checksummed JSON, θ to the bit;
     atomically). An existing file is kept unless overwrite=True (FileExistsError). `meta`: a dict
     saved with it (default: the `meta` of a loaded module, plus its source)."""
-    path = os.fspath(path)
+    path = _checks.path("path", path)
     if meta is None:
         meta = dict(getattr(module, "meta", {}))
         meta["source"] = "csympnet.torch"
@@ -156,7 +156,7 @@ def load(path, *, dtype=torch.float64, device=None):
     """A module from a csympnet model file (checksum checked): CSympNet-ID, SympNet or a bare
     core, with the wrappers of a `csympnet fit` model. The file's meta is kept as `module.meta`.
     """
-    path = os.fspath(path)
+    path = _checks.path("path", path)
     model = Model(_core.load(path))
     if model.type not in _TYPES:
         raise ValueError(f"{path}: model type {model.type!r} has no torch module; expected one "

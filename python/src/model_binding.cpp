@@ -11,6 +11,7 @@
 #include <pybind11/stl.h>
 
 #include "convert.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/diagnostics/observed.hpp"
@@ -94,6 +95,8 @@ py::tuple structure(const PyModel& m, const DArray& z, const DArray& h,
       StructureAt s;
       try {
         s = structure_at(lm.jacobian(zs.col(j), hs(j)), lambda_star, lambda_own);
+      } catch (const StopRequested&) {
+        throw;  // a stop request is not a failure of the map
       } catch (const Error&) {
         const double inf = std::numeric_limits<double>::infinity();
         s = {inf, inf, inf};
@@ -245,6 +248,12 @@ void bind_model(py::module_& m) {
         const nlohmann::json meta = parse_json(meta_json, "meta");
         require(meta.is_object(), "meta: expected a JSON object");
         const Vector theta = vector_from(params, "params");
+        // In JSON a NaN or an infinity would read as null: name the value here.
+        for (Index i = 0; i < theta.size(); ++i)
+          require(std::isfinite(theta(i)), [&] {
+            return "params[" + std::to_string(i) + "] is " + number_text(theta(i)) +
+                   "; expected finite numbers";
+          });
         const nlohmann::json doc = {
             {"format", kModelFormat},
             {"version", kModelFormatVersion},
@@ -259,7 +268,8 @@ void bind_model(py::module_& m) {
   m.def(
       "from_json",
       [](const std::string& text) {
-        return from_saved(model_from_json(parse_json(text, "model"), "model"));
+        // The file reader's own parse: its bounds on depth and size apply (docs/hardening.md).
+        return from_saved(model_from_text(text, "model"));
       },
       py::arg("text"), "Builds a model from the text of a model file.");
 }

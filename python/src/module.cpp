@@ -3,12 +3,16 @@
 // module only moves arrays across and calls the library.
 #include <pybind11/pybind11.h>
 
+#include <atomic>
 #include <cctype>
+#include <chrono>
 #include <exception>
 #include <string>
+#include <thread>
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
+#include "csympnet/core/stop.hpp"
 #include "model_binding.hpp"
 
 namespace {
@@ -27,6 +31,41 @@ const csympnet::OptionSpelling& python_spelling() {
       }};
   return s;
 }
+// The library's long stages without a callback (integrators, generation, file reads) poll
+// csympnet::stop_requested(): here, on Python's main thread (where Python runs its signal
+// handlers), at most every 2 ms, Python's pending signals. A handler's exception
+// (KeyboardInterrupt) is kept and raised when the stopped call returns to Python. Other
+// threads never take the GIL here (the main thread may hold it while it waits for them).
+std::thread::id g_main_thread;
+std::atomic<bool> g_stop_pending{false};
+PyObject* g_stop_type = nullptr;  // the handler's exception, owned; touched with the GIL held
+PyObject* g_stop_value = nullptr;
+PyObject* g_stop_traceback = nullptr;
+
+bool python_stop_poll() {
+  if (g_stop_pending.load(std::memory_order_relaxed)) return true;
+  if (std::this_thread::get_id() != g_main_thread) return false;
+  static std::chrono::steady_clock::time_point last{};
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last < std::chrono::milliseconds(2)) return false;
+  last = now;
+  pybind11::gil_scoped_acquire gil;
+  if (PyErr_CheckSignals() == 0) return false;
+  PyErr_Fetch(&g_stop_type, &g_stop_value, &g_stop_traceback);
+  g_stop_pending = true;
+  return true;
+}
+
+// Sets the Python error of a call that stopped on request: the handler's exception.
+void raise_stop() {
+  g_stop_pending = false;
+  if (g_stop_type != nullptr) {
+    PyErr_Restore(g_stop_type, g_stop_value, g_stop_traceback);
+    g_stop_type = g_stop_value = g_stop_traceback = nullptr;
+  } else {
+    PyErr_SetNone(PyExc_KeyboardInterrupt);
+  }
+}
 }  // namespace
 
 PYBIND11_MODULE(_core, m) {
@@ -43,6 +82,21 @@ PYBIND11_MODULE(_core, m) {
       if (p) std::rethrow_exception(p);
     } catch (const csympnet::OptionError& e) {
       PyErr_SetString(error.ptr(), e.message(python_spelling()).c_str());
+    }
+  });
+  // A stage that stopped on a signal raises the signal's exception (KeyboardInterrupt); so
+  // does any library error after one (a read cut short), as in the CLI. Registered last, so
+  // tried first.
+  g_main_thread = std::this_thread::get_id();
+  csympnet::set_stop_poll(&python_stop_poll);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const csympnet::StopRequested&) {
+      raise_stop();
+    } catch (const csympnet::Error&) {
+      if (!g_stop_pending) throw;
+      raise_stop();
     }
   });
   csympnet::py_binding::bind_model(m);

@@ -9,7 +9,13 @@ whose message names the argument and says what was expected, or an answer that i
 unchanged by the caller's view of the data.
 """
 
+import json
 import math
+import os
+import signal
+import stat
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -252,6 +258,114 @@ def test_edited_model_files_are_refused(tmp_path, small_model):
         # Accepted only where the edit does not change the number read (a 17th digit that
         # rounds to the same double): then the model is the original, to the bit.
         assert loaded.to_json() == text, f"an edit at {i} changed the model and was accepted"
+
+
+# --- files, paths and signals ---------------------------------------------------------------
+# (docs/hardening.md, "Special files", "Parser memory", "Integrator bounds", "Signals")
+
+def _writers(small_model, pairs):
+    return {
+        "Model.save": lambda p: small_model.save(p),
+        "write_csv": lambda p: csympnet.write_csv(p, pairs),
+    }
+
+
+@pytest.fixture(scope="module")
+def pairs():
+    return csympnet.Pairs(Z0, Z1, np.full(len(Z0), H))
+
+
+@pytest.mark.parametrize("writer", ["Model.save", "write_csv"])
+def test_writes_refuse_fifos_devices_and_symlinks(tmp_path, small_model, pairs, writer):
+    """An atomic rename would turn the node into a regular file (/dev/null, as root, became
+    one): each is refused by name and stays what it was."""
+    write = _writers(small_model, pairs)[writer]
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(csympnet.Error, match=r"fifo.*FIFO.*expected a regular file"):
+        write(fifo)
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    target = tmp_path / "target.txt"
+    target.write_text("mine\n")
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    with pytest.raises(csympnet.Error, match="symbolic link"):
+        write(link)
+    assert link.is_symlink() and target.read_text() == "mine\n"
+    (tmp_path / "dir").mkdir()
+    with pytest.raises(csympnet.Error, match="directory"):
+        write(tmp_path / "dir")
+    if os.geteuid() == 0:
+        null = tmp_path / "null"
+        os.mknod(null, 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        with pytest.raises(csympnet.Error, match="character device"):
+            write(null)
+        assert stat.S_ISCHR(os.lstat(null).st_mode)
+    assert not [p for p in os.listdir(tmp_path) if ".tmp." in p], "a temporary was left"
+
+
+def test_nul_bytes_in_paths_are_refused_as_python_refuses_them(tmp_path, small_model, pairs):
+    """A NUL byte cut the path short: 'a\\x00b' wrote 'a'. Every path argument refuses it."""
+    small_model.save(tmp_path / "a")
+    (tmp_path / "d.csv").write_text("h,q1,p1,next_q1,next_p1\n0.1,1,0,0.9,0.1\n")
+    bad = str(tmp_path / "a") + "\x00b"
+    calls = {
+        "save": lambda: small_model.save(str(tmp_path / "new") + "\x00b"),
+        "save_bytes": lambda: small_model.save(os.fsencode(str(tmp_path / "new")) + b"\x00b"),
+        "load": lambda: csympnet.load(bad),
+        "read_csv": lambda: csympnet.read_csv(str(tmp_path / "d.csv") + "\x00x"),
+        "write_csv": lambda: csympnet.write_csv(str(tmp_path / "new") + "\x00b", pairs),
+        "identify_init": lambda: csympnet.identify(np.zeros((40, 2)), np.arange(40) * 0.1,
+                                                   init=bad),
+    }
+    for name, call in calls.items():
+        with pytest.raises(ValueError, match="embedded null byte"):
+            call()
+    assert not (tmp_path / "new").exists()
+    # The C++ layer refuses it too (a caller of the compiled module directly).
+    with pytest.raises(ValueError, match="null byte"):
+        csympnet._core.load(bad)
+
+
+def test_model_text_beyond_what_a_model_holds_is_refused(small_model):
+    """A model file's meta is bounded while it is parsed (a 15-million-entry array took 20
+    times its size in memory); so is its nesting depth."""
+    text = small_model.to_json()
+    big = '{"meta": {"junk": [' + ",".join(["0"] * 1_000_001) + ']},' + text.lstrip()[1:]
+    with pytest.raises(csympnet.Error, match="values outside \"params\""):
+        csympnet.from_json(big)
+    deep = '{"meta": ' + "[" * 100 + "]" * 100 + "}"
+    with pytest.raises(csympnet.Error, match="nested deeper than 64"):
+        csympnet.from_json(deep)
+
+
+def test_nan_parameters_are_named_as_nan(small_model):
+    spec = json.dumps(json.loads(small_model.to_json())["model"])
+    params = small_model.params.copy()
+    params[1] = np.nan
+    with pytest.raises(csympnet.Error, match=r"params\[1\] is nan; expected finite"):
+        csympnet._core.from_spec(spec, params, "{}")
+
+
+@pytest.fixture(scope="module")
+def ode_model():
+    return csympnet.run("s1", "ode", epochs=1).model
+
+
+def test_ctrl_c_stops_a_vector_field_prediction_over_a_huge_step(ode_model):
+    """dopri5 integrates the whole span: predict(z, 1e12) ran for hours, deaf to Ctrl-C."""
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            ode_model.predict(np.array([0.1, 0.2]), 1e12)
+        stopped = time.monotonic() - start
+    finally:
+        timer.cancel()
+    assert stopped < 1.5, f"stopped {stopped - 0.5:.2f} s after SIGINT"
+    # The next call is not stopped by the old signal.
+    assert np.all(np.isfinite(ode_model.predict(np.array([0.1, 0.2]), 0.1)))
 
 
 def test_the_suite_has_at_least_two_hundred_cases():

@@ -1,5 +1,6 @@
 #include "csympnet/data/csv.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <limits>
@@ -7,6 +8,7 @@
 
 #include "csv_text.hpp"
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/io/files.hpp"
 
 namespace csympnet {
@@ -74,6 +76,29 @@ std::unordered_map<std::string_view, Index> group_counts(
   return n;
 }
 
+// A --columns that would read a header of these names, built from the user's own names: the
+// first column as t, then half the rest as q and half as p (with a traj column first when
+// that is what makes the count even).
+std::string columns_example(const std::vector<std::string_view>& fields) {
+  std::vector<std::string> names;
+  for (std::string_view f : fields)
+    names.emplace_back(f.empty() ? std::string("COLUMN") : std::string(f.substr(0, 40)));
+  std::size_t first = 0;
+  std::string out;
+  if (names.size() >= 4 && names.size() % 2 == 0) {
+    out = "traj=" + names[0] + ",";
+    first = 1;
+  }
+  if (names.size() < 3 || names.size() > 41) return "--columns t=TIME,q1=POSITION,p1=MOMENTUM";
+  out += "t=" + names[first];
+  const std::size_t d = (names.size() - first - 1) / 2;
+  for (std::size_t i = 0; i < d; ++i)
+    out += ",q" + std::to_string(i + 1) + "=" + names[first + 1 + i];
+  for (std::size_t i = 0; i < d; ++i)
+    out += ",p" + std::to_string(i + 1) + "=" + names[first + 1 + d + i];
+  return "--columns " + out;
+}
+
 Header parse_header(const CsvText& f) {
   const std::vector<std::string_view> fields = csv_detail::split_fields(f.lines[0].text);
   const std::string where = at(f.path, f.lines[0].number);
@@ -86,8 +111,19 @@ Header parse_header(const CsvText& f) {
   } else {
     throw Error(where + "unrecognised header " + quote(f.lines[0].text) +
                 "; expected a pairs header '" + kPairsForm + "' (d=1: 'h,q1,p1,next_q1,next_p1')" +
-                " or a trajectories header '" + kTrajForm + "' (d=1: 'traj,t,q1,p1' or 't,q1,p1')");
+                " or a trajectories header '" + kTrajForm +
+                "' (d=1: 'traj,t,q1,p1' or 't,q1,p1'), or name your columns with --columns, "
+                "e.g. " +
+                columns_example(fields));
   }
+  // A name given twice would be counted twice below (two q1 read as d = 2).
+  for (std::size_t c = 0; c < fields.size(); ++c)
+    for (std::size_t k = 0; k < c; ++k)
+      if (fields[k] == fields[c] && !fields[c].empty())
+        throw Error(where + "header column " + std::to_string(c + 1) + " " + quote(fields[c]) +
+                    " repeats column " + std::to_string(k + 1) +
+                    "; expected each column name once, as '" +
+                    (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "'");
   auto n = group_counts(fields);
   const Index fixed = h.kind == CsvKind::kPairs ? 1 : (h.has_traj ? 2 : 1);
   const Index groups = h.kind == CsvKind::kPairs ? 4 : 2;
@@ -96,6 +132,34 @@ Header parse_header(const CsvText& f) {
   bool shape_ok = h.d >= 1 && n["p"] == h.d && cols == fixed + groups * h.d;
   if (h.kind == CsvKind::kPairs) shape_ok = shape_ok && n["next_q"] == h.d && n["next_p"] == h.d;
   if (!shape_ok) {
+    // Columns of no group beside a header that is right without them (a 'temp' column, a
+    // trailing comma's empty name): named, with the --columns that reads the others.
+    std::vector<std::string_view> known;
+    std::size_t first_unknown = fields.size();
+    for (std::size_t c = 0; c < fields.size(); ++c) {
+      const bool fixed_name = fields[c] == "h" || fields[c] == "t" || fields[c] == "traj";
+      if (fixed_name || !group_of(fields[c]).empty())
+        known.push_back(fields[c]);
+      else if (first_unknown == fields.size())
+        first_unknown = c;
+    }
+    auto kn = group_counts(known);
+    const auto known_cols = static_cast<Index>(known.size());
+    bool known_ok = kn["q"] >= 1 && kn["p"] == kn["q"] && known_cols == fixed + groups * kn["q"];
+    if (h.kind == CsvKind::kPairs)
+      known_ok = known_ok && kn["next_q"] == kn["q"] && kn["next_p"] == kn["q"];
+    if (known_ok && first_unknown < fields.size()) {
+      std::string map;
+      for (std::string_view k : known)
+        map += (map.empty() ? "" : ",") + std::string(k) + "=" + std::string(k);
+      const std::string_view bad = fields[first_unknown];
+      throw Error(
+          where + "header column " + std::to_string(first_unknown + 1) + " " +
+          (bad.empty() ? std::string("is empty (a trailing comma?)")
+                       : quote(bad) + " is not a column csympnet reads") +
+          "; expected only the columns '" + (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
+          "', or --columns naming the ones to read (it drops the others): --columns " + map);
+    }
     std::string counts = std::to_string(n["q"]) + " q and " + std::to_string(n["p"]) + " p";
     if (h.kind == CsvKind::kPairs)
       counts += " and " + std::to_string(n["next_q"]) + " next_q and " +
@@ -121,6 +185,7 @@ void for_each_row(const CsvText& f, const Header& h, RowFn&& row) {
     throw Error(at(f.path, f.lines[0].number) +
                 "header only, no data rows; expected at least one data row after the header");
   for (std::size_t k = 1; k < f.lines.size(); ++k) {
+    if ((k & 0xFFFF) == 0) throw_if_stop_requested("reading " + f.path);
     const Line& line = f.lines[k];
     if (csv_detail::is_blank(line.text))
       throw Error(at(f.path, line.number) +
@@ -213,12 +278,23 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
   Pending cur;
   bool started = false;
   std::unordered_map<long long, std::size_t> seen;  // id -> index in `done` (closed runs)
+  std::string id_text;                              // the current id as written
 
   for_each_row(f, h, [&](const Line& line, const std::vector<std::string_view>& fields) {
     long long id = 0;
     if (h.has_traj && !csv_detail::parse_integer(fields[0], id))
       throw Error(at(f.path, line.number) +
                   "column 'traj': expected an integer trajectory id, got " + quote(fields[0]));
+    // Ids are integers, so '-0' and '0' (or '01' and '1') are one id: written differently on
+    // neighbouring rows they were most likely meant as two trajectories. Say so, rather than
+    // merge them and report the restarted time.
+    if (h.has_traj && started && id == cur.id && fields[0] != id_text)
+      throw Error(at(f.path, line.number) + "column 'traj': id " + quote(fields[0]) +
+                  " is the same integer as " + quote(id_text) + " on line " +
+                  std::to_string(cur.last_line) +
+                  " but written differently; expected each trajectory's id written one way "
+                  "(distinct trajectories need distinct integers)");
+    if (h.has_traj) id_text = std::string(fields[0]);
     if (!started || id != cur.id) {
       if (started) {
         seen[cur.id] = done.size();
@@ -315,8 +391,27 @@ CsvInput read_csv_input(const std::string& path) {
 CsvInput read_csv_input(const std::string& path, const ColumnMap& map) {
   CsvInput in;
   in.name = path == "-" ? std::string("standard input") : path;
-  in.text = apply_column_map(read_text_file(path), in.name, map);
-  in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;
+  std::string original = read_text_file(path);
+  // The file's own header line, for messages about the header --columns made from it.
+  const std::string own_header =
+      original.substr(0, std::min(original.find('\n'), std::size_t{200}));
+  in.text = apply_column_map(std::move(original), in.name, map);
+  try {
+    in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;
+  } catch (const Error& e) {
+    if (map.empty()) throw;
+    // The parser quotes the header as --columns rewrote it, which the user never wrote.
+    const std::string built = in.text.substr(0, in.text.find('\n'));
+    std::string what = e.what();
+    if (const std::size_t at = what.find(quote(built)); at != std::string::npos)
+      what.replace(at, quote(built).size(),
+                   quote(built) + " (the header --columns makes from the file's own " +
+                       quote(!own_header.empty() && own_header.back() == '\r'
+                                 ? own_header.substr(0, own_header.size() - 1)
+                                 : own_header) +
+                       ")");
+    throw Error(what);
+  }
   return in;
 }
 

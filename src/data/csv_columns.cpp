@@ -65,7 +65,11 @@ ColumnMap parse_column_map(const std::string& spec, const std::string& option) {
              " is not a column csympnet reads; expected traj, t, h, q1..qd, p1..pd, "
              "next_q1..next_qd or next_p1..next_pd before each '='";
     });
-    for (const auto& [k, v] : map.columns) {
+    // Plain pairs, not structured bindings: clang 14 (the fuzzing build) cannot capture
+    // those in a lambda.
+    for (const auto& kv : map.columns) {
+      const std::string& k = kv.first;
+      const std::string& v = kv.second;
       require(k != key, [&] { return option + ": " + key + " is mapped twice"; });
       require(v != value, [&] {
         return option + ": column " + quote(value) + " is mapped twice (to " + k + " and " + key +
@@ -111,7 +115,9 @@ std::string apply_column_map(std::string text, const std::string& name, const Co
     canonical_rank(canonical, rank);
     kept.emplace_back(rank, canonical, c);
   }
-  for (const auto& [key, value] : map.columns)
+  for (const auto& kv : map.columns) {
+    const std::string& key = kv.first;
+    const std::string& value = kv.second;
     require(found.count(value) == 1, [&] {
       std::string names;
       for (std::size_t c = 0; c < fields.size(); ++c)
@@ -119,6 +125,7 @@ std::string apply_column_map(std::string text, const std::string& name, const Co
       return csv_detail::at(name, head.number) + "--columns maps " + key + " to " + quote(value) +
              ", which is not a column of the header; expected one of " + names;
     });
+  }
   std::stable_sort(kept.begin(), kept.end(),
                    [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
 

@@ -7,6 +7,7 @@
 #include <system_error>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/io/files.hpp"
 
 namespace csympnet::csv_detail {
@@ -79,6 +80,7 @@ CsvText csv_text_from_bytes(const std::string& path, std::string bytes) {
 
   std::size_t number = 1;
   while (!text.empty()) {
+    if ((number & 0xFFFF) == 0) throw_if_stop_requested("reading " + path);
     const std::size_t nl = text.find('\n');
     std::string_view line = text.substr(0, nl);
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);

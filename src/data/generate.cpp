@@ -5,6 +5,7 @@
 #include <string>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 
 namespace csympnet {
 
@@ -54,7 +55,9 @@ void from_json(const nlohmann::json& j, StepSpec& s) {
   require(j.is_object(),
           [&] { return "steps: expected a JSON object, got " + std::string(j.type_name()); });
   StepSpec out;
-  for (const auto& [key, value] : j.items()) {
+  for (const auto& item : j.items()) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& key = item.key();
+    const nlohmann::json& value = item.value();
     require(key == "h_min" || key == "h_max",
             [&] { return "steps: unknown key \"" + key + "\" (allowed: h_min, h_max)"; });
     require(value.is_number(),
@@ -79,6 +82,7 @@ PairSet generate_pairs(const System& sys, Index n, const StepSpec& steps, Rng& r
   pairs.z0.resize(dim, n);
   pairs.h.resize(n);
   for (Index j = 0; j < n; ++j) {
+    if ((j & 255) == 255 || dim >= 65536) throw_if_stop_requested("generating the data");
     for (Index i = 0; i < dim; ++i) pairs.z0(i, j) = rng.uniform(-box, box);
     const double h = rng.uniform(steps.h_min, steps.h_max);
     pairs.h(j) = steps.h_min == steps.h_max ? steps.h_min : h;
@@ -107,6 +111,7 @@ void add_noise(PairSet& pairs, double sigma, const NoiseScales& scales, Rng& rng
   });
   Vector xi0(dim), xi1(dim);
   for (Index j = 0; j < pairs.z0.cols(); ++j) {
+    if ((j & 255) == 255 || dim >= 65536) throw_if_stop_requested("adding noise to the data");
     for (Index i = 0; i < dim; ++i) xi0(i) = rng.normal();
     for (Index i = 0; i < dim; ++i) xi1(i) = rng.normal();
     if (sigma == 0.0) continue;  // adding +0.0 would turn −0.0 into +0.0
@@ -161,6 +166,7 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
       if (alive[c]) ids.push_back(c);
     }
     for (Index n = 1; n <= n_steps && !ids.empty(); ++n) {
+      throw_if_stop_requested("generating the test trajectories");
       // Integrate only the survivors; each column's result is independent of the others.
       Matrix active(dim, static_cast<Index>(ids.size()));
       for (std::size_t i = 0; i < ids.size(); ++i)
@@ -186,10 +192,13 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
         ++out.redraws;
     }
     require(out.redraws <= max_redraws, [&] {
-      return "generate_test_set: gave up after " + std::to_string(out.redraws) +
-             " redrawn starts (max_redraws = " + std::to_string(max_redraws) + "); only " +
+      return "cannot generate the test trajectories: only " +
              std::to_string(out.trajectories.size()) + " of " + std::to_string(m) +
-             " trajectories stay within ||z||_inf <= " + num(bound);
+             " stayed within |z| <= " + num(bound) + " over the horizon after " +
+             std::to_string(out.redraws) +
+             " starts were drawn again (the reference solution blows up or loses accuracy "
+             "for this system: check --omega, --gamma, --alpha and --k); expected a system "
+             "whose test trajectories stay bounded";
     });
   }
   return out;

@@ -77,9 +77,11 @@ void to_json(nlohmann::json& j, const Normalization& n) {
 void from_json(const nlohmann::json& j, Normalization& n) {
   const std::string where = "normalization";
   require(j.is_object(), [&] { return where + ": expected an object"; });
-  for (const auto& [key, value] : j.items())
+  for (const auto& item : j.items()) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& key = item.key();
     require(key == "q_shift" || key == "q_scale" || key == "p_scale" || key == "time_scale",
             [&] { return where + ": unknown key '" + key + "'"; });
+  }
   auto vec = [&](const char* key) {
     require(j.contains(key) && j.at(key).is_array(),
             [&] { return where + ": missing array '" + key + "'"; });
@@ -133,14 +135,20 @@ Normalization from_states(const Matrix& z, const std::vector<double>& steps) {
     // The spread of p about its mean; p itself is not shifted (the damping pulls p to 0).
     sp(i) = std::sqrt((z.row(d + i).array() - mp).square().sum() / m);
     const std::string dof = std::to_string(i + 1);
-    require(sq(i) > 0.0 && std::isfinite(sq(i)), [&] {
-      return "normalization: q" + dof +
+    // A spread of 0 with values that differ: their squares underflowed (below ~1e-154 the
+    // square of a difference is no longer a normal double), which is not "does not vary".
+    auto why_zero = [&](Index row, double mean, const char* name) {
+      const double widest = (z.row(row).array() - mean).abs().maxCoeff();
+      if (widest > 0.0)
+        return "normalization: " + std::string(name) + dof + " varies only by about " +
+               number_text(widest) +
+               ", too little for its square to be a normal double (it underflows to 0); "
+               "expected variations above 1e-150 (rescale the data, e.g. to SI units)";
+      return "normalization: " + std::string(name) + dof +
              " does not vary in the data; expected every coordinate to vary";
-    });
-    require(sp(i) > 0.0 && std::isfinite(sp(i)), [&] {
-      return "normalization: p" + dof +
-             " does not vary in the data; expected every coordinate to vary";
-    });
+    };
+    require(sq(i) > 0.0 && std::isfinite(sq(i)), [&] { return why_zero(i, mq, "q"); });
+    require(sp(i) > 0.0 && std::isfinite(sp(i)), [&] { return why_zero(d + i, mp, "p"); });
   }
   // c = geometric mean of σ_q σ_p, in logs (no overflow for spreads of 1e±150).
   double log_c = 0.0;

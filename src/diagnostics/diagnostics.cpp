@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 
 namespace csympnet {
 
@@ -14,6 +15,8 @@ Matrix rollout(const LearnedMap& map, const Vector& z0, const Vector& steps) {
   for (Index n = 0; n < steps.size(); ++n) {
     try {
       out.col(n + 1) = map.step(out.col(n), steps(n));
+    } catch (const StopRequested&) {
+      throw;  // a stop request is not a failure of the map
     } catch (const Error&) {
       // The learned dynamics left the finite numbers (e.g. a blown-up vector field): the
       // rest of the rollout is infinitely wrong, which the L2 error then says.
@@ -79,6 +82,8 @@ Diagnostics evaluate(const LearnedMap& map, const System& sys, const std::vector
       StructureAt s;
       try {
         s = structure_at(map.jacobian(traj.z.col(n), h_test), d.lambda_star, lambda_own);
+      } catch (const StopRequested&) {
+        throw;  // a stop request is not a failure of the map
       } catch (const Error&) {
         const double inf = std::numeric_limits<double>::infinity();
         s = {inf, inf, inf};  // the induced map does not exist at this point

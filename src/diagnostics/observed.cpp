@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 
 namespace csympnet {
 
@@ -79,6 +80,8 @@ ObservedScores score_observed(const LearnedMap& map, const std::vector<Trajector
       Vector next;
       try {
         next = map.step(tr.z.col(i), steps(i));
+      } catch (const StopRequested&) {
+        throw;  // a stop request is not a failure of the map
       } catch (const Error&) {
         next = Vector::Constant(dim, inf);  // the map does not exist there: infinitely wrong
       }
@@ -128,6 +131,8 @@ ObservedScores score_observed(const LearnedMap& map, const std::vector<Trajector
             map.gamma_hat ? std::optional<double>(std::exp(-*map.gamma_hat * steps(i)))
                           : std::nullopt;
         self = structure_at(map.jacobian(tr.z.col(i), steps(i)), 0.0, own).self_residual;
+      } catch (const StopRequested&) {
+        throw;  // a stop request is not a failure of the map
       } catch (const Error&) {
       }
       self_sum += self;

@@ -138,6 +138,20 @@ std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool 
                                         : fit_normalization(trajs))
                           : identity_normalization(d);
   }
+  if (init != nullptr && init->normalization) {
+    // The init file's time scale must suit these data's steps: the steps in its units must
+    // be normal, finite numbers (a τ of 1e-308 used to surface as an error blamed on the data).
+    const DataFacts f = inspect_data(trajs, pairs_only);
+    const double tau = r.normalization.time_scale;
+    const double lo = f.h_min / tau, hi = f.h_max / tau;
+    if (!(std::isfinite(hi) && hi <= 1e150 && lo >= std::numeric_limits<double>::min()))
+      throw OptionError("init", init->file + ": its time scale " + number_text(tau) +
+                                    " puts the data's steps (" + number_text(f.h_min) + " to " +
+                                    number_text(f.h_max) + ") at " + number_text(lo) + " to " +
+                                    number_text(hi) +
+                                    " in its units, beyond what can be computed with; expected "
+                                    "a model fitted on data with steps like these");
+  }
   return normalize(r.normalization, trajs);
 }
 

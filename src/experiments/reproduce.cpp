@@ -11,6 +11,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/io/files.hpp"
@@ -109,6 +110,8 @@ json execute_run(const SuiteRun& run, const std::function<bool()>& stop) {
       by_h.push_back(diagnostics_record(evaluate(map, sys, tests.trajectories, h), h));
     }
     rec["by_h_test"] = by_h;
+  } catch (const StopRequested&) {
+    throw;  // a stop request is not a failure of the map
   } catch (const std::exception& e) {
     rec["status"] = "failed";
     rec["error"] = e.what();

@@ -128,7 +128,9 @@ void parse_run_options(const json& doc, const std::string& where, SuiteSpec& s) 
       return where + ": key 'n_train' = " + s.n_train.dump() +
              ", expected {\"preset\": [sizes], ...}";
     });
-    for (const auto& [preset, sizes] : s.n_train.items()) {
+    for (const auto& item : s.n_train.items()) {  // clang 14 cannot capture bindings
+      const std::string& preset = item.key();
+      const json& sizes = item.value();
       preset_by_name(preset);
       require(sizes.is_array() && !sizes.empty(), [&] {
         return where + ": n_train." + preset + " = " + sizes.dump() + ", expected a list";
@@ -169,13 +171,17 @@ void parse_run_options(const json& doc, const std::string& where, SuiteSpec& s) 
       return where + ": key 'epochs' = " + s.epochs.dump() +
              ", expected {\"preset or *\": {\"model or *\": E}}";
     });
-    for (const auto& [preset, by_model] : s.epochs.items()) {
+    for (const auto& item : s.epochs.items()) {  // clang 14 cannot capture bindings
+      const std::string& preset = item.key();
+      const json& by_model = item.value();
       if (preset != "*") preset_by_name(preset);
       require(by_model.is_object(), [&] {
         return where + ": epochs." + preset + " = " + by_model.dump() +
                ", expected {\"model or *\": E}";
       });
-      for (const auto& [model, e] : by_model.items()) {
+      for (const auto& entry : by_model.items()) {
+        const std::string& model = entry.key();
+        const json& e = entry.value();
         if (model != "*") model_spec_for(preset_by_name("s1"), model);
         require(e.is_number_integer() && e.get<std::int64_t>() >= 0 &&
                     e.get<std::int64_t>() <= 100000000LL,

@@ -12,6 +12,7 @@
 #include <boost/numeric/odeint.hpp>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 
 namespace csympnet {
 
@@ -154,9 +155,14 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
     require(steps < opt.max_steps, [&] {
       return "dopri5: step budget of " + std::to_string(opt.max_steps) +
              " exhausted at t = " + num(t) + " of h = " + num(h) +
-             " (the learned field may be stiff or blowing up)";
+             " (the learned field may be stiff or blowing up); expected a span the field "
+             "can be integrated over within the budget (a smaller step)";
     });
     ++steps;
+    // A step costs microseconds to milliseconds; a span of 1e12 takes up to the whole budget.
+    // Polled only once a call is long (an ordinary step takes tens of steps): a training
+    // stopped by a signal still evaluates its best checkpoint with the same integrator.
+    if (steps >= 4096 && (steps & 63) == 0) throw_if_stop_requested("dopri5: the integration");
     const double remaining = h - t;
     const bool last = dt >= remaining;
     if (last) dt = remaining;

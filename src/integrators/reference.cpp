@@ -1,5 +1,6 @@
 #include "csympnet/integrators/reference.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -9,6 +10,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 
 namespace csympnet {
 
@@ -18,6 +20,8 @@ namespace {
 constexpr double kCeilSlack = 1e-10;
 // More substeps than this in one call is certainly a units mistake, not a request.
 constexpr double kMaxSubsteps = 1e12;
+// Adaptive steps (accepted or rejected) of one rk_flow call before it gives up.
+constexpr long kMaxRkSteps = 10000000;
 
 std::string num(double x) {
   std::ostringstream os;
@@ -32,7 +36,11 @@ void splitting_steps(const System& sys, Matrix& Q, Matrix& P, double delta, Inde
   const double a = std::exp(-0.5 * sys.gamma() * delta);  // conformal factor over δ/2
   const double half = 0.5 * delta;
   Matrix G = sys.grad_potential_batch(Q);
+  // A substep costs O(d N): poll each one for a large block, every 1,024 for a small one.
+  const Index poll_mask = Q.size() >= 65536 ? 0 : 1023;
   for (Index s = 0; s < n; ++s) {
+    if ((s & poll_mask) == poll_mask)
+      throw_if_stop_requested("the splitting reference integration");
     P *= a;          // scale
     P -= half * G;   // kick
     Q += delta * P;  // drift
@@ -43,14 +51,23 @@ void splitting_steps(const System& sys, Matrix& Q, Matrix& P, double delta, Inde
 }
 
 // Advances all columns of Z (2d x N) by the same h with the splitting.
+// The columns are independent (every operation is elementwise, the gradient is taken column by
+// column), so a large block goes in chunks of about 2^20 entries: the same bits as in one
+// piece, and a stop request is seen within a chunk's substep (a block of 10^5 dimensions by
+// 10^3 columns took seconds per pass before).
 void splitting_block(const System& sys, Matrix& Z, double h, double h_ref) {
   const Index d = sys.d();
   const Index n = substep_count(h, h_ref);
-  Matrix Q = Z.topRows(d);
-  Matrix P = Z.bottomRows(d);
-  splitting_steps(sys, Q, P, h / static_cast<double>(n), n);
-  Z.topRows(d) = Q;
-  Z.bottomRows(d) = P;
+  const Index chunk = std::max<Index>(1, (Index{1} << 20) / std::max<Index>(1, Z.rows()));
+  for (Index c0 = 0; c0 < Z.cols(); c0 += chunk) {
+    if (c0 > 0) throw_if_stop_requested("the splitting reference integration");
+    const Index w = std::min(chunk, Z.cols() - c0);
+    Matrix Q = Z.block(0, c0, d, w);
+    Matrix P = Z.block(d, c0, d, w);
+    splitting_steps(sys, Q, P, h / static_cast<double>(n), n);
+    Z.block(0, c0, d, w) = Q;
+    Z.block(d, c0, d, w) = P;
+  }
 }
 
 void check_state(const System& sys, const Vector& z, const char* where) {
@@ -148,6 +165,7 @@ Matrix conformal_sv_jacobian(const System& sys, const Vector& z, double h, doubl
   Mq.leftCols(d).setIdentity();
   Mp.rightCols(d).setIdentity();
   for (Index s = 0; s < n; ++s) {
+    if ((s & 1023) == 1023) throw_if_stop_requested("the splitting reference integration");
     p *= a;
     Mp *= a;
     p -= half * sys.grad_potential(q);
@@ -191,8 +209,36 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
     Eigen::Map<Vector>(dxdt.data(), dim) = f;
   };
   // Fehlberg 7(8): high order keeps the step count small at rtol ~ 1e-12.
+  // The controlled loop by hand (integrate_adaptive has no step bound): a stiff system (a huge
+  // ω) would otherwise take steps without end. Each try counts against kMaxRkSteps, and the
+  // stop request is polled every 64 tries.
   auto stepper = odeint::make_controlled(atol, rtol, odeint::runge_kutta_fehlberg78<State>());
-  odeint::integrate_adaptive(stepper, rhs, x, 0.0, h, 0.1 * h);
+  double t = 0.0, dt = 0.1 * h;
+  for (long tries = 0; t < h; ++tries) {
+    require(tries < kMaxRkSteps, [&] {
+      return "the rk reference took " + std::to_string(kMaxRkSteps) +
+             " adaptive steps and reached t = " + num(t) + " of a step of " + num(h) +
+             " (the system is too stiff for it at this step: a large omega or gamma?); "
+             "expected a system and step the rk reference can integrate, or the splitting "
+             "reference";
+    });
+    if ((tries & 63) == 63) throw_if_stop_requested("the rk reference integration");
+    const bool last = dt >= h - t;
+    const double t_before = t;
+    if (last) dt = h - t;
+    if (stepper.try_step(rhs, x, t, dt) == odeint::success) {
+      if (last || t >= h) t = h;
+    }
+    require(std::isfinite(dt) && dt > 0.0 && (t >= h || t + dt > t), [&] {
+      return "the rk reference's step size underflowed (dt = " + num(dt) +
+             ") at t = " + num(t_before) + " of a step of " + num(h) +
+             "; expected a system and step the rk reference can integrate";
+    });
+  }
+  require(std::all_of(x.begin(), x.end(), [](double v) { return std::isfinite(v); }), [&] {
+    return "the rk reference's state became non-finite over a step of " + num(h) +
+           "; expected a system and step the rk reference can integrate";
+  });
   return Eigen::Map<const Vector>(x.data(), dim);
 }
 
@@ -223,6 +269,7 @@ Matrix reference_flow(const System& sys, const Matrix& Z, const Vector& h,
 
   if (opt.method == Reference::kExpm) {
     for (const auto& [step, cols] : groups) {
+      throw_if_stop_requested("the expm reference integration");
       const Matrix E = expm_propagator(sys, step);
       // Column by column (matrix-vector), so a column's bits do not depend on the batch.
       for (Index j : cols) out.col(j).noalias() = E * Z.col(j);
@@ -236,6 +283,7 @@ Matrix reference_flow(const System& sys, const Matrix& Z, const Vector& h,
     return out;
   }
   for (const auto& [step, cols] : groups) {
+    throw_if_stop_requested("the splitting reference integration");
     Matrix block(Z.rows(), static_cast<Index>(cols.size()));
     for (std::size_t i = 0; i < cols.size(); ++i) block.col(static_cast<Index>(i)) = Z.col(cols[i]);
     splitting_block(sys, block, step, opt.h_ref);

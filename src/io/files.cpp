@@ -1,6 +1,7 @@
 #include "csympnet/io/files.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -15,8 +16,10 @@
 #include <set>
 #include <sstream>
 #include <system_error>
+#include <vector>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 
 namespace csympnet {
 
@@ -27,8 +30,14 @@ std::string read_text_file(const std::string& path, std::size_t max_bytes) {
   const std::string name = is_stdin ? std::string("standard input ('-')") : "'" + path + "'";
   int fd = 0;
   if (!is_stdin) {
+    check_path_text(path);
     std::error_code ec;
     const fs::file_status st = fs::status(path, ec);
+    // status fails for more than a missing file: a loop of symbolic links (ELOOP), a
+    // component that is a file (ENOTDIR), no permission to look (EACCES). Name those.
+    if (ec && ec != std::errc::no_such_file_or_directory)
+      throw Error("cannot read " + name + ": " + ec.message() +
+                  "; expected an existing readable file");
     if (!fs::exists(st))
       throw Error("cannot read " + name + ": no such file; expected an existing readable file");
     if (fs::is_directory(st))
@@ -50,6 +59,10 @@ std::string read_text_file(const std::string& path, std::size_t max_bytes) {
       break;
     }
     if (n == 0) break;
+    if (stop_requested()) {  // a large file is read in seconds: stop between chunks
+      failure = "reading stopped on request";
+      break;
+    }
     if (out.size() + static_cast<std::size_t>(n) > max_bytes) {
       failure =
           "it holds more than " + std::to_string(max_bytes) + " bytes, the most an input may hold";
@@ -61,6 +74,7 @@ std::string read_text_file(const std::string& path, std::size_t max_bytes) {
     if (std::memchr(buf, '\0', static_cast<std::size_t>(n)) != nullptr) break;
   }
   if (!is_stdin) ::close(fd);
+  if (stop_requested()) throw StopRequested("reading " + name + " stopped on request");
   if (!failure.empty())
     throw Error("cannot read " + name + ": " + failure + "; expected a readable file");
   return out;
@@ -77,6 +91,52 @@ fs::path temp_name_for(const fs::path& target) {
          ("." + target.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
           std::to_string(counter.fetch_add(1)) + "." + std::to_string(ticks));
 }
+
+}  // namespace
+
+void check_path_text(const std::string& path) {
+  require(path.find('\0') == std::string::npos, [&] {
+    return "path '" + printable(path.substr(0, 200)) +
+           "' has an embedded null byte; expected a path without NUL characters";
+  });
+}
+
+void check_replaceable(const std::string& path) {
+  check_path_text(path);
+  struct stat st {};
+  // lstat: the name itself, not what a link points to. A failure other than "no such file"
+  // (a component that is not a directory, no permission) is left to the write, which names it.
+  if (::lstat(path.c_str(), &st) != 0) return;
+  if (S_ISREG(st.st_mode)) return;
+  const char* what = S_ISLNK(st.st_mode)    ? "a symbolic link (a rename would replace the link "
+                                              "itself, not the file it points to)"
+                     : S_ISDIR(st.st_mode)  ? "a directory"
+                     : S_ISFIFO(st.st_mode) ? "a FIFO (named pipe)"
+                     : S_ISCHR(st.st_mode)  ? "a character device"
+                     : S_ISBLK(st.st_mode)  ? "a block device"
+                     : S_ISSOCK(st.st_mode) ? "a socket"
+                                            : "not a regular file";
+  throw Error("cannot write '" + path + "': it is " + what +
+              ", which csympnet never replaces; expected a regular file or a new path");
+}
+
+bool is_stale_temp(const std::string& dir, const std::string& name) {
+  if (!is_atomic_write_temp(name)) return false;
+  // The writer's pid is the first number after ".tmp.".
+  const std::size_t at = name.rfind(".tmp.") + 5;
+  const std::size_t dot = name.find('.', at);
+  const std::string digits = name.substr(at, dot - at);
+  if (digits.size() > 9) return false;  // not a pid this system could have made
+  const long pid = std::stol(digits);
+  if (pid <= 0 || pid == static_cast<long>(::getpid())) return false;
+  // Alive (or not ours to signal): the writer may still be working on it.
+  if (::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) return false;
+  struct stat st {};
+  return ::lstat((fs::path(dir) / name).c_str(), &st) == 0 && S_ISREG(st.st_mode) &&
+         st.st_uid == ::geteuid();
+}
+
+namespace {
 
 bool write_all(int fd, const std::string& content) {
   const char* p = content.data();
@@ -104,6 +164,7 @@ fs::path write_synced_temp(const fs::path& target, const std::string& content) {
   const std::string path = target.string();
   if (target.filename().empty())
     throw Error("cannot write '" + path + "': expected a file name, not a directory path");
+  check_replaceable(path);
   const fs::path tmp = temp_name_for(target);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) {
@@ -168,7 +229,22 @@ void roll_forward(const fs::path& dir) {
         fs::path(tmp).parent_path() != fs::path(target).parent_path() ||
         !is_atomic_write_temp(fs::path(tmp).filename().string()))
       continue;
-    if (fs::exists(dir / tmp, ec)) fs::rename(dir / tmp, dir / target, ec);
+    if (!fs::exists(dir / tmp, ec)) continue;  // renamed before the writer was killed
+    // The same rule as a commit: only a regular file (or nothing) is replaced. On any failure
+    // the journal stays, so the set can still be completed once the target is fixed.
+    std::string why;
+    try {
+      check_replaceable((dir / target).string());
+      fs::rename(dir / tmp, dir / target, ec);
+      if (ec) why = ec.message();
+    } catch (const Error& e) {
+      why = e.what();
+    }
+    if (!why.empty())
+      throw Error("cannot complete the set of files an interrupted csympnet left in '" +
+                  dir.string() + "': renaming '" + tmp + "' over '" + target + "' failed (" + why +
+                  "); the journal '" + kCommitJournal + "' is kept; expected '" + target +
+                  "' to be a regular file or absent (move it away and run again)");
   }
   sync_directory(dir);
   fs::remove(journal, ec);
@@ -181,6 +257,12 @@ void write_text_atomic(const std::string& path, const std::string& content) {
   const fs::path target(path);
   const fs::path tmp = write_synced_temp(target, content);
   std::error_code ec;
+  try {
+    check_replaceable(path);  // again: the target may have changed while the data were written
+  } catch (...) {
+    fs::remove(tmp, ec);
+    throw;
+  }
   fs::rename(tmp, target, ec);
   if (ec) {
     std::error_code ignored;
@@ -203,14 +285,21 @@ void commit_files(const std::string& directory, const OutputFiles& files) {
     std::error_code ignored;
     for (const fs::path& t : temps) fs::remove(t, ignored);
   };
+  // 0. Every target replaceable (a regular file or absent) before anything is written: a
+  //    directory or a FIFO where a result file belongs would fail its rename half way through
+  //    the set.
+  for (const auto& file : files) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& name = file.first;
+    require(is_output_file_name(name), [&] {
+      return "OutputDir::commit: '" + name + "' is not NAME or SUB/NAME of plain names";
+    });
+    check_replaceable((dir / name).string());
+  }
   // 1. Every new file complete on disk, under a temporary name: a failure here (a full disk)
   //    leaves the old set untouched.
   std::string journal;
   try {
     for (const auto& [name, content] : files) {
-      require(is_output_file_name(name), [&] {
-        return "OutputDir::commit: '" + name + "' is not NAME or SUB/NAME of plain names";
-      });
       const fs::path sub = fs::path(name).parent_path();
       if (!sub.empty()) {
         std::error_code ec;
@@ -236,7 +325,9 @@ void commit_files(const std::string& directory, const OutputFiles& files) {
     fs::rename(temps[k], dir / files[k].first, ec);
     if (ec)
       throw Error("cannot write '" + (dir / files[k].first).string() + "': rename failed: " +
-                  ec.message() + "; the next csympnet command on this directory completes the set");
+                  ec.message() + "; the journal '" + std::string(kCommitJournal) +
+                  "' is kept, and the next csympnet command on this directory completes the set "
+                  "once the file can be replaced (expected a regular file or nothing there)");
     subdirs.insert(fs::path(files[k].first).parent_path());
   }
   for (const fs::path& sub : subdirs)
@@ -330,15 +421,22 @@ OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
   }
   // A commit a killed writer left half done is completed first (its temporaries are in the
   // journal), then what is there besides our lock and stale temporaries (removed)?
-  roll_forward(fs::path(dir));
-  // What is there besides our lock and a killed writer's temporaries (removed)?
+  try {
+    roll_forward(fs::path(dir));
+  } catch (...) {
+    created_ = false;
+    release();
+    throw;
+  }
+  // What is there besides our lock and the temporaries of writers proven dead? Nothing is
+  // removed while this is decided (a refusal must leave the directory as it was).
   bool empty = true;
+  std::vector<fs::path> stale;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (name == kOutputLockName) continue;
-    if (is_atomic_write_temp(name) && it->is_regular_file(ec)) {
-      std::error_code ignored;
-      fs::remove(it->path(), ignored);
+    if (is_stale_temp(dir, name)) {
+      stale.push_back(it->path());
       continue;
     }
     empty = false;
@@ -354,6 +452,11 @@ OutputDir::OutputDir(const std::string& dir, bool force) : dir_(dir) {
     throw Error("output directory '" + dir +
                 "' is not empty and writing there would overwrite its contents; expected an "
                 "empty or new directory, or pass --force to write anyway");
+  }
+  // The command writes here: now the dead writers' temporaries go.
+  for (const fs::path& p : stale) {
+    std::error_code ignored;
+    fs::remove(p, ignored);
   }
 }
 

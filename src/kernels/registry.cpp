@@ -185,6 +185,14 @@ bool is_fma_product(Family f) {
 
 }  // namespace
 
+void check_kernels_environment() {
+  const char* v = std::getenv("CSYMPNET_KERNELS");
+  if (v == nullptr || v[0] == '\0' || std::strcmp(v, "portable") == 0) return;
+  throw Error("CSYMPNET_KERNELS = '" + printable(std::string(v).substr(0, 100)) +
+              "': unknown value; expected 'portable' (the portable kernels only) or the "
+              "variable unset (the fastest kernels this CPU runs)");
+}
+
 const char* to_string(Arithmetic a) {
   return a == Arithmetic::kFma ? "fma" : "sse2";
 }

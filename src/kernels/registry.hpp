@@ -56,6 +56,10 @@ bool available(Family f);
 
 // Whether the portable path is forced now (environment or guard).
 bool portable_forced();
+// Throws Error unless CSYMPNET_KERNELS is unset, empty or 'portable' (any other value was
+// silently ignored before; the CLI checks it before any command starts).
+void check_kernels_environment();
+
 // Whether CSYMPNET_KERNELS=portable was in the environment when the process first asked.
 bool portable_forced_by_environment();
 

@@ -178,9 +178,19 @@ void save_model(const std::string& path, const Model& model, const Vector& theta
   write_text_atomic(path, model_file_text(model, theta, meta));
 }
 
+JsonLimits model_file_limits() {
+  JsonLimits l;
+  l.max_depth = 64;
+  l.bulk_key = "params";
+  l.max_bulk_values = static_cast<std::size_t>(kMaxModelParams);
+  l.max_other_values = kMaxModelFileOtherValues;
+  return l;
+}
+
 SavedModel model_from_text(const std::string& text, const std::string& where) {
   return model_from_json(
-      parse_json_text(text, where, "a csympnet model file (was it truncated or overwritten?)"),
+      parse_json_text(text, where, "a csympnet model file (was it truncated or overwritten?)",
+                      model_file_limits()),
       where);
 }
 

@@ -85,7 +85,9 @@ void from_json(const nlohmann::json& j, SystemSpec& s) {
   require(j.is_object(),
           [&] { return "system: expected a JSON object, got " + std::string(j.type_name()); });
   SystemSpec out;
-  for (const auto& [key, value] : j.items()) {
+  for (const auto& item : j.items()) {  // not a structured binding: clang 14 cannot capture it
+    const std::string& key = item.key();
+    const nlohmann::json& value = item.value();
     const std::string where = "system." + key;
     if (key == "kind") {
       require(value.is_string(),

@@ -78,7 +78,9 @@ Vector tree_sum(Index chunks, Index width,
                 const std::function<void(Index chunk, int part, Vector& out)>& value,
                 ThreadTeam* team, const Communicator& comm, std::size_t* bytes_sent) {
   require(chunks >= 1 && width >= 1, "tree_sum: need at least one chunk and one value");
-  const auto [first, last] = share_of(0, chunks, comm.rank(), comm.size());
+  // Not a structured binding: the lambda below captures these, which clang 14 cannot.
+  const auto share = share_of(0, chunks, comm.rank(), comm.size());
+  const auto first = share.first, last = share.second;
   const int parts = team != nullptr ? team->size() : 1;
   std::vector<TreeSum> sums(static_cast<std::size_t>(parts));
   const auto run_part = [&](int part) {

@@ -9,6 +9,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/core/thread_team.hpp"
 #include "csympnet/train/loss.hpp"
 
@@ -143,45 +144,51 @@ TrainSummary train_parameters(const Objective& objective, Vector& theta,
   std::iota(order.begin(), order.end(), Index{0});
   const Index batch = batches ? std::min<Index>(options.batch_size, objective.train_pairs) : 0;
   double train_loss = std::numeric_limits<double>::quiet_NaN();
-  for (long epoch = 1; epoch <= options.epochs; ++epoch) {
-    if (options.lr_schedule != LrSchedule::kConstant) opt.set_lr(options.lr_at(epoch));
-    bool finite = true;
-    if (!batches) {
-      train_loss = objective.train_loss(theta, grad);
-      finite = std::isfinite(train_loss) && grad.allFinite();
-      if (finite) opt.step(theta, grad);
-      summary.steps += finite ? 1 : 0;
-    } else {
-      // Fisher–Yates with our own RNG: the same order on every platform and every rank.
-      for (Index i = static_cast<Index>(order.size()) - 1; i > 0; --i) {
-        const auto j = static_cast<Index>(shuffle.next_u64() % static_cast<std::uint64_t>(i + 1));
-        std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
+  // A stop request seen inside a loss (a vector-field model's integrator on a stiff field)
+  // ends the training like one seen at a validation: the best checkpoint so far is kept.
+  try {
+    for (long epoch = 1; epoch <= options.epochs; ++epoch) {
+      if (options.lr_schedule != LrSchedule::kConstant) opt.set_lr(options.lr_at(epoch));
+      bool finite = true;
+      if (!batches) {
+        train_loss = objective.train_loss(theta, grad);
+        finite = std::isfinite(train_loss) && grad.allFinite();
+        if (finite) opt.step(theta, grad);
+        summary.steps += finite ? 1 : 0;
+      } else {
+        // Fisher–Yates with our own RNG: the same order on every platform and every rank.
+        for (Index i = static_cast<Index>(order.size()) - 1; i > 0; --i) {
+          const auto j = static_cast<Index>(shuffle.next_u64() % static_cast<std::uint64_t>(i + 1));
+          std::swap(order[static_cast<std::size_t>(i)], order[static_cast<std::size_t>(j)]);
+        }
+        // The epoch's training loss: the batches' losses weighted by their sizes, before each
+        // one's step.
+        train_loss = 0.0;
+        for (Index b = 0; b < static_cast<Index>(order.size()) && finite; b += batch) {
+          const Index e = std::min<Index>(b + batch, static_cast<Index>(order.size()));
+          const std::vector<Index> ids(order.begin() + b, order.begin() + e);
+          const double l = objective.batch_loss(theta, grad, ids);
+          finite = std::isfinite(l) && grad.allFinite();
+          if (!finite) break;
+          train_loss += l * static_cast<double>(e - b) / static_cast<double>(order.size());
+          opt.step(theta, grad);
+          ++summary.steps;
+        }
       }
-      // The epoch's training loss: the batches' losses weighted by their sizes, before each
-      // one's step.
-      train_loss = 0.0;
-      for (Index b = 0; b < static_cast<Index>(order.size()) && finite; b += batch) {
-        const Index e = std::min<Index>(b + batch, static_cast<Index>(order.size()));
-        const std::vector<Index> ids(order.begin() + b, order.begin() + e);
-        const double l = objective.batch_loss(theta, grad, ids);
-        finite = std::isfinite(l) && grad.allFinite();
-        if (!finite) break;
-        train_loss += l * static_cast<double>(e - b) / static_cast<double>(order.size());
-        opt.step(theta, grad);
-        ++summary.steps;
+      if (!finite) {
+        // Keep the best checkpoint; the caller decides how loudly to report it.
+        summary.stop_reason = StopReason::kDiverged;
+        break;
+      }
+      summary.epochs_run = epoch;
+      if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
+      if (!monitor.accept(epoch, theta, train_loss)) {
+        summary.stop_reason = StopReason::kCallback;
+        break;
       }
     }
-    if (!finite) {
-      // Keep the best checkpoint; the caller decides how loudly to report it.
-      summary.stop_reason = StopReason::kDiverged;
-      break;
-    }
-    summary.epochs_run = epoch;
-    if (epoch % options.val_every != 0 && epoch != options.epochs) continue;
-    if (!monitor.accept(epoch, theta, train_loss)) {
-      summary.stop_reason = StopReason::kCallback;
-      break;
-    }
+  } catch (const StopRequested&) {
+    summary.stop_reason = StopReason::kCallback;
   }
   if (objective.bytes_sent) summary.bytes_sent_per_step = static_cast<long>(objective.bytes_sent());
   summary.best_val_loss = monitor.best_loss();

@@ -14,6 +14,9 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -172,6 +175,7 @@ struct Case {
   std::vector<std::string> say;           // fragments a refusal must contain
   std::vector<std::string> absent;        // paths (relative) that must not exist afterwards
   std::vector<std::string> say_any = {};  // a refusal must contain at least one of these
+  std::vector<std::string> unsaid = {};   // a refusal must contain none of these
 };
 
 // gtest prints a failing case by its name, not its bytes.
@@ -188,8 +192,9 @@ std::string gtest_name(std::string s) {
 // Every file of a directory tree with its bytes.
 std::map<std::string, std::string> snapshot(const fs::path& dir) {
   std::map<std::string, std::string> files;
+  std::error_code ec;  // a loop of symbolic links is no regular file
   for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file() && e.path().filename().string().rfind(".hostile_", 0) != 0 &&
+    if (e.is_regular_file(ec) && e.path().filename().string().rfind(".hostile_", 0) != 0 &&
         !is_atomic_write_temp(e.path().filename().string()))  // a stale one may be cleaned
       files[fs::relative(e.path(), dir).string()] = slurp(e.path());
   return files;
@@ -239,6 +244,8 @@ TEST_P(Hostile, EndsCleanlyAndLosesNothing) {
   if (r.code != 0 && r.code != 4) {
     for (const std::string& s : c.say)
       EXPECT_NE(r.err.find(s), std::string::npos) << "does not name '" << s << "'";
+    for (const std::string& s : c.unsaid)
+      EXPECT_EQ(r.err.find(s), std::string::npos) << "names '" << s << "'";
     if (!c.say_any.empty()) {
       bool named = false;
       for (const std::string& s : c.say_any) named = named || r.err.find(s) != std::string::npos;
@@ -247,8 +254,9 @@ TEST_P(Hostile, EndsCleanlyAndLosesNothing) {
   }
   if (r.code == 0 || r.code == 4) {
     EXPECT_FALSE(mentions_non_finite(r.out)) << "stdout: " << r.out;
+    std::error_code ec;
     for (const auto& e : fs::recursive_directory_iterator(dir_)) {
-      if (e.is_regular_file() && e.path().extension() == ".json") {
+      if (e.is_regular_file(ec) && e.path().extension() == ".json") {
         EXPECT_FALSE(mentions_non_finite(slurp(e.path()))) << e.path();
       }
     }
@@ -734,7 +742,13 @@ std::vector<Case> output_cases() {
   cases.push_back({"stale_temp_only",
                    [data](const fs::path& d) {
                      data(d);
-                     write_file(d / "res" / ".report.json.tmp.99999.0.1", "partial");
+                     // A dead writer's: the pid of a child that has exited (a fixed number
+                     // could be a running process, whose temporary counts as content).
+                     const pid_t dead = ::fork();
+                     if (dead == 0) ::_exit(0);
+                     ::waitpid(dead, nullptr, 0);
+                     write_file(d / "res" / (".report.json.tmp." + std::to_string(dead) + ".0.1"),
+                                "partial");
                    },
                    train_to("res"),
                    {0},
@@ -743,6 +757,569 @@ std::vector<Case> output_cases() {
   return cases;
 }
 
+// ----- class 5: special files, standard streams, signals, temporaries, commits, parser memory --
+//
+// Cases that need more than an argument vector: a FIFO or device where a file goes, standard
+// output on a full device or closed, a signal during a long stage, a memory limit, a half-done
+// commit. Each is its own test (named Hostile*, so it runs in cli.hostile_suite).
+
+struct SpawnOptions {
+  std::string stdout_path;  // empty: a file in the case's directory
+  bool close_stdout = false;
+  double signal_after = -1;  // seconds; < 0: none
+  int signal = SIGINT;
+  long address_space_kb = 0;  // RLIMIT_AS, 0: unlimited
+};
+
+struct Timed : Outcome {
+  double after_signal = -1;  // seconds from the signal to the exit
+};
+
+Timed spawn_with(const std::vector<std::string>& args, const fs::path& cwd, const SpawnOptions& o) {
+  const fs::path out = o.stdout_path.empty() ? cwd / ".hostile_stdout" : fs::path(o.stdout_path);
+  const fs::path err = cwd / ".hostile_stderr";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::chdir(cwd.c_str()) != 0) ::_exit(127);
+    const int in = ::open("/dev/null", O_RDONLY);
+    const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (in < 0 || e < 0) ::_exit(127);
+    ::dup2(in, 0);
+    ::dup2(e, 2);
+    if (o.close_stdout) {
+      ::close(1);
+    } else {
+      const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd < 0) ::_exit(127);
+      ::dup2(fd, 1);
+      ::close(fd);
+    }
+    ::close(in);
+    ::close(e);
+    if (o.address_space_kb > 0) {
+      const rlim_t bytes = static_cast<rlim_t>(o.address_space_kb) * 1024;
+      const struct rlimit lim { bytes, bytes };
+      ::setrlimit(RLIMIT_AS, &lim);
+    }
+    std::vector<std::string> all{CSYMPNET_CLI_PATH};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv(CSYMPNET_CLI_PATH, argv.data());
+    ::_exit(127);
+  }
+  Timed r;
+  int status = 0;
+  const auto start = std::chrono::steady_clock::now();
+  std::chrono::steady_clock::time_point signalled_at{};
+  bool sent = false;
+  for (;;) {
+    const pid_t done = ::waitpid(pid, &status, WNOHANG);
+    const auto now = std::chrono::steady_clock::now();
+    if (done == pid) {
+      if (sent) r.after_signal = std::chrono::duration<double>(now - signalled_at).count();
+      break;
+    }
+    const double elapsed = std::chrono::duration<double>(now - start).count();
+    if (!sent && o.signal_after >= 0 && elapsed >= o.signal_after) {
+      ::kill(pid, o.signal);
+      signalled_at = now;
+      sent = true;
+    }
+    if (elapsed > kLimitSeconds) {
+      r.hung = true;
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  r.signalled = WIFSIGNALED(status);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  if (!o.close_stdout && o.stdout_path.empty()) r.out = slurp(out);
+  r.err = slurp(err);
+  std::error_code ec;
+  if (o.stdout_path.empty()) fs::remove(out, ec);
+  fs::remove(err, ec);
+  return r;
+}
+
+class HostileFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("csympnet_hostile_files_" + std::to_string(::getpid()) + "_" +
+            gtest_name(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    write_file(dir_ / "d.csv", base_pairs());
+    write_file(dir_ / "t.csv", base_trajectories());
+    write_file(dir_ / "m.json", base_model());
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+  // No temporary and no journal left anywhere under the case's directory.
+  void expect_no_leftovers() const {
+    for (const auto& e : fs::recursive_directory_iterator(dir_)) {
+      const std::string name = e.path().filename().string();
+      EXPECT_FALSE(is_atomic_write_temp(name)) << e.path() << " left behind";
+      EXPECT_NE(name, ".csympnet.commit") << e.path() << " left behind";
+    }
+  }
+  fs::path dir_;
+};
+
+void expect_refusal(const Outcome& r, const std::vector<std::string>& say) {
+  EXPECT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_EQ(r.err.rfind("csympnet: error: ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find("expected"), std::string::npos) << r.err;
+  for (const std::string& s : say) EXPECT_NE(r.err.find(s), std::string::npos) << r.err;
+}
+
+bool names_a_fifo(const fs::path& p) {
+  std::error_code ec;
+  return fs::symlink_status(p, ec).type() == fs::file_type::fifo;
+}
+
+// An atomic rename would turn a FIFO, a device or a symbolic link into a regular file: each is
+// refused by name and stays what it was.
+TEST_F(HostileFiles, GenerateRefusesAFifoADeviceAndASymlinkAsItsOutput) {
+  ASSERT_EQ(::mkfifo((dir_ / "fifo").c_str(), 0644), 0);
+  Timed r = spawn_with(
+      {"generate", "--preset", "s1", "--split", "train", "--n", "2", "--out", "fifo", "--force"},
+      dir_, {});
+  expect_refusal(r, {"'fifo'", "FIFO", "regular file"});
+  EXPECT_TRUE(names_a_fifo(dir_ / "fifo"));
+  fs::create_symlink("d.csv", dir_ / "link");
+  r = spawn_with({"generate", "--preset", "s1", "--n", "2", "--out", "link", "--force"}, dir_, {});
+  expect_refusal(r, {"'link'", "symbolic link"});
+  EXPECT_TRUE(fs::is_symlink(dir_ / "link"));
+  EXPECT_EQ(slurp(dir_ / "d.csv"), base_pairs());
+  if (::geteuid() == 0 && ::mknod((dir_ / "null").c_str(), S_IFCHR | 0666, makedev(1, 3)) == 0) {
+    r = spawn_with({"generate", "--preset", "s1", "--n", "2", "--out", "null", "--force"}, dir_,
+                   {});
+    expect_refusal(r, {"'null'", "character device"});
+    EXPECT_EQ(fs::symlink_status(dir_ / "null").type(), fs::file_type::character);
+  }
+  expect_no_leftovers();
+}
+
+// A result file of an output directory that is a FIFO or a directory: the whole set is
+// refused before anything is written, and the earlier result stays whole.
+TEST_F(HostileFiles, ASpecialFileInAResultSetIsRefusedBeforeAnythingIsWritten) {
+  const std::vector<std::string> train = {"train", "--data", "d.csv", "--epochs", "2",
+                                          "-q",    "--out",  "res",   "--force"};
+  ASSERT_EQ(spawn_with(train, dir_, {}).code, 0);
+  const std::string report = slurp(dir_ / "res" / "report.json");
+  fs::remove(dir_ / "res" / "model.json");
+  ASSERT_EQ(::mkfifo((dir_ / "res" / "model.json").c_str(), 0644), 0);
+  Timed r = spawn_with(train, dir_, {});
+  expect_refusal(r, {"model.json", "FIFO"});
+  EXPECT_TRUE(names_a_fifo(dir_ / "res" / "model.json"));
+  EXPECT_EQ(slurp(dir_ / "res" / "report.json"), report);
+  fs::remove(dir_ / "res" / "model.json");
+  fs::create_directory(dir_ / "res" / "model.json");
+  r = spawn_with(train, dir_, {});
+  expect_refusal(r, {"model.json", "directory"});
+  EXPECT_EQ(slurp(dir_ / "res" / "report.json"), report);
+  expect_no_leftovers();
+}
+
+// A commit a killed writer left, whose target became a directory: the roll-forward says so
+// and keeps its journal (it used to ignore the failed rename and delete the journal).
+TEST_F(HostileFiles, ARollForwardThatCannotRenameKeepsItsJournalAndSaysSo) {
+  fs::create_directories(dir_ / "res" / "model.json");
+  const std::string tmp = ".model.json.tmp.1.0.1";  // pid 1: not the test's to remove
+  write_file(dir_ / "res" / tmp, "{}\n");
+  write_file(dir_ / "res" / ".csympnet.commit", tmp + "\tmodel.json\n");
+  const std::vector<std::string> train = {"train", "--data", "d.csv", "--epochs", "2",
+                                          "-q",    "--out",  "res",   "--force"};
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const Timed r = spawn_with(train, dir_, {});
+    expect_refusal(r, {"model.json", ".csympnet.commit", "is kept"});
+    EXPECT_TRUE(fs::exists(dir_ / "res" / ".csympnet.commit"));
+    EXPECT_TRUE(fs::exists(dir_ / "res" / tmp));
+    EXPECT_FALSE(fs::exists(dir_ / "res" / "report.json"));
+  }
+  // Once the directory is moved away, the next command completes the old set, then writes.
+  fs::remove_all(dir_ / "res" / "model.json");
+  EXPECT_EQ(spawn_with(train, dir_, {}).code, 0);
+  EXPECT_FALSE(fs::exists(dir_ / "res" / ".csympnet.commit"));
+  EXPECT_TRUE(fs::exists(dir_ / "res" / "report.json"));
+  expect_no_leftovers();
+}
+
+// A name is no proof that csympnet made a file: a refused command removes nothing, and a
+// temporary of a live writer is never touched.
+TEST_F(HostileFiles, ARefusedCommandDeletesNoFileThatLooksLikeATemporary) {
+  write_file(dir_ / "u" / ".notes.tmp.1.2.3", "precious\n");
+  write_file(dir_ / "u" / "data.txt", "x\n");
+  Timed r = spawn_with({"fit", "d.csv", "--recipe", "classic", "--epochs", "2", "--refine", "none",
+                        "--bootstrap", "0", "-q", "--out", "u"},
+                       dir_, {});
+  expect_refusal(r, {"not empty"});
+  EXPECT_EQ(slurp(dir_ / "u" / ".notes.tmp.1.2.3"), "precious\n");
+  // A live writer's temporary (this test's pid) counts as content, and --force keeps it.
+  const std::string live = ".model.json.tmp." + std::to_string(::getpid()) + ".0.1";
+  write_file(dir_ / "v" / live, "in flight");
+  r = spawn_with({"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "v"}, dir_, {});
+  expect_refusal(r, {"not empty"});
+  r = spawn_with({"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "v", "--force"}, dir_,
+                 {});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(slurp(dir_ / "v" / live), "in flight");
+  EXPECT_EQ(slurp(dir_ / "u" / ".notes.tmp.1.2.3"), "precious\n");
+  // A dead writer's temporary does not count, and goes once the command writes there.
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ::waitpid(child, nullptr, 0);
+  const std::string dead = ".model.json.tmp." + std::to_string(child) + ".0.1";
+  write_file(dir_ / "w" / dead, "partial");
+  r = spawn_with({"train", "--data", "d.csv", "--epochs", "2", "-q", "--out", "w"}, dir_, {});
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "w" / dead));
+}
+
+// Standard output that cannot be written: exit 1 with the system's reason, as coreutils do.
+TEST_F(HostileFiles, WriteErrorsOnStandardOutputFailTheCommand) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+  const std::vector<std::vector<std::string>> commands = {
+      {"rollout", "--model", "m.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "3"},
+      {"rollout", "--model", "m.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "1000000"},
+      {"evaluate", "--model", "m.json", "--preset", "s1", "--data", "t.csv"},
+      {"describe", "--preset", "s1"},
+      {"kernels"},
+      {"--help"},
+      {"rollout", "--help"},
+  };
+  for (const auto& args : commands) {
+    SCOPED_TRACE(::testing::PrintToString(args));
+    SpawnOptions full;
+    full.stdout_path = "/dev/full";
+    Timed r = spawn_with(args, dir_, full);
+    expect_refusal(r, {"write error on standard output", "No space left on device"});
+    SpawnOptions closed;
+    closed.close_stdout = true;
+    r = spawn_with(args, dir_, closed);
+    expect_refusal(r, {"write error on standard output", "Bad file descriptor"});
+  }
+  // With standard output closed, what the command prints goes nowhere near its files (the
+  // lock file or a result would otherwise get descriptor 1).
+  SpawnOptions closed;
+  closed.close_stdout = true;
+  const Timed r = spawn_with(
+      {"evaluate", "--model", "m.json", "--preset", "s1", "--data", "t.csv", "--out", "ev"}, dir_,
+      closed);
+  expect_refusal(r, {"write error on standard output"});
+  const std::string report = slurp(dir_ / "ev" / "report.json");
+  EXPECT_TRUE(json::accept(report)) << report;
+}
+
+// Long stages with no loop of their own stop within a second of SIGINT or SIGTERM: the
+// adaptive integrators (a stiff reference, a vector-field model over a huge span), test-set
+// generation, and reading a large file; the command then stops, it does not go on.
+TEST_F(HostileFiles, LongStagesStopWithinASecondOfASignal) {
+  // A vector-field model, for the dopri5 cases.
+  ASSERT_EQ(
+      spawn_with({"run", "--preset", "s1", "--model", "ode", "--epochs", "1", "-q", "--out", "ode"},
+                 dir_, {})
+          .code,
+      0);
+  {
+    // Steps of 1e11: dopri5 integrates each whole span (up to its budget, seconds each).
+    write_file(dir_ / "far.csv",
+               "t,q1,p1\n0,0.1,0.2\n1e11,0.3,0.1\n2e11,-0.2,0.05\n3e11,0.1,-0.3\n");
+  }
+  const std::vector<std::vector<std::string>> stages = {
+      {"generate", "--preset", "s1", "--split", "train", "--reference", "rk", "--omega", "1e10",
+       "--n", "2", "--out", "g.csv"},
+      {"generate", "--preset", "s2", "--split", "test", "--d", "100000", "--n", "1", "--out",
+       "g2.csv"},
+      {"run", "--preset", "s1", "--reference", "rk", "--omega", "1e10", "--epochs", "2", "-q",
+       "--out", "r"},
+      {"rollout", "--model", "ode/model.json", "--z0", "0.1,0.2", "--h", "1e12", "--steps", "2"},
+      {"evaluate", "--model", "ode/model.json", "--data", "far.csv"},
+  };
+  for (const auto& args : stages)
+    for (const int sig : {SIGINT, SIGTERM}) {
+      SCOPED_TRACE(::testing::PrintToString(args) + " signal " + std::to_string(sig));
+      SpawnOptions o;
+      o.signal_after = 1.0;
+      o.signal = sig;
+      const Timed r = spawn_with(args, dir_, o);
+      ASSERT_FALSE(r.hung);
+      EXPECT_FALSE(r.signalled) << "killed by the signal instead of stopping";
+      EXPECT_EQ(r.code, 128 + sig) << r.err;
+      EXPECT_LT(r.after_signal, 1.0) << "took " << r.after_signal << " s to stop";
+      EXPECT_NE(r.err.find("interrupted by"), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(dir_ / "r")) << "an interrupted run left its directory";
+      EXPECT_FALSE(fs::exists(dir_ / "g.csv"));
+      EXPECT_FALSE(fs::exists(dir_ / "g2.csv"));
+    }
+}
+
+TEST_F(HostileFiles, ReadingALargeFileStopsOnASignalAndTheCommandEnds) {
+  // About 60 MB of pairs: seconds to read and parse on a busy machine.
+  {
+    std::ofstream f(dir_ / "big.csv", std::ios::binary);
+    f << "h,q1,p1,next_q1,next_p1\n";
+    const std::string row = "0.1,0.123456789012345,0.234567890123456,0.12345678901234,0.2345\n";
+    for (int i = 0; i < 900000; ++i) f << row;
+  }
+  SpawnOptions o;
+  o.signal_after = 0.3;
+  const Timed r =
+      spawn_with({"train", "--data", "big.csv", "--epochs", "100000", "--out", "o"}, dir_, o);
+  ASSERT_FALSE(r.hung);
+  EXPECT_EQ(r.code, 130) << r.err;
+  EXPECT_LT(r.after_signal, 1.0);
+  EXPECT_FALSE(fs::exists(dir_ / "o")) << "it went on to train";
+  // A model file of 6 million parameters (about 80 MB): its parse polls too (SIGINT acted
+  // after 43.6 s on a 100 MB model file).
+  {
+    json doc = json::parse(base_model());
+    std::string text = doc.dump();
+    std::string params = "\"params\":[";
+    params.reserve(80000000);
+    for (int i = 0; i < 6000000; ++i) params += i ? ",0.12345678901234" : "0.12345678901234";
+    params += "],";
+    text.insert(1, params);
+    const std::size_t dup = text.rfind("\"params\"");  // the original key: renamed
+    text.replace(dup, 8, "\"unused\"");
+    write_file(dir_ / "big.json", text);
+  }
+  const Timed m = spawn_with(
+      {"rollout", "--model", "big.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}, dir_, o);
+  ASSERT_FALSE(m.hung);
+  EXPECT_EQ(m.code, 130) << m.err;
+  EXPECT_LT(m.after_signal, 1.0);
+}
+
+// A model file is bounded by what a model can hold, checked while it is parsed: a 30 MB file
+// whose "meta" holds 15 million numbers is refused by name under a 600 MB memory limit
+// (it took 20 times its size and died with std::bad_alloc), and so is deep nesting.
+TEST_F(HostileFiles, ModelFilesBeyondWhatAModelHoldsAreRefusedUnderAMemoryLimit) {
+  json doc = json::parse(base_model());
+  {
+    std::string text = doc.dump();
+    const std::string big = "\"meta\":{\"junk\":[" + [] {
+      std::string s;
+      s.reserve(30000000);
+      for (int i = 0; i < 15000000; ++i) s += i ? ",0" : "0";
+      return s;
+    }() + "]},";
+    text.insert(1, big);
+    write_file(dir_ / "big.json", text);
+  }
+  SpawnOptions o;
+  o.address_space_kb = 600000;
+  Timed r = spawn_with(
+      {"rollout", "--model", "big.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}, dir_, o);
+  expect_refusal(r, {"big.json", "1000000 values outside \"params\""});
+  write_file(dir_ / "deep.json",
+             "{\"meta\":" + std::string(1000, '[') + std::string(1000, ']') + "}");
+  r = spawn_with(
+      {"rollout", "--model", "deep.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "2"}, dir_,
+      o);
+  expect_refusal(r, {"deep.json", "nested deeper than 64"});
+}
+
+// Messages whose cases need an environment or a fitted model.
+TEST_F(HostileFiles, MessagesNameTheRealCause) {
+  // CSYMPNET_KERNELS is checked like CSYMPNET_ARITHMETIC (it was ignored silently).
+  ::setenv("CSYMPNET_KERNELS", "garbage", 1);
+  Timed r = spawn_with({"describe", "--preset", "s1"}, dir_, {});
+  ::unsetenv("CSYMPNET_KERNELS");
+  expect_refusal(r, {"CSYMPNET_KERNELS", "'garbage'", "portable"});
+  // --init with a time scale of 1e-308, or a beta of 0: the init file is named, not the data.
+  ASSERT_LT(spawn_with({"fit", "d.csv", "-q", "--epochs", "20", "--out", "f0"}, dir_, {}).code, 5);
+  const json fitted = json::parse(slurp(dir_ / "f0" / "model.json"));
+  ASSERT_TRUE(fitted["model"].contains("normalization"));
+  {
+    json doc = fitted;
+    doc["model"]["normalization"]["time_scale"] = 1e-308;
+    write_file(dir_ / "tau.json", resigned(doc));
+    r = spawn_with({"fit", "d.csv", "-q", "--init", "tau.json", "--out", "f1"}, dir_, {});
+    expect_refusal(r, {"--init", "tau.json", "time scale"});
+    EXPECT_EQ(r.err.find("d.csv:"), std::string::npos) << r.err;
+  }
+  {
+    json doc = fitted;
+    const Model m = model_from_spec(doc["model"], "spec");
+    ASSERT_TRUE(m.damping_param_index().has_value());
+    doc["params"][static_cast<std::size_t>(*m.damping_param_index())] = 0.0;
+    write_file(dir_ / "beta.json", resigned(doc));
+    r = spawn_with({"fit", "d.csv", "-q", "--init", "beta.json", "--out", "f2"}, dir_, {});
+    // Read while the options are parsed: a usage error (exit 2), like --beta-init 0.
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find("--init: beta.json: its damping parameter beta is 0"), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("expected a nonzero beta"), std::string::npos) << r.err;
+  }
+  // A rollout's step is printed as the number it is, not as %f's 0.000000.
+  json blowup = json::parse(base_model());
+  for (auto& v : blowup["params"]) v = 1e300;
+  write_file(dir_ / "blowup.json", resigned(blowup));
+  r = spawn_with(
+      {"rollout", "--model", "blowup.json", "--z0", "0.1,0.2", "--h", "1e-7", "--steps", "3"}, dir_,
+      {});
+  expect_refusal(r, {"--h 1e-07"});  // and t = 1e-07, not 0.000000
+  EXPECT_EQ(r.err.find("0.000000"), std::string::npos) << r.err;
+}
+
+// ----- class 6: messages that misled ----------------------------------------------------------
+// Each refusal names what is wrong and the way out, in the user's own terms.
+
+std::vector<Case> message_cases() {
+  std::vector<Case> cases;
+  const auto files = [](std::map<std::string, std::string> named) {
+    return [named](const fs::path& d) {
+      for (const auto& [name, text] : named) write_file(d / name, text);
+    };
+  };
+  const std::string pairs = base_pairs(), trajs = base_trajectories();
+  const std::string traj_body = trajs.substr(trajs.find('\n') + 1);
+  const std::string pairs_body = pairs.substr(pairs.find('\n') + 1);
+  const auto train = [](const std::string& file, std::vector<std::string> extra = {}) {
+    std::vector<std::string> a = {"train", "--data", file, "--epochs", "2", "-q", "--out", "out"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  // One extra column: named, with --columns to drop it.
+  cases.push_back(
+      {"msg_extra_column",
+       files({{"d.csv",
+               [&] {
+                 std::string out = "traj,t,q1,p1,temp\n";
+                 std::stringstream in(traj_body);
+                 for (std::string l; std::getline(in, l);) out += l + ",20\n";
+                 return out;
+               }()}}),
+       train("d.csv"),
+       {1},
+       {"header column 5 'temp' is not a column", "--columns traj=traj,t=t,q1=q1,p1=p1"},
+       {"out"},
+       {},
+       {"the same number"}});
+  cases.push_back({"msg_trailing_comma",
+                   files({{"d.csv", "h,q1,p1,next_q1,next_p1,\n" + pairs_body}}),
+                   train("d.csv"),
+                   {1},
+                   {"header column 6 is empty (a trailing comma?)",
+                    "--columns h=h,q1=q1,p1=p1,next_q1=next_q1,next_p1=next_p1"},
+                   {"out"}});
+  // An unrecognised header: --columns, with the user's own names.
+  cases.push_back({"msg_unrecognised_header",
+                   files({{"d.csv", "time_s,angle_deg,omega_degps\n0,1,0\n0.1,0.9,0.1\n"}}),
+                   train("d.csv"),
+                   {1},
+                   {"--columns t=time_s,q1=angle_deg,p1=omega_degps"},
+                   {"out"}});
+  // A repeated column is not a second q.
+  cases.push_back({"msg_duplicate_column",
+                   files({{"d.csv", "h,q1,q1,next_q1,next_p1\n" + pairs_body}}),
+                   train("d.csv"),
+                   {1},
+                   {"header column 3 'q1' repeats column 2"},
+                   {"out"},
+                   {},
+                   {"2 q"}});
+  // A loop of symbolic links is not a missing file.
+  cases.push_back({"msg_symlink_loop",
+                   [](const fs::path& d) { fs::create_symlink("loop", d / "loop"); },
+                   train("loop"),
+                   {1, 2},
+                   {"symbolic links"},
+                   {"out"},
+                   {},
+                   {"does not exist"}});
+  // --epochs far beyond a long: the option's own range, not 2^63 - 1.
+  for (const std::string v : {"99999999999999999999", "9223372036854775808"})
+    cases.push_back({"msg_epochs_huge_" + v,
+                     files({{"d.csv", pairs}}),
+                     train("d.csv", {"--epochs", v}),
+                     {2},
+                     {"--epochs", "100000000"},
+                     {"out"},
+                     {},
+                     {"9223372036854775807"}});
+  cases.push_back({"msg_steps_huge",
+                   files({{"m.json", base_model()}}),
+                   {"rollout", "--model", "m.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps",
+                    "99999999999999999999"},
+                   {2},
+                   {"--steps", "100000000"},
+                   {},
+                   {},
+                   {"9223372036854775807"}});
+  // A system that blows up: the options to check, not the library's internals.
+  cases.push_back(
+      {"msg_generate_omega_huge",
+       nullptr,
+       {"generate", "--preset", "s1", "--split", "test", "--omega", "1e308", "--out", "g.csv"},
+       {1},
+       {"--omega"},
+       {"g.csv"},
+       {},
+       {"generate_test_set", "max_redraws"}});
+  // --columns: the user's header is quoted, not the one the mapping built.
+  cases.push_back({"msg_columns_quotes_the_users_header",
+                   files({{"d.csv", "t,q1,p1\n0,1,0\n0.1,0.9,0.1\n"}}),
+                   train("d.csv", {"--columns", "traj=t"}),
+                   {1},
+                   {"'t,q1,p1'"},
+                   {"out"}});
+  // Ids -0 and 0 are one integer: said so, not reported as a time error.
+  cases.push_back({"msg_minus_zero_id",
+                   files({{"d.csv",
+                           "traj,t,q1,p1\n0,0,1,0\n0,0.1,0.9,0.1\n-0,0,1,0\n"
+                           "-0,0.1,0.9,0.1\n"}}),
+                   train("d.csv"),
+                   {1},
+                   {"d.csv:4:", "'-0' is the same integer as '0'"},
+                   {"out"},
+                   {},
+                   {"column 't'"}});
+  // States scaled by 1e-170: their squares underflow, which is not "does not vary".
+  cases.push_back({"msg_tiny_states",
+                   files({{"d.csv",
+                           [] {
+                             std::ostringstream s;
+                             s.precision(17);
+                             s << "t,q1,p1\n";
+                             for (int i = 0; i < 40; ++i)
+                               s << 0.1 * i << ',' << 1e-170 * std::cos(0.1 * i) << ','
+                                 << -1e-170 * std::sin(0.1 * i) << '\n';
+                             return s.str();
+                           }()}}),
+                   {"fit", "d.csv", "-q", "--out", "out"},
+                   {1, 4},
+                   {"underflows"},
+                   {"out"},
+                   {},
+                   {"does not vary"}});
+  // evaluate --data with a model whose meta.system is a label, not a system: evaluated on
+  // the data, no --preset asked for.
+  cases.push_back({"msg_evaluate_meta_system_string",
+                   files({{"t.csv", trajs},
+                          {"m.json",
+                           [] {
+                             json doc = json::parse(base_model());
+                             doc["meta"]["system"] = "pendulum rig 3";
+                             return resigned(doc);
+                           }()}}),
+                   {"evaluate", "--model", "m.json", "--data", "t.csv"},
+                   {0},
+                   {},
+                   {}});
+  return cases;
+}
+
+INSTANTIATE_TEST_SUITE_P(Messages, Hostile, ::testing::ValuesIn(message_cases()), case_name);
 INSTANTIATE_TEST_SUITE_P(Csv, Hostile, ::testing::ValuesIn(csv_cases()), case_name);
 INSTANTIATE_TEST_SUITE_P(ModelFile, Hostile, ::testing::ValuesIn(model_cases()), case_name);
 INSTANTIATE_TEST_SUITE_P(Option, Hostile, ::testing::ValuesIn(option_cases()), case_name);
@@ -750,11 +1327,12 @@ INSTANTIATE_TEST_SUITE_P(Output, Hostile, ::testing::ValuesIn(output_cases()), c
 
 // The suite is as large as it claims.
 TEST(HostileSuite, HasAtLeast300Cases) {
-  const std::size_t n =
-      csv_cases().size() + model_cases().size() + option_cases().size() + output_cases().size();
-  std::printf("hostile cases: %zu csv, %zu model files, %zu options, %zu output targets\n",
-              csv_cases().size(), model_cases().size(), option_cases().size(),
-              output_cases().size());
+  const std::size_t n = csv_cases().size() + model_cases().size() + option_cases().size() +
+                        output_cases().size() + message_cases().size();
+  std::printf(
+      "hostile cases: %zu csv, %zu model files, %zu options, %zu output targets, %zu messages\n",
+      csv_cases().size(), model_cases().size(), option_cases().size(), output_cases().size(),
+      message_cases().size());
   EXPECT_GE(n, 300u);
 }
 

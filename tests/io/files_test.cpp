@@ -10,6 +10,7 @@
 
 #include <csignal>
 #include <filesystem>
+#include <iterator>
 
 #include "../data/temp_dir.hpp"
 #include "csympnet/core/error.hpp"
@@ -161,8 +162,9 @@ TEST(PrepareOutputDir, OneWriterAtATime) {
   EXPECT_NO_THROW({ const OutputDir again = prepare_output_dir(out, true); });
 }
 
-// Temporary files a killed writer left do not make a directory "not empty" (ls shows
-// nothing), and are removed; only names of write_text_atomic's exact pattern count as such.
+// Temporary files a dead writer left do not make a directory "not empty" (ls shows
+// nothing), and are removed after the next commit, not before; only names of
+// write_text_atomic's exact pattern whose writer's pid is not running count as such.
 TEST(PrepareOutputDir, StaleTemporariesAreRemovedNotCounted) {
   EXPECT_TRUE(is_atomic_write_temp(".report.json.tmp.123.0.456789"));
   EXPECT_TRUE(is_atomic_write_temp(".a.tmp.1.2.3"));
@@ -173,8 +175,22 @@ TEST(PrepareOutputDir, StaleTemporariesAreRemovedNotCounted) {
   TempDir dir;
   const std::string out = dir.file("killed");
   fs::create_directories(out);
-  write_text_atomic(out + "/.report.json.tmp.4242.0.99", "half");
-  write_text_atomic(out + "/.model.json.tmp.4242.1.100", "half");
+  const pid_t dead = ::fork();  // a pid that surely runs no writer any more
+  if (dead == 0) ::_exit(0);
+  ::waitpid(dead, nullptr, 0);
+  const std::string pid = std::to_string(dead);
+  write_text_atomic(out + "/.report.json.tmp." + pid + ".0.99", "half");
+  write_text_atomic(out + "/.model.json.tmp." + pid + ".1.100", "half");
+  EXPECT_TRUE(is_stale_temp(out, ".report.json.tmp." + pid + ".0.99"));
+  EXPECT_FALSE(is_stale_temp(out, ".report.json.tmp.1.0.99"));  // pid 1 runs
+  EXPECT_FALSE(is_stale_temp(out, ".x.tmp." + std::to_string(::getpid()) + ".0.1"));
+  // A refused taking removes nothing ...
+  write_text_atomic(out + "/notes.txt", "mine");
+  EXPECT_THROW({ const OutputDir held = prepare_output_dir(out, false); }, Error);
+  EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 3);
+  fs::remove(fs::path(out) / "notes.txt");
+  // ... a directory holding only dead writers' temporaries counts as empty, and taking it
+  // removes them.
   { const OutputDir held = prepare_output_dir(out, false); }
   EXPECT_TRUE(fs::is_empty(out));
 }

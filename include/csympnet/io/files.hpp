@@ -36,9 +36,10 @@ using OutputFiles = std::vector<std::pair<std::string, std::string>>;
 //    process dies, so a crash never leaves the directory locked.
 //  - A commit (below) that a killed writer left half done is completed on taking it.
 //  - An existing directory with anything in it is refused unless `force`, so a run never
-//    silently overwrites an earlier one. The lock file and the temporary files a killed
-//    writer left (".NAME.tmp.PID.N.T", see write_text_atomic) do not count; the latter are
-//    removed.
+//    silently overwrites an earlier one. The lock file and the temporary files a dead
+//    writer left (".NAME.tmp.PID.N.T" whose PID is not running, see is_stale_temp) do not
+//    count; the latter are removed once the directory is taken (empty, or `force`), never
+//    by a refused command, which leaves the directory as it was.
 //  - On release the lock file is removed, and a directory this object created is removed if
 //    nothing was written into it (a failed run leaves no empty directory behind).
 class [[nodiscard]] OutputDir {
@@ -75,6 +76,20 @@ OutputDir prepare_output_dir(const std::string& dir, bool force);
 
 // The name of the lock file OutputDir keeps in a directory it holds.
 inline constexpr const char* kOutputLockName = ".csympnet.lock";
+
+// Throws Error naming `path` unless it names a regular file or nothing (lstat: a symbolic
+// link is refused, not followed; so are directories, FIFOs, devices and sockets). Every atomic
+// write checks its target with it: a rename would silently replace such a node with a regular
+// file (turning /dev/null into a file, or a link into a copy).
+void check_replaceable(const std::string& path);
+
+// Throws Error if `path` holds a NUL byte (the system would read only the part before it).
+void check_path_text(const std::string& path);
+
+// True only for a temporary a dead csympnet writer left in `dir`: the name has the pattern
+// below, the writer's pid in it is not a running process, and it is a regular file of ours.
+// A name alone is no proof (a user's ".notes.tmp.1.2.3" is kept: pid 1 runs).
+bool is_stale_temp(const std::string& dir, const std::string& filename);
 
 // True for the name of a temporary file write_text_atomic makes (".NAME.tmp.PID.N.T").
 bool is_atomic_write_temp(const std::string& filename);

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "csympnet/io/json_text.hpp"
 #include "csympnet/models/model.hpp"
 
 namespace csympnet {
@@ -47,5 +48,12 @@ void save_model(const std::string& path, const Model& model, const Vector& theta
 // Throws Error naming the file and what is wrong (not JSON — e.g. truncated —, wrong
 // format/version, parameter count mismatch, non-finite values, checksum mismatch).
 SavedModel load_model(const std::string& path);
+
+// What a model file may hold, checked while it is parsed (docs/hardening.md, "Parser
+// memory"): at most 64 levels of nesting, at most kMaxModelParams entries in "params" (the
+// largest model there can be), and at most kMaxModelFileOtherValues values elsewhere (the
+// architecture and "meta"). A file beyond them is refused before it can exhaust memory.
+inline constexpr std::size_t kMaxModelFileOtherValues = 1'000'000;
+JsonLimits model_file_limits();
 
 }  // namespace csympnet

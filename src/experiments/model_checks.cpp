@@ -178,7 +178,7 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
   k.assumption = "linear damping (a rate that does not depend on the amplitude)";
   k.statistic_name = "slope of the block rate on log energy / standard error";
   k.effect_name = "relative change of the rate across the amplitudes observed";
-  k.alpha = in.thresholds.alpha;
+  k.alpha = in.thresholds.alpha_linear_damping;
   k.effect_threshold = in.thresholds.rate_change;
   const double tau = in.time_scale;
   std::vector<double> x, y, w;

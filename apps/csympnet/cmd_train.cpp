@@ -282,6 +282,23 @@ void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
   }
 }
 
+// What `fit` prints beyond γ̂ and the checks unless -q: the model, the budgets, the quality.
+void print_identify_details(const IdentifyResult& r, const std::string& out) {
+  std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
+              static_cast<long long>(r.model.dim() / 2), static_cast<long long>(r.model.n_params()),
+              r.config.window, r.config.core.dump().c_str());
+  std::printf("%s\n", r.training.brief_report().c_str());
+  std::printf(
+      "%s\n",
+      lm_summary_words(r.lm.iterations, r.lm.accepted, r.lm_best_iteration, r.lm.message).c_str());
+  std::printf(
+      "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
+      "max %.2e\n",
+      r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
+      r.quality.val_relative_residual, r.quality.structure_residual_max);
+  std::printf("wrote %s/{report.json,model.json,timings.json}\n", out.c_str());
+}
+
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
@@ -411,22 +428,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }
   print_checks(r.checks, a.quiet);
-  if (!a.quiet) {
-    std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
-                static_cast<long long>(r.model.dim() / 2),
-                static_cast<long long>(r.model.n_params()), r.config.window,
-                r.config.core.dump().c_str());
-    std::printf("%s\n", r.training.brief_report().c_str());
-    std::printf("%s\n",
-                lm_summary_words(r.lm.iterations, r.lm.accepted, r.lm_best_iteration, r.lm.message)
-                    .c_str());
-    std::printf(
-        "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
-        "max %.2e\n",
-        r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
-        r.quality.val_relative_residual, r.quality.structure_residual_max);
-    std::printf("wrote %s/{report.json,model.json,timings.json}\n", a.out.c_str());
-  }
+  if (!a.quiet) print_identify_details(r, a.out);
   if (r.stopped)
     throw Interrupted("stopped; the best parameters so far and their report are in " + a.out);
   if (!r.identified) {

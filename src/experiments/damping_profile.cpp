@@ -1,33 +1,56 @@
 #include "damping_profile.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <utility>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/SVD>
 
 #include "csympnet/core/error.hpp"
 
 namespace csympnet::detail {
 
-Index damping_entries(Index d, DampingFreedom freedom) {
-  return freedom == DampingFreedom::kFull ? d * d : d;
-}
-
-Vector common_rate_direction(Index d, DampingFreedom freedom) {
-  if (freedom == DampingFreedom::kDiagonal) return Vector::Ones(d);
-  Vector v = Vector::Zero(d * d);
-  for (Index i = 0; i < d; ++i) v(i * d + i) = 1.0;
-  return v;
-}
-
-Matrix damping_matrix(double c, const Vector& delta, Index d, DampingFreedom freedom) {
-  Matrix m = c * Matrix::Identity(d, d);
-  for (Index i = 0; i < d; ++i) {
-    if (freedom == DampingFreedom::kDiagonal) {
-      m(i, i) += delta(i);
-    } else {
-      for (Index j = 0; j < d; ++j) m(i, j) += delta(i * d + j);
-    }
-  }
+Matrix DampingBasis::matrix(double c, const Vector& delta) const {
+  require(!e.empty() && delta.size() == size(), "damping basis: wrong number of coefficients");
+  Matrix m = c * Matrix::Identity(e.front().rows(), e.front().cols());
+  for (Index i = 0; i < size(); ++i) m += delta(i) * e[static_cast<std::size_t>(i)];
   return m;
+}
+
+DampingBasis full_damping_basis(Index d) {
+  DampingBasis b{"full d x d damping matrix", {}, Vector::Zero(d * d)};
+  for (Index i = 0; i < d; ++i)
+    for (Index j = 0; j < d; ++j) {
+      Matrix e = Matrix::Zero(d, d);
+      e(i, j) = 1.0;
+      b.e.push_back(e);
+      if (i == j) b.common(i * d + j) = 1.0;
+    }
+  return b;
+}
+
+DampingBasis coordinate_damping_basis(Index d) {
+  DampingBasis b{"a rate per coordinate", {}, Vector::Ones(d)};
+  for (Index i = 0; i < d; ++i) {
+    Matrix e = Matrix::Zero(d, d);
+    e(i, i) = 1.0;
+    b.e.push_back(e);
+  }
+  return b;
+}
+
+DampingBasis modal_damping_basis(const Matrix& p) {
+  const Index d = p.rows();
+  require(p.cols() == d, "modal damping basis: expected a square matrix of directions");
+  const Eigen::FullPivLU<Matrix> lu(p);
+  require(lu.isInvertible(), "modal damping basis: the directions are not independent");
+  const Matrix p_inv = lu.inverse();
+  DampingBasis b{"a rate per mode of the fitted core's linearisation", {}, Vector::Ones(d)};
+  for (Index k = 0; k < d; ++k) b.e.push_back(p.col(k) * p_inv.row(k));
+  return b;
 }
 
 DampingProfile::DampingProfile(const OneStepMap& map, const Vector& theta, Index damping_index,
@@ -64,7 +87,7 @@ Vector DampingProfile::rate_jacobian(double c, Index k) const {
   return -0.5 * h * u;
 }
 
-Matrix DampingProfile::entry_jacobian(double c, Index k, DampingFreedom freedom) const {
+Matrix DampingProfile::entry_jacobian(double c, Index k, const DampingBasis& basis) const {
   const double h = w_.h(0, k);
   const double a = std::exp(-0.5 * c * h);
   Vector x = w_.z0.col(k);
@@ -72,28 +95,21 @@ Matrix DampingProfile::entry_jacobian(double c, Index k, DampingFreedom freedom)
   const Matrix jac = map_->jacobian(core_theta_, x, h);
   const auto p0 = w_.z0.col(k).tail(d_);
   const auto p1 = w_.zm.col(k).tail(d_);
-  Matrix g = Matrix::Zero(2 * d_, damping_entries(d_, freedom));
-  for (Index i = 0; i < d_; ++i) {
-    const auto column = [&](Index j, Index at) {
-      g.col(at) = (-0.5 * h * a * p0(j)) * jac.col(d_ + i);
-      g(d_ + i, at) += -0.5 * h * p1(j) / a;
-    };
-    if (freedom == DampingFreedom::kDiagonal) {
-      column(i, i);
-    } else {
-      for (Index j = 0; j < d_; ++j) column(j, i * d_ + j);
-    }
+  Matrix g(2 * d_, basis.size());
+  for (Index m = 0; m < basis.size(); ++m) {
+    const Matrix& e = basis.e[static_cast<std::size_t>(m)];
+    g.col(m) = (-0.5 * h * a) * (jac.rightCols(d_) * (e * p0));
+    g.col(m).tail(d_) += (-0.5 * h / a) * (e * p1);
   }
   return g;
 }
 
-std::vector<BlockProfile> DampingProfile::blocks(double c, const DampingFreedom* freedom,
+std::vector<BlockProfile> DampingProfile::blocks(double c, const DampingBasis* basis,
                                                  const std::function<bool()>& should_stop) const {
   const Matrix r = residuals(c);
   const Index n = w_.size();
   std::vector<BlockProfile> out(static_cast<std::size_t>(n_blocks_));
-  const Index entries = freedom != nullptr ? damping_entries(d_, *freedom) : 0;
-  const Vector common = freedom != nullptr ? common_rate_direction(d_, *freedom) : Vector();
+  const Index entries = basis != nullptr ? basis->size() : 0;
   for (BlockProfile& b : out) {
     b.big_a = Matrix::Zero(entries, entries);
     b.big_g = Vector::Zero(entries);
@@ -111,11 +127,11 @@ std::vector<BlockProfile> DampingProfile::blocks(double c, const DampingFreedom*
     b.motion += (w_.zm.col(k) - w_.z0.col(k)).squaredNorm();
     b.rss += rk.squaredNorm();
     Vector u;
-    if (freedom != nullptr) {
-      const Matrix g = entry_jacobian(c, k, *freedom);
+    if (basis != nullptr) {
+      const Matrix g = entry_jacobian(c, k, *basis);
       b.big_a.noalias() += g.transpose() * g;
       b.big_g.noalias() += g.transpose() * rk;
-      u = g * common;
+      u = g * basis->common;
     } else {
       u = rate_jacobian(c, k);
     }
@@ -134,6 +150,111 @@ std::vector<BlockProfile> DampingProfile::blocks(double c, const DampingFreedom*
   for (BlockProfile& b : out)
     if (b.samples > 0) b.energy /= static_cast<double>(b.samples);
   return out;
+}
+
+namespace {
+
+// Largest relative gap allowed between the p part of an eigenvector and its real direction,
+// and the largest condition number of the directions: beyond either the modes are not those
+// of a natural mechanical system (or are degenerate) and the basis is not used.
+constexpr double kMaxImaginaryShare = 0.1;
+constexpr double kMaxCondition = 1e4;
+// Frequencies closer than this (relative) are degenerate: their modes are not defined.
+constexpr double kMinFrequencyGap = 0.02;
+
+// Newton on Ψ(z) = z from z, backtracking on ‖Ψ(z) − z‖; empty when it does not converge.
+std::optional<Vector> fixed_point(const OneStepMap& map, const Vector& theta, Vector z, double h) {
+  const Vector hv = Vector::Constant(1, h);
+  const auto residual = [&](const Vector& x) -> Vector {
+    return map.apply(theta, x, hv).col(0) - x;
+  };
+  Vector f = residual(z);
+  for (int it = 0; it < 40; ++it) {
+    if (!f.allFinite()) return std::nullopt;
+    if (f.norm() <= 1e-11 * (1.0 + z.norm())) return z;
+    const Matrix j = map.jacobian(theta, z, h) - Matrix::Identity(z.size(), z.size());
+    const Vector step = -j.fullPivLu().solve(f);
+    if (!step.allFinite()) return std::nullopt;
+    double t = 1.0;
+    bool improved = false;
+    for (int half = 0; half < 20; ++half, t *= 0.5) {
+      const Vector fz = residual(z + t * step);
+      if (fz.allFinite() && fz.norm() < f.norm()) {
+        z += t * step;
+        f = fz;
+        improved = true;
+        break;
+      }
+    }
+    if (!improved) return std::nullopt;
+  }
+  return f.norm() <= 1e-8 * (1.0 + z.norm()) ? std::optional<Vector>(z) : std::nullopt;
+}
+
+}  // namespace
+
+std::optional<LinearModes> modes_of_linear_map(const Matrix& jac, double h) {
+  const Index d = jac.rows() / 2;
+  const Eigen::EigenSolver<Matrix> es(jac);
+  if (es.info() != Eigen::Success) return std::nullopt;
+  std::vector<std::pair<double, Vector>> modes;  // (angle, real p direction)
+  for (Index i = 0; i < 2 * d; ++i) {
+    const std::complex<double> lambda = es.eigenvalues()(i);
+    if (!(lambda.imag() > 1e-9) || std::abs(std::abs(lambda) - 1.0) > 0.1) continue;
+    const Eigen::VectorXcd vp = es.eigenvectors().col(i).tail(d);
+    Matrix ri(d, 2);
+    ri.col(0) = vp.real();
+    ri.col(1) = vp.imag();
+    const Eigen::JacobiSVD<Matrix> svd(ri, Eigen::ComputeThinU);
+    const Vector s = svd.singularValues();
+    if (!(s(0) > 0.0) || s(1) > kMaxImaginaryShare * s(0)) return std::nullopt;
+    modes.emplace_back(std::arg(lambda), svd.matrixU().col(0));
+  }
+  if (static_cast<Index>(modes.size()) != d) return std::nullopt;
+  std::sort(modes.begin(), modes.end(),
+            [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (std::size_t i = 1; i < modes.size(); ++i)
+    if (modes[i].first - modes[i - 1].first < kMinFrequencyGap * modes[i].first)
+      return std::nullopt;
+  LinearModes out{Vector(d), Matrix(d, d), ""};
+  for (Index k = 0; k < d; ++k) {
+    out.frequency(k) = modes[static_cast<std::size_t>(k)].first / h;
+    out.p.col(k) = modes[static_cast<std::size_t>(k)].second;
+  }
+  const Eigen::JacobiSVD<Matrix> svd(out.p);
+  const Vector s = svd.singularValues();
+  if (!(s(d - 1) > 0.0) || s(0) / s(d - 1) > kMaxCondition) return std::nullopt;
+  return out;
+}
+
+std::optional<LinearModes> DampingProfile::linear_modes() const {
+  const Index n = w_.size();
+  if (n == 0) return std::nullopt;
+  std::vector<double> hs(w_.h.row(0).data(), w_.h.row(0).data() + n);
+  std::nth_element(hs.begin(), hs.begin() + n / 2, hs.end());
+  const double h = hs[static_cast<std::size_t>(n / 2)];
+  const Vector mean = w_.z0.rowwise().mean();
+  const double spread = std::sqrt((w_.z0.colwise() - mean).squaredNorm() / static_cast<double>(n));
+  const std::optional<Vector> z = fixed_point(*map_, core_theta_, mean, h);
+  if (z && (*z - mean).norm() <= 3.0 * spread + 1e-12) {
+    std::optional<LinearModes> m = modes_of_linear_map(map_->jacobian(core_theta_, *z, h), h);
+    if (m) {
+      m->where = "at its equilibrium";
+      return m;
+    }
+  }
+  // The core may be poorly determined at an equilibrium the data never approach, or have
+  // none near them: its Jacobian averaged over the observed states instead (at most
+  // kMaxAveraged of them, evenly spaced).
+  constexpr Index kMaxAveraged = 2000;
+  const Index stride = std::max<Index>(1, n / kMaxAveraged);
+  Matrix avg = Matrix::Zero(2 * d_, 2 * d_);
+  Index used = 0;
+  for (Index k = 0; k < n; k += stride, ++used)
+    avg += map_->jacobian(core_theta_, w_.z0.col(k), h);
+  std::optional<LinearModes> m = modes_of_linear_map(avg / static_cast<double>(used), h);
+  if (m) m->where = "averaged over the data";
+  return m;
 }
 
 }  // namespace csympnet::detail

@@ -7,10 +7,13 @@
 // a = e^{−ch/2}, x = S_c z0 and J = DΨ(x):
 //
 //   ∂r/∂C_ij = −(h/2) (a p0_j J e_{d+i} + a⁻¹ p1_j e_{d+i}),
-//   ∂r/∂c    = Σ_i ∂r/∂C_ii = −(h/2) (a J (0, p0) + a⁻¹ (0, p1)).
+//   ∂r/∂c    = Σ_i ∂r/∂C_ii = −(h/2) (a J (0, p0) + a⁻¹ (0, p1)),
+// and along a direction E of C, Σ_ij E_ij ∂r/∂C_ij = −(h/2) (a J (0, E p0) + a⁻¹ (0, E p1)).
 #pragma once
 
 #include <functional>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "csympnet/core/types.hpp"
@@ -19,9 +22,36 @@
 
 namespace csympnet::detail {
 
-// The free parameters of C: all d² entries (vec(C), row-major: index i·d + j), or the d
-// diagonal entries (rates per coordinate) where d² would be too many for the blocks.
-enum class DampingFreedom { kFull, kDiagonal };
+// The free directions of C around cI: C = cI + Σ_m δ_m E_m. `common` holds the coefficients
+// with Σ_m common_m E_m = I (the direction of a common rate). Three bases:
+//  - all d² entries (E_{i·d+j} = e_i e_jᵀ);
+//  - the d diagonal entries (a rate per coordinate);
+//  - a rate per mode: E_k = P e_k e_kᵀ P⁻¹ for the columns of P, the momentum directions of
+//    the core's linear modes (modal damping C = P diag(rates) P⁻¹; docs/derivations.md).
+// The core's linear modes: angular frequencies (ascending, per unit of normalised time) and
+// the momentum direction of each (columns of p).
+struct LinearModes {
+  Vector frequency;
+  Matrix p;
+  std::string where;  // "at its equilibrium" or "averaged over the data"
+};
+// The modes of a linear map with d conjugate pairs of eigenvalues near the unit circle, at
+// distinct angles ωh, whose eigenvectors' p parts are real directions (a natural mechanical
+// system's); empty otherwise.
+std::optional<LinearModes> modes_of_linear_map(const Matrix& jac, double h);
+
+struct DampingBasis {
+  std::string name;
+  std::vector<Matrix> e;
+  Vector common;
+  Index size() const { return static_cast<Index>(e.size()); }
+  // cI + Σ δ_m E_m.
+  Matrix matrix(double c, const Vector& delta) const;
+};
+DampingBasis full_damping_basis(Index d);
+DampingBasis coordinate_damping_basis(Index d);
+// The modal basis of the columns of P (d × d, invertible).
+DampingBasis modal_damping_basis(const Matrix& p);
 
 // Sums over the one-step windows of one block.
 struct BlockProfile {
@@ -49,12 +79,19 @@ class DampingProfile {
 
   // The balanced residuals at C = cI (2d × N).
   Matrix residuals(double c) const;
-  // Per-block sums at C = cI; with `freedom`, also the normal equations of the entries of C.
+  // Per-block sums at C = cI; with `basis`, also the normal equations of its coefficients.
   // `should_stop` is polled every 64 windows; on true the sums stop (incomplete).
-  std::vector<BlockProfile> blocks(double c, const DampingFreedom* freedom,
+  std::vector<BlockProfile> blocks(double c, const DampingBasis* basis,
                                    const std::function<bool()>& should_stop = {}) const;
-  // The columns ∂r_k/∂C (2d × n_c) of window k at C = cI (exposed for the derivative test).
-  Matrix entry_jacobian(double c, Index k, DampingFreedom freedom) const;
+  // The columns ∂r_k/∂δ_m (2d × basis.size()) of window k at C = cI (exposed for the
+  // derivative test).
+  Matrix entry_jacobian(double c, Index k, const DampingBasis& basis) const;
+  // The core's linear modes: Ψ is linearised at its fixed point nearest the data (Newton from
+  // the data's mean state), or, where that has no d oscillating modes, its Jacobian is
+  // averaged over the observed states; each conjugate pair of eigenvalues e^{±iωh} gives the
+  // real direction of its eigenvector's p part. Empty where neither is well defined (a
+  // hyperbolic or degenerate linearisation, an ill-conditioned set of directions).
+  std::optional<LinearModes> linear_modes() const;
   // ∂r_k/∂c.
   Vector rate_jacobian(double c, Index k) const;
 
@@ -69,12 +106,5 @@ class DampingProfile {
   Index d_;
   Index n_blocks_ = 0;
 };
-
-// Number of free entries of C under `freedom` for d degrees of freedom.
-Index damping_entries(Index d, DampingFreedom freedom);
-// vec(I) in the entries' coordinates: the direction of a common rate.
-Vector common_rate_direction(Index d, DampingFreedom freedom);
-// C = cI + the entries `delta`, as a d × d matrix.
-Matrix damping_matrix(double c, const Vector& delta, Index d, DampingFreedom freedom);
 
 }  // namespace csympnet::detail

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <optional>
 #include <sstream>
 
 #include <Eigen/Eigenvalues>
@@ -18,7 +19,7 @@ namespace csympnet {
 namespace {
 
 using detail::BlockProfile;
-using detail::DampingFreedom;
+using detail::DampingBasis;
 using detail::DampingProfile;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -264,12 +265,20 @@ struct FoldSums {
   double sa = 0.0, sg = 0.0;
 };
 
-// The entries of C worth freeing for B blocks: all d² while their d² − 1 constraints leave
-// half the blocks' degrees of freedom (and d ≤ 8), else the d diagonal entries.
-DampingFreedom freedom_for(Index d, Index blocks) {
-  const Index room = (blocks - 1) / 2;
-  return d <= kMaxFullDamping && d * d - 1 <= room ? DampingFreedom::kFull
-                                                   : DampingFreedom::kDiagonal;
+// The freedom given to C: a rate per mode of the core's linearisation where its modes are
+// well defined (d − 1 constraints: the alternative the model's assumption names). Otherwise
+// all d² entries while their d² − 1 constraints leave half the blocks' degrees of freedom
+// (and d ≤ 8), else the d diagonal entries.
+DampingBasis basis_for(const DampingProfile& prof, const std::optional<detail::LinearModes>& modes) {
+  const Index d = prof.dofs();
+  if (modes) {
+    DampingBasis b = detail::modal_damping_basis(modes->p);
+    b.name += " (" + modes->where + ")";
+    return b;
+  }
+  const Index room = (prof.n_blocks() - 1) / 2;
+  return d <= kMaxFullDamping && d * d - 1 <= room ? detail::full_damping_basis(d)
+                                                   : detail::coordinate_damping_basis(d);
 }
 
 // Cluster-robust Wald test that the step Δ = −A⁻¹g from cI lies along the common rate: the
@@ -337,6 +346,46 @@ double heldout_gain_t(const std::vector<FoldSums>& f, const FoldSums& all, doubl
   return var > 0.0 ? mean / std::sqrt(var / nf) : 0.0;
 }
 
+// Rates per mode and their jackknife standard errors over the folds. With modes, the rate of
+// mode k is c + δ_k, in the modes' order (ascending frequency); otherwise the real parts of
+// C's eigenvalues, ascending.
+struct ModeRates {
+  std::vector<double> rate, se;
+  double spread_se = 0.0;  // of max − min
+};
+ModeRates mode_rates(const DampingBasis& basis, const std::optional<detail::LinearModes>& modes,
+                     double c, const Vector& delta, const std::vector<FoldSums>& f,
+                     const FoldSums& all, double ridge) {
+  const Index ne = basis.size();
+  const auto rates_of = [&](const Vector& dl) {
+    if (!modes) return sorted_rates(basis.matrix(c, dl));
+    std::vector<double> r;
+    for (Index i = 0; i < ne; ++i) r.push_back(c + dl(i));
+    return r;
+  };
+  const auto spread = [](const std::vector<double>& r) {
+    const auto [lo, hi] = std::minmax_element(r.begin(), r.end());
+    return *hi - *lo;
+  };
+  ModeRates out;
+  out.rate = rates_of(delta);
+  std::vector<std::vector<double>> fold_rates;
+  for (const FoldSums& s : f)
+    fold_rates.push_back(rates_of(
+        -(all.a - s.a + ridge * Matrix::Identity(ne, ne)).ldlt().solve(all.g - s.g)));
+  const double nf = static_cast<double>(f.size());
+  const auto jackknife_se = [&](const std::function<double(const std::vector<double>&)>& stat) {
+    double m = 0.0, v = 0.0;
+    for (const auto& fr : fold_rates) m += stat(fr) / nf;
+    for (const auto& fr : fold_rates) v += (stat(fr) - m) * (stat(fr) - m);
+    return std::sqrt((nf - 1.0) / nf * v);
+  };
+  for (std::size_t i = 0; i < out.rate.size(); ++i)
+    out.se.push_back(jackknife_se([i](const std::vector<double>& r) { return r[i]; }));
+  out.spread_se = jackknife_se(spread);
+  return out;
+}
+
 ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, double c,
                           const std::function<bool()>& stop) {
   ModelCheck k;
@@ -352,16 +401,16 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
     k.sentence = "one degree of freedom: one mode";
     return k;
   }
-  const DampingFreedom freedom = freedom_for(d, prof.n_blocks());
-  const Index ne = detail::damping_entries(d, freedom);
-  if (prof.n_blocks() - (ne - 1) < 3) {
+  if (prof.n_blocks() - (d - 1) < 3) {
     k.applicable = false;
     k.sentence = "too few blocks to test a rate per degree of freedom";
     return k;
   }
-  k.details["freedom"] =
-      freedom == DampingFreedom::kFull ? "full d x d damping matrix" : "a rate per coordinate";
-  const std::vector<BlockProfile> bs = prof.blocks(c, &freedom, stop);
+  const std::optional<detail::LinearModes> modes = prof.linear_modes();
+  const DampingBasis basis = basis_for(prof, modes);
+  const Index ne = basis.size();
+  k.details["freedom"] = basis.name;
+  const std::vector<BlockProfile> bs = prof.blocks(c, &basis, stop);
   const Index folds = std::min<Index>(static_cast<Index>(bs.size()), kMaxFolds);
   std::vector<FoldSums> f(static_cast<std::size_t>(folds),
                           FoldSums{Matrix::Zero(ne, ne), Vector::Zero(ne)});
@@ -382,49 +431,50 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
   const double ridge = 1e-10 * all.a.trace() / static_cast<double>(ne) + 1e-300;
   const Matrix a_inv = (all.a + ridge * Matrix::Identity(ne, ne)).inverse();
   const Vector delta = -a_inv * all.g;
-  const Vector common = detail::common_rate_direction(d, freedom);
-  const Wald w = robust_wald(bs, a_inv, delta, common);
+  const Wald w = robust_wald(bs, a_inv, delta, basis.common);
   k.statistic = w.f;
   k.p_value = w.p;
   k.details["wald_constraints"] = w.q;
   k.details["heldout_gain_t"] = heldout_gain_t(f, all, ridge);
-  // Rates per mode, and a jackknife over the folds for their intervals.
-  const std::vector<double> rates = sorted_rates(detail::damping_matrix(c, delta, d, freedom));
-  std::vector<std::vector<double>> fold_rates;
-  for (const FoldSums& s : f)
-    fold_rates.push_back(sorted_rates(detail::damping_matrix(
-        c, -(all.a - s.a + ridge * Matrix::Identity(ne, ne)).ldlt().solve(all.g - s.g), d,
-        freedom)));
+  const ModeRates mr = mode_rates(basis, modes, c, delta, f, all, ridge);
   const double nf = static_cast<double>(folds);
   const double tl = student_t_quantile(0.5 + 0.5 * in.level, nf - 1.0);
   const double tau = in.time_scale;
   nlohmann::json per_mode = nlohmann::json::array();
-  double spread_var = 0.0, spread_mean = 0.0;
-  for (const auto& fr : fold_rates) spread_mean += (fr.back() - fr.front()) / nf;
-  for (const auto& fr : fold_rates) {
-    const double x = fr.back() - fr.front() - spread_mean;
-    spread_var += x * x;
-  }
-  for (std::size_t i = 0; i < rates.size(); ++i) {
-    double m = 0.0, v = 0.0;
-    for (const auto& fr : fold_rates) m += fr[i] / nf;
-    for (const auto& fr : fold_rates) v += (fr[i] - m) * (fr[i] - m);
-    const double se = std::sqrt((nf - 1.0) / nf * v);
-    per_mode.push_back({{"rate", rates[i] / tau},
-                        {"interval", {(rates[i] - tl * se) / tau, (rates[i] + tl * se) / tau}}});
+  for (std::size_t i = 0; i < mr.rate.size(); ++i) {
+    nlohmann::json m = {{"rate", mr.rate[i] / tau},
+                        {"interval",
+                         {(mr.rate[i] - tl * mr.se[i]) / tau, (mr.rate[i] + tl * mr.se[i]) / tau}}};
+    if (modes) m["angular_frequency"] = modes->frequency(static_cast<Index>(i)) / tau;
+    per_mode.push_back(m);
   }
   k.details["rates"] = per_mode;
   k.details["level"] = in.level;
-  k.effect = (rates.back() - rates.front()) / std::abs(c);
-  const double spread_se = std::sqrt((nf - 1.0) / nf * spread_var);
+  const auto [lo, hi] = std::minmax_element(mr.rate.begin(), mr.rate.end());
+  const std::vector<double>& rates = mr.rate;
+  k.effect = (*hi - *lo) / std::abs(c);
   const double tq = student_t_quantile(1.0 - k.alpha, nf - 1.0);
-  k.detectable_effect = (tq + kPowerZ) * spread_se / std::abs(c);
+  k.detectable_effect = (tq + kPowerZ) * mr.spread_se / std::abs(c);
   k.passed = !(k.p_value < k.alpha && k.effect > k.effect_threshold);
   std::string list;
-  for (double r : rates) list += (list.empty() ? "" : ", ") + fmt(r / tau, 4);
-  k.sentence = k.passed ? "one rate fits all modes (rates per mode " + list + ")"
-                        : "the modes damp at different rates: " + list +
-                              " per time unit, where the model has one";
+  for (std::size_t i = 0; i < rates.size(); ++i) {
+    list += (list.empty() ? "" : ", ") + fmt(rates[i] / tau, 4);
+    if (modes)
+      list += " (at angular frequency " + fmt(modes->frequency(static_cast<Index>(i)) / tau, 3) +
+              ")";
+  }
+  if (!k.passed) {
+    k.sentence =
+        "the modes damp at different rates: " + list + " per time unit, where the model has one";
+  } else if (k.detectable_effect > k.effect_threshold) {
+    k.sentence = "these data cannot tell one rate from rates per mode spread by less than " +
+                 fmt(100.0 * k.detectable_effect, 2) + "% of the common rate (rates per mode " +
+                 list + ")";
+  } else {
+    k.sentence = "one rate fits all modes: no spread beyond " +
+                 fmt(100.0 * std::max(k.effect, k.detectable_effect), 2) +
+                 "% of the common rate (rates per mode " + list + ")";
+  }
   return k;
 }
 

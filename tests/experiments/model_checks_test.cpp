@@ -12,6 +12,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include <cmath>
+#include <optional>
 
 #include "../../src/experiments/damping_profile.hpp"
 #include "csympnet/core/error.hpp"
@@ -22,7 +23,7 @@
 namespace csympnet {
 namespace {
 
-using detail::DampingFreedom;
+using detail::DampingBasis;
 using detail::DampingProfile;
 
 // S_a Ψ S_a with Ψ the exact symplectic core of the damped linear system dq/dt = p,
@@ -100,7 +101,7 @@ Trajectory integrate(const Matrix& k, const Dissipation& f, const Vector& z0, do
       z += dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
       time += dt;
     }
-    t.t(n) = n * h;
+    t.t(n) = static_cast<double>(n) * h;
     t.z.col(n) = z;
   }
   return t;
@@ -213,18 +214,21 @@ TEST(DampingProfile, DerivativesInTheDampingMatrixMatchFiniteDifferences) {
     core(bi) = 0.0;
     const double c = rng.uniform(-0.5, 0.5);
     const double eps = 1e-6;
-    for (DampingFreedom f : {DampingFreedom::kFull, DampingFreedom::kDiagonal}) {
+    const Matrix random_modes = Matrix::Identity(d, d) + 0.3 * Matrix::Random(d, d);
+    for (const DampingBasis& f :
+         {detail::full_damping_basis(d), detail::coordinate_damping_basis(d),
+          detail::modal_damping_basis(random_modes)}) {
       for (Index k = 0; k < w.size(); ++k) {
         const Matrix got = prof.entry_jacobian(c, k, f);
-        const Index ne = detail::damping_entries(d, f);
+        const Index ne = f.size();
         for (Index e = 0; e < ne; ++e) {
           Vector delta = Vector::Zero(ne);
           delta(e) = eps;
           const Vector plus =
-              residual_with_matrix(*m.map, core, detail::damping_matrix(c, delta, d, f),
+              residual_with_matrix(*m.map, core, f.matrix(c, delta),
                                    w.z0.col(k), w.zm.col(k), w.h(0, k));
           const Vector minus =
-              residual_with_matrix(*m.map, core, detail::damping_matrix(c, -delta, d, f),
+              residual_with_matrix(*m.map, core, f.matrix(c, -delta),
                                    w.z0.col(k), w.zm.col(k), w.h(0, k));
           const Vector fd = (plus - minus) / (2 * eps);
           EXPECT_LT((got.col(e) - fd).cwiseAbs().maxCoeff(),
@@ -402,6 +406,80 @@ TEST(ModelChecks, ModeDependentDampingIsDetectedWithTheRates) {
   }
   EXPECT_GE(detected, cases * 9 / 10);
   std::printf("rates per mode in ratio 3 detected and recovered: %d of %d\n", detected, cases);
+}
+
+// Four modes of a chain with rates spread by 3 (γ, 3^{1/3} γ, 3^{2/3} γ, 3γ in a random
+// order), in 12 blocks: too few for a full 4 × 4 matrix (15 constraints), so only a rate per
+// mode of the core's linearisation can see it; the rates come back in the modes' order.
+TEST(ModelChecks, ModeDependentDampingIsDetectedPerModeWhenAFullMatrixIsTooMuch) {
+  int detected = 0, modal = 0;
+  const int cases = 20;
+  const Matrix k = chain_stiffness(4);
+  Eigen::SelfAdjointEigenSolver<Matrix> es(k);  // ascending frequencies
+  const Matrix v = es.eigenvectors();
+  for (int n = 0; n < cases; ++n) {
+    Rng rng(n, "checks-modes-4");
+    Vector rates(4);
+    for (Index i = 0; i < 4; ++i) rates(i) = 0.05 * std::pow(3.0, static_cast<double>(i) / 3.0);
+    for (Index i = 3; i > 0; --i)
+      std::swap(rates(i), rates(std::min<Index>(i, static_cast<Index>(rng.uniform() * static_cast<double>(i + 1)))));
+    const Matrix c = v * rates.asDiagonal() * v.transpose();
+    const Dissipation f = [c](double, const Vector&, const Vector& p) -> Vector { return -c * p; };
+    const Trajectory t = integrate(k, f, rng.uniform_vector(8, -1.0, 1.0), 0.25, 600);
+    const std::vector<ModelCheck> checks = run(k, rates.mean(), blocks_of(t, 12, 1e-2, rng));
+    const ModelCheck& o = by_name(checks, "one_rate");
+    if (o.details.value("freedom", std::string()).find("mode") == std::string::npos) continue;
+    ++modal;
+    if (o.passed) continue;
+    const auto& r = o.details.at("rates");
+    bool recovered = true;
+    for (Index i = 0; i < 4; ++i) {
+      const double got = r[static_cast<std::size_t>(i)].at("rate").get<double>();
+      recovered = recovered && std::abs(got - rates(i)) < 0.2 * rates(i);
+      const double freq = r[static_cast<std::size_t>(i)].at("angular_frequency").get<double>();
+      EXPECT_NEAR(freq, std::sqrt(es.eigenvalues()(i)), 1e-2) << "case " << n << " mode " << i;
+    }
+    if (recovered) ++detected;
+  }
+  EXPECT_EQ(modal, cases);
+  EXPECT_GE(detected, cases * 9 / 10);
+  std::printf("four rates per mode in ratio 3 detected and recovered: %d of %d\n", detected,
+              cases);
+}
+
+// The core's linear modes at random stiffness and mass-free chains: the frequencies are the
+// square roots of K's eigenvalues (of the damped flow's, as the exact core carries γ0 in its
+// conformal scaling) and the momentum directions K's eigenvectors; the modal basis sums to
+// the identity along its common direction.
+TEST(DampingProfile, LinearModesAreTheCoresNormalModesAtRandomStiffness) {
+  int tested = 0;
+  for (int trial = 0; trial < 10; ++trial) {
+    Rng rng(trial, "profile-modes");
+    const Index d = 2 + trial % 3;
+    const Matrix a = Matrix::Random(d, d);
+    const Matrix k = a * a.transpose() + 0.5 * Matrix::Identity(d, d);
+    LinearFlowMap map(k, 0.0);
+    Trajectory t;
+    t.t = Vector::LinSpaced(6, 0.0, 0.1);
+    t.z = Matrix::Random(2 * d, 6);
+    DampingProfile prof(map, Vector::Constant(1, 0.0), 0, windows_from_trajectories({t}, 1));
+    const std::optional<detail::LinearModes> modes = prof.linear_modes();
+    Eigen::SelfAdjointEigenSolver<Matrix> es(k);
+    const Vector freq = es.eigenvalues().cwiseSqrt();
+    bool distinct = true;
+    for (Index i = 1; i < d; ++i) distinct = distinct && freq(i) - freq(i - 1) > 0.03 * freq(i);
+    if (!distinct) continue;
+    ++tested;
+    ASSERT_TRUE(modes.has_value()) << "trial " << trial;
+    for (Index i = 0; i < d; ++i) {
+      EXPECT_NEAR(modes->frequency(i), freq(i), 1e-8 * freq(i)) << "trial " << trial;
+      const double align = std::abs(modes->p.col(i).normalized().dot(es.eigenvectors().col(i)));
+      EXPECT_NEAR(align, 1.0, 1e-8) << "trial " << trial << " mode " << i;
+    }
+    const DampingBasis b = detail::modal_damping_basis(modes->p);
+    EXPECT_LT((b.matrix(0.0, b.common) - Matrix::Identity(d, d)).norm(), 1e-10);
+  }
+  EXPECT_GE(tested, 6);  // most random stiffnesses have distinct frequencies
 }
 
 TEST(ModelChecks, OneDegreeOfFreedomHasOneModeAndShortDataAreUntestable) {

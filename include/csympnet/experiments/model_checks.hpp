@@ -10,9 +10,10 @@
 //                   confidence means the motion grows (energy gain or forcing);
 //   linear damping  c re-estimated on each block, regressed on the block's log energy: a rate
 //                   that falls or rises with amplitude (dry friction, quadratic drag);
-//   one rate        a full d × d damping matrix C around the same core, compared with cI
-//                   out of sample (blocks held out in turn); its eigenvalues are the rates
-//                   per mode (d > 1 only);
+//   one rate        a damping matrix C around the same core with a rate per mode of the
+//                   core's linearisation (else all d² entries, or a rate per coordinate),
+//                   tested against cI with a cluster-robust Wald F; the rates per mode are
+//                   reported with the modes' frequencies (d > 1 only);
 //   residuals       what one-step residuals keep at lag 2 along trajectories, where
 //                   measurement noise no longer correlates: a structured misfit.
 //

@@ -16,7 +16,9 @@ Options: --cases N (default 120, 8 with --quick; with --violations 60, 10 with -
 build/bin/csympnet under the repository root), --fit-args="..." (extra options for every
 `csympnet fit`, split like a shell would; write it with "=" so that a value starting with "--"
 is not taken for an option of this script), --timeout SECONDS (per fit, default 600),
---jobs N (cases in parallel, default 1), --force (reuse a non-empty --out).
+--jobs N (cases in parallel, default 1), --force (reuse a non-empty --out), --momenta
+given|gradient|savgol (the p columns as generated, default, or computed from the noisy q by
+numpy.gradient or a Savitzky-Golay derivative, as a user without a momentum sensor would).
 
 Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p; unit masses unless stated):
 
@@ -121,8 +123,8 @@ interval misses gamma and the relative error exceeds 0.1. The tables (stdout, DI
 give, per stratum value and method: n, median / 90th percentile / worst relative error (over the
 cases with a number), coverage (covering / cases with an interval), not identified, rejected,
 failed, confident wrong, relative error > 0.1, median wall seconds. With csympnet results, also
-its model checks (report.json "checks": dissipation, linear_damping, one_rate, residuals; a
-check fails when "passed" is false): on valid cases the false-alarm rate of each check and of
+its model checks (report.json "checks": measured_momenta, dissipation, linear_damping,
+one_rate, residuals; a check fails when "passed" is false): on valid cases the false-alarm rate of each check and of
 any check (failed / applicable, failed / all), overall and per sigma and shape; on violation
 cases, per kind and size, the detection rate of each check and of any check, the shares
 rejected / not identified / identified, failed, and the confident wrong count, with those cases
@@ -166,7 +168,7 @@ METHODS = ["csympnet", "sindy", "oracle"]
 VIOLATION_STRATA = ["nonuniform-1.5", "nonuniform-3", "nonuniform-30", "coulomb-0.2",
                     "coulomb-0.5", "coulomb-0.9", "quadratic-drag", "periodic-force",
                     "drifting-equilibrium", "energy-gain"]
-CHECK_NAMES = ["dissipation", "linear_damping", "one_rate", "residuals"]
+CHECK_NAMES = ["measured_momenta", "dissipation", "linear_damping", "one_rate", "residuals"]
 VERDICTS = ["identified", "not identified", "rejected", "failed"]
 
 GEN_OMEGA_DT = 1e-3      # omega_max * RK4 substep when generating data
@@ -758,6 +760,27 @@ def generate(case, quick, check_integrator):
     return files, info, s
 
 
+def computed_momenta(files, d, how):
+    """The momenta a user without a momentum sensor would write: the p columns replaced by
+    numpy.gradient of the (noisy) q columns, or by a Savitzky-Golay derivative (window 11,
+    cubic, at the trajectory's median step; numpy.gradient where a trajectory is shorter)."""
+    from scipy.signal import savgol_filter
+    out = []
+    for t, z in files:
+        z = z.copy()
+        for i in range(d):
+            q = z[:, i]
+            if len(t) < 2:
+                v = np.zeros_like(q)
+            elif how == "savgol" and len(t) >= 11:
+                v = savgol_filter(q, 11, 3, deriv=1, delta=float(np.median(np.diff(t))))
+            else:
+                v = np.gradient(q, t)
+            z[:, d + i] = v
+        out.append((t, z))
+    return out
+
+
 def write_csv(path, files, d):
     names = [f"q{i + 1}" for i in range(d)] + [f"p{i + 1}" for i in range(d)]
     lines = ["traj,t," + ",".join(names)]
@@ -1131,6 +1154,9 @@ def run_case(case, args, check_integrator, exe, extra):
     os.makedirs(cdir, exist_ok=True)
     t0 = time.monotonic()
     files, info, s = generate(case, args.quick, check_integrator)
+    if args.momenta != "given":
+        files = computed_momenta(files, info["d"], args.momenta)
+    info["momenta"] = args.momenta
     case.update(info)
     case["generate_seconds"] = time.monotonic() - t0
     data = os.path.join(cdir, "data.csv")
@@ -1531,6 +1557,10 @@ def main():
                     help='extra options for every `csympnet fit`, e.g. --fit-args="--epochs 2000"')
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per fit (default 600)")
     ap.add_argument("--jobs", type=int, default=1, help="cases in parallel (default 1)")
+    ap.add_argument("--momenta", choices=["given", "gradient", "savgol"], default="given",
+                    help="p columns as generated (given, default), or computed from the noisy q "
+                         "as a user without a momentum sensor would: numpy.gradient or a "
+                         "Savitzky-Golay derivative (window 11, cubic)")
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     args = ap.parse_args()
@@ -1570,7 +1600,7 @@ def main():
             "csympnet_version": ("skipped (--only-peers)" if args.only_peers
                                  else csympnet_version(exe)),
             "seed": args.seed, "quick": args.quick, "violations": args.violations,
-            "fit_args": extra, "timeout": args.timeout,
+            "fit_args": extra, "timeout": args.timeout, "momenta": args.momenta,
             "settings": {"gen_omega_dt": GEN_OMEGA_DT, "oracle_omega_dt": ORACLE_OMEGA_DT,
                          "sg_window": SG_WINDOW, "sg_degree": SG_DEGREE,
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,

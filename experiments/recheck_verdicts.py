@@ -26,7 +26,7 @@ import json
 import os
 import sys
 
-CHECKS = ["dissipation", "linear_damping", "one_rate", "residuals"]
+CHECKS = ["measured_momenta", "dissipation", "linear_damping", "one_rate", "residuals"]
 
 
 def decide(report, a):
@@ -41,6 +41,8 @@ def decide(report, a):
         c = checks.get(name)
         if c is None or not c.get("applicable"):
             return False
+        if name == "measured_momenta":  # a property of the data: its rule is in the report
+            return not c.get("passed", True)
         if name == "dissipation":
             # Growth is confirmed by the fit in reversed time; a record that seems to grow in
             # both directions is a bias, not energy input (identify.cpp, confirm_growth).
@@ -53,7 +55,8 @@ def decide(report, a):
         alpha = a.alpha_linear_damping if name == "linear_damping" else a.alpha
         return p < alpha and abs(e) > size[name]
 
-    failed = [n for n in CHECKS if usable and fails(n)]
+    # measured_momenta tests the data alone and stays decided when the model is not usable
+    failed = [n for n in CHECKS if (usable or n == "measured_momenta") and fails(n)]
     if "linear_damping" in failed and "one_rate" in failed:
         failed.remove("linear_damping")
     others = [r for r in report.get("reasons", []) if not r.startswith("the model's assumption")]

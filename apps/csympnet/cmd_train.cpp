@@ -278,7 +278,7 @@ void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
   for (const ModelCheck& k : checks) {
     if (k.passed && quiet) continue;
     const char* mark = !k.applicable ? "untestable" : k.passed ? "ok" : "FAILED";
-    std::printf("check %-15s %-10s %s\n", k.name.c_str(), mark, k.sentence.c_str());
+    std::printf("check %-16s %-10s %s\n", k.name.c_str(), mark, k.sentence.c_str());
   }
 }
 

@@ -99,8 +99,9 @@ def test_growing_motion_is_rejected_with_a_warning_and_its_rate():
     assert not r.identified and r.verdict == "model rejected"
     assert r.gamma is None and r.interval is None and r.estimate is not None
     names = [c["name"] for c in r.checks]
-    assert names == ["dissipation", "linear_damping", "one_rate", "residuals"]
-    growth = r.checks[0]
+    assert names == ["measured_momenta", "dissipation", "linear_damping", "one_rate", "residuals"]
+    assert r.checks[0]["passed"] is True  # the momenta are measured (their own noise)
+    growth = r.checks[1]
     assert growth["passed"] is False
     low, high = growth["details"]["reversed_time_fit"]["interval"]
     assert low < 0.1 < high

@@ -270,6 +270,8 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   const DataFacts facts = inspect_data(trajs, pairs_only);
   r.data = facts.summary;
   const std::vector<Trajectory> nt = choose_units(trajs, pairs_only, config, r);
+  // A property of the data alone, reported whatever the fit does.
+  r.checks = {measured_momenta_check(nt, pairs_only)};
   BlockSplit split = split_blocks(nt, pairs_only, config, r.choices);
 
   // Candidate cores: the given one, the init file's, or an LA and a G core chosen between by

@@ -125,7 +125,8 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
 // r.quality from the validation windows.
 void measure_quality(const OneStepMap& map, const BlockSplit& split, Index d, IdentifyResult& r);
 
-// r.checks: the model's assumptions on every block.
+// Appends to r.checks (which holds the data's own check, measured_momenta_check) the model's
+// assumptions tested on every block.
 void run_checks(const OneStepMap& map, const BlockSplit& split, const IdentifyHooks& hooks,
                 IdentifyResult& r);
 

@@ -279,14 +279,44 @@ TEST(FitCli, GrowingMotionIsRejectedAndNamedWithItsRate) {
   EXPECT_EQ(rep["verdict"], "model rejected");
   EXPECT_EQ(rep["identified"], false);
   EXPECT_TRUE(rep["gamma_ci_low"].is_null());
-  ASSERT_EQ(rep["checks"].size(), 4u);
-  const auto& g = rep["checks"][0];
+  ASSERT_EQ(rep["checks"].size(), 5u);
+  EXPECT_EQ(rep["checks"][0]["name"], "measured_momenta");
+  EXPECT_EQ(rep["checks"][0]["passed"], true);
+  const auto& g = rep["checks"][1];
   EXPECT_EQ(g["name"], "dissipation");
   EXPECT_EQ(g["passed"], false);
   const auto& rev = g["details"]["reversed_time_fit"];
   ASSERT_TRUE(rev.contains("interval")) << rev.dump();
   EXPECT_LT(rev["interval"][0].get<double>(), 0.1);
   EXPECT_GT(rev["interval"][1].get<double>(), 0.1);
+}
+
+// Momenta computed from the noisy positions by central differences (numpy.gradient) are
+// recognised: the model rejected, exit 5, no interval, the reason in words.
+TEST(FitCli, MomentaComputedFromPositionsAreRecognised) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "differenced.csv", out = dir.path() / "fit";
+  std::vector<Trajectory> rec = linear_record(0.1, 300, 0.2, 5);
+  Trajectory& t = rec.front();
+  const Index n = t.t.size();
+  for (Index k = 0; k < n; ++k) {
+    const Index a = std::max<Index>(0, k - 1), b = std::min<Index>(n - 1, k + 1);
+    t.z(1, k) = (t.z(0, b) - t.z(0, a)) / (t.t(b) - t.t(a));
+  }
+  write_trajectories_csv(data.string(), rec);
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
+                  stdout_file.string() + " 2>&1"),
+            5)
+      << slurp(stdout_file);
+  const std::string printed = slurp(stdout_file);
+  EXPECT_NE(printed.find("computed from the positions"), std::string::npos) << printed;
+  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  EXPECT_EQ(rep["verdict"], "model rejected");
+  EXPECT_TRUE(rep["gamma_ci_low"].is_null());
+  EXPECT_EQ(rep["checks"][0]["name"], "measured_momenta");
+  EXPECT_EQ(rep["checks"][0]["passed"], false);
 }
 
 // A valid record passes every check and keeps its interval.

@@ -16,6 +16,7 @@
 //                   reported with the modes' frequencies (d > 1 only);
 //   residuals       what one-step residuals keep at lag 2 along trajectories, where
 //                   measurement noise no longer correlates: a structured misfit.
+// A fifth check, of the data alone, comes first: measured momenta (measured_momenta_check).
 //
 // The one-step map with damping matrix C is S_C ∘ Ψ ∘ S_C, S_C(q, p) = (q, e^{−Ch/2} p); its
 // balanced residual is r = Ψ(S_C z0) − S_C⁻¹ z1 (train/window_loss.hpp). At C = cI every
@@ -71,6 +72,12 @@ struct CheckThresholds {
   double min_log_energy_range = 0.7;  // below it (a factor 2 in energy) the trend is untestable
   double rate_spread = 0.5;           // one rate: (max − min) rate over the common rate
   double residual_share = 0.15;       // residuals: structured misfit per step over the motion
+  // measured momenta: the momenta count as computed from the positions when a filter of the
+  // positions leaves less than this share of what a filter of the neighbouring positions
+  // leaves of the positions, and that matters when the positions are noisier than
+  // smooth_positions (the share a local polynomial through the neighbours leaves).
+  double derived_share = 1e-4;
+  double smooth_positions = 1e-9;
 };
 
 struct CheckInput {
@@ -88,6 +95,14 @@ struct CheckInput {
 // applicable = false. `should_stop` is polled between blocks; on true it returns what it has.
 std::vector<ModelCheck> check_model(const CheckInput& in,
                                     const std::function<bool()>& should_stop = {});
+
+// Whether the momenta were measured or computed from the positions (a difference,
+// numpy.gradient, a Savitzky–Golay derivative over up to 17 samples): a property of the data,
+// tested before any model. `trajs`: the trajectories, in any affine units per coordinate.
+// Fails when the momenta are such a filter of noisy positions, whose differenced noise and
+// bias the damping rate would inherit. Not applicable to pairs or short trajectories.
+ModelCheck measured_momenta_check(const std::vector<Trajectory>& trajs, bool pairs_only,
+                                  const CheckThresholds& thresholds = {});
 
 // Two-sided p-value of a Student t statistic with `dof` degrees of freedom (dof ≥ 1).
 double student_t_two_sided_p(double t, double dof);

@@ -160,6 +160,16 @@ Header parse_header(const CsvText& f) {
           "; expected only the columns '" + (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
           "', or --columns naming the ones to read (it drops the others): --columns " + map);
     }
+    if (n["q"] >= 1 && n["p"] == 0 && n["next_p"] == 0)
+      throw Error(where + (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " header " +
+                  quote(f.lines[0].text) + " has positions but no momenta: " +
+                  (h.kind == CsvKind::kPairs ? "a pair needs a whole state (q and p) at both ends"
+                                             : "csympnet needs the momenta or velocities") +
+                  ", measured with the positions (columns p1..pd), as '" +
+                  (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
+                  "'; it does not yet fit positions alone, and momenta computed from the "
+                  "positions by differencing are recognised and refused (docs/identification.md, "
+                  "\"Checks of the model's assumptions\")");
     std::string counts = std::to_string(n["q"]) + " q and " + std::to_string(n["p"]) + " p";
     if (h.kind == CsvKind::kPairs)
       counts += " and " + std::to_string(n["next_q"]) + " next_q and " +

@@ -222,5 +222,23 @@ TEST(CsvRead, DetectsKindFromHeader) {
             CsvKind::kTrajectories);
 }
 
+// Positions without momenta: the message says what is missing and why differencing is no way
+// out, for trajectories and for pairs.
+TEST(CsvRead, PositionsWithoutMomentaSayWhatIsMissing) {
+  TempDir dir;
+  for (const char* text : {"traj,t,q1\n0,0,1\n0,1,2\n", "t,q1,q2\n0,1,2\n",
+                           "h,q1,next_q1\n0.1,1,2\n"}) {
+    try {
+      read_csv_input(dir.write("q.csv", text));
+      ADD_FAILURE() << "accepted " << text;
+    } catch (const Error& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find("has positions but no momenta"), std::string::npos) << m;
+      EXPECT_NE(m.find("does not yet fit positions alone"), std::string::npos) << m;
+      EXPECT_NE(m.find("q.csv"), std::string::npos) << m;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace csympnet

@@ -282,6 +282,22 @@ void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
   }
 }
 
+// The modes of an identified fit, one line each (report.json "modes" has them in every case).
+void print_modes(const IdentifyResult& r) {
+  const auto range = [](const std::optional<SandwichInterval>& iv) {
+    char buf[96] = "";
+    if (iv) std::snprintf(buf, sizeof buf, " [%.6g, %.6g]", iv->low, iv->high);
+    return std::string(buf);
+  };
+  for (std::size_t k = 0; k < r.modes.size(); ++k) {
+    const Mode& m = r.modes[k];
+    std::printf("mode %zu: angular frequency %.6g%s rad per time unit, damping ratio %.6g%s\n",
+                k + 1, m.frequency, range(m.frequency_interval).c_str(), m.damping_ratio,
+                range(m.damping_ratio_interval).c_str());
+  }
+  if (!r.modes_note.empty()) std::printf("modes: %s\n", r.modes_note.c_str());
+}
+
 // What `fit` prints beyond γ̂ and the checks unless -q: the model, the budgets, the quality.
 void print_identify_details(const IdentifyResult& r, const std::string& out) {
   std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
@@ -424,6 +440,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
         "%s, %ld blocks)\n",
         r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level, s.method.c_str(),
         s.blocks);
+    print_modes(r);
   } else {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }

@@ -80,6 +80,10 @@ class CSympNetID:
         verdict_         "identified", "not identified" or "model rejected"
         reasons_         list of str
         checks_          list of dict: the model's assumptions tested (as report_["checks"])
+        frequencies_     angular frequencies of the fitted map's modes at its equilibrium
+                         (radians per time unit, ascending), or None when not identified
+        damping_ratio_   their damping ratios (γ̂ / (2ω) each), or None when not identified;
+                         report_["modes"] has both with intervals
         model_           the learned csympnet.Model (predict, rollout, save, ...)
         report_          the full report (dict), as `csympnet fit` writes it
         n_features_in_   2d, the state's length
@@ -182,6 +186,8 @@ class CSympNetID:
         self.checks_ = result.checks
         self.gamma_ = result.gamma if result.identified else None
         self.gamma_interval_ = result.interval if result.identified else None
+        self.frequencies_ = result.frequencies
+        self.damping_ratio_ = result.damping_ratios
         self.n_features_in_ = 2 * result.model.d
         self.dt_ = float(np.median(steps))
         return self

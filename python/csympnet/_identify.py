@@ -33,9 +33,6 @@ class Identification:
 
     Attributes:
       model       Model (exactly conformally symplectic in the data's units)
-      gamma       γ̂ in the data's time units
-      interval    (low, high), or None when none could be formed
-      level       the interval's level
       gamma       γ̂ in the data's time units; None unless identified (as CSympNetID.gamma_)
       interval    (low, high); None unless identified
       level       the interval's level
@@ -45,6 +42,13 @@ class Identification:
       reasons     list of str: failed checks first
       checks      list of dict: each assumption tested, with its statistic, p-value,
                   effect size, threshold, passed, and a sentence in words
+      modes       list of dict, one per oscillating mode of the fitted map linearised at its
+                  equilibrium (ascending frequency): angular_frequency (radians per time
+                  unit), damping_ratio, and their intervals (None unless identified); for a
+                  nonlinear system, small oscillations about the equilibrium
+      frequencies the modes' angular frequencies (numpy array); None unless identified
+      damping_ratios  the modes' damping ratios (numpy array, γ̂ / (2ω)); None unless
+                  identified
       estimate    the fitted γ̂ whatever the verdict (for inspection, not a measurement)
       report      the full report (dict), the same as `csympnet fit` writes
     """
@@ -61,6 +65,11 @@ class Identification:
         self.level = report["gamma_ci_level"]
         self.reasons = list(report["reasons"])
         self.checks = list(report["checks"])
+        self.modes = list(report["modes"]["list"])
+        self.frequencies = (np.array([m["angular_frequency"] for m in self.modes])
+                            if self.identified else None)
+        self.damping_ratios = (np.array([m["damping_ratio"] for m in self.modes])
+                               if self.identified else None)
 
     def __repr__(self):
         if not self.identified:

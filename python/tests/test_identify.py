@@ -39,6 +39,15 @@ def test_identifies_gamma_with_an_interval():
     # The model works in the data's units and is exactly conformally symplectic there.
     s = r.model.structure(z[3], 0.1)
     assert s["structure_residual"] < 1e-12
+    # Its one mode: ω = 1 and ζ = γ̂ / 2, with intervals; the estimator says the same.
+    (mode,) = r.modes
+    assert abs(mode["angular_frequency"] - 1.0) < 0.01
+    assert abs(r.damping_ratios[0] - r.gamma / (2.0 * r.frequencies[0])) < 1e-9
+    low, high = mode["angular_frequency_interval"]
+    assert low < mode["angular_frequency"] < high
+    est = csympnet.CSympNetID(**SMALL).fit(z, t)
+    assert np.array_equal(est.frequencies_, r.frequencies)
+    assert np.array_equal(est.damping_ratio_, r.damping_ratios)
 
 
 def test_units_do_not_change_the_answer():
@@ -109,4 +118,5 @@ def test_growing_motion_is_rejected_with_a_warning_and_its_rate():
     with pytest.warns(csympnet.NotIdentifiedWarning):
         est = csympnet.CSympNetID(**SMALL).fit(z, t)
     assert est.verdict_ == "model rejected" and est.gamma_ is None
+    assert est.frequencies_ is None and est.damping_ratio_ is None
     assert est.checks_ == r.checks

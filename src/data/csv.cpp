@@ -162,10 +162,10 @@ Header parse_header(const CsvText& f) {
     }
     if (n["q"] >= 1 && n["p"] == 0 && n["next_p"] == 0)
       throw Error(where + (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " header " +
-                  quote(f.lines[0].text) + " has positions but no momenta: " +
-                  (h.kind == CsvKind::kPairs ? "a pair needs a whole state (q and p) at both ends"
+                  quote(f.lines[0].text) + " has positions but no momenta (" +
+                  (h.kind == CsvKind::kPairs ? "a pair needs a whole state, q and p, at both ends"
                                              : "csympnet needs the momenta or velocities") +
-                  ", measured with the positions (columns p1..pd), as '" +
+                  "); expected them measured with the positions, as '" +
                   (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
                   "'; it does not yet fit positions alone, and momenta computed from the "
                   "positions by differencing are recognised and refused (docs/identification.md, "

@@ -162,8 +162,10 @@ constexpr double kMaxCondition = 1e4;
 // Frequencies closer than this (relative) are degenerate: their modes are not defined.
 constexpr double kMinFrequencyGap = 0.02;
 
-// Newton on Ψ(z) = z from z, backtracking on ‖Ψ(z) − z‖; empty when it does not converge.
-std::optional<Vector> fixed_point(const OneStepMap& map, const Vector& theta, Vector z, double h) {
+}  // namespace
+
+std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta, Vector z,
+                                      double h) {
   const Vector hv = Vector::Constant(1, h);
   const auto residual = [&](const Vector& x) -> Vector {
     return map.apply(theta, x, hv).col(0) - x;
@@ -191,7 +193,6 @@ std::optional<Vector> fixed_point(const OneStepMap& map, const Vector& theta, Ve
   return f.norm() <= 1e-8 * (1.0 + z.norm()) ? std::optional<Vector>(z) : std::nullopt;
 }
 
-}  // namespace
 
 std::optional<LinearModes> modes_of_linear_map(const Matrix& jac, double h) {
   const Index d = jac.rows() / 2;
@@ -235,7 +236,7 @@ std::optional<LinearModes> DampingProfile::linear_modes() const {
   const double h = hs[static_cast<std::size_t>(n / 2)];
   const Vector mean = w_.z0.rowwise().mean();
   const double spread = std::sqrt((w_.z0.colwise() - mean).squaredNorm() / static_cast<double>(n));
-  const std::optional<Vector> z = fixed_point(*map_, core_theta_, mean, h);
+  const std::optional<Vector> z = map_fixed_point(*map_, core_theta_, mean, h);
   if (z && (*z - mean).norm() <= 3.0 * spread + 1e-12) {
     std::optional<LinearModes> m = modes_of_linear_map(map_->jacobian(core_theta_, *z, h), h);
     if (m) {

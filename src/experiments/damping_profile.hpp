@@ -35,6 +35,11 @@ struct LinearModes {
   Matrix p;
   std::string where;  // "at its equilibrium" or "averaged over the data"
 };
+// Newton on map(z) = z from z with step h, backtracking on ‖map(z) − z‖; empty when it does
+// not converge.
+std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta, Vector z,
+                                      double h);
+
 // The modes of a linear map with d conjugate pairs of eigenvalues near the unit circle, at
 // distinct angles ωh, whose eigenvectors' p parts are real directions (a natural mechanical
 // system's); empty otherwise.

@@ -317,6 +317,27 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   return r;
 }
 
+// The modes: frequencies and damping ratios always; their intervals, as γ̂'s, only when γ̂ is
+// identified.
+nlohmann::json modes_report(const IdentifyResult& r) {
+  nlohmann::json list = nlohmann::json::array();
+  const auto claim = [&](const std::optional<SandwichInterval>& iv) {
+    return r.identified && iv ? nlohmann::json::array({iv->low, iv->high})
+                              : nlohmann::json(nullptr);
+  };
+  for (const Mode& m : r.modes)
+    list.push_back({{"angular_frequency", m.frequency},
+                    {"angular_frequency_interval", claim(m.frequency_interval)},
+                    {"damping_ratio", m.damping_ratio},
+                    {"damping_ratio_interval", claim(m.damping_ratio_interval)}});
+  return {{"list", list},
+          {"about",
+           "the fitted map linearised at its equilibrium: natural angular frequency (radians per "
+           "time unit of the data) and damping ratio of each oscillating mode, for small "
+           "oscillations; a nonlinear system's frequencies change with amplitude"},
+          {"note", r.modes_note}};
+}
+
 }  // namespace
 
 nlohmann::json identify_report(const IdentifyResult& r) {
@@ -364,6 +385,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"quality", r.quality},
       {"stopped", r.stopped},
       {"architecture", r.model.hyperparams()}};
+  j["modes"] = modes_report(r);
   if (r.config.init)
     j["init"] = {{"file", r.config.init->file}, {"checksum", r.config.init->checksum}};
   // As a run's configuration records it (run.cpp): only when not the default.

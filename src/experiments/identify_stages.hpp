@@ -118,7 +118,23 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
 void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
                    const IdentifyConfig& given, IdentifyResult& r);
 
-// γ̂'s interval in the user's time units (r.interval), from the training windows.
+// What the modes' intervals share with γ̂'s.
+struct ModeIntervalInput {
+  const NormalEquations* ne = nullptr;  // null: the modes without intervals
+  Index n_residuals = 0;
+  double residual_scale = 1.0;  // of the residuals in ne
+  double data_scale = 0.0;      // for the rounding term
+  double inflation = 1.0;       // the held-out inflation applied to γ̂'s interval
+};
+
+// r.modes: the fitted map linearised at its fixed point nearest the training windows' mean
+// state, each oscillating mode's natural frequency and damping ratio, with intervals when
+// `in.ne` is given (identify_modes.cpp).
+void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeIntervalInput& in,
+                    IdentifyResult& r);
+
+// γ̂'s interval in the user's time units (r.interval), from the training windows, and the
+// modes with theirs (modal_analysis).
 void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<Trajectory>& nt,
               const IdentifyHooks& hooks, const Communicator& comm, IdentifyResult& r);
 

@@ -67,8 +67,8 @@ double bisect_quantile(double p, Cdf cdf) {
   return 0.5 * (lo + hi);
 }
 
-// u = (A + μ D)⁻¹ e_k; μ grows until the factorisation succeeds. Returns the μ used.
-double solve_unit(const Matrix& a, Index k, double mu, Vector& u) {
+// u = (A + μ D)⁻¹ rhs; μ grows until the factorisation succeeds. Returns the μ used.
+double solve_regularised(const Matrix& a, const Vector& rhs, double mu, Vector& u) {
   const Index n = a.rows();
   const Vector diag = a.diagonal().cwiseMax(1e-300);
   // One OpenBLAS thread, as in LM: its threaded dpotrf changes the interval's last bits with
@@ -80,8 +80,7 @@ double solve_unit(const Matrix& a, Index k, double mu, Vector& u) {
     lhs = a;
     lhs.diagonal() += mu * diag;
     if (!lapack::cholesky(lhs.data(), n)) continue;
-    u = Vector::Zero(n);
-    u(k) = 1.0;
+    u = rhs;
     lapack::cholesky_solve(lhs.data(), n, u.data());
     if (u.allFinite()) return mu;
   }
@@ -104,48 +103,49 @@ double student_t_quantile(double p, double dof) {
   return bisect_quantile(p, [dof](double x) { return t_cdf_positive(x, dof); });
 }
 
-SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matrix& scores,
-                                   Index gamma_index, double gamma, double gamma_sign,
-                                   Index n_residuals, double cost, double residual_scale,
-                                   double data_scale, double level) {
+SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,
+                                      const Vector& gradient, double value, Index n_residuals,
+                                      double cost, double residual_scale, double data_scale,
+                                      double level) {
   const Index p = a.rows();
-  require(a.cols() == p && g.size() == p && scores.rows() == p,
+  require(a.cols() == p && g.size() == p && scores.rows() == p && gradient.size() == p,
           "interval: inconsistent normal equations");
-  require(gamma_index >= 0 && gamma_index < p, "interval: bad damping index");
+  require(gradient.allFinite() && gradient.squaredNorm() > 0.0,
+          "interval: the gradient of the estimate must be finite and nonzero");
   require(level > 0.0 && level < 1.0, "interval: level must be in (0, 1)");
   SandwichInterval s;
-  s.gamma = gamma;
+  s.gamma = value;
   s.level = level;
   s.blocks = scores.cols();
-  const double sign = gamma_sign != 0.0 ? gamma_sign : 1.0;
   // A is only the lower triangle: symmetrise once.
   Matrix full = a.selfadjointView<Eigen::Lower>();
   auto block_std = [&](const Vector& u) {
     const Index b = scores.cols();
     if (b < 2) return 0.0;
-    Vector v = (scores.transpose() * u) * sign;
+    Vector v = scores.transpose() * u;
     const double mean = v.mean();
     return std::sqrt(static_cast<double>(b) / static_cast<double>(b - 1) *
                      (v.array() - mean).square().sum());
   };
   Vector u;
-  const double mu = solve_unit(full, gamma_index, 1e-9, u);
+  const double mu = solve_regularised(full, gradient, 1e-9, u);
   Vector u100;
-  solve_unit(full, gamma_index, 100.0 * mu, u100);
+  solve_regularised(full, gradient, 100.0 * mu, u100);
   s.sandwich = block_std(u);
   const double sandwich100 = block_std(u100);
   s.regularisation_ratio = s.sandwich > 0.0 ? sandwich100 / s.sandwich : 1.0;
   // A smaller interval at more regularisation is expected (it suppresses weak directions);
-  // one that changes by more than 2× means γ̂ leans on directions the data barely fix.
+  // one that changes by more than 2× means the estimate leans on directions the data barely
+  // fix.
   s.stable = std::isfinite(s.regularisation_ratio) && s.regularisation_ratio > 0.5 &&
              s.regularisation_ratio < 2.0;
-  const double u_beta = std::max(0.0, u(gamma_index));
+  const double u_f = std::max(0.0, gradient.dot(u));
   const double n_res = static_cast<double>(n_residuals);
   const double dof_res = std::max(n_res - static_cast<double>(p), 0.25 * n_res);
-  s.model_based = std::sqrt(2.0 * cost / dof_res * u_beta);
+  s.model_based = std::sqrt(2.0 * cost / dof_res * u_f);
   s.optimisation = std::abs(u.dot(g));
   s.rounding = 16.0 * std::numeric_limits<double>::epsilon() * data_scale * residual_scale *
-               std::sqrt(u_beta);
+               std::sqrt(u_f);
   // The model-based error assumes independent residuals; overlapping windows make them
   // correlated (negatively at lag m), so it is reported but not used. Few blocks estimate the
   // variance poorly, which the t quantile with B − 1 degrees of freedom accounts for.
@@ -154,9 +154,20 @@ SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matri
   s.std_error = std::sqrt(main * main + s.optimisation * s.optimisation + s.rounding * s.rounding);
   s.dof = std::max(1.0, static_cast<double>(s.blocks - 1));
   s.quantile = student_t_quantile(0.5 * (1.0 + level), s.dof);
-  s.low = gamma - s.quantile * s.std_error;
-  s.high = gamma + s.quantile * s.std_error;
+  s.low = value - s.quantile * s.std_error;
+  s.high = value + s.quantile * s.std_error;
   return s;
+}
+
+SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matrix& scores,
+                                   Index gamma_index, double gamma, double gamma_sign,
+                                   Index n_residuals, double cost, double residual_scale,
+                                   double data_scale, double level) {
+  require(gamma_index >= 0 && gamma_index < a.rows(), "interval: bad damping index");
+  Vector gradient = Vector::Zero(a.rows());
+  gradient(gamma_index) = gamma_sign != 0.0 ? gamma_sign : 1.0;  // dγ̂/dθ
+  return sandwich_interval_of(a, g, scores, gradient, gamma, n_residuals, cost, residual_scale,
+                              data_scale, level);
 }
 
 }  // namespace csympnet

@@ -117,8 +117,10 @@ TEST(Identify, IntervalNeverHasZeroWidthAndContainsTheEstimate) {
 TEST(Identify, IntervalCoversAtAboutItsLevel) {
   // 60 independent noisy data sets (σ = 1e-2, one trajectory of 150 samples each): a 95%
   // interval misses about 3 of them; 60 draws give 0.95 ± 0.028 (one sd).
+  // The same fits' mode (ω = 1, ζ = γ / 2 = 0.05): its frequency and damping ratio intervals,
+  // from the same sandwich, must cover as often.
   const IdentifyConfig c = small_budget();
-  int covered = 0, identified = 0;
+  int covered = 0, identified = 0, freq_covered = 0, ratio_covered = 0, with_mode = 0;
   const int n = 60;
   double worst = 0.0;
   std::vector<double> z;  // (γ̂ − γ) / standard error: about N(0, 1) for a calibrated interval
@@ -126,6 +128,14 @@ TEST(Identify, IntervalCoversAtAboutItsLevel) {
     const double gamma = 0.1;
     const IdentifyResult r = identify(chain_data(1, gamma, 1, 150, 1e-2, 100 + s), false, c);
     ASSERT_TRUE(r.interval.has_value());
+    if (r.modes.size() == 1 && r.modes[0].frequency_interval && r.modes[0].damping_ratio_interval) {
+      ++with_mode;
+      const Mode& m = r.modes[0];
+      freq_covered += m.frequency_interval->low <= 1.0 && 1.0 <= m.frequency_interval->high;
+      ratio_covered +=
+          m.damping_ratio_interval->low <= 0.05 && 0.05 <= m.damping_ratio_interval->high;
+      EXPECT_NEAR(m.damping_ratio, r.gamma / (2.0 * m.frequency), 1e-9 * m.damping_ratio);
+    }
     covered += r.interval->low <= gamma && gamma <= r.interval->high;
     identified += r.identified;
     worst = std::max(worst, std::abs(r.gamma - gamma) / gamma);
@@ -140,6 +150,11 @@ TEST(Identify, IntervalCoversAtAboutItsLevel) {
   EXPECT_GE(covered, 52);  // ≥ 0.867: more than 2.9 sd below 0.95 fails
   EXPECT_LE(covered, 60);
   EXPECT_GE(identified, 55);
+  std::cout << "  mode: " << with_mode << " with intervals; frequency covered " << freq_covered
+            << ", damping ratio covered " << ratio_covered << "\n";
+  EXPECT_EQ(with_mode, n);
+  EXPECT_GE(freq_covered, 52);
+  EXPECT_GE(ratio_covered, 52);
 }
 
 }  // namespace

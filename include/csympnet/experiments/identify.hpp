@@ -141,6 +141,17 @@ struct IdentifyQuality {
 };
 void to_json(nlohmann::json& j, const IdentifyQuality& q);
 
+// One oscillating mode of the fitted map, linearised at its equilibrium: the map's eigenvalues
+// e^{(−ζω ± iω√(1−ζ²)) h} give the natural angular frequency ω (user's time units) and the
+// damping ratio ζ (= γ̂ / (2ω) for one rate). Their intervals come from the same sandwich as
+// γ̂'s (sandwich_interval_of), present when γ̂ is identified. For a nonlinear system they are
+// the small oscillations' about the equilibrium.
+struct Mode {
+  double frequency = 0.0;
+  double damping_ratio = 0.0;
+  std::optional<SandwichInterval> frequency_interval, damping_ratio_interval;
+};
+
 struct IdentifyResult {
   Model model;  // in the user's units: carries the normalisation
   Vector theta;
@@ -154,6 +165,8 @@ struct IdentifyResult {
   std::string verdict;
   std::vector<std::string> reasons;  // why not, when not: failed checks first
   std::vector<ModelCheck> checks;    // the assumptions tested (empty when no interval was formed)
+  std::vector<Mode> modes;           // ascending frequency; empty when the map has none
+  std::string modes_note;            // why fewer than d modes, or none
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;
   TrainSummary training;

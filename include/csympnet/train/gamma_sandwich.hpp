@@ -54,6 +54,14 @@ SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matri
                                    Index n_residuals, double cost, double residual_scale,
                                    double data_scale, double level);
 
+// The same interval for any smooth function f(θ̂) of the parameters, given its value and
+// gradient ∇f (u = (A + μD)⁻¹ ∇f): the modal frequencies and damping ratios. `gamma` of the
+// result holds f(θ̂).
+SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,
+                                      const Vector& gradient, double value, Index n_residuals,
+                                      double cost, double residual_scale, double data_scale,
+                                      double level);
+
 // Scales the standard error and the half-widths by `factor` (≥ 1), keeping the centre, and
 // records it: the held-out inflation of identify() (training residuals understate the error).
 void inflate_interval(SandwichInterval& s, double factor);

@@ -1,0 +1,122 @@
+// The modes of the fitted map: natural frequencies and damping ratios from its linearisation at
+// the equilibrium, with intervals from the same sandwich as γ̂'s (identify_stages.hpp,
+// modal_analysis; docs/derivations.md, "Modes of the fitted map").
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "damping_profile.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet::detail {
+
+namespace {
+
+using Complex = std::complex<double>;
+
+// The continuous-time eigenvalues s = log(μ) / h of the map's oscillating modes (μ with
+// positive imaginary part) at its fixed point, ascending in |s|; the fixed point in `z`.
+std::optional<std::vector<Complex>> mode_eigenvalues(const OneStepMap& map, const Vector& theta,
+                                                     Vector& z, double h) {
+  const std::optional<Vector> fixed = map_fixed_point(map, theta, z, h);
+  if (!fixed) return std::nullopt;
+  z = *fixed;
+  const Eigen::EigenSolver<Matrix> es(map.jacobian(theta, z, h), false);
+  if (es.info() != Eigen::Success) return std::nullopt;
+  std::vector<Complex> s;
+  for (Index i = 0; i < es.eigenvalues().size(); ++i) {
+    const Complex mu = es.eigenvalues()(i);
+    if (mu.imag() > 1e-12 * std::abs(mu)) s.push_back(std::log(mu) / h);
+  }
+  std::sort(s.begin(), s.end(), [](Complex a, Complex b) { return std::abs(a) < std::abs(b); });
+  return s;
+}
+
+double frequency_of(Complex s) { return std::abs(s); }
+double ratio_of(Complex s) { return -s.real() / std::abs(s); }
+
+// ∂ω_k/∂θ and ∂ζ_k/∂θ by central differences, each perturbed map's modes matched to the
+// nearest of s; false when a perturbation loses a mode.
+bool mode_gradients(const OneStepMap& map, const Vector& theta, const Vector& z0, double h,
+                    const std::vector<Complex>& s, Matrix& d_freq, Matrix& d_ratio) {
+  const Index p = theta.size(), m = static_cast<Index>(s.size());
+  d_freq.resize(p, m);
+  d_ratio.resize(p, m);
+  Vector t = theta;
+  for (Index j = 0; j < p; ++j) {
+    const double eps = 1e-6 * std::max(1.0, std::abs(theta(j)));
+    std::vector<Complex> side[2];
+    for (int k = 0; k < 2; ++k) {
+      t(j) = theta(j) + (k == 0 ? eps : -eps);
+      Vector z = z0;
+      const std::optional<std::vector<Complex>> e = mode_eigenvalues(map, t, z, h);
+      if (!e || static_cast<Index>(e->size()) != m) return false;
+      for (Complex target : s)  // the nearest perturbed eigenvalue
+        side[k].push_back(*std::min_element(e->begin(), e->end(), [&](Complex a, Complex b) {
+          return std::abs(a - target) < std::abs(b - target);
+        }));
+    }
+    t(j) = theta(j);
+    for (Index k = 0; k < m; ++k) {
+      const auto ks = static_cast<std::size_t>(k);
+      d_freq(j, k) = (frequency_of(side[0][ks]) - frequency_of(side[1][ks])) / (2.0 * eps);
+      d_ratio(j, k) = (ratio_of(side[0][ks]) - ratio_of(side[1][ks])) / (2.0 * eps);
+    }
+  }
+  return d_freq.allFinite() && d_ratio.allFinite();
+}
+
+}  // namespace
+
+void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeIntervalInput& in,
+                    IdentifyResult& r) {
+  const Index n = train.size();
+  if (n == 0) return;
+  std::vector<double> hs(train.h.row(0).data(), train.h.row(0).data() + n);
+  std::nth_element(hs.begin(), hs.begin() + n / 2, hs.end());
+  const double h = hs[static_cast<std::size_t>(n / 2)];
+  Vector z = train.z0.rowwise().mean();
+  const std::optional<std::vector<Complex>> s = mode_eigenvalues(map, r.theta, z, h);
+  const Index d = train.dim() / 2;
+  if (!s) {
+    r.modes_note = "the fitted map has no equilibrium near the data: no modes";
+    return;
+  }
+  if (static_cast<Index>(s->size()) < d)
+    r.modes_note = std::to_string(d - static_cast<Index>(s->size())) + " of the " +
+                   std::to_string(d) +
+                   " modes do not oscillate at the equilibrium (overdamped, or no restoring force)";
+  const double tau = r.normalization.time_scale;
+  for (Complex x : *s) r.modes.push_back({frequency_of(x) / tau, ratio_of(x), {}, {}});
+  if (in.ne == nullptr || s->empty()) return;
+  Matrix d_freq, d_ratio;
+  if (!mode_gradients(map, r.theta, z, h, *s, d_freq, d_ratio)) {
+    r.modes_note += (r.modes_note.empty() ? "" : "; ") +
+                    std::string("a mode is lost under a small change of the parameters: no "
+                                "intervals for the modes");
+    return;
+  }
+  const NormalEquations& ne = *in.ne;
+  const auto interval_of = [&](const Vector& grad, double value, double unit) {
+    if (!(grad.squaredNorm() > 0.0)) return std::optional<SandwichInterval>();
+    SandwichInterval iv = sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals,
+                                               ne.cost, in.residual_scale, in.data_scale,
+                                               r.config.level);
+    inflate_interval(iv, in.inflation);
+    for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich,
+                      &iv.model_based, &iv.optimisation, &iv.rounding})
+      *v /= unit;
+    return std::optional<SandwichInterval>(iv);
+  };
+  for (std::size_t k = 0; k < r.modes.size(); ++k) {
+    const Index kk = static_cast<Index>(k);
+    r.modes[k].frequency_interval = interval_of(d_freq.col(kk), frequency_of((*s)[k]), tau);
+    r.modes[k].damping_ratio_interval = interval_of(d_ratio.col(kk), ratio_of((*s)[k]), 1.0);
+  }
+}
+
+}  // namespace csympnet::detail

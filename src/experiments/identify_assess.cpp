@@ -125,6 +125,20 @@ void run_checks(const OneStepMap& map, const BlockSplit& split, const IdentifyHo
 
 namespace {
 
+// When the signed rate leans below 0 without the dissipation check's confidence: say that the
+// data may as well show a slow growth, with the signed rate, rather than only "no damping".
+std::string possible_growth(const std::vector<ModelCheck>& checks) {
+  for (const ModelCheck& k : checks) {
+    if (k.name != "dissipation" || !k.passed || !k.details.contains("signed_rate")) continue;
+    const double c = k.details["signed_rate"].get<double>();
+    const auto& iv = k.details["interval"];
+    if (!(c < 0.0)) return "";
+    return " or from a slow growth (signed rate " + fmt(c) + " [" + fmt(iv[0].get<double>()) +
+           ", " + fmt(iv[1].get<double>()) + "] per time unit, not below 0 with 99% confidence)";
+  }
+  return "";
+}
+
 // Reasons that the data cannot tell γ (not identified), in r.reasons.
 void identification_reasons(const BlockSplit& split, double h_max, bool lm_fits, bool growing,
                             IdentifyResult& r) {
@@ -140,7 +154,8 @@ void identification_reasons(const BlockSplit& split, double h_max, bool lm_fits,
       reason("the interval is not finite");
     else if (s.low <= 0.0 && !growing)  // growth has its own reason, from the checks
       reason("the " + fmt(100.0 * level) + "% interval [" + fmt(s.low) + ", " + fmt(s.high) +
-             "] reaches 0: these data do not tell the damping rate from no damping");
+             "] reaches 0: these data do not tell the damping rate from no damping" +
+             possible_growth(r.checks));
     if (!s.stable)
       reason("the interval changes " + fmt(s.regularisation_ratio) +
              "-fold with the regularisation of the Gauss-Newton matrix: the data do not "

@@ -152,6 +152,20 @@ TEST(IdentifyStages, VerdictPutsFailedChecksFirstAndNamesGrowthInsteadOfNoDampin
   EXPECT_EQ(zero.verdict, "not identified");
   ASSERT_EQ(zero.reasons.size(), 1u);
   EXPECT_NE(zero.reasons[0].find("no damping"), std::string::npos);
+  EXPECT_EQ(zero.reasons[0].find("growth"), std::string::npos);
+
+  // A signed rate that leans below 0 without the check's 99% confidence: the reason names
+  // a slow growth as possible too, with the signed rate.
+  IdentifyResult leans = interval_result(-0.01, 0.02);
+  ModelCheck lean;
+  lean.name = "dissipation";
+  lean.details = {{"signed_rate", -0.003}, {"interval", {-0.006, -0.0002}}};
+  leans.checks = {lean};
+  verdict(moving_split(), 0.1, true, leans);
+  EXPECT_EQ(leans.verdict, "not identified");
+  ASSERT_EQ(leans.reasons.size(), 1u);
+  EXPECT_NE(leans.reasons[0].find("or from a slow growth (signed rate -0.003"), std::string::npos)
+      << leans.reasons[0];
 
   IdentifyResult grows = interval_result(-0.01, 0.02);
   ModelCheck g;

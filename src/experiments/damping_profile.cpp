@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <limits>
 #include <utility>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 
 #include "csympnet/core/error.hpp"
@@ -164,19 +166,22 @@ constexpr double kMinFrequencyGap = 0.02;
 
 }  // namespace
 
-std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta, Vector z,
-                                      double h) {
+FixedPoint nearest_fixed_point(const OneStepMap& map, const Vector& theta, Vector z, double h) {
   const Vector hv = Vector::Constant(1, h);
   const auto residual = [&](const Vector& x) -> Vector {
     return map.apply(theta, x, hv).col(0) - x;
   };
   Vector f = residual(z);
-  for (int it = 0; it < 40; ++it) {
-    if (!f.allFinite()) return std::nullopt;
-    if (f.norm() <= 1e-11 * (1.0 + z.norm())) return z;
+  for (int it = 0; it < 40 && f.allFinite(); ++it) {
+    if (f.norm() <= 1e-11 * (1.0 + z.norm())) break;
     const Matrix j = map.jacobian(theta, z, h) - Matrix::Identity(z.size(), z.size());
-    const Vector step = -j.fullPivLu().solve(f);
-    if (!step.allFinite()) return std::nullopt;
+    // Least squares of least norm: a map with a line of equilibria (a free chain's
+    // translation) has J − I singular (to within what training leaves, hence the relative
+    // rank threshold), and the nearest equilibrium is wanted.
+    Eigen::CompleteOrthogonalDecomposition<Matrix> cod(j);
+    cod.setThreshold(1e-7);
+    const Vector step = -cod.solve(f);
+    if (!step.allFinite()) break;
     double t = 1.0;
     bool improved = false;
     for (int half = 0; half < 20; ++half, t *= 0.5) {
@@ -188,9 +193,15 @@ std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta
         break;
       }
     }
-    if (!improved) return std::nullopt;
+    if (!improved) break;
   }
-  return f.norm() <= 1e-8 * (1.0 + z.norm()) ? std::optional<Vector>(z) : std::nullopt;
+  return {z, f.allFinite() ? f.norm() : std::numeric_limits<double>::infinity()};
+}
+
+std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta, Vector z,
+                                      double h) {
+  const FixedPoint p = nearest_fixed_point(map, theta, std::move(z), h);
+  return p.residual <= 1e-8 * (1.0 + p.z.norm()) ? std::optional<Vector>(p.z) : std::nullopt;
 }
 
 

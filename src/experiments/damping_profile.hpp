@@ -35,8 +35,14 @@ struct LinearModes {
   Matrix p;
   std::string where;  // "at its equilibrium" or "averaged over the data"
 };
-// Newton on map(z) = z from z with step h, backtracking on ‖map(z) − z‖; empty when it does
-// not converge.
+// Newton on map(z) = z from z with step h (least-norm steps), backtracking on
+// ‖map(z) − z‖: the point reached and its residual ‖map(z) − z‖.
+struct FixedPoint {
+  Vector z;
+  double residual = 0.0;
+};
+FixedPoint nearest_fixed_point(const OneStepMap& map, const Vector& theta, Vector z, double h);
+// Its point when the residual is at rounding (≤ 1e-8 (1 + ‖z‖)); empty otherwise.
 std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta, Vector z,
                                       double h);
 

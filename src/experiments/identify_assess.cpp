@@ -67,7 +67,7 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
     r.interval = s;
     modal_analysis(map, train,
                    {&ne, train.size() * train.dim(), scale, data_scale(nt),
-                    std::sqrt(std::max(1.0, ratio))},
+                    std::sqrt(std::max(1.0, ratio)), stop},
                    r);
   }
   r.interval_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -18,42 +19,48 @@ namespace {
 
 using Complex = std::complex<double>;
 
+double frequency_of(Complex s) { return std::abs(s); }
+double ratio_of(Complex s) { return -s.real() / std::abs(s); }
+
 // The continuous-time eigenvalues s = log(μ) / h of the map's oscillating modes (μ with
-// positive imaginary part) at its fixed point, ascending in |s|; the fixed point in `z`.
+// positive imaginary part) at its fixed point, ascending in |s|; the fixed point in `z`. A
+// point where the map moves by at most `tolerance` counts as the equilibrium: a fitted map
+// whose true equilibria form a line (a free chain's translation) keeps a slight drift along it.
 std::optional<std::vector<Complex>> mode_eigenvalues(const OneStepMap& map, const Vector& theta,
-                                                     Vector& z, double h) {
-  const std::optional<Vector> fixed = map_fixed_point(map, theta, z, h);
-  if (!fixed) return std::nullopt;
-  z = *fixed;
+                                                     Vector& z, double h, double tolerance) {
+  const FixedPoint fixed = nearest_fixed_point(map, theta, z, h);
+  if (!(fixed.residual <= tolerance)) return std::nullopt;
+  z = fixed.z;
   const Eigen::EigenSolver<Matrix> es(map.jacobian(theta, z, h), false);
   if (es.info() != Eigen::Success) return std::nullopt;
   std::vector<Complex> s;
   for (Index i = 0; i < es.eigenvalues().size(); ++i) {
     const Complex mu = es.eigenvalues()(i);
-    if (mu.imag() > 1e-12 * std::abs(mu)) s.push_back(std::log(mu) / h);
+    // An oscillation: an angle per step beyond rounding, and a decay slower than critical.
+    const Complex x = std::log(mu) / h;
+    if (std::arg(mu) > 1e-6 && ratio_of(x) < 0.999 && ratio_of(x) > -0.999) s.push_back(x);
   }
   std::sort(s.begin(), s.end(), [](Complex a, Complex b) { return std::abs(a) < std::abs(b); });
   return s;
 }
 
-double frequency_of(Complex s) { return std::abs(s); }
-double ratio_of(Complex s) { return -s.real() / std::abs(s); }
-
 // ∂ω_k/∂θ and ∂ζ_k/∂θ by central differences, each perturbed map's modes matched to the
 // nearest of s; false when a perturbation loses a mode.
 bool mode_gradients(const OneStepMap& map, const Vector& theta, const Vector& z0, double h,
-                    const std::vector<Complex>& s, Matrix& d_freq, Matrix& d_ratio) {
+                    double tolerance, const std::vector<Complex>& s,
+                    const std::function<bool()>& stop, Matrix& d_freq, Matrix& d_ratio) {
   const Index p = theta.size(), m = static_cast<Index>(s.size());
   d_freq.resize(p, m);
   d_ratio.resize(p, m);
   Vector t = theta;
   for (Index j = 0; j < p; ++j) {
+    if (stop && stop()) return false;
     const double eps = 1e-6 * std::max(1.0, std::abs(theta(j)));
     std::vector<Complex> side[2];
     for (int k = 0; k < 2; ++k) {
       t(j) = theta(j) + (k == 0 ? eps : -eps);
       Vector z = z0;
-      const std::optional<std::vector<Complex>> e = mode_eigenvalues(map, t, z, h);
+      const std::optional<std::vector<Complex>> e = mode_eigenvalues(map, t, z, h, tolerance);
       if (!e || static_cast<Index>(e->size()) != m) return false;
       for (Complex target : s)  // the nearest perturbed eigenvalue
         side[k].push_back(*std::min_element(e->begin(), e->end(), [&](Complex a, Complex b) {
@@ -80,7 +87,9 @@ void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeInt
   std::nth_element(hs.begin(), hs.begin() + n / 2, hs.end());
   const double h = hs[static_cast<std::size_t>(n / 2)];
   Vector z = train.z0.rowwise().mean();
-  const std::optional<std::vector<Complex>> s = mode_eigenvalues(map, r.theta, z, h);
+  // The equilibrium to 1e-3 of the data's typical motion over a window.
+  const double tolerance = 1e-3 * (train.zm - train.z0).norm() / std::sqrt(static_cast<double>(n));
+  const std::optional<std::vector<Complex>> s = mode_eigenvalues(map, r.theta, z, h, tolerance);
   const Index d = train.dim() / 2;
   if (!s) {
     r.modes_note = "the fitted map has no equilibrium near the data: no modes";
@@ -94,7 +103,11 @@ void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeInt
   for (Complex x : *s) r.modes.push_back({frequency_of(x) / tau, ratio_of(x), {}, {}});
   if (in.ne == nullptr || s->empty()) return;
   Matrix d_freq, d_ratio;
-  if (!mode_gradients(map, r.theta, z, h, *s, d_freq, d_ratio)) {
+  if (!mode_gradients(map, r.theta, z, h, tolerance, *s, in.should_stop, d_freq, d_ratio)) {
+    if (in.should_stop && in.should_stop()) {
+      r.stopped = true;  // interrupted: the modes without intervals
+      return;
+    }
     r.modes_note += (r.modes_note.empty() ? "" : "; ") +
                     std::string("a mode is lost under a small change of the parameters: no "
                                 "intervals for the modes");

@@ -16,6 +16,7 @@
 // Private to the library (src/experiments).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -125,6 +126,7 @@ struct ModeIntervalInput {
   double residual_scale = 1.0;  // of the residuals in ne
   double data_scale = 0.0;      // for the rounding term
   double inflation = 1.0;       // the held-out inflation applied to γ̂'s interval
+  std::function<bool()> should_stop;  // polled per parameter; true: r.stopped, no intervals
 };
 
 // r.modes: the fitted map linearised at its fixed point nearest the training windows' mean

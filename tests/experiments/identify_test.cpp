@@ -114,6 +114,24 @@ TEST(Identify, IntervalNeverHasZeroWidthAndContainsTheEstimate) {
   EXPECT_LT(std::abs(r.gamma - 0.05), 1e-3);
 }
 
+// A free chain of two masses (springs k = 1 between them only): one oscillating mode at
+// ω = √(2k), and the translation, which does not oscillate and whose equilibria form a line:
+// the mode is found with its frequency and ζ = γ̂/(2ω), and the note says one mode is missing.
+TEST(Identify, ModesOfAFreeChainSkipTheTranslation) {
+  const IdentifyResult r = identify(chain_data(2, 0.08, 1, 240, 1e-3, 1), false, small_budget());
+  ASSERT_EQ(r.modes.size(), 1u) << r.modes_note;
+  EXPECT_NEAR(r.modes[0].frequency, std::sqrt(2.0), 0.02);
+  EXPECT_NEAR(r.modes[0].damping_ratio, r.gamma / (2.0 * r.modes[0].frequency),
+              1e-9 * r.modes[0].damping_ratio);
+  EXPECT_NE(r.modes_note.find("1 of the 2 modes do not oscillate"), std::string::npos)
+      << r.modes_note;
+  if (r.identified) {
+    ASSERT_TRUE(r.modes[0].frequency_interval.has_value());
+    EXPECT_LT(r.modes[0].frequency_interval->low, r.modes[0].frequency);
+    EXPECT_GT(r.modes[0].frequency_interval->high, r.modes[0].frequency);
+  }
+}
+
 TEST(Identify, IntervalCoversAtAboutItsLevel) {
   // 60 independent noisy data sets (σ = 1e-2, one trajectory of 150 samples each): a 95%
   // interval misses about 3 of them; 60 draws give 0.95 ± 0.028 (one sd).

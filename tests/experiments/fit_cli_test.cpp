@@ -259,23 +259,38 @@ std::vector<Trajectory> linear_record(double gamma, int points, double h, std::u
   return {t};
 }
 
+// `csympnet fit` with a small budget on the record, in a temporary directory: its exit code,
+// what it printed and its report.
+struct SmallFit {
+  int code = -1;
+  std::string printed;
+  nlohmann::json report;
+};
+SmallFit small_fit(const std::vector<Trajectory>& rec) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "record.csv", out = dir.path() / "fit";
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  write_trajectories_csv(data.string(), rec);
+  SmallFit f;
+  f.code = shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                 out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
+                 stdout_file.string() + " 2>&1");
+  f.printed = slurp(stdout_file);
+  if (fs::exists(out / "report.json")) f.report = nlohmann::json::parse(slurp(out / "report.json"));
+  return f;
+}
+
 // Growing motion: not "no damping" but the model rejected, named as growth, with a rate whose
 // interval (from the fit in reversed time) covers the truth; exit 5 and the checks in the report.
 TEST(FitCli, GrowingMotionIsRejectedAndNamedWithItsRate) {
-  testing::TempDir dir;
-  const fs::path data = dir.path() / "grow.csv", out = dir.path() / "fit";
-  write_trajectories_csv(data.string(), linear_record(-0.1, 160, 0.1, 3));
-  const fs::path stdout_file = dir.path() / "stdout.txt";
-  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
-                  stdout_file.string() + " 2>&1"),
-            5)
-      << slurp(stdout_file);
-  const std::string printed = slurp(stdout_file);
+  const SmallFit f = small_fit(linear_record(-0.1, 160, 0.1, 3));
+  EXPECT_EQ(f.code, 5) << f.printed;
+  const std::string& printed = f.printed;
   EXPECT_NE(printed.find("gamma_hat: model rejected"), std::string::npos) << printed;
   EXPECT_NE(printed.find("the motion grows"), std::string::npos) << printed;
   EXPECT_EQ(printed.find("from no damping"), std::string::npos) << printed;
-  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  ASSERT_TRUE(f.report.is_object()) << f.printed;
+  const nlohmann::json& rep = f.report;
   EXPECT_EQ(rep["verdict"], "model rejected");
   EXPECT_EQ(rep["identified"], false);
   EXPECT_TRUE(rep["gamma_ci_low"].is_null());
@@ -294,8 +309,6 @@ TEST(FitCli, GrowingMotionIsRejectedAndNamedWithItsRate) {
 // Momenta computed from the noisy positions by central differences (numpy.gradient) are
 // recognised: the model rejected, exit 5, no interval, the reason in words.
 TEST(FitCli, MomentaComputedFromPositionsAreRecognised) {
-  testing::TempDir dir;
-  const fs::path data = dir.path() / "differenced.csv", out = dir.path() / "fit";
   std::vector<Trajectory> rec = linear_record(0.1, 300, 0.2, 5);
   Trajectory& t = rec.front();
   const Index n = t.t.size();
@@ -303,16 +316,11 @@ TEST(FitCli, MomentaComputedFromPositionsAreRecognised) {
     const Index a = std::max<Index>(0, k - 1), b = std::min<Index>(n - 1, k + 1);
     t.z(1, k) = (t.z(0, b) - t.z(0, a)) / (t.t(b) - t.t(a));
   }
-  write_trajectories_csv(data.string(), rec);
-  const fs::path stdout_file = dir.path() / "stdout.txt";
-  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
-                  stdout_file.string() + " 2>&1"),
-            5)
-      << slurp(stdout_file);
-  const std::string printed = slurp(stdout_file);
-  EXPECT_NE(printed.find("computed from the positions"), std::string::npos) << printed;
-  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  const SmallFit f = small_fit(rec);
+  EXPECT_EQ(f.code, 5) << f.printed;
+  EXPECT_NE(f.printed.find("computed from the positions"), std::string::npos) << f.printed;
+  ASSERT_TRUE(f.report.is_object()) << f.printed;
+  const nlohmann::json& rep = f.report;
   EXPECT_EQ(rep["verdict"], "model rejected");
   EXPECT_TRUE(rep["gamma_ci_low"].is_null());
   EXPECT_EQ(rep["checks"][0]["name"], "measured_momenta");
@@ -321,13 +329,10 @@ TEST(FitCli, MomentaComputedFromPositionsAreRecognised) {
 
 // A valid record passes every check and keeps its interval.
 TEST(FitCli, ValidDampedRecordPassesTheChecks) {
-  testing::TempDir dir;
-  const fs::path data = dir.path() / "decay.csv", out = dir.path() / "fit";
-  write_trajectories_csv(data.string(), linear_record(0.1, 300, 0.2, 4));
-  EXPECT_EQ(shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > /dev/null"),
-            0);
-  const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+  const SmallFit f = small_fit(linear_record(0.1, 300, 0.2, 4));
+  EXPECT_EQ(f.code, 0) << f.printed;
+  ASSERT_TRUE(f.report.is_object()) << f.printed;
+  const nlohmann::json& rep = f.report;
   EXPECT_EQ(rep["verdict"], "identified");
   for (const auto& c : rep["checks"]) EXPECT_EQ(c["passed"], true) << c.dump();
   EXPECT_LT(rep["gamma_ci_low"].get<double>(), 0.1);

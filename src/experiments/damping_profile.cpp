@@ -204,7 +204,6 @@ std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta
   return p.residual <= 1e-8 * (1.0 + p.z.norm()) ? std::optional<Vector>(p.z) : std::nullopt;
 }
 
-
 std::optional<LinearModes> modes_of_linear_map(const Matrix& jac, double h) {
   const Index d = jac.rows() / 2;
   const Eigen::EigenSolver<Matrix> es(jac);
@@ -262,8 +261,7 @@ std::optional<LinearModes> DampingProfile::linear_modes() const {
   const Index stride = std::max<Index>(1, n / kMaxAveraged);
   Matrix avg = Matrix::Zero(2 * d_, 2 * d_);
   Index used = 0;
-  for (Index k = 0; k < n; k += stride, ++used)
-    avg += map_->jacobian(core_theta_, w_.z0.col(k), h);
+  for (Index k = 0; k < n; k += stride, ++used) avg += map_->jacobian(core_theta_, w_.z0.col(k), h);
   std::optional<LinearModes> m = modes_of_linear_map(avg / static_cast<double>(used), h);
   if (m) m->where = "averaged over the data";
   return m;

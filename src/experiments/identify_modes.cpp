@@ -19,8 +19,12 @@ namespace {
 
 using Complex = std::complex<double>;
 
-double frequency_of(Complex s) { return std::abs(s); }
-double ratio_of(Complex s) { return -s.real() / std::abs(s); }
+double frequency_of(Complex s) {
+  return std::abs(s);
+}
+double ratio_of(Complex s) {
+  return -s.real() / std::abs(s);
+}
 
 // The continuous-time eigenvalues s = log(μ) / h of the map's oscillating modes (μ with
 // positive imaginary part) at its fixed point, ascending in |s|; the fixed point in `z`. A
@@ -109,19 +113,20 @@ void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeInt
       return;
     }
     r.modes_note += (r.modes_note.empty() ? "" : "; ") +
-                    std::string("a mode is lost under a small change of the parameters: no "
-                                "intervals for the modes");
+                    std::string(
+                        "a mode is lost under a small change of the parameters: no "
+                        "intervals for the modes");
     return;
   }
   const NormalEquations& ne = *in.ne;
   const auto interval_of = [&](const Vector& grad, double value, double unit) {
     if (!(grad.squaredNorm() > 0.0)) return std::optional<SandwichInterval>();
-    SandwichInterval iv = sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals,
-                                               ne.cost, in.residual_scale, in.data_scale,
-                                               r.config.level);
+    SandwichInterval iv =
+        sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals, ne.cost,
+                             in.residual_scale, in.data_scale, r.config.level);
     inflate_interval(iv, in.inflation);
-    for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich,
-                      &iv.model_based, &iv.optimisation, &iv.rounding})
+    for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich, &iv.model_based,
+                      &iv.optimisation, &iv.rounding})
       *v /= unit;
     return std::optional<SandwichInterval>(iv);
   };

@@ -123,9 +123,9 @@ void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
 struct ModeIntervalInput {
   const NormalEquations* ne = nullptr;  // null: the modes without intervals
   Index n_residuals = 0;
-  double residual_scale = 1.0;  // of the residuals in ne
-  double data_scale = 0.0;      // for the rounding term
-  double inflation = 1.0;       // the held-out inflation applied to γ̂'s interval
+  double residual_scale = 1.0;        // of the residuals in ne
+  double data_scale = 0.0;            // for the rounding term
+  double inflation = 1.0;             // the held-out inflation applied to γ̂'s interval
   std::function<bool()> should_stop;  // polled per parameter; true: r.stopped, no intervals
 };
 

@@ -28,7 +28,9 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // min_rows(K), enough for 2K + 2 coefficients.
 constexpr Index kMaxHalfWidth = 8;
 constexpr Index kMinHalfWidth = 2;
-constexpr Index min_rows(Index k) { return 10 * (2 * k + 2); }
+constexpr Index min_rows(Index k) {
+  return 10 * (2 * k + 2);
+}
 // Few enough rows to keep the regressions cheap on long records (centres evenly spread).
 constexpr Index kMaxRows = 20000;
 // Below this share left by a filter of the neighbours the positions follow a linear recurrence
@@ -134,8 +136,8 @@ Rows rows_of(const std::vector<const Trajectory*>& group, Index dof, Index d, In
 // The regressions of one degree of freedom: each trajectory long enough on its own (its own
 // filter, whatever step the user's filter assumed), the shorter ones pooled.
 struct Shares {
-  double momenta = kNaN;    // what the best filter of the positions leaves of the momenta
-  double positions = kNaN;  // what the neighbouring positions leave unpredicted of a position
+  double momenta = kNaN;     // what the best filter of the positions leaves of the momenta
+  double positions = kNaN;   // what the neighbouring positions leave unpredicted of a position
   double recurrence = kNaN;  // what the best filter of its neighbours leaves of a position
   Index rows = 0;
 };
@@ -212,8 +214,7 @@ ModelCheck measured_momenta_check(const std::vector<Trajectory>& trajs, bool pai
   std::vector<double> ratio, pos, mom, rec;
   for (Index i = 0; i < d && half > 0; ++i) {
     const Shares s = shares_of(trajs, i, d, half);
-    if (s.rows < min_rows(half) || !std::isfinite(s.momenta) || !std::isfinite(s.positions))
-      break;
+    if (s.rows < min_rows(half) || !std::isfinite(s.momenta) || !std::isfinite(s.positions)) break;
     mom.push_back(s.momenta);
     rec.push_back(s.recurrence);
     pos.push_back(s.positions);

@@ -269,7 +269,8 @@ struct FoldSums {
 // well defined (d − 1 constraints: the alternative the model's assumption names). Otherwise
 // all d² entries while their d² − 1 constraints leave half the blocks' degrees of freedom
 // (and d ≤ 8), else the d diagonal entries.
-DampingBasis basis_for(const DampingProfile& prof, const std::optional<detail::LinearModes>& modes) {
+DampingBasis basis_for(const DampingProfile& prof,
+                       const std::optional<detail::LinearModes>& modes) {
   const Index d = prof.dofs();
   if (modes) {
     DampingBasis b = detail::modal_damping_basis(modes->p);
@@ -371,8 +372,8 @@ ModeRates mode_rates(const DampingBasis& basis, const std::optional<detail::Line
   out.rate = rates_of(delta);
   std::vector<std::vector<double>> fold_rates;
   for (const FoldSums& s : f)
-    fold_rates.push_back(rates_of(
-        -(all.a - s.a + ridge * Matrix::Identity(ne, ne)).ldlt().solve(all.g - s.g)));
+    fold_rates.push_back(
+        rates_of(-(all.a - s.a + ridge * Matrix::Identity(ne, ne)).ldlt().solve(all.g - s.g)));
   const double nf = static_cast<double>(f.size());
   const auto jackknife_se = [&](const std::function<double(const std::vector<double>&)>& stat) {
     double m = 0.0, v = 0.0;
@@ -442,9 +443,9 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
   const double tau = in.time_scale;
   nlohmann::json per_mode = nlohmann::json::array();
   for (std::size_t i = 0; i < mr.rate.size(); ++i) {
-    nlohmann::json m = {{"rate", mr.rate[i] / tau},
-                        {"interval",
-                         {(mr.rate[i] - tl * mr.se[i]) / tau, (mr.rate[i] + tl * mr.se[i]) / tau}}};
+    nlohmann::json m = {
+        {"rate", mr.rate[i] / tau},
+        {"interval", {(mr.rate[i] - tl * mr.se[i]) / tau, (mr.rate[i] + tl * mr.se[i]) / tau}}};
     if (modes) m["angular_frequency"] = modes->frequency(static_cast<Index>(i)) / tau;
     per_mode.push_back(m);
   }
@@ -460,8 +461,8 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
   for (std::size_t i = 0; i < rates.size(); ++i) {
     list += (list.empty() ? "" : ", ") + fmt(rates[i] / tau, 4);
     if (modes)
-      list += " (at angular frequency " + fmt(modes->frequency(static_cast<Index>(i)) / tau, 3) +
-              ")";
+      list +=
+          " (at angular frequency " + fmt(modes->frequency(static_cast<Index>(i)) / tau, 3) + ")";
   }
   if (!k.passed) {
     k.sentence =

@@ -144,8 +144,8 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
   const double dof_res = std::max(n_res - static_cast<double>(p), 0.25 * n_res);
   s.model_based = std::sqrt(2.0 * cost / dof_res * u_f);
   s.optimisation = std::abs(u.dot(g));
-  s.rounding = 16.0 * std::numeric_limits<double>::epsilon() * data_scale * residual_scale *
-               std::sqrt(u_f);
+  s.rounding =
+      16.0 * std::numeric_limits<double>::epsilon() * data_scale * residual_scale * std::sqrt(u_f);
   // The model-based error assumes independent residuals; overlapping windows make them
   // correlated (negatively at lag m), so it is reported but not used. Few blocks estimate the
   // variance poorly, which the t quantile with B − 1 degrees of freedom accounts for.

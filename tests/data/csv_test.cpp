@@ -226,8 +226,8 @@ TEST(CsvRead, DetectsKindFromHeader) {
 // out, for trajectories and for pairs.
 TEST(CsvRead, PositionsWithoutMomentaSayWhatIsMissing) {
   TempDir dir;
-  for (const char* text : {"traj,t,q1\n0,0,1\n0,1,2\n", "t,q1,q2\n0,1,2\n",
-                           "h,q1,next_q1\n0.1,1,2\n"}) {
+  for (const char* text :
+       {"traj,t,q1\n0,0,1\n0,1,2\n", "t,q1,q2\n0,1,2\n", "h,q1,next_q1\n0.1,1,2\n"}) {
     try {
       read_csv_input(dir.write("q.csv", text));
       ADD_FAILURE() << "accepted " << text;

@@ -26,8 +26,7 @@ struct Chain {
 };
 
 // dq/dt = p, dp_i/dt = −ω_i² sin q_i − κ (2 q_i − q_{i−1} − q_{i+1}) − γ p_i.
-Trajectory simulate(const Chain& c, Index points, bool uneven, Rng& rng,
-                    double per_period = 20) {
+Trajectory simulate(const Chain& c, Index points, bool uneven, Rng& rng, double per_period = 20) {
   const Index d = c.d;
   Vector w2(d);
   for (Index i = 0; i < d; ++i) w2(i) = std::pow(1.0 + 0.3 * static_cast<double>(i), 2);
@@ -188,7 +187,8 @@ TEST(MeasuredMomenta, NoiseFreeLinearOrFineMotionAndPairsAreUntestable) {
 
   const ModelCheck p = measured_momenta_check({linear}, true);
   EXPECT_FALSE(p.applicable);
-  const ModelCheck short_record = measured_momenta_check({simulate({1, 0.1, false}, 30, false, rng)}, false);
+  const ModelCheck short_record =
+      measured_momenta_check({simulate({1, 0.1, false}, 30, false, rng)}, false);
   EXPECT_FALSE(short_record.applicable);
   EXPECT_TRUE(short_record.passed);
 }

@@ -224,12 +224,10 @@ TEST(DampingProfile, DerivativesInTheDampingMatrixMatchFiniteDifferences) {
         for (Index e = 0; e < ne; ++e) {
           Vector delta = Vector::Zero(ne);
           delta(e) = eps;
-          const Vector plus =
-              residual_with_matrix(*m.map, core, f.matrix(c, delta),
-                                   w.z0.col(k), w.zm.col(k), w.h(0, k));
-          const Vector minus =
-              residual_with_matrix(*m.map, core, f.matrix(c, -delta),
-                                   w.z0.col(k), w.zm.col(k), w.h(0, k));
+          const Vector plus = residual_with_matrix(*m.map, core, f.matrix(c, delta), w.z0.col(k),
+                                                   w.zm.col(k), w.h(0, k));
+          const Vector minus = residual_with_matrix(*m.map, core, f.matrix(c, -delta), w.z0.col(k),
+                                                    w.zm.col(k), w.h(0, k));
           const Vector fd = (plus - minus) / (2 * eps);
           EXPECT_LT((got.col(e) - fd).cwiseAbs().maxCoeff(),
                     1e-7 * (1.0 + fd.cwiseAbs().maxCoeff()))
@@ -422,7 +420,8 @@ TEST(ModelChecks, ModeDependentDampingIsDetectedPerModeWhenAFullMatrixIsTooMuch)
     Vector rates(4);
     for (Index i = 0; i < 4; ++i) rates(i) = 0.05 * std::pow(3.0, static_cast<double>(i) / 3.0);
     for (Index i = 3; i > 0; --i)
-      std::swap(rates(i), rates(std::min<Index>(i, static_cast<Index>(rng.uniform() * static_cast<double>(i + 1)))));
+      std::swap(rates(i), rates(std::min<Index>(
+                              i, static_cast<Index>(rng.uniform() * static_cast<double>(i + 1)))));
     const Matrix c = v * rates.asDiagonal() * v.transpose();
     const Dissipation f = [c](double, const Vector&, const Vector& p) -> Vector { return -c * p; };
     const Trajectory t = integrate(k, f, rng.uniform_vector(8, -1.0, 1.0), 0.25, 600);
@@ -443,8 +442,7 @@ TEST(ModelChecks, ModeDependentDampingIsDetectedPerModeWhenAFullMatrixIsTooMuch)
   }
   EXPECT_EQ(modal, cases);
   EXPECT_GE(detected, cases * 9 / 10);
-  std::printf("four rates per mode in ratio 3 detected and recovered: %d of %d\n", detected,
-              cases);
+  std::printf("four rates per mode in ratio 3 detected and recovered: %d of %d\n", detected, cases);
 }
 
 // The core's linear modes at random stiffness and mass-free chains: the frequencies are the

@@ -18,7 +18,10 @@ build/bin/csympnet under the repository root), --fit-args="..." (extra options f
 is not taken for an option of this script), --timeout SECONDS (per fit, default 600),
 --jobs N (cases in parallel, default 1), --force (reuse a non-empty --out), --momenta
 given|gradient|savgol (the p columns as generated, default, or computed from the noisy q by
-numpy.gradient or a Savitzky-Golay derivative, as a user without a momentum sensor would).
+numpy.gradient or a Savitzky-Golay derivative, as a user without a momentum sensor would),
+--observed (every case also fitted from its positions alone and with centred-difference
+momenta, side by side: methods csympnet_positions and csympnet_differenced), --skip-peers
+(csympnet alone: no SINDy-style peer, no oracle).
 
 Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p; unit masses unless stated):
 
@@ -164,7 +167,7 @@ UNITS_STRATA = ["natural", "units"]
 SHAPE_STRATA = ["long", "few", "many"]
 STEPS_STRATA = ["regular", "irregular", "gaps"]
 SIGMA_STRATA = [0.0, 1e-3, 1e-2, 5e-2]
-METHODS = ["csympnet", "sindy", "oracle"]
+METHODS = ["csympnet", "csympnet_positions", "csympnet_differenced", "sindy", "oracle"]
 VIOLATION_STRATA = ["nonuniform-1.5", "nonuniform-3", "nonuniform-30", "coulomb-0.2",
                     "coulomb-0.5", "coulomb-0.9", "quadratic-drag", "periodic-force",
                     "drifting-equilibrium", "energy-gain"]
@@ -781,12 +784,14 @@ def computed_momenta(files, d, how):
     return out
 
 
-def write_csv(path, files, d):
-    names = [f"q{i + 1}" for i in range(d)] + [f"p{i + 1}" for i in range(d)]
+def write_csv(path, files, d, positions_only=False):
+    names = [f"q{i + 1}" for i in range(d)] + ([] if positions_only
+                                               else [f"p{i + 1}" for i in range(d)])
     lines = ["traj,t," + ",".join(names)]
     for j, (t, z) in enumerate(files):
+        zz = z[:, :d] if positions_only else z
         for k in range(len(t)):
-            lines.append(f"{j}," + ",".join(repr(float(x)) for x in itertools.chain([t[k]], z[k])))
+            lines.append(f"{j}," + ",".join(repr(float(x)) for x in itertools.chain([t[k]], zz[k])))
     with open(path, "w") as f:
         f.write("\n".join(lines) + "\n")
 
@@ -1168,28 +1173,51 @@ def run_case(case, args, check_integrator, exe, extra):
         def scorer(res, gamma, v=info["violation"]):
             return score_violation(res, v)
     methods = {}
-    t0 = time.monotonic()
-    try:
-        g, extra_s = sindy(files, info["d"])
-        res = {"status": "ok" if math.isfinite(g) else "failed", "gamma_hat": g,
-               "identified": True, "ci_low": None, "ci_high": None, "extra": extra_s}
-    except Interrupted:
-        raise
-    except Exception as e:  # a peer that breaks on a case is a failure of that peer
-        res = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
-    res["seconds"] = time.monotonic() - t0
-    methods["sindy"] = scorer(res, gamma)
-    t0 = time.monotonic()
-    try:
-        o = oracle(files, info, s, np.random.default_rng(case["seed"] + [1]))
-        res = {"status": "ok" if math.isfinite(o["gamma_hat"]) else "failed", "identified": True,
-               **o}
-    except Interrupted:
-        raise
-    except Exception as e:
-        res = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
-    res["seconds"] = time.monotonic() - t0
-    methods["oracle"] = scorer(res, gamma)
+    if args.observed:
+        # The same record as a user with a position sensor alone has it, and as one who
+        # differences it (centred differences, numpy.gradient).
+        variants = {"positions": (files, True),
+                    "differenced": (computed_momenta(files, info["d"], "gradient"), False)}
+        for name, (vfiles, positions_only) in variants.items():
+            path = os.path.join(cdir, f"data_{name}.csv")
+            write_csv(path, vfiles, info["d"], positions_only)
+            case["paths"][f"data_{name}"] = os.path.relpath(path, args.out)
+            if args.only_peers:
+                continue
+            outdir = os.path.join(cdir, f"csympnet_{name}")
+            if os.path.isdir(outdir):
+                shutil.rmtree(outdir)
+            # The differenced momenta as a user would use them: kept (the default sets them
+            # aside and gives csympnet_positions' answer).
+            more = extra + (["--derived-momenta", "use"] if name == "differenced" else [])
+            methods[f"csympnet_{name}"] = scorer(
+                run_csympnet(exe, path, outdir, more, args.timeout), gamma)
+    if args.skip_peers:
+        methods["sindy"] = {"status": "skipped"}
+        methods["oracle"] = {"status": "skipped"}
+    else:
+        t0 = time.monotonic()
+        try:
+            g, extra_s = sindy(files, info["d"])
+            res = {"status": "ok" if math.isfinite(g) else "failed", "gamma_hat": g,
+                   "identified": True, "ci_low": None, "ci_high": None, "extra": extra_s}
+        except Interrupted:
+            raise
+        except Exception as e:  # a peer that breaks on a case is a failure of that peer
+            res = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
+        res["seconds"] = time.monotonic() - t0
+        methods["sindy"] = scorer(res, gamma)
+        t0 = time.monotonic()
+        try:
+            o = oracle(files, info, s, np.random.default_rng(case["seed"] + [1]))
+            res = {"status": "ok" if math.isfinite(o["gamma_hat"]) else "failed", "identified": True,
+                   **o}
+        except Interrupted:
+            raise
+        except Exception as e:
+            res = {"status": "failed", "reason": f"{type(e).__name__}: {e}"}
+        res["seconds"] = time.monotonic() - t0
+        methods["oracle"] = scorer(res, gamma)
     if args.only_peers:
         methods["csympnet"] = {"status": "skipped"}
     else:
@@ -1561,6 +1589,12 @@ def main():
                     help="p columns as generated (given, default), or computed from the noisy q "
                          "as a user without a momentum sensor would: numpy.gradient or a "
                          "Savitzky-Golay derivative (window 11, cubic)")
+    ap.add_argument("--observed", action="store_true",
+                    help="also fit every case from its positions alone (csympnet_positions) and "
+                         "with p from centred differences of the noisy q "
+                         "(csympnet_differenced), side by side with the given p")
+    ap.add_argument("--skip-peers", action="store_true",
+                    help="skip the SINDy-style peer and the oracle (csympnet alone)")
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     args = ap.parse_args()
@@ -1601,6 +1635,7 @@ def main():
                                  else csympnet_version(exe)),
             "seed": args.seed, "quick": args.quick, "violations": args.violations,
             "fit_args": extra, "timeout": args.timeout, "momenta": args.momenta,
+            "observed": args.observed, "skip_peers": args.skip_peers,
             "settings": {"gen_omega_dt": GEN_OMEGA_DT, "oracle_omega_dt": ORACLE_OMEGA_DT,
                          "sg_window": SG_WINDOW, "sg_degree": SG_DEGREE,
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,

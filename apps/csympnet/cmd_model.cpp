@@ -18,6 +18,7 @@
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
+#include "csympnet/train/shooting.hpp"
 #include "interrupt.hpp"
 #include "standard_streams.hpp"
 #include "system_options.hpp"
@@ -184,6 +185,42 @@ void add_evaluate(CLI::App& app) {
   });
 }
 
+namespace {
+
+// The state at the last sample of a positions file (one trajectory), its momenta fitted with
+// the model (state_from_positions); t0 receives that sample's time.
+Vector state_at_end_of_positions(const SavedModel& saved, const std::string& path, double& t0) {
+  if (!saved.model.is_map() || saved.model.type() != "csympnet")
+    throw Error(path +
+                ": --from-positions needs a csympnet model (a one-step map with a damping "
+                "rate, as fit writes); the model is of type '" +
+                saved.model.type() + "'");
+  const CsvInput input = read_csv_input(path);
+  if (input.kind != CsvKind::kPositions)
+    throw Error(input.name +
+                ": expected a positions header '[traj,]t,q1..qd' for "
+                "--from-positions (the positions alone; use --z0 for a state)");
+  const std::vector<Trajectory> trajs = parse_positions_csv(input.text, input.name);
+  if (trajs.size() != 1 || trajs.front().t.size() < 2)
+    throw Error(input.name +
+                ": expected one trajectory of at least 2 positions for "
+                "--from-positions, got " +
+                std::to_string(trajs.size()) + " trajectories");
+  const Trajectory& w = trajs.front();
+  if (2 * w.z.rows() != saved.model.dim())
+    throw Error(input.name + ": " + std::to_string(w.z.rows()) +
+                " positions per row; the model has d = " + std::to_string(saved.model.dim() / 2));
+  double rms = 0.0;
+  const Vector z = state_from_positions(*saved.model.map, saved.theta, w.z, w.t, &rms);
+  t0 = w.t(w.t.size() - 1);
+  std::fprintf(stderr, "rollout: state at t = %s fitted to %lld positions (rms residual %s)\n",
+               number_text(t0).c_str(), static_cast<long long>(w.t.size()),
+               number_text(rms).c_str());
+  return z;
+}
+
+}  // namespace
+
 void add_rollout(CLI::App& app) {
   auto model = std::make_shared<std::string>();
   auto z0 = std::make_shared<std::string>();
@@ -192,7 +229,16 @@ void add_rollout(CLI::App& app) {
   CLI::App* cmd =
       app.add_subcommand("rollout", "Iterate a saved model from z0; print t,q..,p.. as CSV");
   cmd->add_option("--model", *model, "Model file")->required()->check(kExistingFile);
-  cmd->add_option("--z0", *z0, "Initial state q1,..,qd,p1,..,pd")->required();
+  auto positions = std::make_shared<std::string>();
+  CLI::Option* z0_opt = cmd->add_option("--z0", *z0, "Initial state q1,..,qd,p1,..,pd");
+  CLI::Option* pos_opt =
+      cmd->add_option("--from-positions", *positions,
+                      "Start from the end of a recent record of positions alone (a positions "
+                      "CSV 't,q1..qd', one trajectory): its momenta are fitted with the model "
+                      "(a csympnet model); the rollout starts at its last time")
+          ->check(kExistingFile);
+  z0_opt->excludes(pos_opt);
+  pos_opt->excludes(z0_opt);
   cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(kStep);
   cmd->add_option("--steps", *steps, "Number of steps")
       ->required()
@@ -201,7 +247,14 @@ void add_rollout(CLI::App& app) {
   cmd->callback([=] {
     if (parse_only()) return;
     const SavedModel saved = load_model(*model);
-    Vector z = parse_state(*z0, saved.model.dim());
+    const bool from_positions = pos_opt->count() > 0;
+    if (z0_opt->count() == 0 && !from_positions)
+      throw CLI::ValidationError("--z0",
+                                 "expected the initial state q1,..,qd,p1,..,pd, or "
+                                 "--from-positions FILE (a record of positions alone)");
+    double t0 = 0.0;
+    Vector z = from_positions ? state_at_end_of_positions(saved, *positions, t0)
+                              : parse_state(*z0, saved.model.dim());
     const LearnedMap map = learned_map(saved.model, saved.theta);
     const Index d = saved.model.dim() / 2;
     std::string line = "t";
@@ -211,7 +264,7 @@ void add_rollout(CLI::App& app) {
     // Streamed, a row per step: memory stays constant for any --steps, and a signal stops it
     // within a few thousand steps (the rows printed are the rollout up to there).
     auto print = [&](Index n) {
-      std::string row = round_trip_text(static_cast<double>(n) * *h);
+      std::string row = round_trip_text(t0 + static_cast<double>(n) * *h);
       for (Index i = 0; i < z.size(); ++i) row += "," + round_trip_text(z(i));
       print_line(row);  // a failed write (a full disk) ends the rollout at once
     };

@@ -47,7 +47,7 @@ struct FitArgs {
   // which `train` always uses.
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;
-  std::string loss = "balanced", dof_scales = "auto";
+  std::string loss = "balanced", dof_scales = "auto", derived_momenta = "set-aside";
   std::string init;  // --init FILE: a model file to start from (IdentifyConfig::init)
   bool no_normalize = false;
   double level = 0.95;
@@ -332,6 +332,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
                              {"balanced", a.loss == "balanced"},
                              {"normalize", !a.no_normalize},
                              {"dof_scales", a.dof_scales},
+                             {"derived_momenta", a.derived_momenta == "use" ? "use" : "set_aside"},
                              {"lm_iterations", a.lm_iterations},
                              {"blocks", a.blocks},
                              {"level", a.level},
@@ -353,10 +354,13 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
   const CsvInput input = read_csv_input(a.data, parse_column_map(a.columns));  // once: a pipe works
-  const PairSet checked = parse_any_as_pairs(input.text, input.name);
-  const bool pairs_only = input.kind != CsvKind::kTrajectories;
+  const bool positions_only = input.kind == CsvKind::kPositions;
+  const PairSet checked = positions_only ? PairSet{} : parse_any_as_pairs(input.text, input.name);
+  const bool pairs_only = input.kind == CsvKind::kPairs;
   std::vector<Trajectory> trajs;
-  if (pairs_only) {
+  if (positions_only) {
+    trajs = parse_positions_csv(input.text, input.name);
+  } else if (pairs_only) {
     for (Index j = 0; j < checked.size(); ++j) {
       Trajectory t;
       t.t.resize(2);
@@ -405,7 +409,8 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       };
 
     try {
-      r = identify(trajs, pairs_only, c, hooks);
+      r = positions_only ? identify_positions(trajs, c, hooks)
+                         : identify(trajs, pairs_only, c, hooks);
     } catch (const OptionError& e) {  // an option the data cannot take (--window on pairs)
       // --init names its own file: the data are not to blame.
       if (e.message(cli_spelling()).rfind("--init", 0) == 0) throw;
@@ -502,6 +507,11 @@ void add_fit(CLI::App& app) {
                   "Per-dof momentum scales as parameters, for velocities instead of momenta: "
                   "auto (default: learned when d > 1), learned or fixed")
       ->check(one_of(dof_scales_names()));
+  cmd->add_option("--derived-momenta", a->derived_momenta,
+                  "p columns computed from noisy positions (numpy.gradient, Savitzky-Golay): "
+                  "set-aside (default: fit the positions alone, momenta as hidden states) or "
+                  "use (as given, with a warning: the interval does not cover the filter's bias)")
+      ->check(CLI::IsMember({"set-aside", "use"}));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
       ->check(kWholeNumber)

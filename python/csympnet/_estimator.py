@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 
 from . import _checks
-from ._identify import NotIdentifiedWarning, identify
+from ._identify import OBSERVED, NotIdentifiedWarning, _padded_positions, identify
 
 
 class NoTimesWarning(UserWarning):
@@ -70,7 +70,13 @@ class CSympNetID:
         t_default: the step between samples when fit gets no times (PySINDy's t_default).
             Left at None, fit takes a step of 1 and warns (NoTimesWarning): γ̂ is then per
             sample. score and simulate without times use dt_, the step fitted;
-        verbose: progress bars on stderr for each stage (tqdm where it is installed).
+        verbose: progress bars on stderr for each stage (tqdm where it is installed);
+        observed: "states" (x holds q and p, or velocities), or "positions" (x holds the
+            positions alone, (M, d): the momenta are fitted as hidden states; trajectories
+            only). The fitted model_ still maps states (q, p) in the units it chose for p;
+            model_.state_from_positions(q, t) gives the state at the end of a window of
+            positions, to predict or roll out from;
+        derived_momenta: "set_aside" (default) or "use", as in `csympnet.identify`.
 
     After fit:
         gamma_           γ̂ in the data's time units, or None when the data do not identify γ
@@ -92,7 +98,8 @@ class CSympNetID:
 
     def __init__(self, *, core=None, seed=42, window=0, loss="balanced", normalize=True,
                  epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
-                 dof_scales="auto", threads=1, init=None, t_default=None, verbose=False):
+                 dof_scales="auto", threads=1, init=None, t_default=None, verbose=False,
+                 observed="states", derived_momenta="set_aside"):
         self.core = core
         self.seed = seed
         self.window = window
@@ -109,6 +116,8 @@ class CSympNetID:
         self.init = init
         self.t_default = t_default
         self.verbose = verbose
+        self.observed = observed
+        self.derived_momenta = derived_momenta
 
     # --- scikit-learn's parameter protocol ------------------------------------------------
     @classmethod
@@ -152,7 +161,8 @@ class CSympNetID:
         """
         options = {name: getattr(self, name) for name in (
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
-            "val_fraction", "blocks", "level", "dof_scales", "threads", "init")}
+            "val_fraction", "blocks", "level", "dof_scales", "threads", "init",
+            "derived_momenta")}
         options["verbose"] = self.verbose
         t_default = 1.0 if self.t_default is None else self.t_default
         if t is None and self.t_default is None:
@@ -160,6 +170,11 @@ class CSympNetID:
                 "CSympNetID.fit: no times given (t) and no t_default: the samples are taken 1 "
                 "time unit apart, so gamma_ is per sample, not per unit of time; pass the "
                 "sample times or the step as t, or set t_default", NoTimesWarning, stacklevel=2)
+        _checks.choice("observed", self.observed, OBSERVED)
+        positions_only = self.observed == "positions"
+        if positions_only and x_next is not None:
+            raise ValueError('x_next: pairs need whole states; observed="positions" takes '
+                             "trajectories of positions")
         if x_next is not None:
             z0, _ = _checks.states("x", x, allow_single=False)
             z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
@@ -171,10 +186,12 @@ class CSympNetID:
                 result = identify(pairs=(z0, z1, h), **options)
             steps = h
         else:
-            trajs = _trajectories(x, t, t_default)
+            trajs = _trajectories(_padded_positions(x) if positions_only else x, t, t_default)
+            zs = [z[:, :z.shape[1] // 2] if positions_only else z for _, z in trajs]
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", NotIdentifiedWarning)
-                result = identify([z for _, z in trajs], [tt for tt, _ in trajs], **options)
+                result = identify(zs, [tt for tt, _ in trajs], observed=self.observed,
+                                  **options)
             steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
         for w in caught:  # re-raised here, so that it points at the caller's fit()
             warnings.warn(str(w.message), w.category, stacklevel=2)

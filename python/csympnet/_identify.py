@@ -79,15 +79,41 @@ class Identification:
                 f"[{low:.6g}, {high:.6g}])")
 
 
+OBSERVED = ("states", "positions")
+
+
+def _padded_positions(z):
+    """Positions (M, d), (M,), (K, M, d) or a list of them, each with d columns of zeros
+    appended: the state arrays the trajectory checks read (the zeros are never used)."""
+    def pad(a):
+        a = np.asarray(a)
+        if a.ndim == 1:
+            a = a.reshape(-1, 1)
+        return np.concatenate([a, np.zeros_like(a, dtype=float)], axis=-1)
+    if isinstance(z, (list, tuple)):
+        return [pad(a) for a in z]
+    return pad(z) if np.ndim(z) != 3 else np.concatenate(
+        [np.asarray(z), np.zeros(np.shape(z))], axis=-1)
+
+
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
-             init=None, progress=None, verbose=False):
+             init=None, progress=None, verbose=False, observed="states",
+             derived_momenta="set_aside"):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
     (z (M, 2d), t (M,)), `identify(z, t, traj)` for rows labelled by trajectory, or lists of
     arrays, or z (K, M, 2d); `identify(pairs=(z0, z1, h))` for independent pairs.
+
+    observed="positions": z holds positions alone, (M, d) (or (M,) for d = 1, lists, or
+    (K, M, d)), as a camera or an encoder records them. The momenta are then hidden states
+    fitted with the map and the loss is on the positions (report["observed"] is "positions";
+    docs/identification.md, "Positions only"). Momenta given with the positions that are a
+    filter of them (numpy.gradient, Savitzky-Golay) are recognised and set aside the same way;
+    derived_momenta="use" keeps them (with a warning in the measured_momenta check: the
+    interval does not cover the filter's bias).
 
     The data are normalised (q shift, per-dof scales that keep the structure, time scale),
     whole trajectories or segments of a long one are held out, windows of `window` steps
@@ -113,7 +139,12 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
 
     Returns an Identification.
     """
+    _checks.choice("observed", observed, OBSERVED)
+    positions_only = observed == "positions"
     if pairs is not None:
+        if positions_only:
+            raise ValueError('observed: "positions" needs trajectories; a pair needs a whole '
+                             'state (q and p) at both ends')
         if z is not None or t is not None or traj is not None:
             raise ValueError("pairs: give either pairs=(z0, z1, h) or trajectories (z, t), not both")
         if not isinstance(pairs, (tuple, list)) or len(pairs) != 3:
@@ -128,7 +159,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     else:
         if t is None:
             raise ValueError("t: the sample times are needed with trajectories (identify(z, t))")
-        trajs = _as_trajectories(t, z, traj)
+        trajs = _as_trajectories(t, _padded_positions(z) if positions_only else z, traj)
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")
     for k, tr in enumerate(checked):
@@ -152,6 +183,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         "level": _checks.real("level", level),
         "threads": _checks.integer("threads", threads, maximum=2**31 - 1),  # a C++ int
         "dof_scales": dof_scales,
+        "derived_momenta": derived_momenta,
     }
     if core is not None:
         config["core"] = json.loads(_core_spec(core))
@@ -161,7 +193,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         config["init"] = _checks.path("init", init)
     with progress_callback(progress, verbose) as callback:
         core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
-                                                 callback)
+                                                 callback, positions_only)
     result = Identification(Model(core_model), json.loads(report_text))
     if not result.identified:
         rejected = result.verdict == "model rejected"

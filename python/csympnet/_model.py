@@ -128,6 +128,33 @@ class Model:
         out = np.stack([self._m.rollout(row, h) for row in a])
         return out[0] if single else out
 
+    def state_from_positions(self, q, t):
+        """The state at the last of a recent window of positions alone, for a prediction or a
+        rollout from a record without momenta (a csympnet model, as `fit` writes it).
+
+        q: the positions (L, d), or (L,) for d = 1, L >= 2; t: their times (L,), increasing.
+        The window's start momenta are fitted with the model's map (as the held-out segments
+        of a positions-only fit), and the fitted motion is carried to t[-1]. Returns
+        (state (2d,), rms) with rms the root-mean-square position residual of that fit: near
+        the noise of the positions when the model explains the window. The momenta are in the
+        units the fit chose for them. `model.rollout(state, h, steps=n)` then forecasts from
+        t[-1]; `csympnet rollout --from-positions` does the same."""
+        qa = np.asarray(q, dtype=float)
+        if qa.ndim == 1:
+            qa = qa.reshape(-1, 1)
+        if qa.ndim != 2 or qa.shape[1] != self.d:
+            raise ValueError(f"q: expected positions (L, {self.d}) for d = {self.d}, got an array "
+                             f"of shape {np.shape(q)}")
+        if qa.shape[0] < 2:
+            raise ValueError("q: expected at least 2 positions")
+        if not np.all(np.isfinite(qa)):
+            raise ValueError("q: expected finite positions")
+        ta = _checks.vector("t", t, length=qa.shape[0])
+        if not np.all(np.diff(ta) > 0):
+            raise ValueError("t: expected strictly increasing times")
+        state, rms = self._m.state_from_positions(np.ascontiguousarray(qa), ta)
+        return state[0], float(rms)
+
     def jacobian(self, z, h):
         """The exact input Jacobian DΦ̂_h(z): (2d, 2d) for a state, (N, 2d, 2d) for a batch, with
         J[r, c] = ∂Φ̂_r/∂z_c. Map models: forward-mode, exact; vector-field models: the

@@ -195,7 +195,8 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
 
 // identify() (what `csympnet fit` runs): returns the model and the report as JSON text.
 py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
-                                const std::string& config_json, const py::object& progress) {
+                                const std::string& config_json, const py::object& progress,
+                                bool positions_only) {
   // Every option checked first, before any work.
   const IdentifyConfig c = make_identify_config(parse_json(config_json, "config"));
   const std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
@@ -207,7 +208,14 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   IdentifyResult r;
   {
     py::gil_scoped_release nogil;
-    r = identify(data, pairs_only, c, hooks);
+    if (positions_only) {
+      // The p rows are the caller's placeholders: the positions alone are fitted.
+      std::vector<Trajectory> positions;
+      for (const Trajectory& t : data) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2)});
+      r = identify_positions(positions, c, hooks);
+    } else {
+      r = identify(data, pairs_only, c, hooks);
+    }
   }
   watch.rethrow_if_stopped();  // a KeyboardInterrupt, or the progress callback's exception
   if (r.stopped) {
@@ -232,7 +240,7 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
 
 void bind_fit(py::module_& m) {
   m.def("identify", &identify_trajectories, py::arg("trajectories"), py::arg("pairs_only"),
-        py::arg("config_json"), py::arg("progress"),
+        py::arg("config_json"), py::arg("progress"), py::arg("positions_only") = false,
         "identify() of experiments/identify.hpp (wrapped by csympnet.identify).");
   // The spellings of the second stage's methods and LM's solvers (train/refine.hpp).
   m.def("refine_methods", &refine_method_names);

@@ -17,6 +17,7 @@
 #include "csympnet/diagnostics/observed.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/systems/system.hpp"
+#include "csympnet/train/shooting.hpp"
 
 namespace csympnet::py_binding {
 
@@ -56,6 +57,32 @@ DArray rollout_states(const PyModel& m, const DArray& z0, const DArray& hs) {
     out = rollout(learned_map(m.model, m.theta), z, steps);
   }
   return states_to(out);
+}
+
+// The state at the last of a window of positions q (L, d) at times t (L,), its momenta fitted
+// with the model (train/shooting.hpp, state_from_positions): (state (2d,), rms residual).
+py::tuple positions_state(const PyModel& m, const DArray& q, const DArray& t) {
+  if (!m.model.is_map() || m.model.type() != "csympnet")
+    throw Error(
+        "state_from_positions: needs a csympnet model (a one-step map with a damping "
+        "rate), not '" +
+        m.model.type() + "'");
+  const Index d = m.model.dim() / 2;
+  if (q.ndim() != 2 || q.shape(1) != d)
+    throw Error("state_from_positions: q must be (L, " + std::to_string(d) +
+                "), the positions of the model's d = " + std::to_string(d) + " coordinates");
+  const Index len = q.shape(0);
+  Matrix qs(d, len);
+  for (Index k = 0; k < len; ++k)
+    for (Index i = 0; i < d; ++i) qs(i, k) = q.at(k, i);
+  const Vector ts = vector_from(t, "t", len);
+  double rms = 0.0;
+  Vector z;
+  {
+    py::gil_scoped_release nogil;
+    z = state_from_positions(*m.model.map, m.theta, qs, ts, &rms);
+  }
+  return py::make_tuple(states_to(z), rms);
 }
 
 // DΦ̂_h at each state: (N, 2d, 2d), row-major, jac[i, r, c] = ∂Φ_r/∂z_c.
@@ -201,6 +228,7 @@ void bind_model(py::module_& m) {
       .def_property_readonly("training_json", [](py::handle p) { return live(p).training.dump(); })
       .def("predict", guarded(&predict), py::arg("z"), py::arg("h"), py::arg("batched"))
       .def("rollout", guarded(&rollout_states), py::arg("z0"), py::arg("hs"))
+      .def("state_from_positions", guarded(&positions_state), py::arg("q"), py::arg("t"))
       .def("jacobian", guarded(&jacobians), py::arg("z"), py::arg("h"))
       .def("structure", guarded(&structure), py::arg("z"), py::arg("h"), py::arg("gamma_true"))
       .def("score", guarded(&score_model), py::arg("data"))

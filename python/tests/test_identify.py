@@ -120,3 +120,52 @@ def test_growing_motion_is_rejected_with_a_warning_and_its_rate():
     assert est.verdict_ == "model rejected" and est.gamma_ is None
     assert est.frequencies_ is None and est.damping_ratio_ is None
     assert est.checks_ == r.checks
+
+
+def test_positions_alone_one_answer_in_python_the_estimator_and_the_cli(tmp_path, cli):
+    """Positions alone: the momenta are hidden states; identify, CSympNetID and `csympnet fit`
+    on a positions file give the same γ̂ and interval, and momenta from numpy.gradient of the
+    same noisy positions are set aside for the same answer."""
+    t, z = damped_oscillator(n=300, sigma=1e-2, seed=7)
+    q = z[:, 0]
+    r = csympnet.identify(q, t, observed="positions", **SMALL)
+    assert r.report["observed"] == "positions"
+    assert r.identified, r.reasons
+    low, high = r.interval
+    assert low < 0.1 < high
+    est = csympnet.CSympNetID(observed="positions", **SMALL).fit(q[:, None], t)
+    assert est.gamma_ == r.gamma and est.gamma_interval_ == r.interval
+    path = tmp_path / "positions.csv"
+    path.write_text("t,q1\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(t, q)))
+    out = tmp_path / "fit"
+    subprocess.run([cli, "fit", str(path), "--out", str(out), "-q", "--epochs", "400",
+                    "--lm-iterations", "20", "--core", "la:3:6"], capture_output=True, text=True)
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["gamma_hat"] == r.gamma and rep["gamma_ci_low"] == r.interval[0]
+    differenced = np.stack([q, np.gradient(q, t)], axis=1)
+    d = csympnet.identify(differenced, t, **SMALL)
+    assert d.report["observed"] == "positions"
+    assert "momenta_set_aside" in d.report["choices"]
+    assert d.gamma == r.gamma
+    with pytest.raises(ValueError, match="needs trajectories"):
+        csympnet.identify(pairs=(z[:-1], z[1:], np.diff(t)), observed="positions")
+    with pytest.raises(ValueError, match="observed"):
+        csympnet.identify(q, t, observed="velocities")
+
+
+def test_a_forecast_from_positions_alone():
+    """Model.state_from_positions: the momenta of a recent window fitted with the model, then a
+    rollout forecasts the positions that follow."""
+    t, z = damped_oscillator(n=300, sigma=1e-3, seed=8)
+    q = z[:, 0]
+    r = csympnet.identify(q, t, observed="positions", **SMALL)
+    state, rms = r.model.state_from_positions(q[200:230], t[200:230])
+    assert state.shape == (2,)
+    assert rms < 5e-3
+    steps = np.diff(t[229:260])
+    forecast = r.model.rollout(state, steps)[:, 0]
+    assert np.max(np.abs(forecast - q[229:260])) < 0.02
+    with pytest.raises(ValueError, match="positions"):
+        r.model.state_from_positions(np.zeros((5, 2)), np.arange(5.0))
+    with pytest.raises(ValueError, match="increasing"):
+        r.model.state_from_positions(q[:5], t[:5][::-1])

@@ -22,6 +22,7 @@ namespace {
 
 constexpr const char* kPairsForm = "h,q1..qd,p1..pd,next_q1..next_qd,next_p1..next_pd";
 constexpr const char* kTrajForm = "[traj,]t,q1..qd,p1..pd";
+constexpr const char* kPositionsForm = "[traj,]t,q1..qd";
 
 std::string shortest(double v) {
   return round_trip_text(v);
@@ -51,7 +52,8 @@ std::vector<std::string> header_names(CsvKind kind, Index d, bool has_traj) {
   } else {
     if (has_traj) names.push_back("traj");
     names.push_back("t");
-    for (const char* g : {"q", "p"}) add(numbered(g, d));
+    add(numbered("q", d));
+    if (kind == CsvKind::kTrajectories) add(numbered("p", d));
   }
   return names;
 }
@@ -126,10 +128,15 @@ Header parse_header(const CsvText& f) {
                     (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "'");
   auto n = group_counts(fields);
   const Index fixed = h.kind == CsvKind::kPairs ? 1 : (h.has_traj ? 2 : 1);
-  const Index groups = h.kind == CsvKind::kPairs ? 4 : 2;
   const Index cols = static_cast<Index>(fields.size());
+  // Positions alone: '[traj,]t,q1..qd' (the momenta are then hidden states of the fit).
+  if (h.kind == CsvKind::kTrajectories && n["q"] >= 1 && n["p"] == 0 && n["next_q"] == 0 &&
+      n["next_p"] == 0 && cols == fixed + n["q"])
+    h.kind = CsvKind::kPositions;
+  const Index groups = h.kind == CsvKind::kPairs ? 4 : (h.kind == CsvKind::kPositions ? 1 : 2);
   h.d = n["q"];
-  bool shape_ok = h.d >= 1 && n["p"] == h.d && cols == fixed + groups * h.d;
+  bool shape_ok =
+      h.d >= 1 && cols == fixed + groups * h.d && (h.kind == CsvKind::kPositions || n["p"] == h.d);
   if (h.kind == CsvKind::kPairs) shape_ok = shape_ok && n["next_q"] == h.d && n["next_p"] == h.d;
   if (!shape_ok) {
     // Columns of no group beside a header that is right without them (a 'temp' column, a
@@ -160,16 +167,12 @@ Header parse_header(const CsvText& f) {
           "; expected only the columns '" + (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
           "', or --columns naming the ones to read (it drops the others): --columns " + map);
     }
-    if (n["q"] >= 1 && n["p"] == 0 && n["next_p"] == 0)
-      throw Error(where + (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " header " +
-                  quote(f.lines[0].text) + " has positions but no momenta (" +
-                  (h.kind == CsvKind::kPairs ? "a pair needs a whole state, q and p, at both ends"
-                                             : "csympnet needs the momenta or velocities") +
-                  "); expected them measured with the positions, as '" +
-                  (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) +
-                  "'; it does not yet fit positions alone, and momenta computed from the "
-                  "positions by differencing are recognised and refused (docs/identification.md, "
-                  "\"Checks of the model's assumptions\")");
+    if (h.kind == CsvKind::kPairs && n["q"] >= 1 && n["p"] == 0 && n["next_p"] == 0)
+      throw Error(where + "pairs header " + quote(f.lines[0].text) +
+                  " has positions but no momenta: a pair needs a whole state, q and p, at both "
+                  "ends; expected '" +
+                  kPairsForm + "', or positions alone as a trajectories file '" + kPositionsForm +
+                  "' (the momenta are then fitted as hidden states)");
     std::string counts = std::to_string(n["q"]) + " q and " + std::to_string(n["p"]) + " p";
     if (h.kind == CsvKind::kPairs)
       counts += " and " + std::to_string(n["next_q"]) + " next_q and " +
@@ -180,11 +183,14 @@ Header parse_header(const CsvText& f) {
                 (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "'");
   }
   h.names = header_names(h.kind, h.d, h.has_traj);
+  const char* form = h.kind == CsvKind::kPairs       ? kPairsForm
+                     : h.kind == CsvKind::kPositions ? kPositionsForm
+                                                     : kTrajForm;
   for (std::size_t c = 0; c < fields.size(); ++c)
     if (fields[c] != h.names[c])
       throw Error(where + "header column " + std::to_string(c + 1) + " is " + quote(fields[c]) +
-                  "; expected '" + h.names[c] + "' (columns must be exactly, in order, '" +
-                  (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "', case-sensitive)");
+                  "; expected '" + h.names[c] + "' (columns must be exactly, in order, '" + form +
+                  "', case-sensitive)");
   return h;
 }
 
@@ -236,12 +242,19 @@ double state_value(const CsvText& f, const Line& line, const Header& h, std::siz
 
 Header require_kind(const CsvText& f, CsvKind kind) {
   Header h = parse_header(f);
+  if (h.kind == CsvKind::kPositions && kind == CsvKind::kTrajectories)
+    throw Error(at(f.path, 1) + "trajectories header " + quote(f.lines[0].text) +
+                " has positions but no momenta; expected '" + kTrajForm +
+                "' here (csympnet fit, Python's identify and CSympNetID also take positions "
+                "alone, '" +
+                kPositionsForm + "', and fit the momenta as hidden states)");
+  const auto what = [](CsvKind k) {
+    return k == CsvKind::kPairs       ? std::string("pairs header '") + kPairsForm + "'"
+           : k == CsvKind::kPositions ? std::string("positions header '") + kPositionsForm + "'"
+                                      : std::string("trajectories header '") + kTrajForm + "'";
+  };
   if (h.kind != kind)
-    throw Error(at(f.path, 1) + "this is a " +
-                (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " file; expected a " +
-                (kind == CsvKind::kPairs ? std::string("pairs header '") + kPairsForm
-                                         : std::string("trajectories header '") + kTrajForm) +
-                "'");
+    throw Error(at(f.path, 1) + "this file has a " + what(h.kind) + "; expected a " + what(kind));
   return h;
 }
 
@@ -274,9 +287,10 @@ PairSet read_pairs(const CsvText& f, bool for_training = false) {
   return p;
 }
 
-std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = false) {
-  const Header h = require_kind(f, CsvKind::kTrajectories);
-  const Index dim = 2 * h.d;
+std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = false,
+                                          CsvKind kind = CsvKind::kTrajectories) {
+  const Header h = require_kind(f, kind);
+  const Index dim = kind == CsvKind::kPositions ? h.d : 2 * h.d;
   const std::size_t tcol = h.has_traj ? 1 : 0;
 
   struct Pending {
@@ -439,6 +453,11 @@ PairSet parse_pairs_csv(std::string text, const std::string& name) {
 
 std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name) {
   return read_trajectories(csv_detail::csv_text_from_bytes(name, std::move(text)));
+}
+
+std::vector<Trajectory> parse_positions_csv(std::string text, const std::string& name) {
+  return read_trajectories(csv_detail::csv_text_from_bytes(name, std::move(text)), true,
+                           CsvKind::kPositions);
 }
 
 PairSet read_any_as_pairs(const std::string& path) {

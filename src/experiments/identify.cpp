@@ -10,6 +10,7 @@
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/stop.hpp"
 #include "csympnet/experiments/fit.hpp"
+#include "csympnet/experiments/model_checks.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/json_text.hpp"
 #include "csympnet/models/model_file.hpp"
@@ -60,7 +61,8 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"val_fraction", c.val_fraction},
        {"target_blocks", c.target_blocks},
        {"level", c.level},
-       {"dof_scales", to_string(c.dof_scales)}};
+       {"dof_scales", to_string(c.dof_scales)},
+       {"derived_momenta", c.use_derived_momenta ? "use" : "set_aside"}};
   if (c.init) j["init"] = {{"file", c.init->file}, {"checksum", c.init->checksum}};
 }
 
@@ -110,9 +112,10 @@ std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) 
 IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   require(settings.is_object(),
           [&] { return "identify settings: expected a JSON object, got " + settings.dump(); });
-  static const char* const kKeys[] = {
-      "core", "seed",          "window",       "balanced", "normalize", "dof_scales", "epochs",
-      "lr",   "lm_iterations", "val_fraction", "blocks",   "level",     "threads",    "init"};
+  static const char* const kKeys[] = {"core",          "seed",         "window",         "balanced",
+                                      "normalize",     "dof_scales",   "epochs",         "lr",
+                                      "lm_iterations", "val_fraction", "blocks",         "level",
+                                      "threads",       "init",         "derived_momenta"};
   for (const auto& item : settings.items()) {
     const bool known = std::any_of(std::begin(kKeys), std::end(kKeys),
                                    [&](const char* k) { return item.key() == k; });
@@ -133,6 +136,11 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   c.target_blocks = settings.value("blocks", c.target_blocks);
   c.level = settings.value("level", c.level);
   c.threads = settings.value("threads", c.threads);
+  if (settings.contains("derived_momenta")) {
+    static const std::vector<std::string> kDerived = {"set_aside", "use"};
+    c.use_derived_momenta = choice_index("derived_momenta", kDerived,
+                                         settings.at("derived_momenta").get<std::string>()) == 1;
+  }
   c.validate();
   if (settings.contains("init") && !settings.at("init").is_null()) {
     if (!settings.at("init").is_string() || settings.at("init").get<std::string>().empty())
@@ -165,15 +173,6 @@ void to_json(nlohmann::json& j, const IdentifyQuality& q) {
 }
 
 namespace {
-
-// The model in the user's units: the inner map wrapped in the normalisation (unless an init
-// file without one fixed the units).
-Model user_model(const Model& inner, const IdentifyResult& r) {
-  nlohmann::json user_spec = inner.hyperparams();
-  const IdentifyInit* init = r.config.init.get();
-  if (init == nullptr || init->normalization) user_spec["normalization"] = r.normalization;
-  return make_model(user_spec);
-}
 
 void check_inputs(const std::vector<Trajectory>& trajs, const IdentifyConfig& config) {
   config.validate();
@@ -252,8 +251,95 @@ void confirm_growth(const std::vector<Trajectory>& trajs, bool pairs_only,
 
 IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                         const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  // Momenta computed from noisy positions would hand the damping rate their differenced noise
+  // and the filter's bias: they are set aside, and the positions fitted alone.
+  if (!pairs_only) {
+    check_inputs(trajs, config);
+    ModelCheck derived = measured_momenta_check(trajs, false);
+    if (derived.applicable && !derived.passed && !config.use_derived_momenta) {
+      std::vector<Trajectory> positions;
+      for (const Trajectory& t : trajs) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2)});
+      IdentifyResult r = identify_positions(positions, config, hooks);
+      derived.passed = true;
+      derived.sentence = derived.sentence.substr(0, derived.sentence.find(": they carry")) +
+                         "): they would hand the damping rate the positions' noise differenced "
+                         "and the filter's bias, so they were set aside and the momenta fitted "
+                         "as hidden states from the positions alone";
+      r.checks.front() = derived;
+      r.choices["momenta_set_aside"] =
+          "the given momenta are a filter of the noisy positions (check measured_momenta)";
+      return r;
+    }
+  }
   return identify_once(trajs, pairs_only, config, hooks, true);
 }
+
+namespace detail {
+
+CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
+                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
+  check_inputs(trajs, config);
+  r.config = config;
+  const Communicator& comm =
+      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
+  CoreFit f;
+  f.facts = inspect_data(trajs, pairs_only);
+  r.data = f.facts.summary;
+  f.nt = choose_units(trajs, pairs_only, config, r);
+  // A property of the data alone, reported whatever the fit does.
+  r.checks = {measured_momenta_check(f.nt, pairs_only)};
+  if (config.use_derived_momenta && !r.checks.front().passed) {
+    ModelCheck& k = r.checks.front();
+    k.passed = true;
+    k.sentence +=
+        " (used as given, derived_momenta = use: the interval does not account for "
+        "that bias)";
+  }
+  f.split = split_blocks(f.nt, pairs_only, config, r.choices);
+
+  // Candidate cores: the given one, the init file's, or an LA and a G core chosen between by
+  // validation loss.
+  IdentifyConfig& c = r.config;
+  if (config.init != nullptr) c.core = config.init->inner_spec.at("core");
+  const bool choosing = c.core.is_null();
+  const std::vector<nlohmann::json> cores = choosing
+                                                ? default_cores(f.facts.d, f.facts.varying_steps)
+                                                : std::vector<nlohmann::json>{c.core};
+  if (hooks.stage) hooks.stage("warm start");
+  const double beta_init = warm_start(f.split, f.facts.d, config, r);
+  f.cand = make_candidates(cores, f.facts.d, beta_init, c, config.seed);
+  CandidateFit fit(config, c, hooks, comm, f.split, 1.0 / static_cast<double>(f.cand.size()));
+  f.best = choose_core(f.cand, fit, choosing, f.facts.varying_steps, config, r);
+  Candidate& best = f.cand[f.best];
+  f.lm_fits = best.inner.n_params() <= 6000;
+  if (!f.lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
+  r.choices["lm_patience"] = kLmPatience;
+  adapt_windows(best, fit, f.split, config, r);
+  r.theta = best.theta;
+  r.training = best.training;
+  r.stopped = fit.stopped();
+  r.lm = best.lm;
+  r.lm_best_iteration = best.lm_best_iteration;
+  for (const Candidate& x : f.cand) {
+    r.lm_seconds += x.lm_seconds;
+    r.adamw_seconds += x.training.seconds;
+  }
+  c.window = f.split.m;
+  r.choices["window"] = f.split.m;
+  r.gamma = best.inner.map->damping_rate(r.theta).value_or(0.0) / r.normalization.time_scale;
+  r.quality.train_loss = fit.loss(best, f.split.train);
+  r.quality.val_loss = fit.loss(best, f.split.val);
+  return f;
+}
+
+Model user_model(const Model& inner, const IdentifyResult& r) {
+  nlohmann::json user_spec = inner.hyperparams();
+  const IdentifyInit* init = r.config.init.get();
+  if (init == nullptr || init->normalization) user_spec["normalization"] = r.normalization;
+  return make_model(user_spec);
+}
+
+}  // namespace detail
 
 namespace {
 
@@ -262,57 +348,19 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
                              const IdentifyConfig& config, const IdentifyHooks& hooks,
                              bool confirm_growth_in_reversed_time) {
   using namespace detail;
-  check_inputs(trajs, config);
   IdentifyResult r;
-  r.config = config;
+  const CoreFit f = fit_core(trajs, pairs_only, config, hooks, r);
   const Communicator& comm =
       hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
-  const DataFacts facts = inspect_data(trajs, pairs_only);
-  r.data = facts.summary;
-  const std::vector<Trajectory> nt = choose_units(trajs, pairs_only, config, r);
-  // A property of the data alone, reported whatever the fit does.
-  r.checks = {measured_momenta_check(nt, pairs_only)};
-  BlockSplit split = split_blocks(nt, pairs_only, config, r.choices);
-
-  // Candidate cores: the given one, the init file's, or an LA and a G core chosen between by
-  // validation loss.
-  IdentifyConfig& c = r.config;
-  if (config.init != nullptr) c.core = config.init->inner_spec.at("core");
-  const bool choosing = c.core.is_null();
-  const std::vector<nlohmann::json> cores =
-      choosing ? default_cores(facts.d, facts.varying_steps) : std::vector<nlohmann::json>{c.core};
-  if (hooks.stage) hooks.stage("warm start");
-  const double beta_init = warm_start(split, facts.d, config, r);
-  std::vector<Candidate> cand = make_candidates(cores, facts.d, beta_init, c, config.seed);
-  CandidateFit fit(config, c, hooks, comm, split, 1.0 / static_cast<double>(cand.size()));
-  Candidate& best = cand[choose_core(cand, fit, choosing, facts.varying_steps, config, r)];
+  const Candidate& best = f.cand[f.best];
   const OneStepMap& map = *best.inner.map;
-  const bool lm_fits = best.inner.n_params() <= 6000;
-  if (!lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
-  r.choices["lm_patience"] = kLmPatience;
-  adapt_windows(best, fit, split, config, r);
-  r.theta = best.theta;
-  r.training = best.training;
-  r.stopped = fit.stopped();
-  r.lm = best.lm;
-  r.lm_best_iteration = best.lm_best_iteration;
-  for (const Candidate& x : cand) {
-    r.lm_seconds += x.lm_seconds;
-    r.adamw_seconds += x.training.seconds;
-  }
-  c.window = split.m;
-  r.choices["window"] = split.m;
-
-  // γ̂, its interval and the model's quality, in the user's time units.
-  r.gamma = map.damping_rate(r.theta).value_or(0.0) / r.normalization.time_scale;
-  r.quality.train_loss = fit.loss(best, split.train);
-  r.quality.val_loss = fit.loss(best, split.val);
-  const bool assess = !r.stopped && lm_fits && r.training.stop_reason != StopReason::kDiverged;
-  if (assess) interval(map, split, nt, hooks, comm, r);
-  measure_quality(map, split, facts.d, r);
-  if (assess && !r.stopped) run_checks(map, split, hooks, r);
+  // γ̂'s interval and the model's quality, in the user's time units.
+  const bool assess = !r.stopped && f.lm_fits && r.training.stop_reason != StopReason::kDiverged;
+  if (assess) interval(map, f.split, f.nt, hooks, comm, r);
+  measure_quality(map, f.split, f.facts.d, r);
+  if (assess && !r.stopped) run_checks(map, f.split, hooks, r);
   if (confirm_growth_in_reversed_time) confirm_growth(trajs, pairs_only, config, hooks, r);
-  verdict(split, facts.h_max, lm_fits, r);
+  verdict(f.split, f.facts.h_max, f.lm_fits, r);
   r.model = user_model(best.inner, r);
   return r;
 }
@@ -354,6 +402,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"reasons", r.reasons},
       {"verdict", r.verdict},
       {"checks", r.checks},
+      {"observed", r.observed},
       {"gamma_unit", "1/time unit of the data"},
       {"gamma_hat", r.gamma},
       // The interval as a claim: only for an identified γ̂ ("interval" keeps its details).

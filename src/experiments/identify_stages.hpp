@@ -151,4 +151,26 @@ void run_checks(const OneStepMap& map, const BlockSplit& split, const IdentifyHo
 // r.reasons, r.identified, r.rejected.
 void verdict(const BlockSplit& split, double h_max, bool lm_fits, IdentifyResult& r);
 
+// The stages up to the chosen core trained (inspect_data … adapt_windows), recorded in r
+// (config, data, normalisation, choices, θ, training, γ̂, training and validation losses).
+struct CoreFit {
+  DataFacts facts;
+  std::vector<Trajectory> nt;  // the data in the fit's units
+  BlockSplit split;
+  std::vector<Candidate> cand;
+  std::size_t best = 0;  // the chosen candidate
+  bool lm_fits = true;   // at most 6,000 parameters: LM and an interval
+};
+CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
+                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r);
+
+// The model in the user's units: the inner map wrapped in the normalisation (unless an init
+// file without one fixed the units).
+Model user_model(const Model& inner, const IdentifyResult& r);
+
+// identify_positions() after the core is trained on the positions with velocities from a
+// local polynomial: the momenta as hidden states (identify_positions.cpp).
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                         const IdentifyHooks& hooks, IdentifyResult& r);
+
 }  // namespace csympnet::detail

@@ -254,8 +254,8 @@ ModelCheck measured_momenta_check(const std::vector<Trajectory>& trajs, bool pai
     k.sentence =
         "the momenta are computed from the positions (" + shares +
         ", their noise): they carry the positions' noise differenced, and the filter's bias, "
-        "which the damping rate would inherit; give measured momenta or velocities "
-        "(csympnet does not yet fit positions alone)";
+        "which the damping rate would inherit; give measured momenta or velocities, or the "
+        "positions alone";
   } else if (computed) {
     k.sentence = "the momenta look computed from the positions (" + shares +
                  "): the positions are smooth, so little noise is amplified, but a difference's "

@@ -222,22 +222,48 @@ TEST(CsvRead, DetectsKindFromHeader) {
             CsvKind::kTrajectories);
 }
 
-// Positions without momenta: the message says what is missing and why differencing is no way
-// out, for trajectories and for pairs.
-TEST(CsvRead, PositionsWithoutMomentaSayWhatIsMissing) {
+// Positions alone: a trajectories file without p columns is its own kind, read as d rows per
+// sample by parse_positions_csv; the states reader refuses it and names the positions route;
+// a pairs file cannot be positions alone (a pair needs a state).
+TEST(CsvRead, PositionsAloneAreTheirOwnKind) {
   TempDir dir;
-  for (const char* text :
-       {"traj,t,q1\n0,0,1\n0,1,2\n", "t,q1,q2\n0,1,2\n", "h,q1,next_q1\n0.1,1,2\n"}) {
-    try {
-      read_csv_input(dir.write("q.csv", text));
-      ADD_FAILURE() << "accepted " << text;
-    } catch (const Error& e) {
-      const std::string m = e.what();
-      EXPECT_NE(m.find("has positions but no momenta"), std::string::npos) << m;
-      EXPECT_NE(m.find("does not yet fit positions alone"), std::string::npos) << m;
-      EXPECT_NE(m.find("q.csv"), std::string::npos) << m;
-    }
+  EXPECT_EQ(detect_csv_kind(dir.write("q.csv", "traj,t,q1\n0,0,1\n0,1,2\n")), CsvKind::kPositions);
+  EXPECT_EQ(detect_csv_kind(dir.write("q2.csv", "t,q1,q2\n0,1,2\n")), CsvKind::kPositions);
+  const CsvInput in =
+      read_csv_input(dir.write("q3.csv", "traj,t,q1,q2\n0,0,1,2\n0,1,3,4\n1,0,5,6\n"));
+  ASSERT_EQ(in.kind, CsvKind::kPositions);
+  const std::vector<Trajectory> trajs = parse_positions_csv(in.text, in.name);
+  ASSERT_EQ(trajs.size(), 2U);
+  ASSERT_EQ(trajs[0].z.rows(), 2);
+  ASSERT_EQ(trajs[0].z.cols(), 2);
+  EXPECT_EQ(trajs[0].z(0, 1), 3.0);
+  EXPECT_EQ(trajs[0].z(1, 1), 4.0);
+  EXPECT_EQ(trajs[1].t(0), 0.0);
+  try {
+    parse_trajectories_csv(in.text, in.name);
+    ADD_FAILURE() << "the states reader accepted positions alone";
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("has positions but no momenta"), std::string::npos) << m;
+    EXPECT_NE(m.find("hidden states"), std::string::npos) << m;
+    EXPECT_NE(m.find("q3.csv"), std::string::npos) << m;
   }
+  // The positions reader refuses states, and a pairs file of positions is refused with the
+  // reason and the trajectories form that works.
+  const CsvInput states = read_csv_input(dir.write("s.csv", "t,q1,p1\n0,1,2\n"));
+  EXPECT_THROW(parse_positions_csv(states.text, states.name), Error);
+  try {
+    read_csv_input(dir.write("pq.csv", "h,q1,next_q1\n0.1,1,2\n"));
+    ADD_FAILURE() << "accepted a pairs file of positions";
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("a pair needs a whole state"), std::string::npos) << m;
+    EXPECT_NE(m.find("[traj,]t,q1..qd"), std::string::npos) << m;
+    EXPECT_NE(m.find("pq.csv"), std::string::npos) << m;
+  }
+  // Positions keep the other rules: times strictly increase.
+  const CsvInput back = read_csv_input(dir.write("b.csv", "t,q1\n0,1\n0,2\n"));
+  EXPECT_THROW(parse_positions_csv(back.text, back.name), Error);
 }
 
 }  // namespace

@@ -13,8 +13,10 @@
 #include <nlohmann/json.hpp>
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/data/generate.hpp"
+#include "csympnet/io/files.hpp"
 #include "data/temp_dir.hpp"
 
 namespace csympnet {
@@ -306,10 +308,40 @@ TEST(FitCli, GrowingMotionIsRejectedAndNamedWithItsRate) {
   EXPECT_GT(rev["interval"][1].get<double>(), 0.1);
 }
 
-// Momenta computed from the noisy positions by central differences (numpy.gradient) are
-// recognised: the model rejected, exit 5, no interval, the reason in words.
-TEST(FitCli, MomentaComputedFromPositionsAreRecognised) {
+// The record's positions alone, as a positions file '[traj,]t,q1..qd'.
+SmallFit small_fit_positions(const std::vector<Trajectory>& rec) {
+  testing::TempDir dir;
+  const fs::path data = dir.path() / "positions.csv", out = dir.path() / "fit";
+  const fs::path stdout_file = dir.path() / "stdout.txt";
+  std::string text = "t,q1\n";
+  for (Index k = 0; k < rec.front().t.size(); ++k)
+    text += round_trip_text(rec.front().t(k)) + "," + round_trip_text(rec.front().z(0, k)) + "\n";
+  write_text_atomic(data.string(), text);
+  SmallFit f;
+  f.code = shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
+                 out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
+                 stdout_file.string() + " 2>&1");
+  f.printed = slurp(stdout_file);
+  if (fs::exists(out / "report.json")) f.report = nlohmann::json::parse(slurp(out / "report.json"));
+  return f;
+}
+
+// Positions alone are fitted with the momenta as hidden states: identified, an interval that
+// covers the truth, "observed": "positions". Momenta computed from the same noisy positions by
+// central differences (numpy.gradient) are recognised and set aside: the same answer, to the
+// bit, with the reason in the measured_momenta check.
+TEST(FitCli, PositionsAloneAndDifferencedMomentaGiveOneAnswer) {
   std::vector<Trajectory> rec = linear_record(0.1, 300, 0.2, 5);
+  const SmallFit pos = small_fit_positions(rec);
+  EXPECT_EQ(pos.code, 0) << pos.printed;
+  ASSERT_TRUE(pos.report.is_object()) << pos.printed;
+  EXPECT_EQ(pos.report["observed"], "positions");
+  EXPECT_EQ(pos.report["verdict"], "identified") << pos.report["reasons"].dump();
+  EXPECT_LT(pos.report["gamma_ci_low"].get<double>(), 0.1);
+  EXPECT_GT(pos.report["gamma_ci_high"].get<double>(), 0.1);
+  EXPECT_EQ(pos.report["checks"][0]["applicable"], false);
+  EXPECT_GT(pos.report["choices"]["positions"]["training_segments"].get<long>(), 0);
+
   Trajectory& t = rec.front();
   const Index n = t.t.size();
   for (Index k = 0; k < n; ++k) {
@@ -317,14 +349,16 @@ TEST(FitCli, MomentaComputedFromPositionsAreRecognised) {
     t.z(1, k) = (t.z(0, b) - t.z(0, a)) / (t.t(b) - t.t(a));
   }
   const SmallFit f = small_fit(rec);
-  EXPECT_EQ(f.code, 5) << f.printed;
-  EXPECT_NE(f.printed.find("computed from the positions"), std::string::npos) << f.printed;
+  EXPECT_EQ(f.code, 0) << f.printed;
   ASSERT_TRUE(f.report.is_object()) << f.printed;
   const nlohmann::json& rep = f.report;
-  EXPECT_EQ(rep["verdict"], "model rejected");
-  EXPECT_TRUE(rep["gamma_ci_low"].is_null());
+  EXPECT_EQ(rep["observed"], "positions");
   EXPECT_EQ(rep["checks"][0]["name"], "measured_momenta");
-  EXPECT_EQ(rep["checks"][0]["passed"], false);
+  EXPECT_EQ(rep["checks"][0]["passed"], true);
+  EXPECT_NE(rep["checks"][0]["sentence"].get<std::string>().find("set aside"), std::string::npos);
+  EXPECT_TRUE(rep["choices"].contains("momenta_set_aside"));
+  EXPECT_EQ(rep["gamma_hat"], pos.report["gamma_hat"]);
+  EXPECT_EQ(rep["gamma_ci_low"], pos.report["gamma_ci_low"]);
 }
 
 // A valid record passes every check and keeps its interval.

@@ -2,6 +2,8 @@
 //
 //   pairs:        h,q1..qd,p1..pd,next_q1..next_qd,next_p1..next_pd
 //   trajectories: [traj,]t,q1..qd,p1..pd   (traj optional: absent means one trajectory)
+//   positions:    [traj,]t,q1..qd          (no momenta: for csympnet fit, whose fit treats
+//                                           them as hidden states)
 //
 // Readers reject bad input with csympnet::Error naming the file, the line (and column where
 // it applies), and what was expected. They never crash and never return partial data.
@@ -15,7 +17,7 @@
 
 namespace csympnet {
 
-enum class CsvKind { kPairs, kTrajectories };
+enum class CsvKind { kPairs, kTrajectories, kPositions };
 
 // Inspects the header line only.
 CsvKind detect_csv_kind(const std::string& path);
@@ -30,6 +32,8 @@ PairSet read_any_as_pairs(const std::string& path);
 // the path in messages.
 PairSet parse_pairs_csv(std::string text, const std::string& name);
 std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name);
+// A positions file: trajectories whose z holds the d position rows alone (d × n).
+std::vector<Trajectory> parse_positions_csv(std::string text, const std::string& name);
 PairSet parse_any_as_pairs(std::string text, const std::string& name);
 
 // An input read once, so that a pipe, a FIFO or "-" (standard input) works: its name for

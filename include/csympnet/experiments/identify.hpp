@@ -96,6 +96,10 @@ struct IdentifyConfig {
   long target_blocks = 20;    // a long trajectory is cut into about this many segments
   double level = 0.95;        // interval level
   int threads = 1;
+  // Momenta that the measured_momenta check finds computed from noisy positions: false (the
+  // default) sets them aside and fits the positions alone; true uses them as given, with a
+  // warning in that check (key "derived_momenta": "set_aside" or "use").
+  bool use_derived_momenta = false;
   // Start from this model file's architecture, θ and units instead of fresh cores; AdamW then
   // runs only when `epochs` is given (0: none, LM alone refines the file's θ).
   std::shared_ptr<const IdentifyInit> init;
@@ -107,11 +111,11 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c);
 // The one place an IdentifyConfig is built from a front end's settings (the CLI's options,
 // Python's `identify` keywords): the defaults above, overridden by each key given. Keys:
 // core, seed, window, balanced, normalize, dof_scales, epochs, lr, lm_iterations,
-// val_fraction, blocks, level, threads, init (a model file's path: load_identify_init; it
-// refuses a given core, normalize = false with a file that has a normalisation, and dof_scales
-// that disagree with the file). A key not in that list is refused by name; a value
-// misspelt or out of its range with an OptionError naming its key (IdentifyConfig::validate,
-// which identify() calls again), before any work.
+// val_fraction, blocks, level, threads, derived_momenta, init (a model file's path:
+// load_identify_init; it refuses a given core, normalize = false with a file that has a
+// normalisation, and dof_scales that disagree with the file). A key not in that list is refused by
+// name; a value misspelt or out of its range with an OptionError naming its key
+// (IdentifyConfig::validate, which identify() calls again), before any work.
 IdentifyConfig make_identify_config(const nlohmann::json& settings);
 
 // What the fit did at each stage: `stage` is called as each begins ("warm start", "AdamW",
@@ -177,6 +181,8 @@ struct IdentifyResult {
   nlohmann::json choices;  // what was chosen automatically, and why
   nlohmann::json data;     // a summary of the data: d, trajectories, samples, steps, blocks
   bool stopped = false;    // a stage was interrupted
+  // What the record holds: "positions and momenta" or "positions" (identify_positions).
+  std::string observed = "positions and momenta";
   // Wall times (not in the report, which stays the same run to run), over every candidate.
   double adamw_seconds = 0.0;
   double lm_seconds = 0.0;
@@ -187,6 +193,13 @@ struct IdentifyResult {
 // `pairs_only`: the data are independent pairs (windows of one step, each pair a block).
 IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                         const IdentifyConfig& config, const IdentifyHooks& hooks = {});
+
+// A record of positions alone: each trajectory's z holds the d position rows (d × n). The
+// momenta are hidden states fitted with the map, the loss is on the positions
+// (docs/derivations.md, "Positions only: the momenta as hidden states"); the interval, checks
+// and verdict are those of identify(). Trajectories only: a pair needs a state.
+IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
+                                  const IdentifyConfig& config, const IdentifyHooks& hooks = {});
 
 // The report of an identification (report.json of `csympnet fit`).
 nlohmann::json identify_report(const IdentifyResult& r);

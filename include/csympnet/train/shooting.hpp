@@ -1,0 +1,129 @@
+// Multiple shooting on observed positions: the loss of `csympnet fit` when a record has
+// positions and no momenta (docs/derivations.md, "Positions only: the momenta as hidden
+// states").
+//
+// A segment s is L_s consecutive observed positions q_{s,0}, …, q_{s,L−1} (d × L) after steps
+// h_{s,0}, …, h_{s,L−2}. Its start state z_s = (q, p) is unknown, fitted with θ. The map rolls
+// it out, z_{s,k+1} = Φ̂_{h_{s,k}}(z_{s,k}), and the residuals are the positions alone:
+//
+//   r_{s,k} = P_q z_{s,k} − q_{s,k},   k = 0 … L_s − 1   (P_q: the q rows).
+//
+// The loss is L = (1/n) Σ ‖r‖², n the number of residuals. Every observed position enters
+// once, as a residual; nothing observed is treated as exact, so noise on q causes no
+// errors-in-variables bias.
+//
+// The unknowns of each segment enter only its own residuals, so Gauss–Newton's normal
+// equations are eliminated segment by segment (a Schur complement, as in bundle adjustment):
+// with A_s = ∂r_s/∂θ, B_s = ∂r_s/∂z_s, U_s = B_sᵀB_s and W_s = A_sᵀB_s,
+//
+//   (Σ_s A_sᵀA_s − W_s U_s⁻¹ W_sᵀ) δθ = −Σ_s (A_sᵀr_s − W_s U_s⁻¹ B_sᵀr_s),
+//   δz_s = −U_s⁻¹ (B_sᵀr_s + W_sᵀ δθ).
+//
+// A_s comes from the forward sensitivity S_{k+1} = DΦ̂(z_k) S_k + ∂Φ̂/∂θ(z_k) (S_0 = 0), B_s
+// from T_{k+1} = DΦ̂(z_k) T_k (T_0 = I): one reverse pass per component of each step, not per
+// residual.
+#pragma once
+
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "csympnet/core/types.hpp"
+#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/window_loss.hpp"
+
+namespace csympnet {
+
+struct ShootingSegments {
+  Index d = 0;
+  std::vector<Matrix> q;     // per segment, d × L observed positions (L ≥ 2)
+  std::vector<Vector> h;     // per segment, the L − 1 steps
+  std::vector<Index> block;  // per segment, its resampling block (0 … B − 1)
+  Index size() const { return static_cast<Index>(q.size()); }
+  Index n_residuals() const;  // Σ_s L_s d
+  // Throws Error (prefixed by `where`) on inconsistent shapes, fewer than 2 positions in a
+  // segment, steps ≤ 0 or non-finite values.
+  void validate(const std::string& where = "segments") const;
+};
+
+// The states along segment s from start state z0: 2d × L.
+Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0, const Vector& h);
+
+// The residuals of every segment (sample-major: segment by segment, d per position), unscaled.
+Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                          const ShootingSegments& segs);
+
+// The loss (1/n) Σ ‖r‖² over the segments.
+double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                     const ShootingSegments& segs);
+
+// One segment's residuals r (L·d), A = ∂r/∂θ restricted to θ's first n_free parameters
+// (L·d × n_free, row-major) and B = ∂r/∂z0 (L·d × 2d).
+void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                               const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
+                               Matrix& b, Vector& r);
+
+// The normal equations with the start states eliminated, at (θ, z0), over θ's first n_free
+// parameters, all scaled by `scale` (as window_normal_equations): a = the reduced JᵀJ (lower
+// triangle), g = the reduced Jᵀr, cost = ½ scale² ‖r‖², and per block the efficient score
+// Σ_{s ∈ b} (A_sᵀr_s − W_s U_s⁻¹ B_sᵀr_s). `should_stop` is polled per segment.
+NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams theta,
+                                          const Matrix& z0, const ShootingSegments& segs,
+                                          Index n_free, double scale, bool with_scores,
+                                          const std::function<bool()>& should_stop = {});
+
+// The start states alone fitted, θ fixed: Levenberg–Marquardt per segment on its 2d unknowns
+// (held-out segments, the start of the joint fit, a rollout from observed positions).
+// several_starts: each segment is also fitted from its first position with p = 0 and with the
+// p that carries it to the second position in one step, and the lowest fit kept (a start far
+// from the motion, or in another basin, is then not final). Returns the loss after.
+// max_abs: a bound on every component of a start state (a trial step beyond it is refused): in
+// a direction the positions do not fix (a saturated core), the fit would otherwise run off.
+double fit_start_states(const OneStepMap& map, ConstParams theta, const ShootingSegments& segs,
+                        Matrix& z0, long iterations = 30, bool several_starts = false,
+                        double max_abs = std::numeric_limits<double>::infinity());
+
+struct ShootingOptions {
+  long iterations = 100;  // trial steps at most
+  long patience = 20;     // trial steps without a better validation loss
+  Index n_free = -1;      // θ's first n_free parameters are fitted (−1: all)
+  // A bound on every component of a start state (fit_start_states' max_abs).
+  double max_abs_state = std::numeric_limits<double>::infinity();
+  // Polled before every iteration and per segment inside one: true stops with the best iterate.
+  std::function<bool()> should_stop;
+  // After every accepted step: iteration, training loss, validation loss.
+  std::function<void(long, double, double)> on_accepted;
+};
+
+struct ShootingReport {
+  long iterations = 0;
+  long accepted = 0;
+  long best_iteration = 0;
+  double initial_loss = 0.0, final_loss = 0.0;  // training, at the start and at the best iterate
+  double val_loss = 0.0;                        // at the best iterate
+  bool stopped = false;
+  std::string message;
+};
+
+// θ and the training segments' start states fitted jointly by Levenberg–Marquardt with the
+// start states eliminated; after each accepted step the held-out segments' start states are
+// refitted (θ fixed). Kept: the latest iterate whose held-out loss is within one standard error
+// (the loss times √(2/n)) of the lowest (val_z0 updated with it).
+ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
+                            const ShootingSegments& train, Matrix& val_z0,
+                            const ShootingSegments& val, const ShootingOptions& options);
+
+}  // namespace csympnet
+
+namespace csympnet {
+
+// The state at the last of a window of observed positions q (d × L, L ≥ 2) at times t: the
+// window's start state fitted with θ fixed (as a held-out segment's), rolled out to t[L−1].
+// For a prediction or a rollout from positions alone (fit_start_states with several starts
+// from p = 0). `rms` receives the
+// root-mean-square position residual of that fit.
+Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
+                            const Vector& t, double* rms = nullptr);
+
+}  // namespace csympnet

@@ -1,0 +1,485 @@
+// identify_positions(): records with positions and no momenta (docs/derivations.md,
+// "Positions only: the momenta as hidden states"; docs/identification.md, "Positions only").
+//
+//   1. velocities from a local quadratic fit of q start the momenta (a start only);
+//   2. fit_core trains the core on those states, as for any record (units, blocks, candidates);
+//   3. the blocks are cut into shooting segments; each segment's start state is a hidden
+//      unknown, fitted jointly with θ on the positions alone (train/shooting.hpp), with the
+//      per-dof momentum scales held (the gauge);
+//   4. the interval is the same sandwich over the same blocks, from the normal equations with
+//      the start states eliminated; the held-out inflation as always;
+//   5. the checks and the verdict run on the blocks with q observed and p reconstructed.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include <Eigen/QR>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/diagnostics/diagnostics.hpp"
+#include "csympnet/experiments/identify.hpp"
+#include "csympnet/experiments/model_checks.hpp"
+#include "csympnet/models/dof_scaled_map.hpp"
+#include "csympnet/train/gamma_sandwich.hpp"
+#include "csympnet/train/shooting.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet {
+
+namespace {
+
+void check_positions(const std::vector<Trajectory>& positions) {
+  require(!positions.empty(), "fit: no data");
+  const Index d = positions.front().z.rows();
+  for (std::size_t k = 0; k < positions.size(); ++k) {
+    const Trajectory& t = positions[k];
+    const std::string where = "fit: trajectory " + std::to_string(k);
+    require(d >= 1 && t.z.rows() == d, [&] {
+      return where + ": expected " + std::to_string(d) + " position rows, like the first";
+    });
+    require(t.t.size() >= 1 && t.z.cols() == t.t.size(),
+            [&] { return where + ": expected one time per sample"; });
+    require(t.t.allFinite() && t.z.allFinite(), [&] { return where + ": non-finite value"; });
+    for (Index i = 1; i < t.t.size(); ++i)
+      require(t.t(i) > t.t(i - 1), [&] {
+        return where + ": times must increase strictly (sample " + std::to_string(i) + ")";
+      });
+  }
+}
+
+// Samples per period of the fastest-crossing coordinate, from crossings of its mean (the whole
+// record when it never crosses): the scale of the local fits and of the segments.
+double samples_per_period(const std::vector<Trajectory>& positions) {
+  double crossings = 0.0, samples = 0.0;
+  for (const Trajectory& t : positions) {
+    samples += static_cast<double>(t.t.size());
+    double most = 0.0;
+    for (Index i = 0; i < t.z.rows(); ++i) {
+      const double mean = t.z.row(i).mean();
+      double c = 0.0;
+      for (Index j = 1; j < t.z.cols(); ++j)
+        if ((t.z(i, j - 1) - mean) * (t.z(i, j) - mean) < 0.0) c += 1.0;
+      most = std::max(most, c);
+    }
+    crossings += most;
+  }
+  return crossings >= 2.0 ? 2.0 * samples / crossings : samples;
+}
+
+// The lag, in samples, at which the positions' autocorrelation first falls below 1/2: the
+// motion's time scale, an oscillation's (about a sixth of a period) or a decay's (about 0.7 of
+// its time constant), whichever is shorter; the smallest over the coordinates, pooled over
+// the trajectories.
+double half_correlation_lag(const std::vector<Trajectory>& positions) {
+  double lag = std::numeric_limits<double>::infinity();
+  const Index d = positions.front().z.rows();
+  for (Index i = 0; i < d; ++i) {
+    const Index max_lag = 400;
+    std::vector<double> num(max_lag + 1, 0.0);
+    double var = 0.0;
+    for (const Trajectory& t : positions) {
+      const Vector x = t.z.row(i).transpose().array() - t.z.row(i).mean();
+      var += x.squaredNorm();
+      for (Index k = 1; k <= max_lag && k < x.size(); ++k)
+        num[static_cast<std::size_t>(k)] += x.head(x.size() - k).dot(x.tail(x.size() - k));
+    }
+    if (!(var > 0.0)) continue;
+    for (Index k = 1; k <= max_lag; ++k)
+      if (num[static_cast<std::size_t>(k)] < 0.5 * var) {
+        lag = std::min(lag, static_cast<double>(k));
+        break;
+      }
+  }
+  return std::isfinite(lag) ? lag : 400.0;
+}
+
+// dq/dt at every sample from a least-squares quadratic over the samples within `half` of its
+// time (at least the 2 nearest on each side that exist; gaps are not spanned by more): a start
+// for the momenta, not an estimate of them.
+Trajectory with_local_velocities(const Trajectory& t, double half) {
+  const Index d = t.z.rows(), n = t.t.size();
+  Trajectory out;
+  out.t = t.t;
+  out.z.resize(2 * d, n);
+  out.z.topRows(d) = t.z;
+  if (n < 2) {
+    out.z.bottomRows(d).setZero();
+    return out;
+  }
+  for (Index j = 0; j < n; ++j) {
+    Index lo = std::max<Index>(0, j - 2), hi = std::min<Index>(n - 1, j + 2);
+    while (lo > 0 && t.t(j) - t.t(lo - 1) <= half) --lo;
+    while (hi < n - 1 && t.t(hi + 1) - t.t(j) <= half) ++hi;
+    const Index degree = hi - lo >= 2 ? 2 : 1;
+    Matrix x(hi - lo + 1, degree + 1);
+    for (Index i = lo; i <= hi; ++i) {
+      const double s = t.t(i) - t.t(j);
+      for (Index p = 0; p <= degree; ++p) x(i - lo, p) = std::pow(s, static_cast<double>(p));
+    }
+    const Matrix coef = x.colPivHouseholderQr().solve(t.z.middleCols(lo, hi - lo + 1).transpose());
+    out.z.col(j).tail(d) = coef.row(1).transpose();
+  }
+  return out;
+}
+
+// The segments of blocks (normalised): consecutive runs of `len` positions, the last run of a
+// stretch joined to the one before when shorter than len / 2. A segment never spans a gap (a
+// step over 3 times the median step): a stretch between gaps is cut on its own, and a lone
+// position between two gaps is left out. Returns, per segment, its block and the first column
+// in that block.
+struct Cut {
+  ShootingSegments segs;
+  std::vector<std::pair<Index, Index>> at;  // (block, first column)
+  Matrix z0;                                // starts from the blocks' states
+};
+Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len) {
+  std::vector<double> steps;
+  for (const Trajectory& t : blocks)
+    for (Index k = 1; k < t.t.size(); ++k) steps.push_back(t.t(k) - t.t(k - 1));
+  double gap = std::numeric_limits<double>::infinity();
+  if (!steps.empty()) {
+    std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2),
+                     steps.end());
+    gap = 3.0 * steps[steps.size() / 2];
+  }
+  Cut c;
+  c.segs.d = d;
+  std::vector<Vector> starts;
+  const auto add = [&](const Trajectory& t, Index b, Index first, Index count) {
+    c.segs.q.push_back(t.z.block(0, first, d, count));
+    c.segs.h.push_back(t.t.segment(first + 1, count - 1) - t.t.segment(first, count - 1));
+    c.segs.block.push_back(b);
+    c.at.emplace_back(b, first);
+    starts.push_back(t.z.col(first));
+  };
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    const Trajectory& t = blocks[b];
+    const Index n = t.t.size();
+    for (Index begin = 0; begin < n;) {
+      Index end = begin + 1;  // one past the stretch without a gap
+      while (end < n && t.t(end) - t.t(end - 1) <= gap) ++end;
+      for (Index first = begin; first + 1 < end;) {
+        Index count = std::min(len, end - first);
+        if (end - first - count < len / 2) count = end - first;
+        add(t, static_cast<Index>(b), first, count);
+        first += count;
+      }
+      begin = end;
+    }
+  }
+  c.z0.resize(2 * d, static_cast<Index>(starts.size()));
+  for (std::size_t s = 0; s < starts.size(); ++s) c.z0.col(static_cast<Index>(s)) = starts[s];
+  return c;
+}
+
+// The largest growth of a perturbation of the start state along any segment's fitted rollout,
+// ‖∂z_L/∂z_0‖ (Frobenius). A damped system contracts; a fitted map whose rollout amplifies a
+// perturbation 1e6-fold over one segment has start states poised on an unstable manifold of
+// the map (a saddle fitted where the motion has settled), and its derivatives, the Gauss–Newton
+// matrix and the interval are then meaningless.
+double largest_sensitivity(const OneStepMap& map, ConstParams theta, const Cut& c) {
+  double most = 0.0;
+  for (Index s = 0; s < c.segs.size(); ++s) {
+    const Vector& h = c.segs.h[static_cast<std::size_t>(s)];
+    const Matrix z = shooting_states(map, theta, c.z0.col(s), h);
+    Matrix t = Matrix::Identity(z.rows(), z.rows());
+    for (Index k = 0; k < h.size(); ++k) t = map.jacobian(theta, z.col(k), h(k)) * t;
+    const double n = t.norm();
+    most = std::isfinite(n) ? std::max(most, n) : std::numeric_limits<double>::infinity();
+  }
+  return most;
+}
+
+inline constexpr double kMaxSensitivity = 1e6;
+
+// A bound on the hidden start states in the fit's units, where the data have unit spread (the
+// normalisation): a momentum a thousand times the data's is no motion they show.
+inline constexpr double kMaxAbsState = 1e3;
+
+// The segment length: the longest of 10, 20, 40, 80 (up to two periods) over which the
+// velocity-start model still follows the training positions, its start states fitted: the
+// loss per residual, corrected for the 2d unknowns a segment fits (× L / (L − 2)), within 25%
+// of the lowest. Longer segments spend fewer unknowns per position; a model that drifts from
+// the motion over a long segment (chaotic or poorly started) fits it only in local minima.
+Index segment_length(const OneStepMap& map, ConstParams theta,
+                     const std::vector<Trajectory>& blocks, Index d, double spp,
+                     nlohmann::json& tried) {
+  const Index longest = std::clamp<Index>(static_cast<Index>(std::lround(2.0 * spp)), 10, 80);
+  std::vector<std::pair<Index, double>> losses;
+  for (Index len = 10; len <= longest;
+       len = len * 2 > longest && len < longest ? longest : 2 * len) {
+    Cut c = cut_segments(blocks, d, len);
+    const double loss = fit_start_states(map, theta, c.segs, c.z0, 30, true, kMaxAbsState);
+    const double corrected = loss * static_cast<double>(len) / static_cast<double>(len - 2);
+    const double growth = largest_sensitivity(map, theta, c);
+    // A length over which the rollout amplifies perturbations beyond 1e3 is not a candidate.
+    losses.emplace_back(len, growth <= 1e3 ? corrected : std::numeric_limits<double>::infinity());
+    tried.push_back({{"length", len}, {"corrected_loss", corrected}, {"sensitivity", growth}});
+    if (len == longest) break;
+  }
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const auto& [len, loss] : losses) lowest = std::min(lowest, loss);
+  if (!std::isfinite(lowest)) return losses.front().first;
+  Index chosen = losses.front().first;
+  for (const auto& [len, loss] : losses)
+    if (std::isfinite(loss) && loss <= 1.25 * lowest) chosen = len;
+  return chosen;
+}
+
+// The blocks with q observed and p from the fitted rollouts of their segments.
+std::vector<Trajectory> reconstructed(const std::vector<Trajectory>& blocks, const Cut& c,
+                                      const OneStepMap& map, ConstParams theta, Index d) {
+  std::vector<Trajectory> out = blocks;
+  for (Index s = 0; s < c.segs.size(); ++s) {
+    const auto [b, first] = c.at[static_cast<std::size_t>(s)];
+    const Matrix z =
+        shooting_states(map, theta, c.z0.col(s), c.segs.h[static_cast<std::size_t>(s)]);
+    out[static_cast<std::size_t>(b)].z.block(d, first, d, z.cols()) = z.bottomRows(d);
+  }
+  return out;
+}
+
+// Sums over segments: the model's squared residual, the motion from each segment's first
+// position, and the spread about each segment's mean (what a constant leaves: no dynamics).
+struct SegmentSums {
+  double res = 0.0, motion = 0.0, still = 0.0;
+  Index n = 0;
+};
+SegmentSums segment_sums(const OneStepMap& map, ConstParams theta, const Cut& c) {
+  SegmentSums out;
+  for (Index s = 0; s < c.segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    const Matrix& obs = c.segs.q[i];
+    const Matrix z = shooting_states(map, theta, c.z0.col(s), c.segs.h[i]);
+    out.res += (z.topRows(obs.rows()) - obs).squaredNorm();
+    out.motion += (obs.colwise() - obs.col(0)).squaredNorm();
+    out.still += (obs.colwise() - obs.rowwise().mean()).squaredNorm();
+    out.n += obs.size();
+  }
+  return out;
+}
+
+// The held-out quality on positions: the unexplained share of the motion within a segment, and
+// the squared error over that of a constant per segment, its mean (no dynamics: the analogue of
+// the pure contraction the states' null model is; on a record of noise alone a map with a free
+// start state does hardly better, and the ratio stays near 1). Held-out segments in which
+// nothing moves beyond the noise (their spread under twice what the training residuals give:
+// the late, settled part of a decay) cannot show dynamics; the training segments then stand in
+// for the null comparison, which still finds a record of noise alone (a few hundred
+// parameters over thousands of positions absorb little of it). Returns which were used.
+std::string positions_quality(const OneStepMap& map, ConstParams theta, const Cut& train,
+                              const Cut& val, IdentifyQuality& q) {
+  const SegmentSums v = segment_sums(map, theta, val);
+  const SegmentSums t = segment_sums(map, theta, train);
+  q.val_relative_residual = v.motion > 0.0 ? std::sqrt(v.res / v.motion) : 0.0;
+  const double noise = t.n > 0 ? t.res / static_cast<double>(t.n) : 0.0;
+  const bool val_moves = v.still > 2.0 * noise * static_cast<double>(v.n);
+  const SegmentSums& use = val_moves ? v : t;
+  q.null_ratio = use.still > 0.0 ? use.res / use.still : 0.0;
+  if (!val_moves) q.val_relative_residual = t.motion > 0.0 ? std::sqrt(t.res / t.motion) : 0.0;
+  return val_moves ? "held-out segments"
+                   : "training segments (the held-out segments do not move beyond the noise)";
+}
+
+// The reduced normal equations of the n_free fitted parameters, embedded in all P (a held
+// parameter: 1 on the diagonal, nothing else) for the modes' gradients over all of θ.
+NormalEquations embedded(const NormalEquations& ne, Index p) {
+  const Index nf = ne.a.rows();
+  if (nf == p) return ne;
+  NormalEquations out;
+  out.a = Matrix::Identity(p, p);
+  out.a.topLeftCorner(nf, nf) = ne.a;
+  out.g = Vector::Zero(p);
+  out.g.head(nf) = ne.g;
+  out.cost = ne.cost;
+  out.scores = Matrix::Zero(p, ne.scores.cols());
+  out.scores.topRows(nf) = ne.scores;
+  return out;
+}
+
+double largest_abs(const std::vector<Trajectory>& blocks) {
+  double s = 0.0;
+  for (const Trajectory& t : blocks) s = std::max(s, t.z.cwiseAbs().maxCoeff());
+  return s;
+}
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.precision(4);
+  s << v;
+  return s.str();
+}
+
+}  // namespace
+
+namespace detail {
+
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                         const IdentifyHooks& hooks, IdentifyResult& r) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Index d = f.facts.d;
+  Candidate& best = f.cand[f.best];
+  const OneStepMap& map = *best.inner.map;
+  const Index p = map.n_params();
+  // The gauge: each dof's momentum scale is not in the positions; the learned dof scales are
+  // held where the velocity start put them.
+  const Index n_free = dynamic_cast<const DofScaledMap*>(&map) != nullptr ? p - (d - 1) : p;
+  const double spp = samples_per_period(positions);
+  nlohmann::json tried = nlohmann::json::array();
+  const Index len = segment_length(map, r.theta, f.split.train_blocks, d, spp, tried);
+  Cut train = cut_segments(f.split.train_blocks, d, len);
+  Cut val = cut_segments(f.split.val_blocks, d, len);
+  nlohmann::json& rec = r.choices["positions"];
+  rec = {{"segment_length", len},
+         {"segment_lengths_tried", tried},
+         {"samples_per_period", spp},
+         {"training_segments", train.segs.size()},
+         {"validation_segments", val.segs.size()},
+         {"hidden_unknowns", 2 * d * (train.segs.size() + val.segs.size())},
+         {"gauge", n_free < p ? "the per-dof momentum scales held at the velocity start's"
+                              : "d = 1: the momentum's scale is the core's"}};
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  // The data's own check does not apply: the momenta were not given.
+  ModelCheck none;
+  none.name = "measured_momenta";
+  none.assumption = "momenta measured, not derived from the positions";
+  none.applicable = false;
+  none.passed = true;
+  none.sentence =
+      "not applicable: the record has positions alone; the momenta are hidden states fitted "
+      "with the map";
+  r.checks = {none};
+  if (r.stopped || !f.lm_fits || r.training.stop_reason == StopReason::kDiverged) {
+    verdict(f.split, f.facts.h_max, f.lm_fits, r);
+    r.model = user_model(best.inner, r);
+    return;
+  }
+  if (hooks.stage) hooks.stage("hidden momenta: start states");
+  Vector theta = r.theta;
+  fit_start_states(map, theta, train.segs, train.z0, 30, true, kMaxAbsState);
+  fit_start_states(map, theta, val.segs, val.z0, 30, true, kMaxAbsState);
+  if (hooks.stage) hooks.stage("hidden momenta: positions-only Levenberg-Marquardt");
+  ShootingOptions opt;
+  opt.iterations = std::min<long>(r.config.lm_iterations, 200);
+  opt.patience = 20;
+  opt.n_free = n_free;
+  opt.max_abs_state = kMaxAbsState;
+  opt.should_stop = stop;
+  const ShootingReport rep = fit_shooting(map, theta, train.z0, train.segs, val.z0, val.segs, opt);
+  rec["lm"] = {{"iterations", rep.iterations},
+               {"accepted", rep.accepted},
+               {"best_iteration", rep.best_iteration},
+               {"initial_loss", rep.initial_loss},
+               {"final_loss", rep.final_loss},
+               {"validation_loss", rep.val_loss},
+               {"message", rep.message}};
+  if (rep.stopped) r.stopped = true;
+  r.theta = theta;
+  best.theta = theta;
+  const double tau = r.normalization.time_scale;
+  const double gamma_n = map.damping_rate(theta).value_or(0.0);
+  r.gamma = gamma_n / tau;
+  r.quality.train_loss = rep.final_loss;
+  r.quality.val_loss = rep.val_loss;
+
+  // The blocks with reconstructed momenta: the checks, the modes' mean state, the structure.
+  BlockSplit& split = f.split;
+  split.train_blocks = reconstructed(split.train_blocks, train, map, theta, d);
+  split.val_blocks = reconstructed(split.val_blocks, val, map, theta, d);
+  split.set_window(1);
+  split.blocks.clear();
+  for (const auto& t : split.train_blocks) split.blocks.push_back(t);
+  for (const auto& t : split.val_blocks) split.blocks.push_back(t);
+
+  if (!r.stopped) {
+    if (hooks.stage) hooks.stage("interval");
+    const Index n_res = train.segs.n_residuals();
+    const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+    NormalEquations ne =
+        shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, true, stop);
+    if (ne.stopped) {
+      r.stopped = true;
+    } else {
+      // The residuals have also fitted 2d unknowns per segment: their spread understates the
+      // noise by that many degrees of freedom (docs/derivations.md, "Positions only").
+      const double hidden = static_cast<double>(2 * d * train.segs.size());
+      const double dof_factor = std::sqrt(static_cast<double>(n_res) /
+                                          std::max(1.0, static_cast<double>(n_res) - hidden));
+      ne.scores *= dof_factor;
+      const Index bi = *map.damping_param_index();
+      SandwichInterval s =
+          sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0,
+                            n_res, ne.cost, scale, largest_abs(split.blocks), r.config.level);
+      const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
+                               ? r.quality.val_loss / r.quality.train_loss
+                               : 1.0;
+      const double inflation = std::sqrt(std::max(1.0, ratio));
+      inflate_interval(s, inflation);
+      for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
+                        &s.optimisation, &s.rounding})
+        *v /= tau;
+      s.method += " over hidden start states (positions only)";
+      r.interval = s;
+      rec["degrees_of_freedom_factor"] = dof_factor;
+      const NormalEquations all = embedded(ne, p);
+      modal_analysis(map, split.train,
+                     {&all, n_res, scale, largest_abs(split.blocks), inflation, stop}, r);
+    }
+  }
+  measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
+  rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
+
+  if (!r.stopped && r.interval) run_checks(map, split, hooks, r);
+  verdict(split, f.facts.h_max, f.lm_fits, r);
+  const double growth = largest_sensitivity(map, theta, train);
+  rec["sensitivity"] = growth;
+  if (!(growth <= kMaxSensitivity) && !r.stopped) {
+    r.reasons.push_back(
+        "the fitted map amplifies a perturbation of a segment's start state " + fmt(growth) +
+        "-fold over the segment (more than 1e6): the hidden momenta sit on an unstable "
+        "manifold of the map, where its derivatives and the interval mean nothing");
+    r.identified = false;
+    if (r.verdict == "identified") r.verdict = "not identified";
+  }
+  r.model = user_model(best.inner, r);
+  rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  rec["about"] =
+      "the momenta are not observed: each segment's start state is fitted with the "
+      "map, and the loss is on the positions alone (errors " +
+      fmt(std::sqrt(rep.final_loss)) + " rms in normalised units on training)";
+}
+
+}  // namespace detail
+
+IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
+                                  const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  check_positions(positions);
+  // Half the time over which the motion stays correlated, in the median step: the local fits
+  // stay within the motion's own time scale.
+  std::vector<double> steps;
+  for (const Trajectory& t : positions)
+    for (Index k = 1; k < t.t.size(); ++k) steps.push_back(t.t(k) - t.t(k - 1));
+  require(!steps.empty(),
+          "fit: every trajectory has a single position; expected at least one "
+          "with two or more");
+  std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
+  const double h_median = steps[steps.size() / 2];
+  const double lag = half_correlation_lag(positions);
+  const double half = std::clamp(std::floor(lag / 2.0), 2.0, 20.0) * h_median;
+  std::vector<Trajectory> states;
+  for (const Trajectory& t : positions) states.push_back(with_local_velocities(t, half));
+  IdentifyResult r;
+  detail::CoreFit f = detail::fit_core(states, false, config, hooks, r);
+  r.observed = "positions";
+  r.choices["velocity_start"] = {
+      {"method", "local quadratic least squares"},
+      {"half_width_time", half},
+      {"half_correlation_lag_samples", lag},
+      {"about", "a start for the hidden momenta only; gamma comes from the positions alone"}};
+  detail::refine_on_positions(positions, f, hooks, r);
+  return r;
+}
+
+}  // namespace csympnet

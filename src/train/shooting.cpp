@@ -1,0 +1,497 @@
+#include "csympnet/train/shooting.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+
+#include "csympnet/core/error.hpp"
+#include "lapack.hpp"
+
+namespace csympnet {
+
+Index ShootingSegments::n_residuals() const {
+  Index n = 0;
+  for (const Matrix& x : q) n += x.size();
+  return n;
+}
+
+void ShootingSegments::validate(const std::string& where) const {
+  require(d >= 1, [&] { return where + ": d must be >= 1"; });
+  require(h.size() == q.size() && block.size() == q.size(),
+          [&] { return where + ": need steps and a block for every segment"; });
+  for (std::size_t s = 0; s < q.size(); ++s) {
+    const std::string at = where + ": segment " + std::to_string(s);
+    require(q[s].rows() == d && q[s].cols() >= 2,
+            [&] { return at + ": expected d x L positions with L >= 2"; });
+    require(h[s].size() == q[s].cols() - 1, [&] { return at + ": expected L - 1 steps"; });
+    require(q[s].allFinite() && h[s].allFinite(), [&] { return at + ": non-finite value"; });
+    require((h[s].array() > 0.0).all(), [&] { return at + ": every step must be > 0"; });
+    require(block[s] >= 0, [&] { return at + ": block indices must be >= 0"; });
+  }
+}
+
+Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                       const Vector& h) {
+  Matrix z(z0.size(), h.size() + 1);
+  z.col(0) = z0;
+  Vector step(1);
+  for (Index k = 0; k < h.size(); ++k) {
+    step(0) = h(k);
+    z.col(k + 1) = map.apply(theta, z.col(k), step);
+  }
+  return z;
+}
+
+namespace {
+
+// r = P_q z − q, as one column per position flattened position-major.
+Vector position_residuals(const Matrix& z, const Matrix& q) {
+  const Matrix r = z.topRows(q.rows()) - q;
+  return Eigen::Map<const Vector>(r.data(), r.size());
+}
+
+// B = ∂r/∂z0 along one segment (the T recursion alone), with its residuals.
+void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                          const Matrix& q, const Vector& h, Matrix& b, Vector& r) {
+  const Index d = q.rows(), len = q.cols(), dim = 2 * d;
+  const Matrix z = shooting_states(map, theta, z0, h);
+  r = position_residuals(z, q);
+  b.resize(len * d, dim);
+  Matrix t = Matrix::Identity(dim, dim);
+  for (Index k = 0; k < len; ++k) {
+    b.middleRows(k * d, d) = t.topRows(d);
+    if (k + 1 < len) t = map.jacobian(theta, z.col(k), h(k)) * t;
+  }
+}
+
+// U⁻¹ for a small symmetric positive semi-definite U; a ridge at rounding level only where U is
+// singular or nearly so (condition beyond 1e14), so that a segment whose positions do not
+// determine its start state still solves.
+Eigen::LLT<Matrix> small_factor(const Matrix& u) {
+  const double top = std::max(u.diagonal().maxCoeff(), 1e-300);
+  Eigen::LLT<Matrix> f(u);
+  if (f.info() == Eigen::Success && f.matrixLLT().diagonal().minCoeff() > 1e-7 * std::sqrt(top))
+    return f;
+  return Eigen::LLT<Matrix>(u + 1e-14 * top * Matrix::Identity(u.rows(), u.cols()));
+}
+
+}  // namespace
+
+Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                          const ShootingSegments& segs) {
+  Vector out(segs.n_residuals());
+  Index at = 0;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto& q = segs.q[static_cast<std::size_t>(s)];
+    const Matrix z = shooting_states(map, theta, z0.col(s), segs.h[static_cast<std::size_t>(s)]);
+    out.segment(at, q.size()) = position_residuals(z, q);
+    at += q.size();
+  }
+  return out;
+}
+
+double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                     const ShootingSegments& segs) {
+  const Vector r = shooting_residuals(map, theta, z0, segs);
+  return r.size() > 0 ? r.squaredNorm() / static_cast<double>(r.size()) : 0.0;
+}
+
+void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                               const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
+                               Matrix& b, Vector& r) {
+  const Index d = q.rows(), len = q.cols(), dim = 2 * d, p = map.n_params();
+  require(n_free >= 0 && n_free <= p, "shooting: n_free out of range");
+  const Matrix z = shooting_states(map, theta, z0, h);
+  r = position_residuals(z, q);
+  a.setZero(len * d, n_free);
+  b.resize(len * d, dim);
+  // ∂Φ̂/∂θ at each state of the segment but the last: one-step windows (their residuals unused).
+  RowMajorMatrix g;
+  if (len > 1) {
+    WindowSet w;
+    w.m = 1;
+    w.z0 = z.leftCols(len - 1);
+    w.zm = Matrix::Zero(dim, len - 1);
+    w.h = h.transpose();
+    g.resize((len - 1) * dim, p);
+    Vector unused((len - 1) * dim);
+    window_jacobian_rows(map, theta, w, false, 0, len - 1, g, unused);
+  }
+  Matrix sens = Matrix::Zero(dim, n_free);
+  Matrix t = Matrix::Identity(dim, dim);
+  for (Index k = 0; k < len; ++k) {
+    a.middleRows(k * d, d) = sens.topRows(d);
+    b.middleRows(k * d, d) = t.topRows(d);
+    if (k + 1 == len) break;
+    const Matrix jac = map.jacobian(theta, z.col(k), h(k));
+    sens = jac * sens;
+    sens += g.block(k * dim, 0, dim, n_free);
+    t = jac * t;
+  }
+}
+
+namespace {
+
+// What one segment contributes to the normal equations, kept for the Schur complement.
+struct SegmentTerms {
+  Matrix u;   // BᵀB (2d × 2d)
+  Matrix w;   // AᵀB (n_free × 2d)
+  Vector gb;  // Bᵀr
+};
+
+// Σ AᵀA (lower) and Σ Aᵀr into ne.a, ne.g, the per-segment terms into `terms`, the cost, and
+// per block Aᵀr (the efficient score is completed in reduce()).
+NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                           const ShootingSegments& segs, Index n_free, double scale,
+                           bool with_scores, const std::function<bool()>& should_stop,
+                           std::vector<SegmentTerms>& terms) {
+  NormalEquations ne;
+  ne.a.setZero(n_free, n_free);
+  ne.g.setZero(n_free);
+  Index blocks = 0;
+  for (Index b : segs.block) blocks = std::max(blocks, b + 1);
+  if (with_scores) ne.scores.setZero(n_free, blocks);
+  terms.assign(static_cast<std::size_t>(segs.size()), {});
+  const lapack::SingleThreaded one_thread;
+  RowMajorMatrix a;
+  Matrix b;
+  Vector r;
+  for (Index s = 0; s < segs.size(); ++s) {
+    if (should_stop && should_stop()) {
+      ne.stopped = true;
+      return ne;
+    }
+    const auto i = static_cast<std::size_t>(s);
+    shooting_segment_jacobian(map, theta, z0.col(s), segs.q[i], segs.h[i], n_free, a, b, r);
+    a *= scale;
+    b *= scale;
+    r *= scale;
+    ne.cost += 0.5 * r.squaredNorm();
+    lapack::add_gram_from_transpose(a.data(), n_free, a.rows(), ne.a.data());
+    Vector ar = Vector::Zero(n_free);
+    lapack::add_transpose_times(a.data(), n_free, a.rows(), r.data(), ar.data());
+    ne.g += ar;
+    if (with_scores) ne.scores.col(segs.block[i]) += ar;
+    SegmentTerms& x = terms[i];
+    x.u = b.transpose() * b;
+    x.w.noalias() = a.transpose() * b;
+    x.gb = b.transpose() * r;
+  }
+  return ne;
+}
+
+// Marquardt's scaling, the diagonal of JᵀJ clamped to [1e-6, 1e32] as Ceres clamps it
+// (min/max_lm_diagonal): a parameter the data barely move still gets a damped step, not one
+// that sends it to 1e40.
+Vector marquardt_diagonal(const Matrix& a) {
+  return a.diagonal().cwiseMax(1e-6).cwiseMin(1e32);
+}
+
+// The reduced system at damping λ (Marquardt's scaling on both blocks): a and g of the
+// reduced normal equations; with scores, the efficient scores (λ = 0 only).
+void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
+            const ShootingSegments& segs, double lambda, Matrix& a, Vector& g) {
+  a = ne.a;
+  g = ne.g;
+  a.diagonal() += lambda * marquardt_diagonal(ne.a);
+  for (std::size_t i = 0; i < terms.size(); ++i) {
+    const SegmentTerms& x = terms[i];
+    Matrix u = x.u;
+    u.diagonal() += lambda * marquardt_diagonal(x.u);
+    const Eigen::LLT<Matrix> f = small_factor(u);
+    // W U⁻¹ Wᵀ = V Vᵀ with V = W L⁻ᵀ.
+    const Matrix v = f.matrixL().solve(x.w.transpose()).transpose();
+    a.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
+    const Vector ug = f.solve(x.gb);
+    g.noalias() -= x.w * ug;
+    if (ne.scores.size() > 0) ne.scores.col(segs.block[i]).noalias() -= x.w * ug;
+  }
+}
+
+}  // namespace
+
+NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams theta,
+                                          const Matrix& z0, const ShootingSegments& segs,
+                                          Index n_free, double scale, bool with_scores,
+                                          const std::function<bool()>& should_stop) {
+  segs.validate("shooting");
+  std::vector<SegmentTerms> terms;
+  NormalEquations ne =
+      accumulate(map, theta, z0, segs, n_free, scale, with_scores, should_stop, terms);
+  if (ne.stopped) return ne;
+  Matrix a;
+  Vector g;
+  reduce(ne, terms, segs, 0.0, a, g);
+  ne.a = std::move(a);
+  ne.g = std::move(g);
+  return ne;
+}
+
+namespace {
+
+// One segment's start state by Levenberg–Marquardt on its 2d unknowns, θ fixed, from z (updated
+// in place). Returns ‖r‖² after (infinite when no start gives a finite rollout).
+double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
+                     Eigen::Ref<Vector> z, long iterations, double max_abs) {
+  Matrix b;
+  Vector r, r_try;
+  double lambda = 1e-3;
+  start_state_jacobian(map, theta, z, q, h, b, r);
+  double cost = r.allFinite() && b.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs
+                    ? r.squaredNorm()
+                    : std::numeric_limits<double>::infinity();
+  for (long it = 0; it < iterations && std::isfinite(cost); ++it) {
+    const Matrix u = b.transpose() * b;
+    const Vector gb = b.transpose() * r;
+    Matrix ul = u;
+    ul.diagonal() += lambda * marquardt_diagonal(u);
+    const Vector trial = z - small_factor(ul).solve(gb);
+    // A start state beyond the bound is a run along a direction the positions do not fix.
+    const double c_try =
+        trial.cwiseAbs().maxCoeff() <= max_abs
+            ? position_residuals(shooting_states(map, theta, trial, h), q).squaredNorm()
+            : std::numeric_limits<double>::infinity();
+    if (std::isfinite(c_try) && c_try < cost) {
+      z = trial;
+      const bool done = cost - c_try <= 1e-14 * cost;
+      lambda = std::max(lambda / 3.0, 1e-12);
+      start_state_jacobian(map, theta, z, q, h, b, r);
+      cost = r.squaredNorm();
+      if (done) break;
+    } else {
+      lambda *= 4.0;
+      if (lambda > 1e12) break;
+    }
+  }
+  return cost;
+}
+
+// p with P_q Φ̂_h(q0, p) = q1: Newton from p = 0 on the d equations, halving steps that do not
+// lower the mismatch.
+Vector one_step_momentum(const OneStepMap& map, ConstParams theta, const Vector& q0,
+                         const Vector& q1, double h) {
+  const Index d = q0.size();
+  Vector z(2 * d);
+  z << q0, Vector::Zero(d);
+  Vector step(1);
+  step(0) = h;
+  const auto mismatch = [&](const Vector& s) {
+    return Vector(map.apply(theta, s, step).col(0).head(d) - q1);
+  };
+  Vector f = mismatch(z);
+  for (int it = 0; it < 30 && f.allFinite() && f.norm() > 0.0; ++it) {
+    const Matrix jac = map.jacobian(theta, z, h).block(0, d, d, d);
+    const Vector dp = jac.colPivHouseholderQr().solve(-f);
+    if (!dp.allFinite()) break;
+    double scale = 1.0;
+    bool moved = false;
+    for (int k = 0; k < 20; ++k, scale *= 0.5) {
+      Vector trial = z;
+      trial.tail(d) += scale * dp;
+      const Vector ft = mismatch(trial);
+      if (ft.allFinite() && ft.norm() < f.norm()) {
+        z = trial;
+        f = ft;
+        moved = true;
+        break;
+      }
+    }
+    if (!moved) break;
+  }
+  return z.tail(d);
+}
+
+}  // namespace
+
+double fit_start_states(const OneStepMap& map, ConstParams theta, const ShootingSegments& segs,
+                        Matrix& z0, long iterations, bool several_starts, double max_abs) {
+  const Index d = segs.d;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    const Matrix& q = segs.q[i];
+    const Vector& h = segs.h[i];
+    Vector best = z0.col(s);
+    double best_cost = fit_one_start(map, theta, q, h, best, iterations, max_abs);
+    if (!several_starts) {
+      z0.col(s) = best;
+      continue;
+    }
+    // The given start, then p = 0 and the p that carries q[0] to q[1] in one step, each from
+    // the first position: the lowest fit is kept.
+    for (int k = 0; k < 2; ++k) {
+      Vector z(2 * d);
+      z.head(d) = q.col(0);
+      z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
+                         : one_step_momentum(map, theta, q.col(0), q.col(1), h(0));
+      const double c = fit_one_start(map, theta, q, h, z, iterations, max_abs);
+      if (c < best_cost) {
+        best_cost = c;
+        best = z;
+      }
+    }
+    z0.col(s) = best;
+  }
+  return shooting_loss(map, theta, z0, segs);
+}
+
+ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
+                            const ShootingSegments& train, Matrix& val_z0,
+                            const ShootingSegments& val, const ShootingOptions& options) {
+  train.validate("shooting: training segments");
+  if (val.size() > 0) val.validate("shooting: held-out segments");
+  const Index n_free = options.n_free < 0 ? map.n_params() : options.n_free;
+  const Index dim = 2 * train.d;
+  require(z0.rows() == dim && z0.cols() == train.size(), "shooting: z0 must be 2d x segments");
+  const double scale = 1.0 / std::sqrt(static_cast<double>(train.n_residuals()));
+  const auto stop = [&] { return options.should_stop && options.should_stop(); };
+  const auto val_loss = [&](ConstParams th, Matrix& vz) {
+    return val.size() > 0 ? fit_start_states(map, th, val, vz, 30, false, options.max_abs_state)
+                          : 0.0;
+  };
+
+  ShootingReport rep;
+  rep.initial_loss = shooting_loss(map, theta, z0, train);
+  // Every accepted iterate, for the choice at the end.
+  struct Iterate {
+    long iteration;
+    Vector theta;
+    Matrix z0, val_z0;
+    double val;
+  };
+  std::vector<Iterate> kept;
+  kept.push_back({0, theta, z0, val_z0, val_loss(theta, val_z0)});
+  const double n_val = static_cast<double>(std::max<Index>(1, val.n_residuals()));
+  const auto standard_error = [n_val](double loss) { return loss * std::sqrt(2.0 / n_val); };
+  double best_val = kept.back().val;
+  double lambda = 1e-4;
+  long since_best = 0, small_steps = 0;
+  std::vector<SegmentTerms> terms;
+  NormalEquations ne;
+  bool fresh = false;
+  double loss = rep.initial_loss;
+  rep.message = "maximum number of iterations reached";
+  for (long it = 1; it <= options.iterations; ++it) {
+    if (stop()) {
+      rep.stopped = true;
+      rep.message = "stopped by the caller";
+      break;
+    }
+    if (!fresh) {
+      ne = accumulate(map, theta, z0, train, n_free, scale, false, stop, terms);
+      if (ne.stopped) {
+        rep.stopped = true;
+        rep.message = "stopped by the caller";
+        break;
+      }
+      fresh = true;
+    }
+    ++rep.iterations;
+    Matrix a;
+    Vector g;
+    reduce(ne, terms, train, lambda, a, g);
+    Vector step = -g;
+    if (!lapack::cholesky(a.data(), n_free)) {
+      lambda *= 10.0;
+      continue;
+    }
+    lapack::cholesky_solve(a.data(), n_free, step.data());
+    // A step ten times the size of θ is a run along a direction the positions do not fix.
+    if (!step.allFinite() || step.norm() > 10.0 * (1.0 + theta.head(n_free).norm())) {
+      lambda *= 4.0;
+      continue;
+    }
+    Vector theta_try = theta;
+    theta_try.head(n_free) += step;
+    Matrix z0_try = z0;
+    for (Index s = 0; s < train.size(); ++s) {
+      const SegmentTerms& x = terms[static_cast<std::size_t>(s)];
+      Matrix u = x.u;
+      u.diagonal() += lambda * marquardt_diagonal(x.u);
+      z0_try.col(s) -= small_factor(u).solve(x.gb + x.w.transpose() * step);
+    }
+    const double loss_try = z0_try.cwiseAbs().maxCoeff() <= options.max_abs_state
+                                ? shooting_loss(map, theta_try, z0_try, train)
+                                : std::numeric_limits<double>::infinity();
+    if (!(std::isfinite(loss_try) && loss_try < loss)) {
+      lambda *= 4.0;
+      if (lambda > 1e10) {
+        rep.message = "no step lowers the loss (damping above 1e10)";
+        break;
+      }
+      continue;
+    }
+    ++rep.accepted;
+    small_steps = (loss - loss_try) <= 1e-10 * loss ? small_steps + 1 : 0;
+    theta = std::move(theta_try);
+    z0 = std::move(z0_try);
+    loss = loss_try;
+    fresh = false;
+    lambda = std::max(lambda / 3.0, 1e-10);
+    const double v = val_loss(theta, val_z0);
+    if (options.on_accepted) options.on_accepted(it, loss, v);
+    kept.push_back({it, theta, z0, val_z0, v});
+    // Patience counts steps without a lower held-out loss: beyond the noise floor, further
+    // steps move the core along directions the positions barely fix (the interval's
+    // regularisation check measured them growing with the iterations).
+    if (v < best_val) {
+      best_val = v;
+      since_best = 0;
+    } else if (++since_best >= options.patience) {
+      rep.message = "no lower held-out loss for " + std::to_string(options.patience) + " steps";
+      break;
+    }
+    if (small_steps >= 3) {
+      rep.message = "converged: the loss changes by less than 1e-10 of itself per step";
+      break;
+    }
+  }
+  // The latest iterate whose held-out loss is within one standard error of the lowest: a
+  // held-out loss at the noise floor changes by less than its own noise from step to step, and
+  // the more converged fit of the positions is then the better estimate. The standard error of
+  // a mean of n squared Gaussian residuals is the mean times √(2/n).
+  const Iterate* chosen = &kept.front();
+  for (const Iterate& x : kept)
+    if (x.val <= best_val + standard_error(best_val) || val.size() == 0) chosen = &x;
+  theta = chosen->theta;
+  z0 = chosen->z0;
+  val_z0 = chosen->val_z0;
+  rep.best_iteration = chosen->iteration;
+  best_val = chosen->val;
+  rep.final_loss = shooting_loss(map, theta, z0, train);
+  rep.val_loss = best_val;
+  return rep;
+}
+
+}  // namespace csympnet
+
+namespace csympnet {
+
+Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
+                            const Vector& t, double* rms) {
+  const Index d = q.rows(), len = q.cols();
+  require(2 * d == map.dim(), [&] {
+    return "positions: " + std::to_string(d) +
+           " per sample; the model has d = " + std::to_string(map.dim() / 2);
+  });
+  require(len >= 2 && t.size() == len,
+          "positions: expected at least 2 samples, with one time each");
+  ShootingSegments segs;
+  segs.d = d;
+  segs.q = {q};
+  segs.h = {t.tail(len - 1) - t.head(len - 1)};
+  segs.block = {0};
+  segs.validate("positions");
+  Matrix best(2 * d, 1);
+  best.col(0).head(d) = q.col(0);
+  best.col(0).tail(d).setZero();
+  const double best_loss = fit_start_states(map, theta, segs, best, 100, true);
+  require(std::isfinite(best_loss), "positions: no start state gives a finite rollout");
+  if (rms != nullptr) *rms = std::sqrt(best_loss);
+  return shooting_states(map, theta, best.col(0), segs.h[0]).col(len - 1);
+}
+
+}  // namespace csympnet

@@ -1,0 +1,227 @@
+// Multiple shooting on positions (train/shooting.hpp): the segment Jacobians in θ and in the
+// start state against central differences, the eliminated normal equations against the Schur
+// complement of the explicit JᵀJ, and the fits: start states recovered from exact positions,
+// and a joint fit from perturbed parameters that returns to the positions' noise floor.
+#include "csympnet/train/shooting.hpp"
+
+#include <gtest/gtest.h>
+#include <Eigen/Cholesky>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/dof_scaled_map.hpp"
+#include "support/gradient_check.hpp"
+#include "support/model_fixtures.hpp"
+
+namespace csympnet {
+namespace {
+
+using testing::check_jacobian;
+using testing::random_theta;
+
+// Segments of random positions at random steps (the derivatives hold for any data), with
+// random start states.
+ShootingSegments random_segments(Index d, int count, Rng& rng, Matrix& z0) {
+  ShootingSegments s;
+  s.d = d;
+  z0.resize(2 * d, count);
+  for (int k = 0; k < count; ++k) {
+    const Index len = 3 + k % 4;
+    s.q.push_back(rng.normal_matrix(d, len, 1.0));
+    Vector h(len - 1);
+    for (Index j = 0; j < len - 1; ++j) h(j) = rng.uniform(0.05, 0.2);
+    s.h.push_back(h);
+    s.block.push_back(k / 2);
+    z0.col(k) = rng.normal_matrix(2 * d, 1, 0.7);
+  }
+  return s;
+}
+
+class ShootingTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(ShootingTest, SegmentJacobiansMatchFiniteDifferences) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2;
+  Rng rng(31, GetParam());
+  for (int rep = 0; rep < 2; ++rep) {
+    const Vector theta = random_theta(*map, rng, 0.3, rep == 0 ? 0.6 : -0.4);
+    Matrix z0;
+    const ShootingSegments segs = random_segments(d, 3, rng, z0);
+    for (Index s = 0; s < segs.size(); ++s) {
+      const auto i = static_cast<std::size_t>(s);
+      const Vector start = z0.col(s);
+      const auto r_theta = [&](const Vector& th) {
+        ShootingSegments one;
+        one.d = d;
+        one.q = {segs.q[i]};
+        one.h = {segs.h[i]};
+        one.block = {0};
+        return shooting_residuals(*map, th, start, one);
+      };
+      const auto a_of = [&](const Vector& th) -> Matrix {
+        RowMajorMatrix a;
+        Matrix b;
+        Vector r;
+        shooting_segment_jacobian(*map, th, start, segs.q[i], segs.h[i], map->n_params(), a, b, r);
+        return a;
+      };
+      const auto c1 = check_jacobian(r_theta, a_of, theta);
+      EXPECT_TRUE(c1.ok()) << c1.report("shooting: dr/dtheta");
+      const auto r_z = [&](const Vector& z) {
+        ShootingSegments one;
+        one.d = d;
+        one.q = {segs.q[i]};
+        one.h = {segs.h[i]};
+        one.block = {0};
+        return shooting_residuals(*map, theta, z, one);
+      };
+      const auto b_of = [&](const Vector& z) -> Matrix {
+        RowMajorMatrix a;
+        Matrix b;
+        Vector r;
+        shooting_segment_jacobian(*map, theta, z, segs.q[i], segs.h[i], 0, a, b, r);
+        EXPECT_EQ(a.cols(), 0);
+        return b;
+      };
+      const auto c2 = check_jacobian(r_z, b_of, start);
+      EXPECT_TRUE(c2.ok()) << c2.report("shooting: dr/dz0");
+    }
+  }
+}
+
+// The eliminated system is the Schur complement of the explicit joint JᵀJ over (θ, every z0),
+// and its scores are the efficient scores of the blocks.
+TEST_P(ShootingTest, EliminatedNormalEquationsAreTheSchurComplement) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2, dim = 2 * d, p = map->n_params();
+  Rng rng(32, GetParam());
+  const Vector theta = random_theta(*map, rng, 0.3, 0.5);
+  Matrix z0;
+  const ShootingSegments segs = random_segments(d, 5, rng, z0);
+  const double scale = 0.41;
+  const NormalEquations ne = shooting_normal_equations(*map, theta, z0, segs, p, scale, true);
+  // The joint J, rows segment by segment, columns θ then each segment's z0.
+  const Index n = segs.n_residuals(), cols = p + dim * segs.size();
+  Matrix j = Matrix::Zero(n, cols);
+  Vector r(n);
+  Index row = 0;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    RowMajorMatrix a;
+    Matrix b;
+    Vector rs;
+    shooting_segment_jacobian(*map, theta, z0.col(s), segs.q[i], segs.h[i], p, a, b, rs);
+    j.block(row, 0, a.rows(), p) = a;
+    j.block(row, p + dim * s, b.rows(), dim) = b;
+    r.segment(row, rs.size()) = rs;
+    row += rs.size();
+  }
+  j *= scale;
+  r *= scale;
+  const Matrix full = j.transpose() * j;
+  const Vector g = j.transpose() * r;
+  const Matrix zz = full.bottomRightCorner(cols - p, cols - p);
+  const Matrix tz = full.topRightCorner(p, cols - p);
+  const Eigen::LDLT<Matrix> f(zz);
+  const Matrix schur = full.topLeftCorner(p, p) - tz * f.solve(tz.transpose());
+  const Vector g_red = g.head(p) - tz * f.solve(g.tail(cols - p));
+  const Matrix lower_ne = ne.a.triangularView<Eigen::Lower>();
+  const Matrix lower_schur = schur.triangularView<Eigen::Lower>();
+  EXPECT_LE((lower_ne - lower_schur).norm(), 1e-9 * full.norm());
+  EXPECT_LE((ne.g - g_red).norm(), 1e-9 * (1.0 + g.norm()));
+  EXPECT_NEAR(ne.cost, 0.5 * r.squaredNorm(), 1e-12 * ne.cost);
+  // The scores of the blocks add up to the reduced gradient.
+  ASSERT_EQ(ne.scores.cols(), 3);
+  EXPECT_LE((ne.scores.rowwise().sum() - ne.g).norm(), 1e-9 * (1.0 + ne.g.norm()));
+}
+
+// Positions made by the map itself: the start states are recovered from positions alone, and
+// a joint fit from perturbed parameters returns to zero loss.
+TEST_P(ShootingTest, FitsRecoverExactPositions) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2;
+  Rng rng(33, GetParam());
+  const Vector truth = random_theta(*map, rng, 0.3, 0.3);
+  ShootingSegments segs;
+  segs.d = d;
+  const int count = 12;
+  Matrix z_true(2 * d, count);
+  for (int k = 0; k < count; ++k) {
+    z_true.col(k) = rng.normal_matrix(2 * d, 1, 0.6);
+    const Vector h = Vector::Constant(11, 0.1);
+    segs.q.push_back(shooting_states(*map, truth, z_true.col(k), h).topRows(d));
+    segs.h.push_back(h);
+    segs.block.push_back(k % 4);
+  }
+  // Start states from a disturbed guess, θ known.
+  Matrix z0 = z_true + 0.05 * rng.normal_matrix(2 * d, count, 1.0);
+  EXPECT_LT(fit_start_states(*map, truth, segs, z0), 1e-20);
+  EXPECT_LE((z0 - z_true).norm(), 1e-7 * z_true.norm());
+  // Jointly from perturbed parameters; three segments held out.
+  ShootingSegments train = segs, val;
+  val.d = d;
+  for (int k = 0; k < 3; ++k) {
+    val.q.push_back(train.q.back());
+    val.h.push_back(train.h.back());
+    val.block.push_back(0);
+    train.q.pop_back();
+    train.h.pop_back();
+    train.block.pop_back();
+  }
+  Vector theta = truth + 0.01 * rng.normal_matrix(truth.size(), 1, 1.0);
+  Matrix zt = z_true.leftCols(count - 3) + 0.01 * rng.normal_matrix(2 * d, count - 3, 1.0);
+  Matrix zv = z_true.rightCols(3).rowwise().reverse();  // any start: refitted first
+  const double before = shooting_loss(*map, theta, zt, train);
+  ShootingOptions opt;
+  opt.iterations = 60;
+  const ShootingReport rep = fit_shooting(*map, theta, zt, train, zv, val, opt);
+  EXPECT_LT(rep.final_loss, 1e-6 * before) << rep.message;
+  EXPECT_LT(rep.val_loss, 1e-6 * before) << rep.message;
+  EXPECT_LE(rep.best_iteration, rep.iterations);
+}
+
+// A rollout from positions alone: the state at the window's end, from positions the map made,
+// is the state the map reached (from far starts: p of the wrong size and sign).
+TEST_P(ShootingTest, StateFromPositionsIsTheStateReached) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2;
+  Rng rng(34, GetParam());
+  const Vector theta = random_theta(*map, rng, 0.3, 0.3);
+  for (int rep = 0; rep < 3; ++rep) {
+    Vector z = rng.normal_matrix(2 * d, 1, 0.6);
+    z.tail(d) *= 3.0 * (rep - 1);
+    Vector t(8);
+    t(0) = rng.uniform(-1.0, 1.0);
+    for (Index k = 1; k < t.size(); ++k) t(k) = t(k - 1) + rng.uniform(0.05, 0.15);
+    const Matrix states = shooting_states(*map, theta, z, t.tail(7) - t.head(7));
+    double rms = 1.0;
+    const Vector end = state_from_positions(*map, theta, states.topRows(d), t, &rms);
+    EXPECT_LT(rms, 1e-10);
+    EXPECT_LE((end - states.col(7)).norm(), 1e-7 * (1.0 + states.col(7).norm()))
+        << end.transpose() << " vs " << states.col(7).transpose();
+  }
+  EXPECT_THROW(state_from_positions(*map, theta, Matrix::Zero(d, 1), Vector::Zero(1)), Error);
+  EXPECT_THROW(
+      state_from_positions(*map, theta, Matrix::Zero(d + 1, 3), Vector::LinSpaced(3, 0, 1)), Error);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Maps, ShootingTest,
+    ::testing::Values(
+        R"({"type":"csympnet","d":1,"core":{"type":"la","layers":3,"sublayers":4}})",
+        R"({"type":"csympnet","d":2,"core":{"type":"g","layers":3,"width":5}})",
+        R"({"type":"csympnet","d":2,"dof_scales":"learned","core":{"type":"la","layers":2,"sublayers":3}})"));
+
+TEST(Shooting, RefusesMalformedSegments) {
+  ShootingSegments s;
+  s.d = 1;
+  s.q = {Matrix::Zero(1, 1)};  // one position: no step
+  s.h = {Vector(0)};
+  s.block = {0};
+  EXPECT_THROW(s.validate(), Error);
+  s.q = {Matrix::Zero(1, 3)};
+  s.h = {Vector::Constant(2, -0.1)};
+  EXPECT_THROW(s.validate(), Error);
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -362,7 +362,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   fit_start_states(map, theta, val.segs, val.z0, 30, true, kMaxAbsState);
   if (hooks.stage) hooks.stage("hidden momenta: positions-only Levenberg-Marquardt");
   ShootingOptions opt;
-  opt.iterations = std::min<long>(r.config.lm_iterations, 200);
+  opt.iterations = std::min<long>(r.config.lm_iterations, 100);
   opt.patience = 20;
   opt.n_free = n_free;
   opt.max_abs_state = kMaxAbsState;

@@ -367,7 +367,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
   const double n_val = static_cast<double>(std::max<Index>(1, val.n_residuals()));
   const auto standard_error = [n_val](double loss) { return loss * std::sqrt(2.0 / n_val); };
   double best_val = kept.back().val;
-  double lambda = 1e-4;
+  double lambda = 1e-4, nu = 2.0;
   long since_best = 0, small_steps = 0;
   std::vector<SegmentTerms> terms;
   NormalEquations ne;
@@ -407,41 +407,55 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     Vector theta_try = theta;
     theta_try.head(n_free) += step;
     Matrix z0_try = z0;
+    // The decrease the Gauss–Newton model predicts for the joint step δ = (δθ, δz):
+    // with (JᵀJ + λD) δ = −g it is ½ (λ δᵀDδ − gᵀδ), in the cost ½ scale² ‖r‖².
+    double predicted =
+        -ne.g.dot(step) + lambda * step.dot(marquardt_diagonal(ne.a).cwiseProduct(step));
     for (Index s = 0; s < train.size(); ++s) {
       const SegmentTerms& x = terms[static_cast<std::size_t>(s)];
       Matrix u = x.u;
-      u.diagonal() += lambda * marquardt_diagonal(x.u);
-      z0_try.col(s) -= small_factor(u).solve(x.gb + x.w.transpose() * step);
+      const Vector du = marquardt_diagonal(x.u);
+      u.diagonal() += lambda * du;
+      const Vector dz = -small_factor(u).solve(x.gb + x.w.transpose() * step);
+      z0_try.col(s) += dz;
+      predicted += -x.gb.dot(dz) + lambda * dz.dot(du.cwiseProduct(dz));
     }
+    predicted *= 0.5;
     const double loss_try = z0_try.cwiseAbs().maxCoeff() <= options.max_abs_state
                                 ? shooting_loss(map, theta_try, z0_try, train)
                                 : std::numeric_limits<double>::infinity();
+    // Nielsen's update of λ from the gain ratio ρ (actual over predicted decrease; the loss is
+    // twice the cost).
+    const double rho = predicted > 0.0 ? 0.5 * (loss - loss_try) / predicted : -1.0;
     if (!(std::isfinite(loss_try) && loss_try < loss)) {
-      lambda *= 4.0;
+      lambda *= nu;
+      nu *= 2.0;
       if (lambda > 1e10) {
         rep.message = "no step lowers the loss (damping above 1e10)";
         break;
       }
       continue;
     }
+    nu = 2.0;
     ++rep.accepted;
     small_steps = (loss - loss_try) <= 1e-10 * loss ? small_steps + 1 : 0;
     theta = std::move(theta_try);
     z0 = std::move(z0_try);
     loss = loss_try;
     fresh = false;
-    lambda = std::max(lambda / 3.0, 1e-10);
+    lambda = std::max(
+        lambda * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * std::min(rho, 1.0) - 1.0, 3)), 1e-10);
     const double v = val_loss(theta, val_z0);
     if (options.on_accepted) options.on_accepted(it, loss, v);
     kept.push_back({it, theta, z0, val_z0, v});
-    // Patience counts steps without a lower held-out loss: beyond the noise floor, further
-    // steps move the core along directions the positions barely fix (the interval's
-    // regularisation check measured them growing with the iterations).
-    if (v < best_val) {
-      best_val = v;
+    // Patience counts steps whose held-out loss is above the lowest by more than its standard
+    // error (below): at the noise floor the fit goes on converging.
+    if (v < best_val) best_val = v;
+    if (v <= best_val + standard_error(best_val)) {
       since_best = 0;
     } else if (++since_best >= options.patience) {
-      rep.message = "no lower held-out loss for " + std::to_string(options.patience) + " steps";
+      rep.message = "the held-out loss stayed more than its standard error above the lowest for " +
+                    std::to_string(options.patience) + " steps";
       break;
     }
     if (small_steps >= 3) {

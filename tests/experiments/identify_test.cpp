@@ -175,6 +175,36 @@ TEST(Identify, IntervalCoversAtAboutItsLevel) {
   EXPECT_GE(ratio_covered, 52);
 }
 
+// Positions alone (identify_positions: the momenta hidden states): 30 independent records of
+// 300 positions (σ = 1e-2, about 31 samples per period), the momenta rows dropped. A 95%
+// interval misses about 1.5 of them; 30 draws give 0.95 ± 0.040 (one sd).
+TEST(Identify, PositionsAloneIntervalCoversAtAboutItsLevel) {
+  IdentifyConfig c = small_budget();
+  int covered = 0, identified = 0;
+  const int n = 30;
+  const double gamma = 0.1;
+  std::vector<double> z;
+  for (int s = 0; s < n; ++s) {
+    std::vector<Trajectory> data = chain_data(1, gamma, 1, 300, 1e-2, 700 + s);
+    for (Trajectory& t : data) t.z = Matrix(t.z.topRows(1));
+    const IdentifyResult r = identify_positions(data, c);
+    EXPECT_EQ(r.observed, "positions");
+    if (!r.interval) continue;
+    covered += r.interval->low <= gamma && gamma <= r.interval->high;
+    identified += r.identified;
+    z.push_back((r.gamma - gamma) / r.interval->std_error);
+  }
+  double mean = 0.0, sq = 0.0;
+  for (double v : z) mean += v / static_cast<double>(z.size());
+  for (double v : z) sq += (v - mean) * (v - mean) / static_cast<double>(z.size() - 1);
+  std::cout << "  positions alone: coverage " << covered << " / " << n << ", identified "
+            << identified << ", standardised errors mean " << mean << ", sd " << std::sqrt(sq)
+            << "\n";
+  EXPECT_EQ(z.size(), static_cast<std::size_t>(n));
+  EXPECT_GE(covered, 25);  // ≥ 0.833: more than 2.9 sd below 0.95 fails
+  EXPECT_GE(identified, 25);
+}
+
 }  // namespace
 }  // namespace csympnet
 

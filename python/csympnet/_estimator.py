@@ -243,6 +243,13 @@ class CSympNetID:
         taken as fit takes them, except that without times the step is dt_, the step fitted
         (as in predict). 1 is perfect; predicting no change at all scores about 0. It is `model_.score(...)["one_step_r2"]`; Model.score also gives rollout errors."""
         self._check_fitted()
+        if getattr(self, "observed", "states") == "positions" and x_next is None and \
+                np.ndim(x) >= 1 and np.shape(x)[-1] != self.n_features_in_:
+            raise ValueError(
+                f"x: score takes states (q, p), {self.n_features_in_} columns; this estimator "
+                "was fitted on positions alone, whose momenta are hidden: get a state from a "
+                "window of positions with model_.state_from_positions(q, t), or compare "
+                "simulate() with your positions")
         if x_next is not None:
             z0, _ = _checks.states("x", x, dim=self.n_features_in_, allow_single=False)
             z1, _ = _checks.states("x_next", x_next, dim=self.n_features_in_, allow_single=False)

@@ -135,6 +135,8 @@ def test_positions_alone_one_answer_in_python_the_estimator_and_the_cli(tmp_path
     assert low < 0.1 < high
     est = csympnet.CSympNetID(observed="positions", **SMALL).fit(q[:, None], t)
     assert est.gamma_ == r.gamma and est.gamma_interval_ == r.interval
+    with pytest.raises(ValueError, match="state_from_positions"):
+        est.score(q[:, None], t)
     path = tmp_path / "positions.csv"
     path.write_text("t,q1\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(t, q)))
     out = tmp_path / "fit"

@@ -268,11 +268,12 @@ struct SmallFit {
   std::string printed;
   nlohmann::json report;
 };
-SmallFit small_fit(const std::vector<Trajectory>& rec) {
+// `csympnet fit` on a CSV of this text.
+SmallFit small_fit_text(const std::string& text) {
   testing::TempDir dir;
   const fs::path data = dir.path() / "record.csv", out = dir.path() / "fit";
   const fs::path stdout_file = dir.path() / "stdout.txt";
-  write_trajectories_csv(data.string(), rec);
+  write_text_atomic(data.string(), text);
   SmallFit f;
   f.code = shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
                  out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
@@ -280,6 +281,9 @@ SmallFit small_fit(const std::vector<Trajectory>& rec) {
   f.printed = slurp(stdout_file);
   if (fs::exists(out / "report.json")) f.report = nlohmann::json::parse(slurp(out / "report.json"));
   return f;
+}
+SmallFit small_fit(const std::vector<Trajectory>& rec) {
+  return small_fit_text(trajectories_csv_text(rec));
 }
 
 // Growing motion: not "no damping" but the model rejected, named as growth, with a rate whose
@@ -310,20 +314,10 @@ TEST(FitCli, GrowingMotionIsRejectedAndNamedWithItsRate) {
 
 // The record's positions alone, as a positions file '[traj,]t,q1..qd'.
 SmallFit small_fit_positions(const std::vector<Trajectory>& rec) {
-  testing::TempDir dir;
-  const fs::path data = dir.path() / "positions.csv", out = dir.path() / "fit";
-  const fs::path stdout_file = dir.path() / "stdout.txt";
   std::string text = "t,q1\n";
   for (Index k = 0; k < rec.front().t.size(); ++k)
     text += round_trip_text(rec.front().t(k)) + "," + round_trip_text(rec.front().z(0, k)) + "\n";
-  write_text_atomic(data.string(), text);
-  SmallFit f;
-  f.code = shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " +
-                 out.string() + " --core la:2:4 --epochs 300 --lm-iterations 40 -q > " +
-                 stdout_file.string() + " 2>&1");
-  f.printed = slurp(stdout_file);
-  if (fs::exists(out / "report.json")) f.report = nlohmann::json::parse(slurp(out / "report.json"));
-  return f;
+  return small_fit_text(text);
 }
 
 // Positions alone are fitted with the momenta as hidden states: identified, an interval that

@@ -36,6 +36,16 @@ ShootingSegments random_segments(Index d, int count, Rng& rng, Matrix& z0) {
   return s;
 }
 
+// Segment i of segs alone.
+ShootingSegments one_segment(const ShootingSegments& segs, std::size_t i) {
+  ShootingSegments one;
+  one.d = segs.d;
+  one.q = {segs.q[i]};
+  one.h = {segs.h[i]};
+  one.block = {0};
+  return one;
+}
+
 class ShootingTest : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(ShootingTest, SegmentJacobiansMatchFiniteDifferences) {
@@ -49,12 +59,8 @@ TEST_P(ShootingTest, SegmentJacobiansMatchFiniteDifferences) {
     for (Index s = 0; s < segs.size(); ++s) {
       const auto i = static_cast<std::size_t>(s);
       const Vector start = z0.col(s);
+      const ShootingSegments one = one_segment(segs, i);
       const auto r_theta = [&](const Vector& th) {
-        ShootingSegments one;
-        one.d = d;
-        one.q = {segs.q[i]};
-        one.h = {segs.h[i]};
-        one.block = {0};
         return shooting_residuals(*map, th, start, one);
       };
       const auto a_of = [&](const Vector& th) -> Matrix {
@@ -66,14 +72,7 @@ TEST_P(ShootingTest, SegmentJacobiansMatchFiniteDifferences) {
       };
       const auto c1 = check_jacobian(r_theta, a_of, theta);
       EXPECT_TRUE(c1.ok()) << c1.report("shooting: dr/dtheta");
-      const auto r_z = [&](const Vector& z) {
-        ShootingSegments one;
-        one.d = d;
-        one.q = {segs.q[i]};
-        one.h = {segs.h[i]};
-        one.block = {0};
-        return shooting_residuals(*map, theta, z, one);
-      };
+      const auto r_z = [&](const Vector& z) { return shooting_residuals(*map, theta, z, one); };
       const auto b_of = [&](const Vector& z) -> Matrix {
         RowMajorMatrix a;
         Matrix b;

@@ -312,6 +312,51 @@ std::string fmt(double v) {
   return s.str();
 }
 
+// γ̂'s interval (and the modes') from the training segments' normal equations with the start
+// states eliminated: the sandwich of interval(), with the degrees-of-freedom correction for the
+// hidden unknowns and the held-out inflation; r.stopped on an interrupt.
+void positions_interval(const OneStepMap& map, const Cut& train, const detail::BlockSplit& split,
+                        Index n_free, const IdentifyHooks& hooks, IdentifyResult& r) {
+  if (hooks.stage) hooks.stage("interval");
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  const Index d = train.segs.d, p = map.n_params();
+  const Vector& theta = r.theta;
+  const double tau = r.normalization.time_scale;
+  const double gamma_n = map.damping_rate(theta).value_or(0.0);
+  const Index n_res = train.segs.n_residuals();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  NormalEquations ne =
+      shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, true, stop);
+  if (ne.stopped) {
+    r.stopped = true;
+    return;
+  }
+  // The residuals have also fitted 2d unknowns per segment: their spread understates the
+  // noise by that many degrees of freedom (docs/derivations.md, "Positions only").
+  const double hidden = static_cast<double>(2 * d * train.segs.size());
+  const double dof_factor =
+      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
+  ne.scores *= dof_factor;
+  const Index bi = *map.damping_param_index();
+  SandwichInterval s =
+      sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0, n_res,
+                        ne.cost, scale, largest_abs(split.blocks), r.config.level);
+  const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
+                           ? r.quality.val_loss / r.quality.train_loss
+                           : 1.0;
+  const double inflation = std::sqrt(std::max(1.0, ratio));
+  inflate_interval(s, inflation);
+  for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
+                    &s.optimisation, &s.rounding})
+    *v /= tau;
+  s.method += " over hidden start states (positions only)";
+  r.interval = s;
+  r.choices["positions"]["degrees_of_freedom_factor"] = dof_factor;
+  const NormalEquations all = embedded(ne, p);
+  detail::modal_analysis(map, split.train,
+                         {&all, n_res, scale, largest_abs(split.blocks), inflation, stop}, r);
+}
+
 }  // namespace
 
 namespace detail {
@@ -393,41 +438,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   for (const auto& t : split.train_blocks) split.blocks.push_back(t);
   for (const auto& t : split.val_blocks) split.blocks.push_back(t);
 
-  if (!r.stopped) {
-    if (hooks.stage) hooks.stage("interval");
-    const Index n_res = train.segs.n_residuals();
-    const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-    NormalEquations ne =
-        shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, true, stop);
-    if (ne.stopped) {
-      r.stopped = true;
-    } else {
-      // The residuals have also fitted 2d unknowns per segment: their spread understates the
-      // noise by that many degrees of freedom (docs/derivations.md, "Positions only").
-      const double hidden = static_cast<double>(2 * d * train.segs.size());
-      const double dof_factor = std::sqrt(static_cast<double>(n_res) /
-                                          std::max(1.0, static_cast<double>(n_res) - hidden));
-      ne.scores *= dof_factor;
-      const Index bi = *map.damping_param_index();
-      SandwichInterval s =
-          sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0,
-                            n_res, ne.cost, scale, largest_abs(split.blocks), r.config.level);
-      const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
-                               ? r.quality.val_loss / r.quality.train_loss
-                               : 1.0;
-      const double inflation = std::sqrt(std::max(1.0, ratio));
-      inflate_interval(s, inflation);
-      for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
-                        &s.optimisation, &s.rounding})
-        *v /= tau;
-      s.method += " over hidden start states (positions only)";
-      r.interval = s;
-      rec["degrees_of_freedom_factor"] = dof_factor;
-      const NormalEquations all = embedded(ne, p);
-      modal_analysis(map, split.train,
-                     {&all, n_res, scale, largest_abs(split.blocks), inflation, stop}, r);
-    }
-  }
+  if (!r.stopped) positions_interval(map, train, split, n_free, hooks, r);
   measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
   rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
 

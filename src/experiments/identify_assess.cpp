@@ -25,14 +25,13 @@ std::string fmt(double v) {
   return s.str();
 }
 
-// The largest absolute normalised coordinate: the data's scale for the interval's rounding term.
+}  // namespace
+
 double data_scale(const std::vector<Trajectory>& nt) {
   double s = 0.0;
   for (const Trajectory& t : nt) s = std::max(s, t.z.cwiseAbs().maxCoeff());
   return s;
 }
-
-}  // namespace
 
 void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<Trajectory>& nt,
               const IdentifyHooks& hooks, const Communicator& comm, IdentifyResult& r) {

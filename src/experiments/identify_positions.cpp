@@ -299,12 +299,6 @@ NormalEquations embedded(const NormalEquations& ne, Index p) {
   return out;
 }
 
-double largest_abs(const std::vector<Trajectory>& blocks) {
-  double s = 0.0;
-  for (const Trajectory& t : blocks) s = std::max(s, t.z.cwiseAbs().maxCoeff());
-  return s;
-}
-
 std::string fmt(double v) {
   std::ostringstream s;
   s.precision(4);
@@ -340,7 +334,7 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
   const Index bi = *map.damping_param_index();
   SandwichInterval s =
       sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0, n_res,
-                        ne.cost, scale, largest_abs(split.blocks), r.config.level);
+                        ne.cost, scale, detail::data_scale(split.blocks), r.config.level);
   const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
                            ? r.quality.val_loss / r.quality.train_loss
                            : 1.0;
@@ -353,8 +347,8 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
   r.interval = s;
   r.choices["positions"]["degrees_of_freedom_factor"] = dof_factor;
   const NormalEquations all = embedded(ne, p);
-  detail::modal_analysis(map, split.train,
-                         {&all, n_res, scale, largest_abs(split.blocks), inflation, stop}, r);
+  detail::modal_analysis(
+      map, split.train, {&all, n_res, scale, detail::data_scale(split.blocks), inflation, stop}, r);
 }
 
 }  // namespace

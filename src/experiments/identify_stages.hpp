@@ -119,6 +119,9 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
 void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
                    const IdentifyConfig& given, IdentifyResult& r);
 
+// The largest absolute normalised coordinate: the data's scale for the interval's rounding term.
+double data_scale(const std::vector<Trajectory>& nt);
+
 // What the modes' intervals share with γ̂'s.
 struct ModeIntervalInput {
   const NormalEquations* ne = nullptr;  // null: the modes without intervals

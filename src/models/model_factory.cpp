@@ -14,9 +14,11 @@
 // user's units (NormalizedMap) around the same parameters, and "dof_scales": "learned" (data
 // with velocities: DofScaledMap, d − 1 parameters after the others).
 //
-// where CORE is {"type": "la", "layers": L, "sublayers": M} or {"type": "g", "layers": L,
-// "width": W} (a "d" inside CORE is allowed if it equals the outer d). Unknown keys are
-// rejected so that a misspelt option fails loudly instead of silently taking its default.
+// where CORE is {"type": "la", "layers": L, "sublayers": M}, {"type": "g", "layers": L,
+// "width": W}, or, for "csympnet" only, {"type": "library", "terms": [...], "order": 4,
+// "substeps": N, "mass": "full"} (the Hamiltonian-library map, hamiltonian_library.hpp) (a "d"
+// inside CORE is allowed if it equals the outer d). Unknown keys are rejected so that a misspelt
+// option fails loudly instead of silently taking its default.
 #include <string>
 
 #include "csympnet/core/error.hpp"
@@ -25,6 +27,7 @@
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet_id.hpp"
 #include "g_sympnet.hpp"
+#include "hamiltonian_library.hpp"
 #include "la_sympnet.hpp"
 #include "map_baseline.hpp"
 #include "spec_reading.hpp"
@@ -39,7 +42,39 @@ using namespace specs;
 
 constexpr const char* kValidTypes =
     "csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2, or a bare core la, g";
-constexpr const char* kValidCoreTypes = "la, g";
+constexpr const char* kValidCoreTypes = "la, g (and library inside a csympnet spec)";
+
+// {"type": "library", "terms": [...], "order": 4, "substeps": n, "mass": "full"|"diagonal"}
+// inside a "csympnet" spec: the Hamiltonian-library map (hamiltonian_library.hpp).
+std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double beta_init,
+                                             const std::string& where) {
+  reject_unknown_keys(spec, where, {"type", "d", "terms", "order", "substeps", "mass"});
+  require(spec.contains("terms") && spec.at("terms").is_array() && !spec.at("terms").empty(), [&] {
+    return where + ": key 'terms' must be a non-empty list of term names, e.g. " +
+           "[\"q1^2\", \"q1^4\"] (csympnet fit --core library selects them)";
+  });
+  std::vector<LibraryTerm> terms;
+  for (const json& name : spec.at("terms")) {
+    require(name.is_string(),
+            [&] { return where + ".terms: expected strings, got " + name.dump(); });
+    terms.push_back(parse_term(name.get<std::string>(), d, where + ".terms"));
+  }
+  const Index order = spec.contains("order") ? get_count(spec, "order", where) : 4;
+  const Index substeps = spec.contains("substeps") ? get_count(spec, "substeps", where) : 1;
+  std::string mass = "full";
+  if (spec.contains("mass")) {
+    require(spec.at("mass") == "full" || spec.at("mass") == "diagonal", [&] {
+      return where + ": key 'mass' = " + spec.at("mass").dump() +
+             ", expected \"full\" or \"diagonal\"";
+    });
+    mass = spec.at("mass").get<std::string>();
+  }
+  require(order == 2 || order == 4 || order == 6, [&] {
+    return where + ": key 'order' = " + std::to_string(order) + ", expected 2, 4 or 6";
+  });
+  return std::make_unique<HamiltonianLibraryMap>(d, std::move(terms), static_cast<int>(order),
+                                                 substeps, mass == "full", beta_init);
+}
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.
 std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::string& where) {
@@ -99,6 +134,16 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
       reject_unknown_keys(spec, where, {"type", "d", "core"});
     }
     const Index d = get_count(spec, "d", where);
+    if (conformal && spec.contains("core") && spec.at("core").is_object() &&
+        spec.at("core").value("type", "") == "library") {
+      if (spec.at("core").contains("d"))
+        require(spec.at("core").at("d") == d, [&] {
+          return where + ".core: key 'd' disagrees with the model's d = " + std::to_string(d);
+        });
+      return make_library_map(spec.at("core"), d,
+                              get_beta_init(spec, where, CSympNetId::kDefaultBetaInit),
+                              where + ".core");
+    }
     require(spec.contains("core"), [&] {
       return where + ": missing key 'core' (expected e.g. {\"type\": " +
              "\"la\", \"layers\": 5, \"sublayers\": 20})";

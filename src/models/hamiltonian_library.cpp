@@ -1,0 +1,332 @@
+#include "hamiltonian_library.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "csympnet/core/error.hpp"
+#include "shape_checks.hpp"
+
+namespace csympnet {
+
+namespace {
+
+// Yoshida's triple jump applied to a symmetric method of order 2k gives one of order 2k + 2:
+// stages x1, x0, x1 with x1 = 1/(2 − 2^{1/(2k+1)}), x0 = 1 − 2 x1.
+std::vector<double> composition_weights(int order) {
+  std::vector<double> w = {1.0};
+  for (int k = 1; 2 * k < order; ++k) {
+    const double x1 = 1.0 / (2.0 - std::pow(2.0, 1.0 / (2.0 * k + 1.0)));
+    const double x0 = 1.0 - 2.0 * x1;
+    std::vector<double> next;
+    for (double x : {x1, x0, x1})
+      for (double b : w) next.push_back(x * b);
+    w = std::move(next);
+  }
+  return w;
+}
+
+double abs_derivative(double beta) {
+  if (beta > 0.0) return 1.0;
+  if (beta < 0.0) return -1.0;
+  return 0.0;
+}
+
+}  // namespace
+
+HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order,
+                                             Index substeps, bool full_mass, double beta_init)
+    : d_(d),
+      terms_(std::move(terms)),
+      order_(order),
+      substeps_(substeps),
+      full_mass_(full_mass),
+      beta_init_(beta_init) {
+  require(d >= 1, "hamiltonian library: d must be >= 1");
+  require(!terms_.empty(), "hamiltonian library: at least one term is needed");
+  require(order == 2 || order == 4 || order == 6, [&] {
+    return "hamiltonian library: order " + std::to_string(order) + ", expected 2, 4 or 6";
+  });
+  require(substeps >= 1, "hamiltonian library: substeps must be >= 1");
+  require(std::isfinite(beta_init) && beta_init != 0.0,
+          "hamiltonian library: beta_init must be finite and nonzero");
+  Index next = mass_size() + static_cast<Index>(terms_.size());
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const LibraryTerm& t = terms_[k];
+    require(t.i >= 0 && t.i < d && t.j < d && t.j != t.i, [&] {
+      return "hamiltonian library: term " + std::to_string(k) + " has a coordinate out of range";
+    });
+    for (std::size_t l = 0; l < k; ++l)
+      require(!(terms_[l] == t),
+              [&] { return "hamiltonian library: term '" + term_name(t) + "' appears twice"; });
+    kappa_index_.push_back(t.has_wavenumber() ? next++ : -1);
+  }
+  beta_index_ = next;
+  weights_ = composition_weights(order);
+}
+
+void HamiltonianLibraryMap::init_params(Rng& /*rng*/, ParamsRef theta) const {
+  require(theta.size() == n_params(), "hamiltonian library: init_params: wrong size");
+  theta.setZero();
+  for (Index i = 0; i < d_; ++i) theta(full_mass_ ? i * (i + 1) / 2 + i : i) = 1.0;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const LibraryTerm& t = terms_[k];
+    const Index ki = static_cast<Index>(k);
+    if (t.shape == TermShape::kPower && t.j < 0 && t.power == 2) theta(coefficient_index(ki)) = 0.5;
+    if (t.has_wavenumber()) theta(wavenumber_index(ki)) = t.kappa_sign;
+  }
+  theta(beta_index_) = beta_init_;
+}
+
+Matrix HamiltonianLibraryMap::inverse_mass(ConstParams theta) const {
+  Matrix w = Matrix::Zero(d_, d_);
+  for (Index r = 0; r < d_; ++r) {
+    if (!full_mass_) {
+      w(r, r) = theta(r);
+      continue;
+    }
+    for (Index c = 0; c <= r; ++c) w(r, c) = w(c, r) = theta(r * (r + 1) / 2 + c);
+  }
+  return w;
+}
+
+void HamiltonianLibraryMap::mass_times(ConstParams theta, const double* x, double* out) const {
+  if (!full_mass_) {
+    for (Index r = 0; r < d_; ++r) out[r] = theta(r) * x[r];
+    return;
+  }
+  for (Index r = 0; r < d_; ++r) out[r] = 0.0;
+  for (Index r = 0; r < d_; ++r)
+    for (Index c = 0; c <= r; ++c) {
+      const double w = theta(r * (r + 1) / 2 + c);
+      out[r] += w * x[c];
+      if (c != r) out[c] += w * x[r];
+    }
+}
+
+double HamiltonianLibraryMap::potential(ConstParams theta, const double* q) const {
+  double v = 0.0;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const LibraryTerm& t = terms_[k];
+    const Index ki = static_cast<Index>(k);
+    const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
+    v += theta(coefficient_index(ki)) * term_values(t, term_argument(t, q), kappa).phi;
+  }
+  return v;
+}
+
+void HamiltonianLibraryMap::gradient(ConstParams theta, const double* q, double* g) const {
+  for (Index r = 0; r < d_; ++r) g[r] = 0.0;
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const LibraryTerm& t = terms_[k];
+    const Index ki = static_cast<Index>(k);
+    const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
+    const double f = theta(coefficient_index(ki)) * term_values(t, term_argument(t, q), kappa).d1;
+    g[t.i] += f;
+    if (t.j >= 0) g[t.j] -= f;
+  }
+}
+
+void HamiltonianLibraryMap::hessian_times(ConstParams theta, const double* q, const double* v,
+                                          double* out) const {
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const LibraryTerm& t = terms_[k];
+    const Index ki = static_cast<Index>(k);
+    const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
+    const double ev = t.j < 0 ? v[t.i] : v[t.i] - v[t.j];
+    const double f =
+        theta(coefficient_index(ki)) * term_values(t, term_argument(t, q), kappa).d2 * ev;
+    out[t.i] += f;
+    if (t.j >= 0) out[t.j] -= f;
+  }
+}
+
+void HamiltonianLibraryMap::add_gradient_params(ConstParams theta, const double* q, const double* v,
+                                                double s, ParamsRef grad) const {
+  for (std::size_t k = 0; k < terms_.size(); ++k) {
+    const LibraryTerm& t = terms_[k];
+    const Index ki = static_cast<Index>(k);
+    const double ev = t.j < 0 ? v[t.i] : v[t.i] - v[t.j];
+    if (ev == 0.0) continue;
+    const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
+    const TermValues tv = term_values(t, term_argument(t, q), kappa);
+    grad(coefficient_index(ki)) += s * tv.d1 * ev;
+    if (t.has_wavenumber())
+      grad(wavenumber_index(ki)) += s * theta(coefficient_index(ki)) * tv.d1_kappa * ev;
+  }
+}
+
+std::optional<double> HamiltonianLibraryMap::damping_rate(ConstParams theta) const {
+  return std::abs(theta(beta_index_));
+}
+
+Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const Vector& h,
+                                      ForwardCache* cache) const {
+  check_forward_args(*this, theta, Z, h);
+  const Index n = Z.cols(), d = d_, stages = stages_per_step();
+  const double gamma = std::abs(theta(beta_index_));
+  Context* ctx = nullptr;
+  if (cache != nullptr) {
+    ctx = &cache->make_context<Context>();
+    ctx->h = h;
+    ctx->states.resize(static_cast<std::size_t>(n * (stages + 1) * 3 * d));
+  }
+  Matrix out(2 * d, n);
+  std::vector<double> q(d), p(d), g(d), wp(d);
+  const Index nw = static_cast<Index>(weights_.size());
+  for (Index col = 0; col < n; ++col) {
+    for (Index r = 0; r < d; ++r) {
+      q[r] = Z(r, col);
+      p[r] = Z(d + r, col);
+    }
+    gradient(theta, q.data(), g.data());
+    double* rec = ctx != nullptr ? ctx->states.data() + col * (stages + 1) * 3 * d : nullptr;
+    for (Index s = 0; s <= stages; ++s) {
+      if (rec != nullptr) {
+        std::copy(q.begin(), q.end(), rec + s * 3 * d);
+        std::copy(p.begin(), p.end(), rec + s * 3 * d + d);
+        std::copy(g.begin(), g.end(), rec + s * 3 * d + 2 * d);
+      }
+      if (s == stages) break;
+      const double tau =
+          weights_[static_cast<std::size_t>(s % nw)] * h(col) / static_cast<double>(substeps_);
+      const double a = std::exp(-0.5 * gamma * tau);
+      for (Index r = 0; r < d; ++r) p[r] = a * p[r] - 0.5 * tau * g[r];
+      mass_times(theta, p.data(), wp.data());
+      for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
+      gradient(theta, q.data(), g.data());
+      for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
+    }
+    for (Index r = 0; r < d; ++r) {
+      out(r, col) = q[r];
+      out(d + r, col) = p[r];
+    }
+  }
+  return out;
+}
+
+void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cache,
+                                     const Matrix& dZout, ParamsRef grad, Matrix* dZin) const {
+  const Context& ctx = cache.context<Context>("hamiltonian library backward");
+  const Index n = ctx.h.size(), d = d_, stages = stages_per_step();
+  check_backward_args(*this, theta, n, dZout, grad);
+  const double beta = theta(beta_index_), gamma = std::abs(beta);
+  if (dZin != nullptr) dZin->resize(dim(), n);
+  std::vector<double> qb(d), pb(d), p2(d), wq(d), tmp(d);
+  const Index nw = static_cast<Index>(weights_.size());
+  double gamma_bar = 0.0;
+  for (Index col = 0; col < n; ++col) {
+    for (Index r = 0; r < d; ++r) {
+      qb[r] = dZout(r, col);
+      pb[r] = dZout(d + r, col);
+    }
+    const double* rec = ctx.states.data() + col * (stages + 1) * 3 * d;
+    for (Index s = stages - 1; s >= 0; --s) {
+      const double* q0 = rec + s * 3 * d;
+      const double* p0 = q0 + d;
+      const double* g0 = q0 + 2 * d;
+      const double* q1 = rec + (s + 1) * 3 * d;
+      const double* g1 = q1 + 2 * d;
+      const double tau =
+          weights_[static_cast<std::size_t>(s % nw)] * ctx.h(col) / static_cast<double>(substeps_);
+      const double a = std::exp(-0.5 * gamma * tau);
+      // p2 = a p0 − (τ/2) g0, p3 = p2 − (τ/2) g1, output p4 = a p3.
+      double a_bar = 0.0;
+      for (Index r = 0; r < d; ++r) {
+        p2[r] = a * p0[r] - 0.5 * tau * g0[r];
+        a_bar += pb[r] * (p2[r] - 0.5 * tau * g1[r]);
+        pb[r] *= a;  // now p̄3 = p̄2
+      }
+      // p3 = p2 − (τ/2)∇V(q1).
+      add_gradient_params(theta, q1, pb.data(), -0.5 * tau, grad);
+      for (Index r = 0; r < d; ++r) tmp[r] = 0.0;
+      hessian_times(theta, q1, pb.data(), tmp.data());
+      for (Index r = 0; r < d; ++r) qb[r] -= 0.5 * tau * tmp[r];
+      // q1 = q0 + τ W p2.
+      mass_times(theta, qb.data(), wq.data());
+      for (Index r = 0; r < d; ++r) pb[r] += tau * wq[r];
+      if (full_mass_) {
+        for (Index r = 0; r < d; ++r)
+          for (Index c = 0; c <= r; ++c)
+            grad(r * (r + 1) / 2 + c) +=
+                tau * (c == r ? qb[r] * p2[r] : qb[r] * p2[c] + qb[c] * p2[r]);
+      } else {
+        for (Index r = 0; r < d; ++r) grad(r) += tau * qb[r] * p2[r];
+      }
+      // p2 = a p0 − (τ/2)∇V(q0).
+      add_gradient_params(theta, q0, pb.data(), -0.5 * tau, grad);
+      for (Index r = 0; r < d; ++r) tmp[r] = 0.0;
+      hessian_times(theta, q0, pb.data(), tmp.data());
+      for (Index r = 0; r < d; ++r) {
+        qb[r] -= 0.5 * tau * tmp[r];
+        a_bar += pb[r] * p0[r];
+        pb[r] *= a;
+      }
+      gamma_bar += a_bar * a * (-0.5 * tau);
+    }
+    if (dZin != nullptr)
+      for (Index r = 0; r < d; ++r) {
+        (*dZin)(r, col) = qb[r];
+        (*dZin)(d + r, col) = pb[r];
+      }
+  }
+  grad(beta_index_) += abs_derivative(beta) * gamma_bar;
+}
+
+Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, double h) const {
+  check_theta(*this, theta, "jacobian");
+  require(z.size() == dim(), "hamiltonian library jacobian: z has the wrong size");
+  const Index d = d_, stages = stages_per_step(), nw = static_cast<Index>(weights_.size());
+  const double gamma = std::abs(theta(beta_index_));
+  std::vector<double> q(z.data(), z.data() + d), p(z.data() + d, z.data() + 2 * d), g(d), wp(d);
+  Matrix tq = Matrix::Zero(d, 2 * d), tp = Matrix::Zero(d, 2 * d);
+  tq.leftCols(d).setIdentity();
+  tp.rightCols(d).setIdentity();
+  const Matrix w = inverse_mass(theta);
+  std::vector<double> col(d), hv(d);
+  const auto kick_tangent = [&](double step) {  // tp −= step H(q) tq
+    for (Index c = 0; c < 2 * d; ++c) {
+      for (Index r = 0; r < d; ++r) {
+        col[r] = tq(r, c);
+        hv[r] = 0.0;
+      }
+      hessian_times(theta, q.data(), col.data(), hv.data());
+      for (Index r = 0; r < d; ++r) tp(r, c) -= step * hv[r];
+    }
+  };
+  gradient(theta, q.data(), g.data());
+  for (Index s = 0; s < stages; ++s) {
+    const double tau =
+        weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
+    const double a = std::exp(-0.5 * gamma * tau);
+    tp *= a;
+    kick_tangent(0.5 * tau);
+    for (Index r = 0; r < d; ++r) p[r] = a * p[r] - 0.5 * tau * g[r];
+    tq += tau * w * tp;
+    mass_times(theta, p.data(), wp.data());
+    for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
+    gradient(theta, q.data(), g.data());
+    kick_tangent(0.5 * tau);
+    tp *= a;
+    for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
+  }
+  Matrix jac(2 * d, 2 * d);
+  jac.topRows(d) = tq;
+  jac.bottomRows(d) = tp;
+  return jac;
+}
+
+nlohmann::json HamiltonianLibraryMap::hyperparams() const {
+  nlohmann::json names = nlohmann::json::array();
+  for (const LibraryTerm& t : terms_) names.push_back(term_name(t));
+  return {{"type", "csympnet"},
+          {"d", d_},
+          {"core",
+           {{"type", "library"},
+            {"terms", names},
+            {"order", order_},
+            {"substeps", substeps_},
+            {"mass", full_mass_ ? "full" : "diagonal"}}},
+          {"beta_init", beta_init_}};
+}
+
+}  // namespace csympnet

@@ -1,0 +1,102 @@
+// The Hamiltonian-library map (docs/derivations.md, "The Hamiltonian-library core"): the
+// damped flow of
+//
+//   H(q, p) = ½ pᵀ W p + V(q),   V(q) = Σ_k c_k φ_k(q)   (terms: models/potential_library.hpp),
+//
+// W = M⁻¹ symmetric (or diagonal), advanced over a data step h by n substeps of a composition
+// of conformal Strang steps. One conformal Strang step of length τ:
+//
+//   p ← e^{−γτ/2} p;  p ← p − (τ/2)∇V(q);  q ← q + τ W p;  p ← p − (τ/2)∇V(q);  p ← e^{−γτ/2} p.
+//
+// Each part is exactly symplectic or an exact momentum scaling, so the step is conformally
+// symplectic with factor e^{−γτ}; it is symmetric and of second order for the damped flow. The
+// stages of a step take τ = b_s h / n with the weights b_s of Yoshida's triple jump (order 4:
+// three stages; order 6: nine), which sum to 1, so the map's factor is e^{−γh} exactly, at
+// every parameter value (negative weights give factors above 1 that the others cancel).
+//
+// Layout of θ: W (d(d+1)/2 entries of the lower triangle, row by row, for "full"; d for
+// "diagonal"), the coefficients c_k in term order, the wavenumbers κ of the terms that have
+// one in term order, and β last (γ̂ = |β|, as in CSympNet-ID).
+//
+// init_params draws nothing: W = I, c = ½ on each qI^2 and 0 elsewhere, κ = its term's
+// starting sign, β = beta_init.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/models/potential_library.hpp"
+
+namespace csympnet {
+
+class HamiltonianLibraryMap final : public OneStepMap {
+ public:
+  // Throws Error on d < 1, no terms, a term out of range or repeated, an order other than
+  // 2, 4, 6, substeps < 1, or a zero or non-finite beta_init.
+  HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order, Index substeps,
+                        bool full_mass, double beta_init);
+
+  std::string type() const override { return "csympnet"; }
+  Index dim() const override { return 2 * d_; }
+  Index n_params() const override { return beta_index_ + 1; }
+  void init_params(Rng& rng, ParamsRef theta) const override;
+
+  Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
+                 ForwardCache* cache) const override;
+  void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,
+                Matrix* dZin) const override;
+  Matrix jacobian(ConstParams theta, const Vector& z, double h) const override;
+  std::optional<double> damping_rate(ConstParams theta) const override;
+  std::optional<Index> damping_param_index() const override { return beta_index_; }
+  nlohmann::json hyperparams() const override;
+
+  Index d() const { return d_; }
+  const std::vector<LibraryTerm>& terms() const { return terms_; }
+  bool full_mass() const { return full_mass_; }
+  Index substeps() const { return substeps_; }
+  int order() const { return order_; }
+  // Offsets into θ.
+  Index mass_offset() const { return 0; }
+  Index mass_size() const { return full_mass_ ? d_ * (d_ + 1) / 2 : d_; }
+  Index coefficient_index(Index k) const { return mass_size() + k; }
+  // −1 for a term without a wavenumber.
+  Index wavenumber_index(Index k) const { return kappa_index_[static_cast<std::size_t>(k)]; }
+  // W = M⁻¹ from θ (d x d, symmetric).
+  Matrix inverse_mass(ConstParams theta) const;
+  // V(q) and ∇V(q) at θ.
+  double potential(ConstParams theta, const double* q) const;
+  // The stage weights b_s of one substep (they sum to 1).
+  const std::vector<double>& stage_weights() const { return weights_; }
+
+  struct Context final : ForwardContext {
+    const char* owner() const override { return "hamiltonian library"; }
+    Vector h;
+    // Per column, the state (q, p) and ∇V(q) at the start of every stage and at the end
+    // (stages + 1 records of 3d values each), column after column.
+    std::vector<double> states;
+  };
+
+ private:
+  void gradient(ConstParams theta, const double* q, double* g) const;
+  // out += H(q) v, H = ∇²V.
+  void hessian_times(ConstParams theta, const double* q, const double* v, double* out) const;
+  // grad(θ_V) += s · ∂(∇V(q)·v)/∂θ_V.
+  void add_gradient_params(ConstParams theta, const double* q, const double* v, double s,
+                           ParamsRef grad) const;
+  // W x into out.
+  void mass_times(ConstParams theta, const double* x, double* out) const;
+  Index stages_per_step() const { return substeps_ * static_cast<Index>(weights_.size()); }
+
+  Index d_;
+  std::vector<LibraryTerm> terms_;
+  int order_;
+  Index substeps_;
+  bool full_mass_;
+  double beta_init_;
+  std::vector<Index> kappa_index_;
+  Index beta_index_;
+  std::vector<double> weights_;
+};
+
+}  // namespace csympnet

@@ -59,8 +59,10 @@ void add_fit_options(CLI::App& cmd, FitArgs& a) {
   cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
       ->check(one_of(fit_model_names()));
   cmd.add_option("--core", a.core,
-                 "Symplectic core: la:L:m or g:L:w (default: fit chooses by validation between "
-                 "an LA and a G core; train takes one by dimension)")
+                 "Symplectic core: la:L:m, g:L:w, or library (fit only: a Hamiltonian from a "
+                 "library of terms, selected from the data). Default: fit tries the library "
+                 "core, then, unless it explains the data to the noise floor, an LA and a G "
+                 "core, and keeps the lowest validation loss; train takes one by dimension")
       ->check(kCoreSpec);
   // The ranges are the library's (core/options.hpp); here only the syntax is checked first.
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
@@ -296,6 +298,11 @@ void print_modes(const IdentifyResult& r) {
                 range(m.damping_ratio_interval).c_str());
   }
   if (!r.modes_note.empty()) std::printf("modes: %s\n", r.modes_note.c_str());
+  if (r.hamiltonian.is_object())
+    std::printf(
+        "hamiltonian: H = 1/2 p^T M^-1 p + V(q), V(q) = %s (report.json has each term's "
+        "interval)\n",
+        r.hamiltonian.value("potential", std::string()).c_str());
 }
 
 // What `fit` prints beyond γ̂ and the checks unless -q: the model, the budgets, the quality.

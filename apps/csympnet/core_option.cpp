@@ -6,10 +6,12 @@
 
 namespace csympnet::cli {
 
-// "la:L:m", "la:L:m:h2" (LA with step polynomials) or "g:L:w".
+// "la:L:m", "la:L:m:h2" (LA with step polynomials), "g:L:w", or "library" (the
+// Hamiltonian-library core with its terms selected from the data: `fit` only).
 nlohmann::json parse_core(const std::string& s) {
+  if (s == "library") return {{"type", "library"}};
   const std::string expected =
-      "expected la:LAYERS:SUBLAYERS[:h2] or g:LAYERS:WIDTH, e.g. la:5:20 or la:5:20:h2";
+      "expected la:LAYERS:SUBLAYERS[:h2], g:LAYERS:WIDTH or library, e.g. la:5:20 or la:5:20:h2";
   const auto c1 = s.find(':');
   const auto c2 = c1 == std::string::npos ? c1 : s.find(':', c1 + 1);
   if (c2 == std::string::npos) throw Error("--core '" + s + "': " + expected);
@@ -50,6 +52,6 @@ const CLI::Validator kCoreSpec(
       }
       return std::string();
     },
-    "la:L:m[:h2]|g:L:w");
+    "la:L:m[:h2]|g:L:w|library");
 
 }  // namespace csympnet::cli

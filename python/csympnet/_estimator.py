@@ -90,6 +90,8 @@ class CSympNetID:
                          (radians per time unit, ascending), or None when not identified
         damping_ratio_   their damping ratios (γ̂ / (2ω) each), or None when not identified;
                          report_["modes"] has both with intervals
+        hamiltonian_     the library core's Hamiltonian in the data's units (dict, as
+                         `Identification.hamiltonian`), or None when a neural core was chosen
         model_           the learned csympnet.Model (predict, rollout, save, ...)
         report_          the full report (dict), as `csympnet fit` writes it
         n_features_in_   2d, the state's length
@@ -205,6 +207,7 @@ class CSympNetID:
         self.gamma_interval_ = result.interval if result.identified else None
         self.frequencies_ = result.frequencies
         self.damping_ratio_ = result.damping_ratios
+        self.hamiltonian_ = result.hamiltonian
         self.n_features_in_ = 2 * result.model.d
         self.dt_ = float(np.median(steps))
         return self

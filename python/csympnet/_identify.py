@@ -49,6 +49,9 @@ class Identification:
       frequencies the modes' angular frequencies (numpy array); None unless identified
       damping_ratios  the modes' damping ratios (numpy array, γ̂ / (2ω)); None unless
                   identified
+      hamiltonian the library core's Hamiltonian in the data's units (dict: "potential" as
+                  text, "terms" with coefficient, interval and, for sin/cos/exp, wavenumber,
+                  "inverse_mass", "mass"); None when an LA or G core was chosen
       estimate    the fitted γ̂ whatever the verdict (for inspection, not a measurement)
       report      the full report (dict), the same as `csympnet fit` writes
     """
@@ -70,6 +73,7 @@ class Identification:
                             if self.identified else None)
         self.damping_ratios = (np.array([m["damping_ratio"] for m in self.modes])
                                if self.identified else None)
+        self.hamiltonian = report.get("hamiltonian")
 
     def __repr__(self):
         if not self.identified:

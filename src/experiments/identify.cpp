@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "../kernels/registry.hpp"
@@ -302,14 +303,33 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   IdentifyConfig& c = r.config;
   if (config.init != nullptr) c.core = config.init->inner_spec.at("core");
   const bool choosing = c.core.is_null();
-  const std::vector<nlohmann::json> cores = choosing
-                                                ? default_cores(f.facts.d, f.facts.varying_steps)
-                                                : std::vector<nlohmann::json>{c.core};
+  const bool library_given =
+      !choosing && config.init == nullptr && c.core.value("type", "") == "library";
+  std::vector<nlohmann::json> cores = choosing ? default_cores(f.facts.d, f.facts.varying_steps)
+                                      : library_given ? std::vector<nlohmann::json>{}
+                                                      : std::vector<nlohmann::json>{c.core};
   if (hooks.stage) hooks.stage("warm start");
   const double beta_init = warm_start(f.split, f.facts.d, config, r);
+  CandidateFit fit(config, c, hooks, comm, f.split,
+                   1.0 / static_cast<double>(std::max<std::size_t>(cores.size(), 1)));
+  // The library core first: where it explains the held-out data to the noise floor, the
+  // neural cores are not trained (their budget buys nothing the data can show).
+  std::optional<Candidate> library;
+  std::string floor_reason;
+  if (choosing || library_given) {
+    if (hooks.stage) hooks.stage("library core");
+    LibraryFit lib = fit_library(fit, library_given ? c.core : nlohmann::json::object(), f.facts.d,
+                                 beta_init, r.normalization, c.balanced, comm);
+    if (at_noise_floor(lib.cand, f.split, c.balanced, floor_reason) && choosing) cores.clear();
+    lib.record["floor"] = floor_reason;
+    r.choices["library"] = lib.record;
+    library = std::move(lib.cand);
+  }
   f.cand = make_candidates(cores, f.facts.d, beta_init, c, config.seed);
-  CandidateFit fit(config, c, hooks, comm, f.split, 1.0 / static_cast<double>(f.cand.size()));
+  if (library) f.cand.insert(f.cand.begin(), std::move(*library));
   f.best = choose_core(f.cand, fit, choosing, f.facts.varying_steps, config, r);
+  if (choosing && f.cand.size() == 1) r.choices["core_reason"] = floor_reason;
+  if (library_given) r.choices["core_reason"] = "given: the library core, its terms selected";
   Candidate& best = f.cand[f.best];
   f.lm_fits = best.inner.n_params() <= 6000;
   if (!f.lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
@@ -361,6 +381,8 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   if (assess && !r.stopped) run_checks(map, f.split, hooks, r);
   if (confirm_growth_in_reversed_time) confirm_growth(trajs, pairs_only, config, hooks, r);
   verdict(f.split, f.facts.h_max, f.lm_fits, r);
+  if (r.hamiltonian.is_null())
+    r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
   r.model = user_model(best.inner, r);
   return r;
 }
@@ -411,6 +433,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"gamma_ci_level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
       {"gamma_ci_method", r.interval ? nlohmann::json(r.interval->method) : nlohmann::json(nullptr)},
       {"interval", r.interval ? nlohmann::json(*r.interval) : nlohmann::json(nullptr)},
+      {"hamiltonian", r.hamiltonian},
       {"data", r.data},
       {"normalization", r.normalization},
       {"choices", r.choices},

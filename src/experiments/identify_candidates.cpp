@@ -55,6 +55,7 @@ std::string core_name(const nlohmann::json& core) {
   if (type == "g")
     return "g:" + std::to_string(core.value("layers", 0)) + ":" +
            std::to_string(core.value("width", 0));
+  if (type == "library") return "library";
   return core.dump();
 }
 
@@ -240,11 +241,13 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
                                ? " (core " + std::to_string(k + 1) + " of " +
                                      std::to_string(cand.size()) + ", " + core_name(x.core) + ")"
                                : "";
-    fit.adamw(x, "AdamW" + of);
-    // With several candidates each gets at least 2 iterations (a large core's iteration can
-    // take seconds); the winner continues below.
-    const long budget = cand.size() > 1 ? fit.lm_budget(x, 10.0, 2) : fit.lm_budget(x, 25.0);
-    fit.lm(x, budget, "LM" + of);
+    if (!x.pretrained) {
+      fit.adamw(x, "AdamW" + of);
+      // With several candidates each gets at least 2 iterations (a large core's iteration can
+      // take seconds); the winner continues below.
+      const long budget = cand.size() > 1 ? fit.lm_budget(x, 10.0, 2) : fit.lm_budget(x, 25.0);
+      fit.lm(x, budget, "LM" + of);
+    }
     x.val_loss = fit.loss(x, fit.split().val);
     if (!std::isfinite(x.val_loss)) x.val_loss = std::numeric_limits<double>::infinity();
     tried.push_back({{"core", x.core},
@@ -268,7 +271,7 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
   } else {
     r.choices["core_reason"] = given.init != nullptr ? "the init model file's" : "given";
   }
-  c.epochs = fit.epochs_for(best);
+  c.epochs = best.pretrained ? 0 : fit.epochs_for(best);
   r.choices["epochs"] = c.epochs;
   if (given.init != nullptr) {
     r.choices["init"] = {{"file", given.init->file}, {"checksum", given.init->checksum}};
@@ -276,7 +279,9 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
                                      ? "given: AdamW from the init model file's parameters"
                                      : "none: LM refines the init model file's parameters";
   }
-  const long lm_total = continue_winner(best, fit, cand.size(), given);
+  // The library candidate ran its LM to convergence already.
+  const long lm_total =
+      best.pretrained ? best.lm.iterations : continue_winner(best, fit, cand.size(), given);
   r.choices["lm_iterations"] = lm_total;
   c.lm_iterations = lm_total;
   return win;

@@ -438,6 +438,14 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
 
   if (!r.stopped && r.interval) run_checks(map, split, hooks, r);
   verdict(split, f.facts.h_max, f.lm_fits, r);
+  // From positions alone the momenta's unit is not observed: H is fixed up to one factor
+  // (docs/derivations.md, "Positions only"), and its terms carry no intervals here.
+  r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
+  if (!r.hamiltonian.is_null())
+    r.hamiltonian["note"] =
+        "fitted from positions alone: the momenta's unit is not observed, so H (kinetic and "
+        "potential alike) is known up to one common factor; ratios of coefficients and the "
+        "wavenumbers are what the data fix; no intervals";
   const double growth = largest_sensitivity(map, theta, train);
   rec["sensitivity"] = growth;
   if (!(growth <= kMaxSensitivity) && !r.stopped) {

@@ -72,6 +72,7 @@ struct Candidate {
   long lm_best_iteration = 0;
   double lm_seconds = 0.0;
   double val_loss = std::numeric_limits<double>::infinity();
+  bool pretrained = false;  // trained before choose_core (the library candidate)
 };
 std::vector<Candidate> make_candidates(const std::vector<nlohmann::json>& cores, Index d,
                                        double beta_init, const IdentifyConfig& c,
@@ -115,6 +116,21 @@ inline constexpr long kLmPatience = 100;
 std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
                         bool varying_steps, const IdentifyConfig& given, IdentifyResult& r);
 
+// The Hamiltonian-library candidate (identify_library.cpp): given_core {"type": "library"}
+// selects its terms (forward selection by Gauss–Newton gain, kept by the held-out loss, pruned
+// by their intervals); with "terms" it fits those. `record` is the report's
+// choices.library.
+struct LibraryFit {
+  Candidate cand;
+  nlohmann::json record;
+};
+LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
+                       double beta_init, const Normalization& units, bool balanced,
+                       const Communicator& comm);
+// Whether the candidate explains the held-out windows to the noise floor (white one-step
+// residuals, or a clean fit), with the sentence saying which.
+bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why);
+
 // Longer windows when noise dominates misfit (an automatic window only); LM continues on them.
 void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
                    const IdentifyConfig& given, IdentifyResult& r);
@@ -131,6 +147,19 @@ struct ModeIntervalInput {
   double inflation = 1.0;             // the held-out inflation applied to γ̂'s interval
   std::function<bool()> should_stop;  // polled per parameter; true: r.stopped, no intervals
 };
+
+// What the Hamiltonian's intervals share with γ̂'s (null ne: no intervals).
+struct HamiltonianIntervalInput {
+  const NormalEquations* ne = nullptr;
+  Index n_residuals = 0;
+  double residual_scale = 1.0;
+  double inflation = 1.0;
+  double level = 0.95;
+};
+// A library map's Hamiltonian in the user's units (identify_hamiltonian.cpp): the report's
+// "hamiltonian"; null for any other map.
+nlohmann::json hamiltonian_report(const OneStepMap& map, const Vector& theta,
+                                  const Normalization& units, const HamiltonianIntervalInput& in);
 
 // r.modes: the fitted map linearised at its fixed point nearest the training windows' mean
 // state, each oscillating mode's natural frequency and damping ratio, with intervals when

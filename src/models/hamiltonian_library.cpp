@@ -1,4 +1,4 @@
-#include "hamiltonian_library.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -34,7 +34,8 @@ double abs_derivative(double beta) {
 }  // namespace
 
 HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order,
-                                             Index substeps, bool full_mass, double beta_init)
+                                             Index substeps, bool full_mass, double beta_init,
+                                             Vector scales)
     : d_(d),
       terms_(std::move(terms)),
       order_(order),
@@ -58,10 +59,28 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     for (std::size_t l = 0; l < k; ++l)
       require(!(terms_[l] == t),
               [&] { return "hamiltonian library: term '" + term_name(t) + "' appears twice"; });
-    kappa_index_.push_back(t.has_wavenumber() ? next++ : -1);
+    // sin and cos of one argument share their wavenumber: together they are a sinusoid of
+    // any phase.
+    Index shared = -1;
+    if (t.shape == TermShape::kSin || t.shape == TermShape::kCos)
+      for (std::size_t l = 0; l < k; ++l) {
+        const LibraryTerm& u = terms_[l];
+        if ((u.shape == TermShape::kSin || u.shape == TermShape::kCos) && u.i == t.i && u.j == t.j)
+          shared = kappa_index_[l];
+      }
+    kappa_index_.push_back(!t.has_wavenumber() ? -1 : shared >= 0 ? shared : next++);
   }
   beta_index_ = next;
   weights_ = composition_weights(order);
+  scales_ = scales.size() == 0 ? Vector::Ones(d) : std::move(scales);
+  require(scales_.size() == d && scales_.allFinite() && (scales_.array() > 0.0).all(), [&] {
+    return "hamiltonian library: coordinate_scales must be " + std::to_string(d) +
+           " positive finite numbers";
+  });
+  for (const LibraryTerm& t : terms_) {
+    wi_.push_back(t.j < 0 ? 1.0 : scales_(t.i));
+    wj_.push_back(t.j < 0 ? 0.0 : scales_(t.j));
+  }
 }
 
 void HamiltonianLibraryMap::init_params(Rng& /*rng*/, ParamsRef theta) const {
@@ -103,13 +122,19 @@ void HamiltonianLibraryMap::mass_times(ConstParams theta, const double* x, doubl
     }
 }
 
+double HamiltonianLibraryMap::argument(Index k, const double* q) const {
+  const LibraryTerm& t = terms_[static_cast<std::size_t>(k)];
+  const auto kk = static_cast<std::size_t>(k);
+  return t.j < 0 ? q[t.i] : wi_[kk] * q[t.i] - wj_[kk] * q[t.j];
+}
+
 double HamiltonianLibraryMap::potential(ConstParams theta, const double* q) const {
   double v = 0.0;
   for (std::size_t k = 0; k < terms_.size(); ++k) {
     const LibraryTerm& t = terms_[k];
     const Index ki = static_cast<Index>(k);
     const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
-    v += theta(coefficient_index(ki)) * term_values(t, term_argument(t, q), kappa).phi;
+    v += theta(coefficient_index(ki)) * term_values(t, argument(ki, q), kappa).phi;
   }
   return v;
 }
@@ -120,9 +145,9 @@ void HamiltonianLibraryMap::gradient(ConstParams theta, const double* q, double*
     const LibraryTerm& t = terms_[k];
     const Index ki = static_cast<Index>(k);
     const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
-    const double f = theta(coefficient_index(ki)) * term_values(t, term_argument(t, q), kappa).d1;
-    g[t.i] += f;
-    if (t.j >= 0) g[t.j] -= f;
+    const double f = theta(coefficient_index(ki)) * term_values(t, argument(ki, q), kappa).d1;
+    g[t.i] += wi_[k] * f;
+    if (t.j >= 0) g[t.j] -= wj_[k] * f;
   }
 }
 
@@ -132,11 +157,10 @@ void HamiltonianLibraryMap::hessian_times(ConstParams theta, const double* q, co
     const LibraryTerm& t = terms_[k];
     const Index ki = static_cast<Index>(k);
     const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
-    const double ev = t.j < 0 ? v[t.i] : v[t.i] - v[t.j];
-    const double f =
-        theta(coefficient_index(ki)) * term_values(t, term_argument(t, q), kappa).d2 * ev;
-    out[t.i] += f;
-    if (t.j >= 0) out[t.j] -= f;
+    const double ev = t.j < 0 ? v[t.i] : wi_[k] * v[t.i] - wj_[k] * v[t.j];
+    const double f = theta(coefficient_index(ki)) * term_values(t, argument(ki, q), kappa).d2 * ev;
+    out[t.i] += wi_[k] * f;
+    if (t.j >= 0) out[t.j] -= wj_[k] * f;
   }
 }
 
@@ -145,10 +169,10 @@ void HamiltonianLibraryMap::add_gradient_params(ConstParams theta, const double*
   for (std::size_t k = 0; k < terms_.size(); ++k) {
     const LibraryTerm& t = terms_[k];
     const Index ki = static_cast<Index>(k);
-    const double ev = t.j < 0 ? v[t.i] : v[t.i] - v[t.j];
+    const double ev = t.j < 0 ? v[t.i] : wi_[k] * v[t.i] - wj_[k] * v[t.j];
     if (ev == 0.0) continue;
     const double kappa = t.has_wavenumber() ? theta(wavenumber_index(ki)) : 0.0;
-    const TermValues tv = term_values(t, term_argument(t, q), kappa);
+    const TermValues tv = term_values(t, argument(ki, q), kappa);
     grad(coefficient_index(ki)) += s * tv.d1 * ev;
     if (t.has_wavenumber())
       grad(wavenumber_index(ki)) += s * theta(coefficient_index(ki)) * tv.d1_kappa * ev;
@@ -325,7 +349,8 @@ nlohmann::json HamiltonianLibraryMap::hyperparams() const {
             {"terms", names},
             {"order", order_},
             {"substeps", substeps_},
-            {"mass", full_mass_ ? "full" : "diagonal"}}},
+            {"mass", full_mass_ ? "full" : "diagonal"},
+            {"coordinate_scales", std::vector<double>(scales_.data(), scales_.data() + d_)}}},
           {"beta_init", beta_init_}};
 }
 

@@ -19,15 +19,16 @@
 // "substeps": N, "mass": "full"} (the Hamiltonian-library map, hamiltonian_library.hpp) (a "d"
 // inside CORE is allowed if it equals the outer d). Unknown keys are rejected so that a misspelt
 // option fails loudly instead of silently taking its default.
+#include <cmath>
 #include <string>
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet_id.hpp"
 #include "g_sympnet.hpp"
-#include "hamiltonian_library.hpp"
 #include "la_sympnet.hpp"
 #include "map_baseline.hpp"
 #include "spec_reading.hpp"
@@ -48,7 +49,8 @@ constexpr const char* kValidCoreTypes = "la, g (and library inside a csympnet sp
 // inside a "csympnet" spec: the Hamiltonian-library map (hamiltonian_library.hpp).
 std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double beta_init,
                                              const std::string& where) {
-  reject_unknown_keys(spec, where, {"type", "d", "terms", "order", "substeps", "mass"});
+  reject_unknown_keys(spec, where,
+                      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales"});
   require(spec.contains("terms") && spec.at("terms").is_array() && !spec.at("terms").empty(), [&] {
     return where + ": key 'terms' must be a non-empty list of term names, e.g. " +
            "[\"q1^2\", \"q1^4\"] (csympnet fit --core library selects them)";
@@ -72,8 +74,26 @@ std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double b
   require(order == 2 || order == 4 || order == 6, [&] {
     return where + ": key 'order' = " + std::to_string(order) + ", expected 2, 4 or 6";
   });
+  Vector scales;
+  if (spec.contains("coordinate_scales")) {
+    const json& v = spec.at("coordinate_scales");
+    require(v.is_array() && static_cast<Index>(v.size()) == d, [&] {
+      return where + ": key 'coordinate_scales' must be a list of " + std::to_string(d) +
+             " positive numbers";
+    });
+    scales.resize(d);
+    for (Index i = 0; i < d; ++i) {
+      const json& x = v.at(static_cast<std::size_t>(i));
+      require(x.is_number() && x.get<double>() > 0.0 && std::isfinite(x.get<double>()), [&] {
+        return where + ".coordinate_scales[" + std::to_string(i) + "] = " + x.dump() +
+               ", expected a positive finite number";
+      });
+      scales(i) = x.get<double>();
+    }
+  }
   return std::make_unique<HamiltonianLibraryMap>(d, std::move(terms), static_cast<int>(order),
-                                                 substeps, mass == "full", beta_init);
+                                                 substeps, mass == "full", beta_init,
+                                                 std::move(scales));
 }
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.

@@ -1,8 +1,9 @@
 // The Hamiltonian-library map (src/models/hamiltonian_library.hpp) and its terms
 // (models/potential_library.hpp):
 //   - every term's derivatives against central differences, at random arguments and κ;
-//   - the map's three derivative paths against central differences, at random parameters,
-//     for d = 1, 2, 3, full and diagonal masses, orders 2, 4, 6, one and several substeps;
+//   - the map's three derivative paths against central differences, at random parameters
+//     and coordinate scales, for d = 1, 2, 3, full and diagonal masses, orders 2, 4, 6, one and
+//     several substeps;
 //   - exact conformal symplecticity DΦᵀ J DΦ = e^{−γh} J at random parameters;
 //   - the order of the composition: on a damped oscillator the error falls as (h/n)^order;
 //   - names and specs round-trip, and bad ones are refused with the reason.
@@ -11,8 +12,8 @@
 
 #include <gtest/gtest.h>
 
-#include "../src/models/hamiltonian_library.hpp"
 #include "csympnet/core/error.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/models/potential_library.hpp"
 #include "support/gradient_check.hpp"
@@ -89,7 +90,9 @@ HamiltonianLibraryMap random_map(const MapCase& c, Rng& rng) {
   for (const LibraryTerm& t : full_library(c.d))
     if (rng.uniform(0.0, 1.0) < 0.6) terms.push_back(t);
   if (terms.empty()) terms.push_back(full_library(c.d).front());
-  return HamiltonianLibraryMap(c.d, terms, c.order, c.substeps, c.full_mass, 0.1);
+  Vector scales(c.d);  // weights of the coordinates in differences
+  for (Index i = 0; i < c.d; ++i) scales(i) = rng.uniform(0.5, 2.0);
+  return HamiltonianLibraryMap(c.d, terms, c.order, c.substeps, c.full_mass, 0.1, scales);
 }
 
 Vector random_library_theta(const HamiltonianLibraryMap& map, Rng& rng, double beta) {
@@ -112,10 +115,16 @@ TEST_P(LibraryMapTest, DerivativesMatchCentralDifferences) {
   Rng rng(11 + GetParam().d * 7 + GetParam().order, "library-fd");
   for (int rep = 0; rep < 4; ++rep) {
     const HamiltonianLibraryMap map = random_map(GetParam(), rng);
-    const Vector theta = random_library_theta(map, rng, rep % 2 == 0 ? 0.4 : -0.3);
-    const Matrix z = rng.normal_matrix(map.dim(), 3, 0.6);
+    Vector theta;
+    Matrix z;
     Vector h(3);
-    for (Index j = 0; j < 3; ++j) h(j) = rng.uniform(0.05, 0.3);
+    // Redrawn until the map is finite there (an exp or a negative quartic can blow up).
+    for (int draw = 0; draw == 0 || !map.apply(theta, z, h).allFinite(); ++draw) {
+      ASSERT_LT(draw, 20) << "no finite draw";
+      theta = random_library_theta(map, rng, rep % 2 == 0 ? 0.4 : -0.3);
+      z = rng.normal_matrix(map.dim(), 3, 0.6);
+      for (Index j = 0; j < 3; ++j) h(j) = rng.uniform(0.05, 0.3);
+    }
     FdOptions o;
     o.tolerance = 1e-6;
     const ModelCheck check = check_one_step_map(map, theta, z, h, rng, o);
@@ -183,7 +192,7 @@ TEST(LibraryMapOrder, ErrorFallsAsTheOrderSays) {
 
 TEST(LibraryMapSpec, HyperparamsRebuildTheSameMap) {
   HamiltonianLibraryMap map(2, {parse_term("q1^2", 2, "t"), parse_term("cos(q1-q2)", 2, "t")}, 4, 3,
-                            false, 0.2);
+                            false, 0.2, (Vector(2) << 1.5, 0.7).finished());
   const auto rebuilt = make_one_step_map(map.hyperparams());
   EXPECT_EQ(rebuilt->hyperparams(), map.hyperparams());
   Rng rng(4, "spec");
@@ -199,6 +208,9 @@ TEST(LibraryMapSpec, HyperparamsRebuildTheSameMap) {
   EXPECT_THROW(make_one_step_map(bad), Error);
   bad = map.hyperparams();
   bad["core"]["wavenumbers"] = 1;
+  EXPECT_THROW(make_one_step_map(bad), Error);
+  bad = map.hyperparams();
+  bad["core"]["coordinate_scales"] = {1.0, -1.0};
   EXPECT_THROW(make_one_step_map(bad), Error);
 }
 

@@ -171,6 +171,9 @@ struct IdentifyResult {
   std::vector<ModelCheck> checks;    // the assumptions tested (empty when no interval was formed)
   std::vector<Mode> modes;           // ascending frequency; empty when the map has none
   std::string modes_note;            // why fewer than d modes, or none
+  // The library core's Hamiltonian in the user's units with intervals (report key
+  // "hamiltonian"); null for the LA and G cores.
+  nlohmann::json hamiltonian;
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;
   TrainSummary training;

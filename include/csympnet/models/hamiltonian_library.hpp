@@ -14,9 +14,12 @@
 // three stages; order 6: nine), which sum to 1, so the map's factor is e^{−γh} exactly, at
 // every parameter value (negative weights give factors above 1 that the others cancel).
 //
+// A difference term's argument weighs its coordinates by fixed scales (constructor).
+//
 // Layout of θ: W (d(d+1)/2 entries of the lower triangle, row by row, for "full"; d for
 // "diagonal"), the coefficients c_k in term order, the wavenumbers κ of the terms that have
-// one in term order, and β last (γ̂ = |β|, as in CSympNet-ID).
+// one in term order (sin and cos of one argument share one, at the first of them), and β
+// last (γ̂ = |β|, as in CSympNet-ID).
 //
 // init_params draws nothing: W = I, c = ½ on each qI^2 and 0 elsewhere, κ = its term's
 // starting sign, β = beta_init.
@@ -34,8 +37,11 @@ class HamiltonianLibraryMap final : public OneStepMap {
  public:
   // Throws Error on d < 1, no terms, a term out of range or repeated, an order other than
   // 2, 4, 6, substeps < 1, or a zero or non-finite beta_init.
+  // `scales` (d positive values, empty: all 1) weigh the coordinates in a difference term:
+  // its argument is s_i q_i − s_j q_j. The identification passes the normalisation's q scales
+  // over their geometric mean, so that a difference of the user's coordinates stays one.
   HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order, Index substeps,
-                        bool full_mass, double beta_init);
+                        bool full_mass, double beta_init, Vector scales = {});
 
   std::string type() const override { return "csympnet"; }
   Index dim() const override { return 2 * d_; }
@@ -53,6 +59,9 @@ class HamiltonianLibraryMap final : public OneStepMap {
 
   Index d() const { return d_; }
   const std::vector<LibraryTerm>& terms() const { return terms_; }
+  const Vector& coordinate_scales() const { return scales_; }
+  // The argument u of term k at q, and its gradient weights: ∂u/∂q_i, ∂u/∂q_j.
+  double argument(Index k, const double* q) const;
   bool full_mass() const { return full_mass_; }
   Index substeps() const { return substeps_; }
   int order() const { return order_; }
@@ -97,6 +106,9 @@ class HamiltonianLibraryMap final : public OneStepMap {
   std::vector<Index> kappa_index_;
   Index beta_index_;
   std::vector<double> weights_;
+  Vector scales_;
+  // Per term: ∂u/∂q_i and ∂u/∂q_j (0 for a single coordinate).
+  std::vector<double> wi_, wj_;
 };
 
 }  // namespace csympnet

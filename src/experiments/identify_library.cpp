@@ -1,0 +1,536 @@
+// The Hamiltonian-library candidate (identify_stages.hpp, fit_library): terms chosen by forward
+// selection on the training windows, kept by the held-out loss, pruned by their intervals, and
+// integrated finely enough that the integrator's error stays below the residuals
+// (docs/identification.md, "The Hamiltonian-library core").
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/train/gamma_sandwich.hpp"
+#include "identify_evaluators.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet::detail {
+
+namespace {
+
+constexpr int kOrder = 6;            // Yoshida's triple jump twice: nine stages per substep
+constexpr double kStepPhase = 0.2;   // ω h / n at the start
+constexpr Index kMaxSubsteps = 256;  // the integrator's error check doubles n up to this
+constexpr long kRoundIterations = 12;
+constexpr long kFinalIterations = 300;
+
+const HamiltonianLibraryMap& library_of(const Candidate& x) {
+  return dynamic_cast<const HamiltonianLibraryMap&>(*x.inner.map);
+}
+
+nlohmann::json library_core(const std::vector<LibraryTerm>& terms, Index substeps,
+                            const Vector& scales) {
+  nlohmann::json names = nlohmann::json::array();
+  for (const LibraryTerm& t : terms) names.push_back(term_name(t));
+  return {{"type", "library"},
+          {"terms", names},
+          {"order", kOrder},
+          {"substeps", substeps},
+          {"mass", "full"},
+          {"coordinate_scales", std::vector<double>(scales.data(), scales.data() + scales.size())}};
+}
+
+// A candidate with these terms; θ carried over from `from` (W, β, and c, κ of shared terms),
+// else the map's documented start with β = beta_init.
+Candidate make_library_candidate(const std::vector<LibraryTerm>& terms, Index substeps,
+                                 const Vector& scales, Index d, double beta_init,
+                                 const Candidate* from) {
+  Candidate x;
+  x.core = library_core(terms, substeps, scales);
+  x.inner =
+      make_model({{"type", "csympnet"}, {"d", d}, {"core", x.core}, {"beta_init", beta_init}});
+  x.theta.resize(x.inner.n_params());
+  Rng unused(0, "library-init");  // the map draws nothing
+  x.inner.init_params(unused, x.theta);
+  x.pretrained = true;
+  if (from == nullptr) return x;
+  const HamiltonianLibraryMap& a = library_of(*from);
+  const HamiltonianLibraryMap& b = library_of(x);
+  x.theta.head(b.mass_size()) = from->theta.head(a.mass_size());
+  x.theta(*b.damping_param_index()) = from->theta(*a.damping_param_index());
+  for (Index k = 0; k < static_cast<Index>(b.terms().size()); ++k)
+    for (Index l = 0; l < static_cast<Index>(a.terms().size()); ++l) {
+      if (!(a.terms()[static_cast<std::size_t>(l)] == b.terms()[static_cast<std::size_t>(k)]))
+        continue;
+      x.theta(b.coefficient_index(k)) = from->theta(a.coefficient_index(l));
+      if (b.wavenumber_index(k) >= 0)
+        x.theta(b.wavenumber_index(k)) = from->theta(a.wavenumber_index(l));
+    }
+  x.training = from->training;
+  x.lm_seconds = from->lm_seconds;
+  return x;
+}
+
+// The fastest rate of the data: per coordinate √(rms(Δq/H)/sd(q) · rms(Δp/H)/sd(p)) over the
+// training windows (ω for an oscillator), the largest over coordinates.
+double data_rate(const WindowSet& w) {
+  const Index d = w.dim() / 2;
+  const Vector span = w.span();
+  double best = 0.0;
+  for (Index i = 0; i < d; ++i) {
+    double ratio = 1.0;
+    for (Index row : {i, d + i}) {
+      const double mean = w.z0.row(row).mean();
+      double num = 0.0, den = 0.0;
+      for (Index k = 0; k < w.size(); ++k) {
+        const double rate = (w.zm(row, k) - w.z0(row, k)) / span(k);
+        num += rate * rate;
+        den += (w.z0(row, k) - mean) * (w.z0(row, k) - mean);
+      }
+      ratio *= den > 0.0 ? std::sqrt(num / den) : 0.0;
+    }
+    best = std::max(best, std::sqrt(ratio));
+  }
+  return best;
+}
+
+// The same map with twice the substeps moves the training windows' first steps by less than
+// 5% of the residuals' rms (or by rounding alone): the integrator's error is below what the
+// data can see.
+bool integrator_fine_enough(const Candidate& x, const WindowSet& train, double train_loss, Index d,
+                            double beta_init, const Vector& scales) {
+  const HamiltonianLibraryMap& map = library_of(x);
+  const Candidate finer =
+      make_library_candidate(map.terms(), 2 * map.substeps(), scales, d, beta_init, &x);
+  const Index n = std::min<Index>(train.size(), 400);
+  Matrix z(train.dim(), n);
+  Vector h(n);
+  for (Index j = 0; j < n; ++j) {
+    const Index i = j * train.size() / n;
+    z.col(j) = train.z0.col(i);
+    h(j) = train.h(0, i);
+  }
+  const Matrix a = x.inner.map->apply(x.theta, z, h);
+  const Matrix b = finer.inner.map->apply(finer.theta, z, h);
+  const double diff = (a - b).norm() / std::sqrt(static_cast<double>(a.size()));
+  const double residual = std::sqrt(train_loss / static_cast<double>(train.dim()));
+  const double rounding = 1e-13 * a.norm() / std::sqrt(static_cast<double>(a.size()));
+  return diff <= std::max(0.05 * residual, rounding) || !std::isfinite(diff);
+}
+
+// The library's terms come in groups that a change of origin keeps together: the powers of
+// one coordinate or difference (a shifted polynomial is a polynomial of the same degree), sin
+// and cos of one argument (a shifted sine is a sum of both), and each exp alone. Selection adds
+// a group at a time.
+std::vector<std::vector<Index>> term_groups(const std::vector<LibraryTerm>& pool) {
+  std::vector<std::vector<Index>> groups;
+  std::vector<std::string> keys;
+  for (std::size_t k = 0; k < pool.size(); ++k) {
+    const LibraryTerm& t = pool[k];
+    const std::string family = t.shape == TermShape::kPower ? "power"
+                               : t.shape == TermShape::kExp ? term_name(t)
+                                                            : "trig";
+    const std::string key = family + ":" + std::to_string(t.i) + ":" + std::to_string(t.j);
+    const auto at = std::find(keys.begin(), keys.end(), key);
+    if (at == keys.end()) {
+      keys.push_back(key);
+      groups.push_back({static_cast<Index>(k)});
+    } else {
+      groups[static_cast<std::size_t>(at - keys.begin())].push_back(static_cast<Index>(k));
+    }
+  }
+  return groups;
+}
+
+struct Addition {
+  std::vector<Index> terms;    // pool indices added
+  std::vector<double> steps;   // their Gauss–Newton coefficients
+  double kappa = 1.0;          // the wavenumber they were scored at
+  std::vector<double> kappas;  // per term (a joint addition of several groups)
+  double gain = 0.0;           // predicted share of the training loss removed
+  double criterion = 0.0;      // n log(1 − gain) + size log n: lower is better
+};
+
+// Gauss–Newton gains of adding each group's inactive terms to the active ones (the active
+// parameters re-fitted), from the normal equations at c = 0 of the map holding every term, at
+// each trial wavenumber; best first by a BIC-like criterion.
+std::vector<Addition> ranked_additions(const Candidate& x, const std::vector<LibraryTerm>& pool,
+                                       const std::vector<bool>& active,
+                                       const std::vector<double>& kappas, CandidateFit& fit,
+                                       const Communicator& comm, bool balanced, Index d,
+                                       double beta_init, const Vector& scales) {
+  std::vector<Addition> out;
+  const HamiltonianLibraryMap& cur = library_of(x);
+  std::vector<LibraryTerm> all = cur.terms();
+  std::vector<Index> big_of(pool.size(), -1);  // index in the big map of each pool term
+  for (std::size_t k = 0; k < pool.size(); ++k) {
+    for (std::size_t l = 0; l < all.size(); ++l)
+      if (all[l] == pool[k]) big_of[k] = static_cast<Index>(l);
+    if (big_of[k] < 0) {
+      big_of[k] = static_cast<Index>(all.size());
+      all.push_back(pool[k]);
+    }
+  }
+  if (all.size() == cur.terms().size()) return out;
+  Candidate big = make_library_candidate(all, cur.substeps(), scales, d, beta_init, &x);
+  const HamiltonianLibraryMap& map = library_of(big);
+  // At most 400 training windows, evenly spread: the ranking needs no more.
+  const WindowSet& all_train = fit.split().train;
+  std::vector<Index> pick;
+  const Index n_pick = std::min<Index>(all_train.size(), 400);
+  for (Index j = 0; j < n_pick; ++j) pick.push_back(j * all_train.size() / n_pick);
+  const WindowSet train = select_windows(all_train, pick);
+  const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
+  const double n_res = static_cast<double>(all_train.size() * all_train.dim());
+  const Index n_cur = static_cast<Index>(cur.terms().size());
+  std::vector<Index> s;  // the active parameters: W, the current terms' c and κ, β
+  for (Index k = 0; k < map.mass_size(); ++k) s.push_back(k);
+  for (Index k = 0; k < n_cur; ++k) {
+    s.push_back(map.coefficient_index(k));
+    if (map.wavenumber_index(k) >= 0) s.push_back(map.wavenumber_index(k));
+  }
+  s.push_back(*map.damping_param_index());
+  std::sort(s.begin(), s.end());
+  s.erase(std::unique(s.begin(), s.end()), s.end());  // sin and cos share κ
+  const Index ns = static_cast<Index>(s.size());
+  const std::vector<std::vector<Index>> groups = term_groups(pool);
+  for (std::size_t ki = 0; ki < kappas.size(); ++ki) {
+    const double kappa = kappas[ki];
+    for (Index k = n_cur; k < static_cast<Index>(all.size()); ++k)
+      if (map.wavenumber_index(k) >= 0)
+        big.theta(map.wavenumber_index(k)) = all[static_cast<std::size_t>(k)].kappa_sign * kappa;
+    const NormalEquations ne = normal_equations_over_ranks(
+        *big.inner.map, big.theta, train, balanced, sc, false,
+        [&fit] { return fit.stop_requested(); }, comm);
+    if (ne.stopped) return {};
+    const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+    Matrix ass(ns, ns);
+    Vector gs(ns);
+    for (Index r = 0; r < ns; ++r) {
+      gs(r) = ne.g(s[static_cast<std::size_t>(r)]);
+      for (Index c = 0; c < ns; ++c)
+        ass(r, c) = a(s[static_cast<std::size_t>(r)], s[static_cast<std::size_t>(c)]);
+    }
+    ass.diagonal() += 1e-10 * ass.diagonal().cwiseMax(1e-300);
+    const Eigen::LDLT<Matrix> ldlt(ass);
+    const Vector ags = ldlt.solve(gs);
+    for (const std::vector<Index>& group : groups) {
+      std::vector<Index> add;
+      bool has_kappa = false;
+      for (Index k : group)
+        if (!active[static_cast<std::size_t>(k)]) {
+          add.push_back(k);
+          has_kappa = has_kappa || pool[static_cast<std::size_t>(k)].has_wavenumber();
+        }
+      if (add.empty() || (!has_kappa && ki > 0)) continue;
+      const Index ng = static_cast<Index>(add.size());
+      Matrix b(ns, ng), agg(ng, ng);
+      Vector gg(ng);
+      for (Index c = 0; c < ng; ++c) {
+        const Index ci = map.coefficient_index(big_of[static_cast<std::size_t>(add[c])]);
+        gg(c) = ne.g(ci);
+        for (Index r = 0; r < ns; ++r) b(r, c) = a(s[static_cast<std::size_t>(r)], ci);
+        for (Index r = 0; r < ng; ++r)
+          agg(r, c) = a(map.coefficient_index(big_of[static_cast<std::size_t>(add[r])]), ci);
+      }
+      const Vector num = gg - b.transpose() * ags;
+      Matrix den = agg - b.transpose() * ldlt.solve(b);
+      den.diagonal() += 1e-12 * agg.diagonal().cwiseMax(1e-300);
+      const Eigen::LDLT<Matrix> dl(den);
+      if (dl.info() != Eigen::Success || !num.allFinite()) continue;
+      const Vector step = -dl.solve(num);
+      const double gain = std::clamp(-0.5 * num.dot(step) / std::max(ne.cost, 1e-300), 0.0, 1.0);
+      if (!std::isfinite(gain) || gain <= 0.0) continue;
+      Addition ad;
+      ad.terms = add;
+      ad.steps.assign(step.data(), step.data() + ng);
+      ad.kappa = kappa;
+      ad.gain = gain;
+      ad.criterion = n_res * std::log(std::max(1.0 - gain, 1e-300)) +
+                     static_cast<double>(ng) * std::log(n_res);
+      out.push_back(std::move(ad));
+    }
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Addition& u, const Addition& v) { return u.criterion < v.criterion; });
+  // One entry per group: its best wavenumber.
+  std::vector<Addition> unique;
+  for (Addition& ad : out) {
+    const bool seen = std::any_of(unique.begin(), unique.end(),
+                                  [&](const Addition& u) { return u.terms == ad.terms; });
+    if (!seen) unique.push_back(std::move(ad));
+  }
+  return unique;
+}
+
+}  // namespace
+
+LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
+                       double beta_init, const Normalization& units, bool balanced,
+                       const Communicator& comm) {
+  const auto t0 = std::chrono::steady_clock::now();
+  LibraryFit out;
+  nlohmann::json& rec = out.record;
+  const BlockSplit& split = fit.split();
+  // Differences weigh the coordinates by their units, so that q_i − q_j of the user's data
+  // stays a difference (normalisation.hpp scales each coordinate on its own).
+  Vector scales = units.q_scale.size() == d ? units.q_scale : Vector::Ones(d);
+  scales /= std::exp(scales.array().log().mean());
+  const double omega = data_rate(split.train);
+  const double h_max = split.train.h.maxCoeff();
+  Index substeps =
+      std::clamp<Index>(static_cast<Index>(std::ceil(omega * h_max / kStepPhase)), 1, 64);
+  rec["order"] = kOrder;
+  rec["data_rate"] = omega;
+  rec["substeps_start"] = substeps;
+  const Index n_val_residuals = split.val.size() * split.val.dim();
+  // A term must lower the held-out loss by this share to be kept.
+  const double threshold = std::max(2e-3, 10.0 / static_cast<double>(n_val_residuals));
+  rec["keep_threshold"] = threshold;
+  // Below this held-out loss the residuals are rounding: a change there is no change.
+  const double floor = 1e-22 * split.val.zm.squaredNorm() / static_cast<double>(split.val.size());
+  rec["rounding_floor"] = floor;
+  const auto improves = [&](double before, double after) {
+    return before > floor && after < before * (1.0 - threshold);
+  };
+  const auto no_worse = [&](double before, double after) {
+    return after <= std::max(before * (1.0 + threshold), floor);
+  };
+
+  std::vector<LibraryTerm> pool = full_library(d);
+  std::vector<bool> active(pool.size(), false);
+  const bool given_terms = given_core.contains("terms");
+  if (given_terms) {
+    pool.clear();
+    for (const auto& name : given_core.at("terms"))
+      pool.push_back(parse_term(name.get<std::string>(), d, "core.terms"));
+    active.assign(pool.size(), true);
+  } else {
+    for (std::size_t k = 0; k < pool.size(); ++k)
+      active[k] = pool[k].shape == TermShape::kPower && pool[k].j < 0 && pool[k].power <= 2;
+  }
+  const auto active_terms = [&] {
+    std::vector<LibraryTerm> t;
+    for (std::size_t k = 0; k < pool.size(); ++k)
+      if (active[k]) t.push_back(pool[k]);
+    return t;
+  };
+  Candidate x = make_library_candidate(active_terms(), substeps, scales, d, beta_init, nullptr);
+  const auto train_lm = [&](Candidate& c, long budget, const std::string& label) {
+    fit.lm(c, budget, label);
+    c.val_loss = fit.loss(c, split.val);
+    if (!std::isfinite(c.val_loss)) c.val_loss = std::numeric_limits<double>::infinity();
+  };
+  // Twice the substeps until the integrator's error is below what the data can see, then LM
+  // (which lowers the residuals, so the check is made again).
+  const auto refine_integrator = [&](Candidate& c, const std::string& when) {
+    for (int pass = 0; pass < 4 && !fit.stop_requested(); ++pass) {
+      bool changed = false;
+      while (
+          library_of(c).substeps() < kMaxSubsteps &&
+          !integrator_fine_enough(c, split.train, fit.loss(c, split.train), d, beta_init, scales)) {
+        c = make_library_candidate(library_of(c).terms(), 2 * library_of(c).substeps(), scales, d,
+                                   beta_init, &c);
+        changed = true;
+      }
+      if (!changed) break;
+      train_lm(c, kRoundIterations, "library: finer integrator");
+      rec["integrator_steps"].push_back(
+          {{"when", when}, {"substeps", library_of(c).substeps()}, {"val_loss", c.val_loss}});
+    }
+  };
+  train_lm(x, kRoundIterations, "library: start");
+  refine_integrator(x, "start");
+  rec["start"] = {{"terms", x.core["terms"]}, {"val_loss", x.val_loss}};
+
+  // Forward selection: the term with the largest Gauss–Newton gain, kept when LM with it
+  // lowers the held-out loss by `threshold`.
+  const Index max_terms = 6 * d + 6;
+  const std::vector<double> kappas =
+      d <= 3 ? std::vector<double>{0.5, 1.0, 2.0} : std::vector<double>{1.0};
+  nlohmann::json steps = nlohmann::json::array();
+  while (!given_terms && !fit.stop_requested() &&
+         static_cast<Index>(active_terms().size()) < max_terms) {
+    const std::vector<Addition> ranked =
+        ranked_additions(x, pool, active, kappas, fit, comm, balanced, d, beta_init, scales);
+    bool added = false;
+    // With d > 2 the best ⌈d/2⌉ groups are tried together first (a chain needs many alike);
+    // then the best three groups in turn; the first that earns its place is kept.
+    std::vector<Addition> tries;
+    const std::size_t batch = d > 2 ? static_cast<std::size_t>((d + 1) / 2) : 1;
+    if (batch > 1 && ranked.size() > 1) {
+      Addition joint;
+      for (std::size_t r = 0; r < std::min(batch, ranked.size()); ++r) {
+        if (ranked[r].gain < 1e-6) break;
+        for (std::size_t a = 0; a < ranked[r].terms.size(); ++a) {
+          joint.terms.push_back(ranked[r].terms[a]);
+          joint.steps.push_back(ranked[r].steps[a]);
+          joint.kappas.push_back(ranked[r].kappa);
+        }
+        joint.gain = std::max(joint.gain, ranked[r].gain);
+      }
+      tries.push_back(joint);
+    }
+    for (std::size_t r = 0; r < std::min<std::size_t>(ranked.size(), 3); ++r) {
+      tries.push_back(ranked[r]);
+      tries.back().kappas.assign(ranked[r].terms.size(), ranked[r].kappa);
+    }
+    for (const Addition& ad : tries) {
+      if (added || ad.gain < 1e-6 || fit.stop_requested()) break;
+      std::vector<bool> trial = active;
+      std::string name;
+      for (Index k : ad.terms) {
+        trial[static_cast<std::size_t>(k)] = true;
+        name += (name.empty() ? "" : ", ") + term_name(pool[static_cast<std::size_t>(k)]);
+      }
+      std::swap(active, trial);
+      Candidate y = make_library_candidate(active_terms(), library_of(x).substeps(), scales, d,
+                                           beta_init, &x);
+      const HamiltonianLibraryMap& ym = library_of(y);
+      for (std::size_t a = 0; a < ad.terms.size(); ++a) {
+        const LibraryTerm& t = pool[static_cast<std::size_t>(ad.terms[a])];
+        for (Index k = 0; k < static_cast<Index>(ym.terms().size()); ++k)
+          if (ym.terms()[static_cast<std::size_t>(k)] == t) {
+            // c starts at 0, so LM starts from the current fit (its first step is the joint
+            // Gauss–Newton step the ranking predicted).
+            y.theta(ym.coefficient_index(k)) = 0.0;
+            if (ym.wavenumber_index(k) >= 0)
+              y.theta(ym.wavenumber_index(k)) = t.kappa_sign * ad.kappas[a];
+          }
+      }
+      train_lm(y, kRoundIterations, "library: with " + name);
+      added = improves(x.val_loss, y.val_loss);
+      steps.push_back({{"terms", name},
+                       {"predicted_gain", ad.gain},
+                       {"val_loss_before", x.val_loss},
+                       {"val_loss_after", y.val_loss},
+                       {"kept", added}});
+      if (!added) {
+        std::swap(active, trial);
+        continue;
+      }
+      x = std::move(y);
+      refine_integrator(x, "after " + name);
+    }
+    if (!added) break;
+  }
+  rec["forward"] = steps;
+
+  // Pruning (backward elimination): the two groups whose terms are least significant (by
+  // their largest sandwich t-ratio), then the least significant term if its t-ratio is below
+  // 2, each dropped when the held-out loss stays within the threshold (or the rounding floor).
+  nlohmann::json pruned = nlohmann::json::array();
+  const std::vector<std::vector<Index>> groups = term_groups(pool);
+  bool dropped_one = !given_terms;
+  while (dropped_one && !fit.stop_requested() && active_terms().size() > 1) {
+    dropped_one = false;
+    const HamiltonianLibraryMap& map = library_of(x);
+    const WindowSet& train = split.train;
+    const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
+    const NormalEquations ne = normal_equations_over_ranks(
+        map, x.theta, train, balanced, sc, true, [&fit] { return fit.stop_requested(); }, comm);
+    if (ne.stopped) break;
+    std::vector<double> t_of(pool.size(), 0.0);  // per active pool term
+    for (Index k = 0; k < static_cast<Index>(map.terms().size()); ++k) {
+      Vector grad = Vector::Zero(map.n_params());
+      grad(map.coefficient_index(k)) = 1.0;
+      const SandwichInterval iv =
+          sandwich_interval_of(ne.a, ne.g, ne.scores, grad, x.theta(map.coefficient_index(k)),
+                               train.size() * train.dim(), ne.cost, sc, 0.0, 0.95);
+      const double t = iv.std_error > 0.0 ? std::abs(iv.gamma) / iv.std_error : 1e300;
+      for (std::size_t q = 0; q < pool.size(); ++q)
+        if (pool[q] == map.terms()[static_cast<std::size_t>(k)]) t_of[q] = t;
+    }
+    // Candidate drops: (t, pool terms).
+    std::vector<std::pair<double, std::vector<Index>>> drops;
+    for (const std::vector<Index>& g : groups) {
+      std::vector<Index> on;
+      double t = 0.0;
+      for (Index k : g)
+        if (active[static_cast<std::size_t>(k)]) {
+          on.push_back(k);
+          t = std::max(t, t_of[static_cast<std::size_t>(k)]);
+        }
+      if (!on.empty() && on.size() < active_terms().size()) drops.push_back({t, on});
+    }
+    std::stable_sort(drops.begin(), drops.end(),
+                     [](const auto& u, const auto& v) { return u.first < v.first; });
+    if (drops.size() > 2) drops.resize(2);
+    Index worst = -1;
+    for (std::size_t q = 0; q < pool.size(); ++q)
+      if (active[q] && t_of[q] < 2.0 &&
+          (worst < 0 || t_of[q] < t_of[static_cast<std::size_t>(worst)]))
+        worst = static_cast<Index>(q);
+    if (worst >= 0) drops.push_back({t_of[static_cast<std::size_t>(worst)], {worst}});
+    for (const auto& [t, terms] : drops) {
+      if (fit.stop_requested()) break;
+      std::vector<bool> trial = active;
+      std::string name;
+      for (Index k : terms) {
+        trial[static_cast<std::size_t>(k)] = false;
+        name += (name.empty() ? "" : ", ") + term_name(pool[static_cast<std::size_t>(k)]);
+      }
+      std::swap(active, trial);
+      Candidate y = make_library_candidate(active_terms(), library_of(x).substeps(), scales, d,
+                                           beta_init, &x);
+      train_lm(y, kRoundIterations, "library: without " + name);
+      const bool drop = no_worse(x.val_loss, y.val_loss);
+      pruned.push_back({{"terms", name},
+                        {"t_ratio", t},
+                        {"val_loss_before", x.val_loss},
+                        {"val_loss_after", y.val_loss},
+                        {"dropped", drop}});
+      if (!drop) {
+        std::swap(active, trial);
+        continue;
+      }
+      x = std::move(y);
+      dropped_one = true;
+      break;
+    }
+  }
+  rec["pruned"] = pruned;
+
+  // The chosen terms to convergence, with the integrator checked once more.
+  train_lm(x, kFinalIterations, "library: final");
+  refine_integrator(x, "final");
+  rec["terms"] = x.core["terms"];
+  rec["substeps"] = library_of(x).substeps();
+  rec["val_loss"] = x.val_loss;
+  rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.cand = std::move(x);
+  return out;
+}
+
+bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why) {
+  const WindowSet& val = split.val;
+  const Index dim = val.dim();
+  const Vector res = window_residuals(*x.inner.map, x.theta, val, balanced);
+  const double rel = res.norm() / std::max((val.zm - val.z0).norm(), 1e-300);
+  double num = 0.0, den = 0.0;
+  for (Index i = 0; i < val.size(); ++i) {
+    const auto ri = res.segment(i * dim, dim);
+    den += ri.squaredNorm();
+    if (i + 1 < val.size() &&
+        val.block[static_cast<std::size_t>(i)] == val.block[static_cast<std::size_t>(i + 1)])
+      num += ri.dot(res.segment((i + 1) * dim, dim));
+  }
+  const double rho = den > 0.0 ? num / den : 0.0;
+  if (rel <= 1e-7) {
+    why = "the library core predicts the held-out windows to a relative residual of " +
+          std::to_string(rel) + " (clean data explained): the neural cores were not trained";
+    return true;
+  }
+  if (val.m == 1 && rho < -0.25) {
+    why = "the library core's held-out one-step residuals are noise (lag-one correlation " +
+          std::to_string(rho) + ", pure measurement noise gives -0.5): the neural cores were " +
+          "not trained";
+    return true;
+  }
+  why = "the library core leaves structure in the held-out residuals (relative residual " +
+        std::to_string(rel) + ", lag-one correlation " + std::to_string(rho) +
+        "): the neural cores were trained too";
+  return false;
+}
+
+}  // namespace csympnet::detail

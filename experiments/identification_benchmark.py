@@ -8,11 +8,14 @@ Command (from the repository root; needs only /usr/bin/python3 with NumPy):
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/b --fit-args="--epochs 2000"
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idq --quick --only-peers
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idv --violations  # 60
+    /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idl --library \
+        --systems all      # + csympnet_library; every system, the double pendulum included
 
 Options: --cases N (default 120, 8 with --quick; with --violations 60, 10 with --quick),
 --quick (a few cases of small size), --violations (only violation cases, below), --seed S
-(default 1; everything is deterministic given the seed), --only-peers (skip csympnet),
---systems a,b,... (a subset of the systems below), --csympnet PATH (default
+(default 1; everything is deterministic given the seed), --only-peers (skip csympnet, and
+csympnet_library), --systems a,b,... (a subset of the systems below, in the order given; "all":
+every system; default: every system but double-pendulum, see below), --csympnet PATH (default
 build/bin/csympnet under the repository root), --fit-args="..." (extra options for every
 `csympnet fit`, split like a shell would; write it with "=" so that a value starting with "--"
 is not taken for an option of this script), --timeout SECONDS (per fit, default 600),
@@ -20,10 +23,12 @@ is not taken for an option of this script), --timeout SECONDS (per fit, default 
 given|gradient|savgol (the p columns as generated, default, or computed from the noisy q by
 numpy.gradient or a Savitzky-Golay derivative, as a user without a momentum sensor would),
 --observed (every case also fitted from its positions alone and with centred-difference
-momenta, side by side: methods csympnet_positions and csympnet_differenced), --skip-peers
-(csympnet alone: no SINDy-style peer, no oracle).
+momenta, side by side: methods csympnet_positions and csympnet_differenced), --library
+(every case also fitted with the Hamiltonian-library core forced: method csympnet_library; off
+by default), --skip-peers (csympnet alone: no SINDy-style peer, no oracle; csympnet_library
+still runs with --library).
 
-Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p; unit masses unless stated):
+Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p, unit masses, unless stated):
 
     pendulum            d = 1   V = -k cos q                          (libration)
     duffing             d = 1   V = -a q^2/2 + b q^4/4                (below or above the barrier)
@@ -36,6 +41,23 @@ Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p; unit masses unless stated
     coupled-pendulums   d = 2   masses (1, 2.5), canonical momenta p_i = m_i dq_i/dt,
                                 V = -g sum m_i cos q_i + kc (q1 - q2)^2/2
     softened-central    d = 2   V = -k / sqrt(|q|^2 + eps^2)          (bound orbits, E < 0)
+    double-pendulum     d = 2   planar, unit lengths and masses, angles q1, q2 (from the
+                                downward vertical; q2 absolute) and their canonical momenta:
+                                H = (p1^2 + 2 p2^2 - 2 p1 p2 cos(q1 - q2))
+                                    / (2 (1 + sin^2(q1 - q2))) - 2 g cos q1 - g cos q2,
+                                theta = [g], g = 1; omega_max = sqrt(g (2 + sqrt 2)).
+                                Starts: q_i, p_i uniform in [-0.8, 0.8], kept when the energy
+                                above the minimum -3 g is in [0.05, 0.6] (so |q1| <= 0.80,
+                                |q2| <= 1.16 rad at all times: bounded, mildly nonlinear)
+
+The double pendulum's H is NOT separable (its kinetic energy depends on q1 - q2): it is outside
+the class of csympnet's Hamiltonian-library core (H = p^T W p / 2 + V(q) with a constant W) and
+is there to see what that core, and the default core choice, do on such data. Its dynamics are
+dq/dt = dH/dp, dp/dt = -dH/dq - gamma p: the system supplies this field (make_system's
+"field") and the data RK4 and the oracle integrate it instead of M^-1 p and grad V. It is not
+in the default plan (the plan cycles through its system list, so adding a system there would
+move every case of every seed; with it left out the default plans and data are those of
+before): name it in --systems, or give --systems all. It has no violation cases.
 
 The dissipation -gamma p acts on the canonical momenta, so every flow is conformally
 symplectic. Trajectories are integrated with a fixed-substep classical RK4 (omega_max * substep
@@ -61,7 +83,8 @@ Strata (every case has one value of each; values are assigned in balanced, shuff
                  sigma times that coordinate's std over the file (the dynamics are noise-free)
 
 Violation cases (--violations; without it the case plan and data are as described above):
-the same strata plus "violation", balanced like the others, one of
+the same strata plus "violation", balanced like the others, one of the kinds below
+(not for double-pendulum)
 
     nonuniform-1.5, nonuniform-3, nonuniform-30  (toda, fpu-alpha, fpu-beta, henon-heiles,
                  coupled-pendulums) dp/dt = -grad V - C p, C = M V diag(rates) V^T with V the
@@ -95,12 +118,17 @@ relative to |gamma_reference|; "confident wrong" on a violation case: identified
 interval outside gamma_reference_range (no error threshold).
 
 Each case is a trajectories CSV (`traj,t,q1..qd,p1..pd`, numbers written with repr) that is
-given to three methods:
+given to these methods:
 
     csympnet  `csympnet fit DATA --out DIR -q [--fit-args]`; reads DIR/report.json (gamma_hat,
               gamma_ci_low/high, identified, verdict, checks). Exit 0: identified; exit 4: "not
               identified"; exit 5: "model rejected" (a model check failed; both counted apart,
-              never as a wrong number); anything else, or the timeout: failed.
+              never as a wrong number); anything else, or the timeout: failed. Also recorded:
+              report.json "choices"."core"."type" (core_type: which core the fit chose) and,
+              when present, its "hamiltonian" object (the fitted terms).
+    csympnet_library  (--library only) `csympnet fit DATA --out DIR -q --core library
+              [--fit-args]`: the same data with the Hamiltonian-library core forced, read and
+              counted exactly as csympnet (output in cases/<id>/csympnet_library/).
     sindy     sparse regression of dp/dt: derivatives and smoothed states from a local cubic
               fit (7 samples, tricube weights, any spacing) per trajectory, then STLSQ
               (threshold 0.01 on unit-scaled columns and targets, ridge 1e-10, 10 passes) on a
@@ -132,10 +160,15 @@ any check (failed / applicable, failed / all), overall and per sigma and shape; 
 cases, per kind and size, the detection rate of each check and of any check, the shares
 rejected / not identified / identified, failed, and the confident wrong count, with those cases
 listed; and csympnet's verdict counts (identified / not identified / rejected / failed) per
-stratum value. DIR/results.json holds every case's
+stratum value. With csympnet or csympnet_library results, a core-choice table: per method and
+system, how many cases' report.json say choices.core.type == "library" (for csympnet: how
+often the library core won its choice), the other core types, and those with no report or no
+core in it. DIR/results.json holds every case's
 configuration (system, parameters, seed, strata, true gamma, paths) and every method's result
-(csympnet's with its verdict and checks).
-The case files stay in DIR/cases/<id>/data.csv, csympnet's output in DIR/cases/<id>/csympnet/.
+(csympnet's and csympnet_library's with verdict, checks, core_type and "hamiltonian"), and the
+core-choice counts ("core_choice").
+The case files stay in DIR/cases/<id>/data.csv, csympnet's output in DIR/cases/<id>/csympnet/
+(csympnet_library's in DIR/cases/<id>/csympnet_library/).
 
 Ctrl-C (SIGINT) or SIGTERM stops at once: running fits are killed, the finished cases are
 written (marked interrupted) and the exit status is 128 + the signal. Otherwise the exit status
@@ -167,7 +200,9 @@ UNITS_STRATA = ["natural", "units"]
 SHAPE_STRATA = ["long", "few", "many"]
 STEPS_STRATA = ["regular", "irregular", "gaps"]
 SIGMA_STRATA = [0.0, 1e-3, 1e-2, 5e-2]
-METHODS = ["csympnet", "csympnet_positions", "csympnet_differenced", "sindy", "oracle"]
+METHODS = ["csympnet", "csympnet_library", "csympnet_positions", "csympnet_differenced", "sindy",
+           "oracle"]
+CORE_CHOICE_METHODS = ["csympnet", "csympnet_library"]  # the core-choice table
 VIOLATION_STRATA = ["nonuniform-1.5", "nonuniform-3", "nonuniform-30", "coulomb-0.2",
                     "coulomb-0.5", "coulomb-0.9", "quadratic-drag", "periodic-force",
                     "drifting-equilibrium", "energy-gain"]
@@ -230,8 +265,29 @@ def _sample_by_energy(rng, m, potential, e_lo, e_hi, q_lo, q_hi):
     return q0[None, :], p0[None, :]
 
 
+def _double_pendulum_energy(q, p, th):
+    """H of the planar double pendulum, unit lengths and masses, canonical momenta."""
+    dl = q[0] - q[1]
+    sn = np.sin(dl)
+    kin = (p[0] * p[0] + 2.0 * p[1] * p[1] - 2.0 * p[0] * p[1] * np.cos(dl)) \
+        / (2.0 * (1.0 + sn * sn))
+    return kin - 2.0 * th[0] * np.cos(q[0]) - th[0] * np.cos(q[1])
+
+
+def _double_pendulum_field(q, p, th):
+    """(dH/dp, dH/dq) of _double_pendulum_energy; q, p of shape (2, m)."""
+    dl = q[0] - q[1]
+    c, sn = np.cos(dl), np.sin(dl)
+    den = 1.0 + sn * sn
+    p1, p2 = p[0], p[1]
+    dq = np.stack([(p1 - p2 * c) / den, (2.0 * p2 - p1 * c) / den])
+    num_ = p1 * p1 + 2.0 * p2 * p2 - 2.0 * p1 * p2 * c
+    a = sn * (p1 * p2 / den - num_ * c / (den * den))  # d(kinetic)/d(q1 - q2)
+    return dq, np.stack([a + 2.0 * th[0] * np.sin(q[0]), -a + th[0] * np.sin(q[1])])
+
+
 def make_system(name, rng, quick):
-    s = {"name": name, "masses": None}
+    s = {"name": name, "masses": None, "field": None}
     if name == "pendulum":
         s.update(d=1, theta=[1.0], theta_names=["k"])
         s["grad"] = lambda q, th: th[0] * np.sin(q)
@@ -350,14 +406,41 @@ def make_system(name, rng, quick):
             c, sn = np.cos(ph), np.sin(ph)
             return (np.stack([radius * c, radius * sn]),
                     np.stack([-v * sn + vr * c, v * c + vr * sn]))
+    elif name == "double-pendulum":
+        # Non-separable H (kinetic energy depends on q1 - q2): the system supplies the full
+        # field (dq/dt = dH/dp, dH/dq) instead of masses and grad V.
+        s.update(d=2, theta=[1.0], theta_names=["g"])
+        s["grad"] = None
+        s["field"] = _double_pendulum_field
+        s["omega_max"] = math.sqrt(2.0 + math.sqrt(2.0))  # sqrt(g (2 + sqrt 2)) at q = 0
+
+        def init(rng, m):
+            # angles and momenta uniform in [-0.8, 0.8], kept when the energy above the
+            # minimum (-3 g) is in [0.05, 0.6]: |q1| <= 0.80, |q2| <= 1.16 rad for all times
+            q0 = np.empty((2, m))
+            p0 = np.empty((2, m))
+            for j in range(m):
+                while True:
+                    q = rng.uniform(-0.8, 0.8, 2)
+                    p = rng.uniform(-0.8, 0.8, 2)
+                    e = float(_double_pendulum_energy(q, p, [1.0])) + 3.0
+                    if 0.05 < e < 0.6:
+                        break
+                q0[:, j], p0[:, j] = q, p
+            return q0, p0
     else:
         raise ValueError(f"unknown system {name!r}")
     s["init"] = init
     return s
 
 
-SYSTEM_NAMES = ["pendulum", "duffing", "morse", "linear", "toda", "fpu-alpha", "fpu-beta",
-                "henon-heiles", "coupled-pendulums", "softened-central"]
+# The systems of the default plan (no --systems). The plan cycles through its system list, so
+# a system added to this list would move every case of every seed: new systems go to
+# EXTRA_SYSTEMS instead and are planned only when --systems names them (or "all").
+DEFAULT_SYSTEMS = ["pendulum", "duffing", "morse", "linear", "toda", "fpu-alpha", "fpu-beta",
+                   "henon-heiles", "coupled-pendulums", "softened-central"]
+EXTRA_SYSTEMS = ["double-pendulum"]
+SYSTEM_NAMES = DEFAULT_SYSTEMS + EXTRA_SYSTEMS
 
 
 # ----------------------------------------------------------------------------------------------
@@ -384,6 +467,26 @@ def rk4(grad, theta, minv, gamma, q, p, dt, n):
         q4 = q + dt * k3q
         k4q = p4 if minv is None else minv * p4
         k4p = -grad(q4, theta) - gamma * p4
+        q = q + sixth * (k1q + 2.0 * (k2q + k3q) + k4q)
+        p = p + sixth * (k1p + 2.0 * (k2p + k3p) + k4p)
+    return q, p
+
+
+def rk4_field(field, theta, gamma, q, p, dt, n):
+    """n classical RK4 steps of size dt (a scalar or one per column) of a general
+    Hamiltonian field: dq/dt = dH/dp, dp/dt = -dH/dq - gamma p, field(q, p, theta) returning
+    (dH/dp, dH/dq) (non-separable systems such as the double pendulum)."""
+    half = 0.5 * dt
+    sixth = dt / 6.0
+    for _ in range(n):
+        k1q, g1 = field(q, p, theta)
+        k1p = -g1 - gamma * p
+        k2q, g2 = field(q + half * k1q, p + half * k1p, theta)
+        k2p = -g2 - gamma * (p + half * k1p)
+        k3q, g3 = field(q + half * k2q, p + half * k2p, theta)
+        k3p = -g3 - gamma * (p + half * k2p)
+        k4q, g4 = field(q + dt * k3q, p + dt * k3p, theta)
+        k4p = -g4 - gamma * (p + dt * k3p)
         q = q + sixth * (k1q + 2.0 * (k2q + k3q) + k4q)
         p = p + sixth * (k1p + 2.0 * (k2p + k3p) + k4p)
     return q, p
@@ -424,7 +527,10 @@ def integrate(s, gamma, q0, p0, steps, substep, dpdt=None):
     """steps: (m, K) step sizes per trajectory, 0 once a trajectory has ended. Every sample
     interval is split into the same number of substeps across trajectories (<= substep each).
     dpdt(t, q, p), if given, replaces -grad V(q) - gamma p (t: time since each trajectory's
-    start). Returns Q, P of shape (K + 1, d, m)."""
+    start). A system with s["field"] (non-separable H) is integrated by rk4_field (no dpdt).
+    Returns Q, P of shape (K + 1, d, m)."""
+    if s.get("field") is not None and dpdt is not None:
+        raise ValueError(f"{s['name']}: no violation right-hand side for a field system")
     m, K = steps.shape
     Q = np.empty((K + 1,) + q0.shape)
     P = np.empty_like(Q)
@@ -437,7 +543,9 @@ def integrate(s, gamma, q0, p0, steps, substep, dpdt=None):
             check_stop()
         h = steps[:, k]
         n = max(1, int(math.ceil(float(h.max()) / substep)))
-        if dpdt is None:
+        if dpdt is None and s.get("field") is not None:
+            q, p = rk4_field(s["field"], s["theta"], gamma, q, p, h / n, n)
+        elif dpdt is None:
             q, p = rk4(s["grad"], s["theta"], minv, gamma, q, p, h / n, n)
         else:
             q, p = rk4_t(minv, dpdt, t, q, p, h / n, n)
@@ -451,13 +559,15 @@ def integrate(s, gamma, q0, p0, steps, substep, dpdt=None):
 
 
 D1_SYSTEMS = ["pendulum", "duffing", "morse", "linear"]
+# DEFAULT_SYSTEMS only: the violation right-hand sides are written as dq/dt = M^-1 p,
+# dp/dt = f(t, q, p) (grad V, linear modes), which a field system (double-pendulum) lacks.
 VIOLATION_SYSTEMS = {
     "nonuniform": ["toda", "fpu-alpha", "fpu-beta", "henon-heiles", "coupled-pendulums"],
     "coulomb": D1_SYSTEMS,
     "quadratic-drag": D1_SYSTEMS,
-    "periodic-force": SYSTEM_NAMES,
-    "drifting-equilibrium": [x for x in SYSTEM_NAMES if x != "softened-central"],
-    "energy-gain": SYSTEM_NAMES,
+    "periodic-force": DEFAULT_SYSTEMS,
+    "drifting-equilibrium": [x for x in DEFAULT_SYSTEMS if x != "softened-central"],
+    "energy-gain": DEFAULT_SYSTEMS,
 }
 
 # V(q) - min V for the d = 1 systems (theta as in make_system)
@@ -927,10 +1037,15 @@ def oracle(files, info, s, rng):
     q0, p0 = z0[:d], z0[d:]
     npar = len(s["theta"]) + 1
 
+    field = s.get("field")
+
     def residual(x):
         check_stop()
         with np.errstate(all="ignore"):
-            q, p = rk4(s["grad"], list(x[:-1]), minv, x[-1], q0, p0, dt, n_sub)
+            if field is not None:
+                q, p = rk4_field(field, list(x[:-1]), x[-1], q0, p0, dt, n_sub)
+            else:
+                q, p = rk4(s["grad"], list(x[:-1]), minv, x[-1], q0, p0, dt, n_sub)
             return ((np.concatenate([q, p]) - z1) / w).ravel()
 
     theta_true = np.asarray(s["theta"], dtype=float)
@@ -1061,6 +1176,19 @@ def parse_checks(checks):
     return out
 
 
+def core_type(rep):
+    """report.json "choices"."core"."type" (a core given as a string such as "la:5:20":
+    the part before the first ':'), or None"""
+    core = (rep.get("choices") or {}).get("core") if isinstance(rep.get("choices"), dict) \
+        else None
+    if isinstance(core, dict):
+        t = core.get("type")
+        return t if isinstance(t, str) else None
+    if isinstance(core, str) and core:
+        return core.split(":", 1)[0]
+    return None
+
+
 def run_csympnet(exe, data, outdir, extra, timeout):
     cmd = [exe, "fit", data, "--out", outdir, "-q", *extra]
     t0 = time.monotonic()
@@ -1083,6 +1211,9 @@ def run_csympnet(exe, data, outdir, extra, timeout):
     if rep is not None:
         res["verdict"] = rep.get("verdict")
         res["checks"] = parse_checks(rep.get("checks"))
+        res["core_type"] = core_type(rep)
+        if isinstance(rep.get("hamiltonian"), dict):
+            res["hamiltonian"] = rep["hamiltonian"]
     if rc == 5 and rep is not None:  # model rejected: a verdict, counted apart
         failed = [ch.get("sentence") or ch["name"] for ch in res["checks"] or []
                   if ch["passed"] is False]
@@ -1220,12 +1351,22 @@ def run_case(case, args, check_integrator, exe, extra):
         methods["oracle"] = scorer(res, gamma)
     if args.only_peers:
         methods["csympnet"] = {"status": "skipped"}
+        if args.library:
+            methods["csympnet_library"] = {"status": "skipped"}
     else:
         outdir = os.path.join(cdir, "csympnet")
         if os.path.isdir(outdir):
             shutil.rmtree(outdir)
         case["paths"]["csympnet_out"] = os.path.relpath(outdir, args.out)
         methods["csympnet"] = scorer(run_csympnet(exe, data, outdir, extra, args.timeout), gamma)
+        if args.library:  # the same data, the Hamiltonian-library core forced
+            outdir = os.path.join(cdir, "csympnet_library")
+            if os.path.isdir(outdir):
+                shutil.rmtree(outdir)
+            case["paths"]["csympnet_library_out"] = os.path.relpath(outdir, args.out)
+            methods["csympnet_library"] = scorer(
+                run_csympnet(exe, data, outdir, ["--core", "library"] + extra, args.timeout),
+                gamma)
     case["methods"] = methods
     return case
 
@@ -1463,6 +1604,49 @@ def violation_tables(cases):
     return "\n".join(lines) + "\n"
 
 
+def core_choice(cases):
+    """per method of CORE_CHOICE_METHODS and system ("all" first): cases run, cases whose
+    report.json says choices.core.type == "library", other core types (counts), no report or
+    no core given"""
+    out = {}
+    for m in CORE_CHOICE_METHODS:
+        rs = [(c, c["methods"][m]) for c in cases
+              if m in c.get("methods", {}) and c["methods"][m].get("status") != "skipped"]
+        if not rs:
+            continue
+        per = {}
+        key = lambda c: c["system"]  # noqa: E731
+        for v in ["all"] + group_values("system", key, [c for c, _ in rs]):
+            sub = [r for c, r in rs if v == "all" or c["system"] == v]
+            types = [r.get("core_type") for r in sub]
+            other = {}
+            for t in types:
+                if t is not None and t != "library":
+                    other[t] = other.get(t, 0) + 1
+            per[v] = {"n": len(sub), "library": types.count("library"), "other": other,
+                      "unknown": types.count(None)}
+        out[m] = per
+    return out
+
+
+def core_choice_table(choice):
+    if not choice:
+        return ""
+    lines = ["### core chosen (report.json choices.core.type)\n",
+             "csympnet: how often its own choice was the Hamiltonian-library core; "
+             "csympnet_library: the core forced with --core library (a check that it was "
+             "used). 'unknown': no report.json, or no core in it.\n",
+             "| system | method | n | library | rate | other cores | unknown |",
+             "|" + "---|" * 7]
+    for m, per in choice.items():
+        for v, st in per.items():
+            other = ", ".join(f"{k} {x}" for k, x in sorted(st["other"].items())) or "-"
+            rate = f"{st['library'] / st['n']:.2f}" if st["n"] else "n/a"
+            lines.append(f"| {v} | {m} | {st['n']} | {st['library']} | {rate} | {other} | "
+                         f"{st['unknown']} |")
+    return "\n".join(lines) + "\n"
+
+
 def verdict_tables(cases):
     """csympnet's verdict counts per stratum value"""
     cs = [c for c in cases if csympnet_result(c)]
@@ -1511,8 +1695,9 @@ def write_outputs(args, meta, cases, interrupted=False):
                   "modal rate; energy gain: negative); 'confident wrong' there is any interval "
                   "outside gamma_reference_range (nonuniform: [min, max] modal rate), with no "
                   "error threshold.")
+    choice = core_choice(done)
     checks = "\n".join(x for x in (false_alarm_tables(done), violation_tables(done),
-                                    verdict_tables(done)) if x)
+                                    verdict_tables(done), core_choice_table(choice)) if x)
     body = "\n".join([case_counts(done), integrator_table(done), tables(summary)]
                      + ([checks] if checks else []))
     md = "\n".join([
@@ -1521,7 +1706,7 @@ def write_outputs(args, meta, cases, interrupted=False):
         f"- uname -a: `{meta['uname']}`",
         f"- csympnet --version: {meta['csympnet_version']}",
         f"- cases: {len(done)} of {len(cases)} planned, seed {args.seed}", "", notes, "", body])
-    res = dict(meta, interrupted=interrupted, summary=summary,
+    res = dict(meta, interrupted=interrupted, summary=summary, core_choice=choice,
                cases=[dict(c) for c in cases if "methods" in c or "error" in c])
     with open(os.path.join(args.out, "results.json"), "w") as f:
         json.dump(clean_json(res), f, indent=1)
@@ -1549,8 +1734,8 @@ def uname():
 def progress(i, n, c):
     parts = []
     for m in METHODS:
-        r = c["methods"].get(m, {})
-        if r.get("status") == "skipped":
+        r = c["methods"].get(m)
+        if r is None or r.get("status") == "skipped":
             continue
         if r.get("status") == "ok":
             parts.append(f"{m} {r['rel_err']:.1e}")
@@ -1577,9 +1762,11 @@ def main():
                     help="run only violation cases (data that break one assumption)")
     ap.add_argument("--quick", action="store_true", help="a small subset of small cases")
     ap.add_argument("--seed", type=int, default=1, help="default 1")
-    ap.add_argument("--only-peers", action="store_true", help="skip csympnet")
+    ap.add_argument("--only-peers", action="store_true",
+                    help="skip csympnet (and csympnet_library)")
     ap.add_argument("--systems", default=None,
-                    help="comma-separated subset of: " + ",".join(SYSTEM_NAMES))
+                    help="comma-separated subset of: " + ",".join(SYSTEM_NAMES)
+                         + ', or "all" (default: all but ' + ",".join(EXTRA_SYSTEMS) + ")")
     ap.add_argument("--csympnet", default=os.path.join(REPO, "build", "bin", "csympnet"))
     ap.add_argument("--fit-args", default="",
                     help='extra options for every `csympnet fit`, e.g. --fit-args="--epochs 2000"')
@@ -1593,8 +1780,12 @@ def main():
                     help="also fit every case from its positions alone (csympnet_positions) and "
                          "with p from centred differences of the noisy q "
                          "(csympnet_differenced), side by side with the given p")
+    ap.add_argument("--library", action="store_true",
+                    help="also fit every case with the Hamiltonian-library core forced "
+                         "(`--core library`): method csympnet_library")
     ap.add_argument("--skip-peers", action="store_true",
-                    help="skip the SINDy-style peer and the oracle (csympnet alone)")
+                    help="skip the SINDy-style peer and the oracle (csympnet alone; "
+                         "csympnet_library still runs with --library)")
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     args = ap.parse_args()
@@ -1608,8 +1799,10 @@ def main():
         n = args.cases if args.cases is not None else (8 if args.quick else 120)
     if n < 1:
         ap.error("--cases must be >= 1")
-    systems = SYSTEM_NAMES
-    if args.systems:
+    systems = DEFAULT_SYSTEMS
+    if args.systems and args.systems.strip() == "all":
+        systems = SYSTEM_NAMES
+    elif args.systems:
         systems = [x.strip() for x in args.systems.split(",") if x.strip()]
         bad = [x for x in systems if x not in SYSTEM_NAMES]
         if bad or not systems:
@@ -1635,7 +1828,8 @@ def main():
                                  else csympnet_version(exe)),
             "seed": args.seed, "quick": args.quick, "violations": args.violations,
             "fit_args": extra, "timeout": args.timeout, "momenta": args.momenta,
-            "observed": args.observed, "skip_peers": args.skip_peers,
+            "observed": args.observed, "skip_peers": args.skip_peers, "library": args.library,
+            "systems": list(systems),
             "settings": {"gen_omega_dt": GEN_OMEGA_DT, "oracle_omega_dt": ORACLE_OMEGA_DT,
                          "sg_window": SG_WINDOW, "sg_degree": SG_DEGREE,
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,

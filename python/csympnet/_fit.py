@@ -28,19 +28,22 @@ trajectories (list of Trajectory) they follow."""
 
 
 def _core_spec(core):
-    """None, a dict, or the CLI's "la:LAYERS:SUBLAYERS[:h2]" / "g:LAYERS:WIDTH" → JSON text."""
+    """None, a dict, or the CLI's "la:LAYERS:SUBLAYERS[:h2]" / "g:LAYERS:WIDTH" / "library"
+    → JSON text."""
     if core is None:
         return "null"
     if isinstance(core, dict):
         return json.dumps(core)
+    if core == "library":
+        return json.dumps({"type": "library"})
     if isinstance(core, str):
         m = re.fullmatch(r"(la|g):(\d+):(\d+)(:h2)?", core)
         if (not m or int(m.group(2)) < 1 or int(m.group(3)) < 1
                 or (m.group(4) and m.group(1) != "la")):
             raise ValueError(
                 f"core: expected 'la:LAYERS:SUBLAYERS' (with ':h2' appended for step "
-                f"polynomials) or 'g:LAYERS:WIDTH' with sizes >= 1 (e.g. 'la:5:20', "
-                f"'la:5:20:h2'), or a dict, got {core!r}"
+                f"polynomials), 'g:LAYERS:WIDTH' with sizes >= 1 (e.g. 'la:5:20', "
+                f"'la:5:20:h2'), 'library', or a dict, got {core!r}"
             )
         kind, a, b = m.group(1), int(m.group(2)), int(m.group(3))
         key = "sublayers" if kind == "la" else "width"

@@ -122,8 +122,11 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     The data are normalised (q shift, per-dof scales that keep the structure, time scale),
     whole trajectories or segments of a long one are held out, windows of `window` steps
     (0: automatic) are fitted with balanced residuals (`loss="one-step"` for the paper's),
-    then Levenberg–Marquardt. Without `core`, an LA and a G core are both trained and the
-    lower validation loss wins (`report["choices"]["core_candidates"]`). With d > 1 the
+    then Levenberg–Marquardt. Without `core`, the Hamiltonian-library core is fitted first
+    (`result.hamiltonian` then gives its terms in the data's units); unless it explains the
+    held-out data to the noise floor, an LA and a G core are trained too and the lowest
+    validation loss wins (`report["choices"]["core_candidates"]`; `core="library"` forces
+    the library core). With d > 1 the
     momenta's per-dof scales are learned too (`dof_scales`), so velocities work as well as
     momenta. The interval is a cluster-robust sandwich over blocks, widened by the held-out
     over training loss when that exceeds 1. When the data do not identify γ this warns

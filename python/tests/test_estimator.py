@@ -123,6 +123,8 @@ def test_data_that_do_not_identify_gamma_give_none_and_a_warning():
 def test_verbose_draws_a_progress_bar_per_stage(long_run, capsys):
     t, z = long_run
     csympnet.CSympNetID(verbose=True, **FAST).fit(z[:300], t[:300])
+    assert "LM" in capsys.readouterr().err
+    csympnet.CSympNetID(verbose=True, core="g:2:8", **FAST).fit(z[:300], t[:300])
     err = capsys.readouterr().err
     assert "AdamW" in err and "LM" in err
     with pytest.raises(TypeError, match="verbose"):

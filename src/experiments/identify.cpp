@@ -303,8 +303,8 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   IdentifyConfig& c = r.config;
   if (config.init != nullptr) c.core = config.init->inner_spec.at("core");
   const bool choosing = c.core.is_null();
-  const bool library_given =
-      !choosing && config.init == nullptr && c.core.value("type", "") == "library";
+  const bool library_given = !choosing && config.init == nullptr && c.core.is_object() &&
+                             c.core.contains("type") && c.core.at("type") == "library";
   std::vector<nlohmann::json> cores = choosing ? default_cores(f.facts.d, f.facts.varying_steps)
                                       : library_given ? std::vector<nlohmann::json>{}
                                                       : std::vector<nlohmann::json>{c.core};

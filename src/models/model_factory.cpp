@@ -155,7 +155,7 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     }
     const Index d = get_count(spec, "d", where);
     if (conformal && spec.contains("core") && spec.at("core").is_object() &&
-        spec.at("core").value("type", "") == "library") {
+        spec.at("core").contains("type") && spec.at("core").at("type") == "library") {
       if (spec.at("core").contains("d"))
         require(spec.at("core").at("d") == d, [&] {
           return where + ".core: key 'd' disagrees with the model's d = " + std::to_string(d);

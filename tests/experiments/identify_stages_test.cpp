@@ -217,5 +217,17 @@ TEST(IdentifyStages, VerdictLeavesChecksUndecidedWhenTheModelExplainsTooLittle) 
   EXPECT_NE(poor.reasons[0].find("less than 10% of the motion"), std::string::npos);
 }
 
+// The neural candidates by dimension: LA with step polynomials when the steps vary, then G.
+TEST(IdentifyStages, VaryingStepsGiveTheLaCandidateStepPolynomials) {
+  for (Index d : {1, 3}) {
+    const auto regular = default_cores(d, false), varying = default_cores(d, true);
+    ASSERT_EQ(varying.size(), 2u);
+    EXPECT_EQ(varying[0]["type"], "la");
+    EXPECT_EQ(varying[0]["step_terms"], 2);
+    EXPECT_FALSE(regular[0].contains("step_terms"));
+    EXPECT_EQ(varying[1]["type"], "g");
+  }
+}
+
 }  // namespace
 }  // namespace csympnet::detail

@@ -240,31 +240,34 @@ TEST(Identify, WindowsGrowOnlyWhenNoiseDominatesMisfit) {
   EXPECT_EQ(identify(clean, false, c).config.window, 2);
 }
 
-// The core is chosen by validation loss between an LA and a G candidate; the winner is the
-// one reported and saved, on a linear oscillator and a large-amplitude pendulum. On the linear
-// oscillator the LA core, whose linear sublayers hold the exact flow map, must win by far.
-// (Which core wins on nonlinear data depends on the budget: the benchmark measures it.)
+// The core is chosen by validation loss between the library, an LA and a G candidate; the
+// winner is the one reported and saved. The library core is fitted first, and where it
+// explains the held-out data to the noise floor (a clean linear oscillator: its q^2 term is
+// the exact force) the neural cores are not trained. On a pendulum integrated by a
+// first-order scheme (symplectic Euler, steps of 1e-3: a map the library's composed Strang
+// steps do not reproduce to the data's precision) all three are trained.
 TEST(Identify, ChoosesTheCoreByValidationLoss) {
   IdentifyConfig c;
   c.epochs = 600;
   c.lm_iterations = 40;
   auto check = [](const IdentifyResult& r) {
     const auto& cands = r.choices["core_candidates"];
-    EXPECT_EQ(cands.size(), 2u);
     std::size_t win = 0;
     for (std::size_t k = 1; k < cands.size(); ++k)
       if (cands[k]["val_loss"].get<double>() < cands[win]["val_loss"].get<double>()) win = k;
     EXPECT_EQ(r.choices["core"], cands[win]["core"]);
     EXPECT_EQ(r.config.core, cands[win]["core"]);
     EXPECT_EQ(r.model.hyperparams()["core"], cands[win]["core"]);
-    EXPECT_NE(r.choices["core_reason"].get<std::string>().find("lowest validation loss"),
-              std::string::npos);
     return cands;
   };
   const IdentifyResult lin = identify(chain_data(1, 0.1, 4, 60, 0.0, 3), false, c);
   const auto lc = check(lin);
-  EXPECT_EQ(lin.config.core["type"], "la");
-  EXPECT_LT(lc[0]["val_loss"].get<double>(), 1e-3 * lc[1]["val_loss"].get<double>());
+  ASSERT_EQ(lc.size(), 1u);
+  EXPECT_EQ(lin.config.core["type"], "library");
+  EXPECT_NE(lin.choices["core_reason"].get<std::string>().find("clean data explained"),
+            std::string::npos)
+      << lin.choices["core_reason"];
+  EXPECT_LT(std::abs(lin.gamma - 0.1), 1e-9);
 
   std::vector<Trajectory> pend(4);
   for (int m = 0; m < 4; ++m) {
@@ -282,7 +285,12 @@ TEST(Identify, ChoosesTheCoreByValidationLoss) {
     }
   }
   const IdentifyResult pr = identify(pend, false, c);
-  check(pr);
+  const auto pc = check(pr);
+  EXPECT_EQ(pc.size(), 3u);
+  EXPECT_EQ(pc[0]["core"]["type"], "library");
+  EXPECT_NE(pr.choices["core_reason"].get<std::string>().find("lowest validation loss"),
+            std::string::npos)
+      << pr.choices["core_reason"];
   // A given core is used as given: no candidates.
   c.core = {{"type", "la"}, {"layers", 3}, {"sublayers", 6}};
   const IdentifyResult given = identify(pend, false, c);

@@ -60,8 +60,13 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
                              ? r.quality.val_loss / r.quality.train_loss
                              : 1.0;
     inflate_interval(s, std::sqrt(std::max(1.0, ratio)));
+    // The library core: its integrator's share, measured at twice the substeps (normalised).
+    const auto& lib = r.choices.value("library", nlohmann::json::object());
+    if (r.config.core.is_object() && r.config.core.value("type", nlohmann::json()) == "library" &&
+        lib.contains("gamma_change_at_twice_the_substeps"))
+      add_integrator(s, lib["gamma_change_at_twice_the_substeps"].get<double>());
     for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
-                      &s.optimisation, &s.rounding})
+                      &s.optimisation, &s.rounding, &s.integrator})
       *v /= tau;
     r.interval = s;
     modal_analysis(map, train,

@@ -71,6 +71,69 @@ Candidate make_library_candidate(const std::vector<LibraryTerm>& terms, Index su
   return x;
 }
 
+// A start for W, the coefficients and γ by linear least squares on the windows' difference
+// quotients at their midpoints: (q₁ − q₀)/H ≈ W p̄ and (p₁ − p₀)/H ≈ −∇V(q̄) − γ p̄, linear in W,
+// c and γ for the current wavenumbers. Without it LM can settle on an aliased frequency (a
+// force too strong by the square of an integer).
+void regression_start(Candidate& x, const WindowSet& w) {
+  const HamiltonianLibraryMap& map = library_of(x);
+  const Index d = map.d(), n = w.size(), k_terms = static_cast<Index>(map.terms().size());
+  const Vector span = w.span();
+  Matrix qbar(d, n), pbar(d, n), qdot(d, n), pdot(d, n);
+  for (Index i = 0; i < n; ++i) {
+    qbar.col(i) = 0.5 * (w.z0.col(i).head(d) + w.zm.col(i).head(d));
+    pbar.col(i) = 0.5 * (w.z0.col(i).tail(d) + w.zm.col(i).tail(d));
+    qdot.col(i) = (w.zm.col(i).head(d) - w.z0.col(i).head(d)) / span(i);
+    pdot.col(i) = (w.zm.col(i).tail(d) - w.z0.col(i).tail(d)) / span(i);
+  }
+  // W: each row of q̇ = W p̄ by least squares, then symmetrised.
+  const Matrix ppt = pbar * pbar.transpose();
+  const Eigen::LDLT<Matrix> pl(ppt + 1e-12 * ppt.trace() * Matrix::Identity(d, d));
+  Matrix wm = pl.solve(pbar * qdot.transpose()).transpose();
+  wm = 0.5 * (wm + wm.transpose());
+  // ṗ = −Σ c_k ∇φ_k(q̄) − γ p̄: columns −∇φ_k and −p̄, stacked over coordinates and samples.
+  Matrix a(n * d, k_terms + 1);
+  Vector b(n * d);
+  Vector probe = x.theta;
+  for (Index k = 0; k < k_terms; ++k) probe(map.coefficient_index(k)) = 0.0;
+  for (Index k = 0; k <= k_terms; ++k) {
+    if (k < k_terms) probe(map.coefficient_index(k)) = 1.0;
+    for (Index i = 0; i < n; ++i) {
+      // ∇φ_k at q̄ as the force of the map with c_k = 1 alone: −(ṗ of one step) is not
+      // needed; the potential's gradient is read by central differences of V.
+      for (Index r = 0; r < d; ++r) {
+        if (k == k_terms) {
+          a(i * d + r, k) = -pbar(r, i);
+          continue;
+        }
+        Vector qp = qbar.col(i), qm = qbar.col(i);
+        const double step = 1e-6 * std::max(1.0, std::abs(qp(r)));
+        qp(r) += step;
+        qm(r) -= step;
+        a(i * d + r, k) =
+            -(map.potential(probe, qp.data()) - map.potential(probe, qm.data())) / (2.0 * step);
+      }
+    }
+    if (k < k_terms) probe(map.coefficient_index(k)) = 0.0;
+  }
+  for (Index i = 0; i < n; ++i)
+    for (Index r = 0; r < d; ++r) b(i * d + r) = pdot(r, i);
+  const Matrix ata = a.transpose() * a;
+  const Eigen::LDLT<Matrix> al(ata + 1e-10 * ata.diagonal().maxCoeff() *
+                                         Matrix::Identity(ata.rows(), ata.cols()));
+  const Vector sol = al.solve(a.transpose() * b);
+  if (!sol.allFinite() || !wm.allFinite()) return;
+  for (Index r = 0; r < d; ++r)
+    for (Index c = 0; c <= r; ++c)
+      if (map.full_mass())
+        x.theta(r * (r + 1) / 2 + c) = wm(r, c);
+      else if (c == r)
+        x.theta(r) = wm(r, r);
+  for (Index k = 0; k < k_terms; ++k) x.theta(map.coefficient_index(k)) = sol(k);
+  const double gamma = sol(k_terms);
+  if (std::isfinite(gamma) && std::abs(gamma) > 1e-8) x.theta(*map.damping_param_index()) = gamma;
+}
+
 // The fastest rate of the data: per coordinate √(rms(Δq/H)/sd(q) · rms(Δp/H)/sd(p)) over the
 // training windows (ω for an oscillator), the largest over coordinates.
 double data_rate(const WindowSet& w) {
@@ -339,6 +402,7 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
           {{"when", when}, {"substeps", library_of(c).substeps()}, {"val_loss", c.val_loss}});
     }
   };
+  regression_start(x, split.train);
   train_lm(x, kRoundIterations, "library: start");
   refine_integrator(x, "start");
   rec["start"] = {{"terms", x.core["terms"]}, {"val_loss", x.val_loss}};
@@ -494,6 +558,15 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
   // The chosen terms to convergence, with the integrator checked once more.
   train_lm(x, kFinalIterations, "library: final");
   refine_integrator(x, "final");
+  // How far γ̂ moves at twice the substeps: the interval's integrator term (identify_assess).
+  if (!fit.stop_requested()) {
+    Candidate finer = make_library_candidate(library_of(x).terms(), 2 * library_of(x).substeps(),
+                                             scales, d, beta_init, &x);
+    train_lm(finer, kRoundIterations, "library: the same at twice the substeps");
+    const double g0 = *x.inner.map->damping_rate(x.theta);
+    const double g1 = *finer.inner.map->damping_rate(finer.theta);
+    rec["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
+  }
   rec["terms"] = x.core["terms"];
   rec["substeps"] = library_of(x).substeps();
   rec["val_loss"] = x.val_loss;

@@ -18,6 +18,7 @@ void to_json(nlohmann::json& j, const SandwichInterval& s) {
        {"model_based", s.model_based},
        {"optimisation", s.optimisation},
        {"rounding", s.rounding},
+       {"integrator", s.integrator},
        {"dof", s.dof},
        {"quantile", s.quantile},
        {"blocks", s.blocks},
@@ -35,6 +36,14 @@ void inflate_interval(SandwichInterval& s, double factor) {
   s.low = s.gamma - factor * (s.gamma - s.low);
   s.high = s.gamma + factor * (s.high - s.gamma);
   s.heldout_inflation *= factor;
+}
+
+void add_integrator(SandwichInterval& s, double change) {
+  require(std::isfinite(change) && change >= 0.0, "add_integrator: change must be finite, >= 0");
+  s.integrator = change;
+  s.std_error = std::hypot(s.std_error, change);
+  s.low = s.gamma - s.quantile * s.std_error;
+  s.high = s.gamma + s.quantile * s.std_error;
 }
 
 namespace {

@@ -36,8 +36,9 @@ struct SandwichInterval {
   double model_based = 0.0;   // the classical σ̂ √(u_β) (independent residuals): reported only
   double optimisation = 0.0;  // |uᵀ g|: how far the unfinished Newton step would move γ̂
   double rounding = 0.0;      // the data's rounding, propagated
-  double dof = 0.0;           // degrees of freedom of the t quantile
-  double quantile = 0.0;      // t_{dof}((1 + level)/2)
+  double integrator = 0.0;  // a library core's: |γ̂ at twice the substeps − γ̂| (add_integrator)
+  double dof = 0.0;         // degrees of freedom of the t quantile
+  double quantile = 0.0;  // t_{dof}((1 + level)/2)
   long blocks = 0;
   double regularisation_ratio = 1.0;  // std error at 100 μ over that at μ
   bool stable = true;
@@ -65,6 +66,11 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
 // Scales the standard error and the half-widths by `factor` (≥ 1), keeping the centre, and
 // records it: the held-out inflation of identify() (training residuals understate the error).
 void inflate_interval(SandwichInterval& s, double factor);
+
+// Adds `change` (how far γ̂ moves when the library core's integrator takes twice the
+// substeps: its discretisation and rounding, which the residuals of a clean fit do not show)
+// in quadrature to the standard error, keeping the centre and the quantile.
+void add_integrator(SandwichInterval& s, double change);
 
 // Quantiles: the standard normal's and Student's t with dof degrees of freedom (dof ≥ 1).
 double normal_quantile(double p);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include <Eigen/Cholesky>
 
@@ -326,175 +327,242 @@ std::vector<Addition> ranked_additions(const Candidate& x, const std::vector<Lib
   return unique;
 }
 
-}  // namespace
-
-LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
-                       double beta_init, const Normalization& units, bool balanced,
-                       const Communicator& comm) {
-  const auto t0 = std::chrono::steady_clock::now();
-  LibraryFit out;
-  nlohmann::json& rec = out.record;
-  const BlockSplit& split = fit.split();
-  // Differences weigh the coordinates by their units, so that q_i − q_j of the user's data
-  // stays a difference (normalisation.hpp scales each coordinate on its own).
-  Vector scales = units.q_scale.size() == d ? units.q_scale : Vector::Ones(d);
-  scales /= std::exp(scales.array().log().mean());
-  const double omega = data_rate(split.train);
-  const double h_max = split.train.h.maxCoeff();
-  Index substeps =
-      std::clamp<Index>(static_cast<Index>(std::ceil(omega * h_max / kStepPhase)), 1, 64);
-  rec["order"] = kOrder;
-  rec["data_rate"] = omega;
-  rec["substeps_start"] = substeps;
-  const Index n_val_residuals = split.val.size() * split.val.dim();
-  // A term must lower the held-out loss by this share to be kept.
-  const double threshold = std::max(2e-3, 10.0 / static_cast<double>(n_val_residuals));
-  rec["keep_threshold"] = threshold;
-  // Below this held-out loss the residuals are rounding: a change there is no change.
-  const double floor = 1e-22 * split.val.zm.squaredNorm() / static_cast<double>(split.val.size());
-  rec["rounding_floor"] = floor;
-  const auto improves = [&](double before, double after) {
-    return before > floor && after < before * (1.0 - threshold);
-  };
-  const auto no_worse = [&](double before, double after) {
-    return after <= std::max(before * (1.0 + threshold), floor);
-  };
-
-  std::vector<LibraryTerm> pool = full_library(d);
-  std::vector<bool> active(pool.size(), false);
-  const bool given_terms = given_core.contains("terms");
-  if (given_terms) {
-    pool.clear();
-    for (const auto& name : given_core.at("terms"))
-      pool.push_back(parse_term(name.get<std::string>(), d, "core.terms"));
-    active.assign(pool.size(), true);
-  } else {
-    for (std::size_t k = 0; k < pool.size(); ++k)
-      active[k] = pool[k].shape == TermShape::kPower && pool[k].j < 0 && pool[k].power <= 2;
+// The selection as a class: the fit's context as members, one method per stage.
+class LibrarySelection {
+ public:
+  LibrarySelection(CandidateFit& fit, const nlohmann::json& given_core, Index d, double beta_init,
+                   const Normalization& units, bool balanced, const Communicator& comm,
+                   nlohmann::json& rec)
+      : fit_(fit),
+        split_(fit.split()),
+        d_(d),
+        beta_init_(beta_init),
+        balanced_(balanced),
+        comm_(comm),
+        rec_(rec) {
+    // Differences weigh the coordinates by their units, so that q_i − q_j of the user's data
+    // stays a difference (normalisation.hpp scales each coordinate on its own).
+    scales_ = units.q_scale.size() == d ? units.q_scale : Vector::Ones(d);
+    scales_ /= std::exp(scales_.array().log().mean());
+    const Index n_val_residuals = split_.val.size() * split_.val.dim();
+    // A term must lower the held-out loss by this share to be kept.
+    threshold_ = std::max(2e-3, 10.0 / static_cast<double>(n_val_residuals));
+    // Below this held-out loss the residuals are rounding: a change there is no change.
+    floor_ = 1e-22 * split_.val.zm.squaredNorm() / static_cast<double>(split_.val.size());
+    rec_["keep_threshold"] = threshold_;
+    rec_["rounding_floor"] = floor_;
+    pool_ = full_library(d);
+    given_terms_ = given_core.contains("terms");
+    if (given_terms_) {
+      pool_.clear();
+      for (const auto& name : given_core.at("terms"))
+        pool_.push_back(parse_term(name.get<std::string>(), d, "core.terms"));
+      active_.assign(pool_.size(), true);
+    } else {
+      active_.assign(pool_.size(), false);
+      for (std::size_t k = 0; k < pool_.size(); ++k)
+        active_[k] = pool_[k].shape == TermShape::kPower && pool_[k].j < 0 && pool_[k].power <= 2;
+    }
   }
-  const auto active_terms = [&] {
+
+  // The start: q_i and q_i² (or the given terms), least squares, LM, the integrator refined.
+  Candidate start() {
+    const double omega = data_rate(split_.train);
+    const double h_max = split_.train.h.maxCoeff();
+    const Index substeps =
+        std::clamp<Index>(static_cast<Index>(std::ceil(omega * h_max / kStepPhase)), 1, 64);
+    rec_["order"] = kOrder;
+    rec_["data_rate"] = omega;
+    rec_["substeps_start"] = substeps;
+    Candidate x = make(active_terms(), substeps, nullptr);
+    regression_start(x, split_.train);
+    train_lm(x, kRoundIterations, "library: start");
+    refine_integrator(x, "start");
+    rec_["start"] = {{"terms", x.core["terms"]}, {"val_loss", x.val_loss}};
+    return x;
+  }
+
+  // Forward selection: groups by Gauss–Newton gain, each kept when LM with it lowers the
+  // held-out loss by the threshold.
+  void forward(Candidate& x) {
+    const Index max_terms = 6 * d_ + 6;
+    const std::vector<double> kappas =
+        d_ <= 3 ? std::vector<double>{0.5, 1.0, 2.0} : std::vector<double>{1.0};
+    nlohmann::json steps = nlohmann::json::array();
+    bool added = true;
+    while (added && !given_terms_ && !fit_.stop_requested() &&
+           static_cast<Index>(active_terms().size()) < max_terms) {
+      added = false;
+      for (const Addition& ad : tries(ranked_additions(x, pool_, active_, kappas, fit_, comm_,
+                                                       balanced_, d_, beta_init_, scales_))) {
+        if (ad.gain < 1e-6 || fit_.stop_requested()) break;
+        std::vector<bool> trial = active_;
+        for (Index k : ad.terms) trial[static_cast<std::size_t>(k)] = true;
+        std::swap(active_, trial);
+        Candidate y = make(active_terms(), library_of(x).substeps(), &x);
+        const HamiltonianLibraryMap& ym = library_of(y);
+        for (std::size_t a = 0; a < ad.terms.size(); ++a)
+          for (Index k = 0; k < static_cast<Index>(ym.terms().size()); ++k)
+            if (ym.terms()[static_cast<std::size_t>(k)] ==
+                    pool_[static_cast<std::size_t>(ad.terms[a])] &&
+                ym.wavenumber_index(k) >= 0)
+              y.theta(ym.wavenumber_index(k)) =
+                  ym.terms()[static_cast<std::size_t>(k)].kappa_sign * ad.kappas[a];
+        // The new coefficients start at 0, so LM starts from the current fit (its first step
+        // is the joint Gauss–Newton step the ranking predicted).
+        const std::string name = names(ad.terms);
+        train_lm(y, kRoundIterations, "library: with " + name);
+        added = improves(x.val_loss, y.val_loss);
+        steps.push_back({{"terms", name},
+                         {"predicted_gain", ad.gain},
+                         {"val_loss_before", x.val_loss},
+                         {"val_loss_after", y.val_loss},
+                         {"kept", added}});
+        if (!added) {
+          std::swap(active_, trial);
+          continue;
+        }
+        x = std::move(y);
+        refine_integrator(x, "after " + name);
+        break;
+      }
+    }
+    rec_["forward"] = steps;
+  }
+
+  // Backward elimination: the two groups whose terms are least significant (by their largest
+  // sandwich t-ratio), then the least significant term if its t-ratio is below 2, each dropped
+  // when the held-out loss stays within the threshold (or the rounding floor).
+  void backward(Candidate& x) {
+    nlohmann::json pruned = nlohmann::json::array();
+    bool dropped_one = !given_terms_;
+    while (dropped_one && !fit_.stop_requested() && active_terms().size() > 1) {
+      dropped_one = false;
+      const std::vector<double> t_of = t_ratios(x);
+      if (t_of.empty()) break;
+      for (const auto& [t, terms] : drops(t_of)) {
+        if (fit_.stop_requested()) break;
+        std::vector<bool> trial = active_;
+        for (Index k : terms) trial[static_cast<std::size_t>(k)] = false;
+        std::swap(active_, trial);
+        Candidate y = make(active_terms(), library_of(x).substeps(), &x);
+        const std::string name = names(terms);
+        train_lm(y, kRoundIterations, "library: without " + name);
+        const bool drop = no_worse(x.val_loss, y.val_loss);
+        pruned.push_back({{"terms", name},
+                          {"t_ratio", t},
+                          {"val_loss_before", x.val_loss},
+                          {"val_loss_after", y.val_loss},
+                          {"dropped", drop}});
+        if (!drop) {
+          std::swap(active_, trial);
+          continue;
+        }
+        x = std::move(y);
+        dropped_one = true;
+        break;
+      }
+    }
+    rec_["pruned"] = pruned;
+  }
+
+  // The chosen terms to convergence, the integrator checked once more, and how far γ̂ moves
+  // at twice the substeps (the interval's integrator term, identify_assess).
+  void finish(Candidate& x) {
+    train_lm(x, kFinalIterations, "library: final");
+    refine_integrator(x, "final");
+    if (!fit_.stop_requested()) {
+      Candidate finer = make(library_of(x).terms(), 2 * library_of(x).substeps(), &x);
+      train_lm(finer, kRoundIterations, "library: the same at twice the substeps");
+      const double g0 = *x.inner.map->damping_rate(x.theta);
+      const double g1 = *finer.inner.map->damping_rate(finer.theta);
+      rec_["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
+    }
+    rec_["terms"] = x.core["terms"];
+    rec_["substeps"] = library_of(x).substeps();
+    rec_["val_loss"] = x.val_loss;
+  }
+
+ private:
+  std::vector<LibraryTerm> active_terms() const {
     std::vector<LibraryTerm> t;
-    for (std::size_t k = 0; k < pool.size(); ++k)
-      if (active[k]) t.push_back(pool[k]);
+    for (std::size_t k = 0; k < pool_.size(); ++k)
+      if (active_[k]) t.push_back(pool_[k]);
     return t;
-  };
-  Candidate x = make_library_candidate(active_terms(), substeps, scales, d, beta_init, nullptr);
-  const auto train_lm = [&](Candidate& c, long budget, const std::string& label) {
-    fit.lm(c, budget, label);
-    c.val_loss = fit.loss(c, split.val);
+  }
+  std::string names(const std::vector<Index>& terms) const {
+    std::string name;
+    for (Index k : terms)
+      name += (name.empty() ? "" : ", ") + term_name(pool_[static_cast<std::size_t>(k)]);
+    return name;
+  }
+  Candidate make(const std::vector<LibraryTerm>& terms, Index substeps, const Candidate* from) {
+    return make_library_candidate(terms, substeps, scales_, d_, beta_init_, from);
+  }
+  bool improves(double before, double after) const {
+    return before > floor_ && after < before * (1.0 - threshold_);
+  }
+  bool no_worse(double before, double after) const {
+    return after <= std::max(before * (1.0 + threshold_), floor_);
+  }
+  void train_lm(Candidate& c, long budget, const std::string& label) {
+    fit_.lm(c, budget, label);
+    c.val_loss = fit_.loss(c, split_.val);
     if (!std::isfinite(c.val_loss)) c.val_loss = std::numeric_limits<double>::infinity();
-  };
+  }
+
   // Twice the substeps until the integrator's error is below what the data can see, then LM
   // (which lowers the residuals, so the check is made again).
-  const auto refine_integrator = [&](Candidate& c, const std::string& when) {
-    for (int pass = 0; pass < 4 && !fit.stop_requested(); ++pass) {
+  void refine_integrator(Candidate& c, const std::string& when) {
+    for (int pass = 0; pass < 4 && !fit_.stop_requested(); ++pass) {
       bool changed = false;
-      while (
-          library_of(c).substeps() < kMaxSubsteps &&
-          !integrator_fine_enough(c, split.train, fit.loss(c, split.train), d, beta_init, scales)) {
-        c = make_library_candidate(library_of(c).terms(), 2 * library_of(c).substeps(), scales, d,
-                                   beta_init, &c);
+      while (library_of(c).substeps() < kMaxSubsteps &&
+             !integrator_fine_enough(c, split_.train, fit_.loss(c, split_.train), d_, beta_init_,
+                                     scales_)) {
+        c = make(library_of(c).terms(), 2 * library_of(c).substeps(), &c);
         changed = true;
       }
       if (!changed) break;
       train_lm(c, kRoundIterations, "library: finer integrator");
-      rec["integrator_steps"].push_back(
+      rec_["integrator_steps"].push_back(
           {{"when", when}, {"substeps", library_of(c).substeps()}, {"val_loss", c.val_loss}});
     }
-  };
-  regression_start(x, split.train);
-  train_lm(x, kRoundIterations, "library: start");
-  refine_integrator(x, "start");
-  rec["start"] = {{"terms", x.core["terms"]}, {"val_loss", x.val_loss}};
+  }
 
-  // Forward selection: the term with the largest Gauss–Newton gain, kept when LM with it
-  // lowers the held-out loss by `threshold`.
-  const Index max_terms = 6 * d + 6;
-  const std::vector<double> kappas =
-      d <= 3 ? std::vector<double>{0.5, 1.0, 2.0} : std::vector<double>{1.0};
-  nlohmann::json steps = nlohmann::json::array();
-  while (!given_terms && !fit.stop_requested() &&
-         static_cast<Index>(active_terms().size()) < max_terms) {
-    const std::vector<Addition> ranked =
-        ranked_additions(x, pool, active, kappas, fit, comm, balanced, d, beta_init, scales);
-    bool added = false;
-    // With d > 2 the best ⌈d/2⌉ groups are tried together first (a chain needs many alike);
-    // then the best three groups in turn; the first that earns its place is kept.
-    std::vector<Addition> tries;
-    const std::size_t batch = d > 2 ? static_cast<std::size_t>((d + 1) / 2) : 1;
+  // With d > 2 the best ⌈d/2⌉ groups together first (a chain needs many alike), then the best
+  // three groups one at a time.
+  std::vector<Addition> tries(const std::vector<Addition>& ranked) const {
+    std::vector<Addition> out;
+    const std::size_t batch = d_ > 2 ? static_cast<std::size_t>((d_ + 1) / 2) : 1;
     if (batch > 1 && ranked.size() > 1) {
       Addition joint;
       for (std::size_t r = 0; r < std::min(batch, ranked.size()); ++r) {
         if (ranked[r].gain < 1e-6) break;
-        for (std::size_t a = 0; a < ranked[r].terms.size(); ++a) {
-          joint.terms.push_back(ranked[r].terms[a]);
-          joint.steps.push_back(ranked[r].steps[a]);
+        for (Index k : ranked[r].terms) {
+          joint.terms.push_back(k);
           joint.kappas.push_back(ranked[r].kappa);
         }
         joint.gain = std::max(joint.gain, ranked[r].gain);
       }
-      tries.push_back(joint);
+      out.push_back(joint);
     }
     for (std::size_t r = 0; r < std::min<std::size_t>(ranked.size(), 3); ++r) {
-      tries.push_back(ranked[r]);
-      tries.back().kappas.assign(ranked[r].terms.size(), ranked[r].kappa);
+      out.push_back(ranked[r]);
+      out.back().kappas.assign(ranked[r].terms.size(), ranked[r].kappa);
     }
-    for (const Addition& ad : tries) {
-      if (added || ad.gain < 1e-6 || fit.stop_requested()) break;
-      std::vector<bool> trial = active;
-      std::string name;
-      for (Index k : ad.terms) {
-        trial[static_cast<std::size_t>(k)] = true;
-        name += (name.empty() ? "" : ", ") + term_name(pool[static_cast<std::size_t>(k)]);
-      }
-      std::swap(active, trial);
-      Candidate y = make_library_candidate(active_terms(), library_of(x).substeps(), scales, d,
-                                           beta_init, &x);
-      const HamiltonianLibraryMap& ym = library_of(y);
-      for (std::size_t a = 0; a < ad.terms.size(); ++a) {
-        const LibraryTerm& t = pool[static_cast<std::size_t>(ad.terms[a])];
-        for (Index k = 0; k < static_cast<Index>(ym.terms().size()); ++k)
-          if (ym.terms()[static_cast<std::size_t>(k)] == t) {
-            // c starts at 0, so LM starts from the current fit (its first step is the joint
-            // Gauss–Newton step the ranking predicted).
-            y.theta(ym.coefficient_index(k)) = 0.0;
-            if (ym.wavenumber_index(k) >= 0)
-              y.theta(ym.wavenumber_index(k)) = t.kappa_sign * ad.kappas[a];
-          }
-      }
-      train_lm(y, kRoundIterations, "library: with " + name);
-      added = improves(x.val_loss, y.val_loss);
-      steps.push_back({{"terms", name},
-                       {"predicted_gain", ad.gain},
-                       {"val_loss_before", x.val_loss},
-                       {"val_loss_after", y.val_loss},
-                       {"kept", added}});
-      if (!added) {
-        std::swap(active, trial);
-        continue;
-      }
-      x = std::move(y);
-      refine_integrator(x, "after " + name);
-    }
-    if (!added) break;
+    return out;
   }
-  rec["forward"] = steps;
 
-  // Pruning (backward elimination): the two groups whose terms are least significant (by
-  // their largest sandwich t-ratio), then the least significant term if its t-ratio is below
-  // 2, each dropped when the held-out loss stays within the threshold (or the rounding floor).
-  nlohmann::json pruned = nlohmann::json::array();
-  const std::vector<std::vector<Index>> groups = term_groups(pool);
-  bool dropped_one = !given_terms;
-  while (dropped_one && !fit.stop_requested() && active_terms().size() > 1) {
-    dropped_one = false;
+  // Each active pool term's t-ratio (coefficient over its sandwich standard error); empty when
+  // interrupted.
+  std::vector<double> t_ratios(const Candidate& x) const {
     const HamiltonianLibraryMap& map = library_of(x);
-    const WindowSet& train = split.train;
+    const WindowSet& train = split_.train;
     const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
     const NormalEquations ne = normal_equations_over_ranks(
-        map, x.theta, train, balanced, sc, true, [&fit] { return fit.stop_requested(); }, comm);
-    if (ne.stopped) break;
-    std::vector<double> t_of(pool.size(), 0.0);  // per active pool term
+        map, x.theta, train, balanced_, sc, true, [this] { return fit_.stop_requested(); }, comm_);
+    if (ne.stopped) return {};
+    std::vector<double> t_of(pool_.size(), 0.0);
     for (Index k = 0; k < static_cast<Index>(map.terms().size()); ++k) {
       Vector grad = Vector::Zero(map.n_params());
       grad(map.coefficient_index(k)) = 1.0;
@@ -502,78 +570,80 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
           sandwich_interval_of(ne.a, ne.g, ne.scores, grad, x.theta(map.coefficient_index(k)),
                                train.size() * train.dim(), ne.cost, sc, 0.0, 0.95);
       const double t = iv.std_error > 0.0 ? std::abs(iv.gamma) / iv.std_error : 1e300;
-      for (std::size_t q = 0; q < pool.size(); ++q)
-        if (pool[q] == map.terms()[static_cast<std::size_t>(k)]) t_of[q] = t;
+      for (std::size_t q = 0; q < pool_.size(); ++q)
+        if (pool_[q] == map.terms()[static_cast<std::size_t>(k)]) t_of[q] = t;
     }
-    // Candidate drops: (t, pool terms).
-    std::vector<std::pair<double, std::vector<Index>>> drops;
-    for (const std::vector<Index>& g : groups) {
+    return t_of;
+  }
+
+  // The drops to try, as (t-ratio, pool terms): the two least significant groups, then the
+  // least significant term below t = 2.
+  std::vector<std::pair<double, std::vector<Index>>> drops(const std::vector<double>& t_of) const {
+    std::vector<std::pair<double, std::vector<Index>>> out;
+    const std::size_t n_active = active_terms().size();
+    for (const std::vector<Index>& g : term_groups(pool_)) {
       std::vector<Index> on;
       double t = 0.0;
       for (Index k : g)
-        if (active[static_cast<std::size_t>(k)]) {
+        if (active_[static_cast<std::size_t>(k)]) {
           on.push_back(k);
           t = std::max(t, t_of[static_cast<std::size_t>(k)]);
         }
-      if (!on.empty() && on.size() < active_terms().size()) drops.push_back({t, on});
+      if (!on.empty() && on.size() < n_active) out.push_back({t, on});
     }
-    std::stable_sort(drops.begin(), drops.end(),
+    std::stable_sort(out.begin(), out.end(),
                      [](const auto& u, const auto& v) { return u.first < v.first; });
-    if (drops.size() > 2) drops.resize(2);
+    if (out.size() > 2) out.resize(2);
     Index worst = -1;
-    for (std::size_t q = 0; q < pool.size(); ++q)
-      if (active[q] && t_of[q] < 2.0 &&
+    for (std::size_t q = 0; q < pool_.size(); ++q)
+      if (active_[q] && t_of[q] < 2.0 &&
           (worst < 0 || t_of[q] < t_of[static_cast<std::size_t>(worst)]))
         worst = static_cast<Index>(q);
-    if (worst >= 0) drops.push_back({t_of[static_cast<std::size_t>(worst)], {worst}});
-    for (const auto& [t, terms] : drops) {
-      if (fit.stop_requested()) break;
-      std::vector<bool> trial = active;
-      std::string name;
-      for (Index k : terms) {
-        trial[static_cast<std::size_t>(k)] = false;
-        name += (name.empty() ? "" : ", ") + term_name(pool[static_cast<std::size_t>(k)]);
-      }
-      std::swap(active, trial);
-      Candidate y = make_library_candidate(active_terms(), library_of(x).substeps(), scales, d,
-                                           beta_init, &x);
-      train_lm(y, kRoundIterations, "library: without " + name);
-      const bool drop = no_worse(x.val_loss, y.val_loss);
-      pruned.push_back({{"terms", name},
-                        {"t_ratio", t},
-                        {"val_loss_before", x.val_loss},
-                        {"val_loss_after", y.val_loss},
-                        {"dropped", drop}});
-      if (!drop) {
-        std::swap(active, trial);
-        continue;
-      }
-      x = std::move(y);
-      dropped_one = true;
-      break;
-    }
+    if (worst >= 0) out.push_back({t_of[static_cast<std::size_t>(worst)], {worst}});
+    return out;
   }
-  rec["pruned"] = pruned;
 
-  // The chosen terms to convergence, with the integrator checked once more.
-  train_lm(x, kFinalIterations, "library: final");
-  refine_integrator(x, "final");
-  // How far γ̂ moves at twice the substeps: the interval's integrator term (identify_assess).
-  if (!fit.stop_requested()) {
-    Candidate finer = make_library_candidate(library_of(x).terms(), 2 * library_of(x).substeps(),
-                                             scales, d, beta_init, &x);
-    train_lm(finer, kRoundIterations, "library: the same at twice the substeps");
-    const double g0 = *x.inner.map->damping_rate(x.theta);
-    const double g1 = *finer.inner.map->damping_rate(finer.theta);
-    rec["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
-  }
-  rec["terms"] = x.core["terms"];
-  rec["substeps"] = library_of(x).substeps();
-  rec["val_loss"] = x.val_loss;
-  rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  CandidateFit& fit_;
+  const BlockSplit& split_;
+  Index d_;
+  double beta_init_;
+  bool balanced_;
+  const Communicator& comm_;
+  nlohmann::json& rec_;
+  Vector scales_;
+  double threshold_ = 0.0, floor_ = 0.0;
+  std::vector<LibraryTerm> pool_;
+  std::vector<bool> active_;
+  bool given_terms_ = false;
+};
+
+}  // namespace
+
+LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
+                       double beta_init, const Normalization& units, bool balanced,
+                       const Communicator& comm) {
+  const auto t0 = std::chrono::steady_clock::now();
+  LibraryFit out;
+  LibrarySelection sel(fit, given_core, d, beta_init, units, balanced, comm, out.record);
+  Candidate x = sel.start();
+  sel.forward(x);
+  sel.backward(x);
+  sel.finish(x);
+  out.record["seconds"] =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   out.cand = std::move(x);
   return out;
 }
+
+namespace {
+
+std::string short_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+}  // namespace
 
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why) {
   const WindowSet& val = split.val;
@@ -591,17 +661,17 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
   const double rho = den > 0.0 ? num / den : 0.0;
   if (rel <= 1e-7) {
     why = "the library core predicts the held-out windows to a relative residual of " +
-          std::to_string(rel) + " (clean data explained): the neural cores were not trained";
+          short_number(rel) + " (clean data explained): the neural cores were not trained";
     return true;
   }
   if (val.m == 1 && rho < -0.25) {
     why = "the library core's held-out one-step residuals are noise (lag-one correlation " +
-          std::to_string(rho) + ", pure measurement noise gives -0.5): the neural cores were " +
+          short_number(rho) + ", pure measurement noise gives -0.5): the neural cores were " +
           "not trained";
     return true;
   }
   why = "the library core leaves structure in the held-out residuals (relative residual " +
-        std::to_string(rel) + ", lag-one correlation " + std::to_string(rho) +
+        short_number(rel) + ", lag-one correlation " + short_number(rho) +
         "): the neural cores were trained too";
   return false;
 }

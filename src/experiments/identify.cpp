@@ -316,7 +316,16 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   // neural cores are not trained (their budget buys nothing the data can show).
   std::optional<Candidate> library;
   std::string floor_reason;
-  if (choosing || library_given) {
+  // The library core's cost grows as d⁴ (d² terms, a Jacobian row per coordinate, a pair of
+  // which grows with both): beyond d = kLibraryMaxD it is left out of the choice (given with
+  // --core library, it runs at any d).
+  const bool library_tried = library_given || (choosing && f.facts.d <= kLibraryMaxD);
+  if (choosing && !library_tried)
+    r.choices["library_skipped"] = "d = " + std::to_string(f.facts.d) + " > " +
+                                   std::to_string(kLibraryMaxD) +
+                                   ": the library core is not tried by default (--core library "
+                                   "runs it)";
+  if (library_tried) {
     if (hooks.stage) hooks.stage("library core");
     LibraryFit lib = fit_library(fit, library_given ? c.core : nlohmann::json::object(), f.facts.d,
                                  beta_init, r.normalization, c.balanced, comm);

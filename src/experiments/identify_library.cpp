@@ -29,6 +29,8 @@ const HamiltonianLibraryMap& library_of(const Candidate& x) {
   return dynamic_cast<const HamiltonianLibraryMap&>(*x.inner.map);
 }
 
+// A full M⁻¹ up to d = 4 (coupled masses); diagonal beyond (d(d+1)/2 parameters would
+// dominate the count).
 nlohmann::json library_core(const std::vector<LibraryTerm>& terms, Index substeps,
                             const Vector& scales) {
   nlohmann::json names = nlohmann::json::array();
@@ -37,7 +39,7 @@ nlohmann::json library_core(const std::vector<LibraryTerm>& terms, Index substep
           {"terms", names},
           {"order", kOrder},
           {"substeps", substeps},
-          {"mass", "full"},
+          {"mass", scales.size() <= 4 ? "full" : "diagonal"},
           {"coordinate_scales", std::vector<double>(scales.data(), scales.data() + scales.size())}};
 }
 

@@ -120,6 +120,8 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
 // selects its terms (forward selection by Gauss–Newton gain, kept by the held-out loss, pruned
 // by their intervals); with "terms" it fits those. `record` is the report's
 // choices.library.
+// The largest d at which the library core is a default candidate.
+inline constexpr Index kLibraryMaxD = 8;
 struct LibraryFit {
   Candidate cand;
   nlohmann::json record;

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include <Eigen/Cholesky>
 
@@ -213,6 +214,7 @@ struct Addition {
   std::vector<double> steps;   // their Gauss–Newton coefficients
   double kappa = 1.0;          // the wavenumber they were scored at
   std::vector<double> kappas;  // per term (a joint addition of several groups)
+  bool joint = false;          // several groups at once
   double gain = 0.0;           // predicted share of the training loss removed
   double criterion = 0.0;      // n log(1 − gain) + size log n: lower is better
 };
@@ -392,42 +394,40 @@ class LibrarySelection {
         d_ <= 3 ? std::vector<double>{0.5, 1.0, 2.0} : std::vector<double>{1.0};
     nlohmann::json steps = nlohmann::json::array();
     bool added = true;
-    while (added && !given_terms_ && !fit_.stop_requested() &&
+    // At the rounding floor nothing can earn its place.
+    while (added && !given_terms_ && !fit_.stop_requested() && x.val_loss > floor_ &&
            static_cast<Index>(active_terms().size()) < max_terms) {
       added = false;
-      for (const Addition& ad : tries(ranked_additions(x, pool_, active_, kappas, fit_, comm_,
-                                                       balanced_, d_, beta_init_, scales_))) {
+      const std::vector<Addition> all = tries(ranked_additions(
+          x, pool_, active_, kappas, fit_, comm_, balanced_, d_, beta_init_, scales_));
+      // The joint batch (d > 2) is kept as soon as it earns its place; of the single groups,
+      // each of the best three is fitted and the lowest held-out loss is kept: the linearised
+      // gain ranks them, the fit decides (a sinusoid's gain at a trial wavenumber can outrank
+      // the exact polynomial).
+      std::optional<Candidate> best;
+      std::vector<Index> best_terms;
+      for (const Addition& ad : all) {
         if (ad.gain < 1e-6 || fit_.stop_requested()) break;
-        std::vector<bool> trial = active_;
-        for (Index k : ad.terms) trial[static_cast<std::size_t>(k)] = true;
-        std::swap(active_, trial);
-        Candidate y = make(active_terms(), library_of(x).substeps(), &x);
-        const HamiltonianLibraryMap& ym = library_of(y);
-        for (std::size_t a = 0; a < ad.terms.size(); ++a)
-          for (Index k = 0; k < static_cast<Index>(ym.terms().size()); ++k)
-            if (ym.terms()[static_cast<std::size_t>(k)] ==
-                    pool_[static_cast<std::size_t>(ad.terms[a])] &&
-                ym.wavenumber_index(k) >= 0)
-              y.theta(ym.wavenumber_index(k)) =
-                  ym.terms()[static_cast<std::size_t>(k)].kappa_sign * ad.kappas[a];
-        // The new coefficients start at 0, so LM starts from the current fit (its first step
-        // is the joint Gauss–Newton step the ranking predicted).
+        Candidate y = with(x, ad);
         const std::string name = names(ad.terms);
-        train_lm(y, kRoundIterations, "library: with " + name);
-        added = improves(x.val_loss, y.val_loss);
+        const bool earns = improves(x.val_loss, y.val_loss);
         steps.push_back({{"terms", name},
                          {"predicted_gain", ad.gain},
                          {"val_loss_before", x.val_loss},
                          {"val_loss_after", y.val_loss},
-                         {"kept", added}});
-        if (!added) {
-          std::swap(active_, trial);
-          continue;
+                         {"earns_its_place", earns}});
+        if (earns && (!best || y.val_loss < best->val_loss)) {
+          best = std::move(y);
+          best_terms = ad.terms;
         }
-        x = std::move(y);
-        refine_integrator(x, "after " + name);
-        break;
+        if (best && ad.joint) break;
       }
+      if (!best) break;
+      for (Index k : best_terms) active_[static_cast<std::size_t>(k)] = true;
+      x = std::move(*best);
+      steps.push_back({{"kept", names(best_terms)}, {"val_loss", x.val_loss}});
+      refine_integrator(x, "after " + names(best_terms));
+      added = true;
     }
     rec_["forward"] = steps;
   }
@@ -475,7 +475,7 @@ class LibrarySelection {
     refine_integrator(x, "final");
     if (!fit_.stop_requested()) {
       Candidate finer = make(library_of(x).terms(), 2 * library_of(x).substeps(), &x);
-      train_lm(finer, kRoundIterations, "library: the same at twice the substeps");
+      train_lm(finer, kRoundIterations / 2, "library: the same at twice the substeps");
       const double g0 = *x.inner.map->damping_rate(x.theta);
       const double g1 = *finer.inner.map->damping_rate(finer.theta);
       rec_["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
@@ -500,6 +500,26 @@ class LibrarySelection {
   }
   Candidate make(const std::vector<LibraryTerm>& terms, Index substeps, const Candidate* from) {
     return make_library_candidate(terms, substeps, scales_, d_, beta_init_, from);
+  }
+  // x with the addition's terms (coefficients 0, so LM starts from x's fit; its first step is
+  // the joint Gauss–Newton step the ranking predicted), trained by LM.
+  Candidate with(const Candidate& x, const Addition& ad) {
+    std::vector<bool> trial = active_;
+    for (Index k : ad.terms) trial[static_cast<std::size_t>(k)] = true;
+    std::vector<LibraryTerm> terms;
+    for (std::size_t k = 0; k < pool_.size(); ++k)
+      if (trial[k]) terms.push_back(pool_[k]);
+    Candidate y = make(terms, library_of(x).substeps(), &x);
+    const HamiltonianLibraryMap& ym = library_of(y);
+    for (std::size_t a = 0; a < ad.terms.size(); ++a)
+      for (Index k = 0; k < static_cast<Index>(ym.terms().size()); ++k)
+        if (ym.terms()[static_cast<std::size_t>(k)] ==
+                pool_[static_cast<std::size_t>(ad.terms[a])] &&
+            ym.wavenumber_index(k) >= 0)
+          y.theta(ym.wavenumber_index(k)) =
+              ym.terms()[static_cast<std::size_t>(k)].kappa_sign * ad.kappas[a];
+    train_lm(y, kRoundIterations, "library: with " + names(ad.terms));
+    return y;
   }
   bool improves(double before, double after) const {
     return before > floor_ && after < before * (1.0 - threshold_);
@@ -538,6 +558,7 @@ class LibrarySelection {
     const std::size_t batch = d_ > 2 ? static_cast<std::size_t>((d_ + 1) / 2) : 1;
     if (batch > 1 && ranked.size() > 1) {
       Addition joint;
+      joint.joint = true;
       for (std::size_t r = 0; r < std::min(batch, ranked.size()); ++r) {
         if (ranked[r].gain < 1e-6) break;
         for (Index k : ranked[r].terms) {

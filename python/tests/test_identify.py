@@ -171,3 +171,36 @@ def test_a_forecast_from_positions_alone():
         r.model.state_from_positions(np.zeros((5, 2)), np.arange(5.0))
     with pytest.raises(ValueError, match="increasing"):
         r.model.state_from_positions(q[:5], t[:5][::-1])
+
+
+def test_the_library_core_reports_its_hamiltonian_the_same_everywhere(tmp_path, cli):
+    """One answer about H: identify, the estimator and `csympnet fit` give the same terms,
+    coefficients and intervals; in the data's units (q scaled by 3, time by 10)."""
+    t, z = damped_oscillator(sigma=1e-3)
+    t, z = 10.0 * t, z * np.array([3.0, 0.3])
+    r = csympnet.identify(z, t, core="library")
+    assert r.report["choices"]["core"]["type"] == "library"
+    h = r.hamiltonian
+    terms = {x["term"]: x for x in h["terms"]}
+    # q'' + q = 0 with q_file = 3q, p_file = 0.3p, t_file = 10t: H_file = (3 * 0.3 / 10) H,
+    # V = 0.09 * (q_file / 3)^2 / 2 = 0.005 q_file^2; inverse mass 0.09 / 0.3^2 = 1.
+    c = terms["q1^2"]
+    assert c["interval"][0] <= 0.005 <= c["interval"][1], c
+    assert abs(h["inverse_mass"][0][0] - 1.0) < 0.01
+    est = csympnet.CSympNetID(core="library").fit(z, t)
+    assert est.hamiltonian_ == h
+    data = tmp_path / "d.csv"
+    np.savetxt(data, np.c_[t, z], delimiter=",", header="t,q1,p1", comments="")
+    out = tmp_path / "fit"
+    subprocess.run([cli, "fit", str(data), "--out", str(out), "--core", "library", "-q"],
+                   check=True, capture_output=True)
+    assert json.loads((out / "report.json").read_text())["hamiltonian"] == h
+
+
+def test_given_library_terms_are_fitted_as_given():
+    t, z = damped_oscillator()
+    r = csympnet.identify(z, t, core={"type": "library", "terms": ["q1", "q1^2"]})
+    assert r.report["choices"]["core"]["terms"] == ["q1", "q1^2"]
+    assert abs(r.gamma - 0.1) < 1e-6
+    with pytest.raises(Exception, match="q1\\^9"):
+        csympnet.identify(z, t, core={"type": "library", "terms": ["q1^9"]})

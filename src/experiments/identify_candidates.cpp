@@ -287,6 +287,19 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
   return win;
 }
 
+double lag_one_correlation(const Vector& res, const WindowSet& w) {
+  const Index dim = w.dim();
+  double num = 0.0, den = 0.0;
+  for (Index i = 0; i < w.size(); ++i) {
+    const auto ri = res.segment(i * dim, dim);
+    den += ri.squaredNorm();
+    if (i + 1 < w.size() &&
+        w.block[static_cast<std::size_t>(i)] == w.block[static_cast<std::size_t>(i + 1)])
+      num += ri.dot(res.segment((i + 1) * dim, dim));
+  }
+  return den > 0.0 ? num / den : 0.0;
+}
+
 // Along a trajectory, one-step residuals of pure measurement noise, D e_k − e_{k+1}, correlate
 // at about −1/2 with their successors; a misfit is smooth in the state and correlates
 // positively. So a negative lag-one correlation says noise dominates, and windows of m_long
@@ -304,16 +317,8 @@ void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
   const OneStepMap& map = *best.inner.map;
   const WindowSet& train = split.train;
   const Index dim = train.dim();
-  const Vector res = window_residuals(map, best.theta, train, r.config.balanced);
-  double num = 0.0, den = 0.0;
-  for (Index i = 0; i < train.size(); ++i) {
-    const auto ri = res.segment(i * dim, dim);
-    den += ri.squaredNorm();
-    if (i + 1 < train.size() &&
-        train.block[static_cast<std::size_t>(i)] == train.block[static_cast<std::size_t>(i + 1)])
-      num += ri.dot(res.segment((i + 1) * dim, dim));
-  }
-  const double rho = den > 0.0 ? num / den : 0.0;
+  const double rho =
+      lag_one_correlation(window_residuals(map, best.theta, train, r.config.balanced), train);
   r.choices["one_step_residual_lag1_correlation"] = rho;
   if (rho < 0.0) {
     split.set_window(split.m_long);

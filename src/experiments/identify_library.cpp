@@ -670,18 +670,9 @@ std::string short_number(double v) {
 
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why) {
   const WindowSet& val = split.val;
-  const Index dim = val.dim();
   const Vector res = window_residuals(*x.inner.map, x.theta, val, balanced);
   const double rel = res.norm() / std::max((val.zm - val.z0).norm(), 1e-300);
-  double num = 0.0, den = 0.0;
-  for (Index i = 0; i < val.size(); ++i) {
-    const auto ri = res.segment(i * dim, dim);
-    den += ri.squaredNorm();
-    if (i + 1 < val.size() &&
-        val.block[static_cast<std::size_t>(i)] == val.block[static_cast<std::size_t>(i + 1)])
-      num += ri.dot(res.segment((i + 1) * dim, dim));
-  }
-  const double rho = den > 0.0 ? num / den : 0.0;
+  const double rho = lag_one_correlation(res, val);
   if (rel <= 1e-7) {
     why = "the library core predicts the held-out windows to a relative residual of " +
           short_number(rel) + " (clean data explained): the neural cores were not trained";

@@ -133,6 +133,10 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
 // residuals, or a clean fit), with the sentence saying which.
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why);
 
+// The correlation of consecutive windows' residuals (res: window_residuals of w) within a
+// block: about −1/2 for one-step residuals of pure measurement noise, positive for a misfit.
+double lag_one_correlation(const Vector& res, const WindowSet& w);
+
 // Longer windows when noise dominates misfit (an automatic window only); LM continues on them.
 void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
                    const IdentifyConfig& given, IdentifyResult& r);

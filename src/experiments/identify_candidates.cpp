@@ -316,7 +316,6 @@ void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
   }
   const OneStepMap& map = *best.inner.map;
   const WindowSet& train = split.train;
-  const Index dim = train.dim();
   const double rho =
       lag_one_correlation(window_residuals(map, best.theta, train, r.config.balanced), train);
   r.choices["one_step_residual_lag1_correlation"] = rho;

@@ -128,7 +128,9 @@ given to these methods:
               when present, its "hamiltonian" object (the fitted terms).
     csympnet_library  (--library only) `csympnet fit DATA --out DIR -q --core library
               [--fit-args]`: the same data with the Hamiltonian-library core forced, read and
-              counted exactly as csympnet (output in cases/<id>/csympnet_library/).
+              counted exactly as csympnet (output in cases/<id>/csympnet_library/). Only for
+              d <= 4 (LIBRARY_MAX_D), where the library core is one of fit's default
+              candidates; beyond, its fit takes minutes and the case is marked skipped.
     sindy     sparse regression of dp/dt: derivatives and smoothed states from a local cubic
               fit (7 samples, tricube weights, any spacing) per trajectory, then STLSQ
               (threshold 0.01 on unit-scaled columns and targets, ridge 1e-10, 10 passes) on a
@@ -203,6 +205,7 @@ SIGMA_STRATA = [0.0, 1e-3, 1e-2, 5e-2]
 METHODS = ["csympnet", "csympnet_library", "csympnet_positions", "csympnet_differenced", "sindy",
            "oracle"]
 CORE_CHOICE_METHODS = ["csympnet", "csympnet_library"]  # the core-choice table
+LIBRARY_MAX_D = 4  # csympnet_library runs up to this d (the library core's default limit)
 VIOLATION_STRATA = ["nonuniform-1.5", "nonuniform-3", "nonuniform-30", "coulomb-0.2",
                     "coulomb-0.5", "coulomb-0.9", "quadratic-drag", "periodic-force",
                     "drifting-equilibrium", "energy-gain"]
@@ -1359,7 +1362,9 @@ def run_case(case, args, check_integrator, exe, extra):
             shutil.rmtree(outdir)
         case["paths"]["csympnet_out"] = os.path.relpath(outdir, args.out)
         methods["csympnet"] = scorer(run_csympnet(exe, data, outdir, extra, args.timeout), gamma)
-        if args.library:  # the same data, the Hamiltonian-library core forced
+        if args.library and info["d"] > LIBRARY_MAX_D:
+            methods["csympnet_library"] = {"status": "skipped"}
+        elif args.library:  # the same data, the Hamiltonian-library core forced
             outdir = os.path.join(cdir, "csympnet_library")
             if os.path.isdir(outdir):
                 shutil.rmtree(outdir)

@@ -559,15 +559,27 @@ class LibrarySelection {
     if (batch > 1 && ranked.size() > 1) {
       Addition joint;
       joint.joint = true;
-      for (std::size_t r = 0; r < std::min(batch, ranked.size()); ++r) {
+      // Groups of the best group's family only (a chain's bonds are alike; a sinusoid beside a
+      // polynomial is not the same kind of step).
+      const auto family = [this](const Addition& ad) {
+        const LibraryTerm& t = pool_[static_cast<std::size_t>(ad.terms.front())];
+        return std::make_pair(t.shape == TermShape::kPower ? 0
+                              : t.shape == TermShape::kExp ? 2
+                                                           : 1,
+                              t.j >= 0);
+      };
+      std::size_t taken = 0;
+      for (std::size_t r = 0; r < ranked.size() && taken < batch; ++r) {
         if (ranked[r].gain < 1e-6) break;
+        if (family(ranked[r]) != family(ranked.front())) continue;
+        ++taken;
         for (Index k : ranked[r].terms) {
           joint.terms.push_back(k);
           joint.kappas.push_back(ranked[r].kappa);
         }
         joint.gain = std::max(joint.gain, ranked[r].gain);
       }
-      out.push_back(joint);
+      if (taken >= 2) out.push_back(joint);
     }
     for (std::size_t r = 0; r < std::min<std::size_t>(ranked.size(), 3); ++r) {
       out.push_back(ranked[r]);

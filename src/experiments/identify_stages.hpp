@@ -121,7 +121,7 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
 // by their intervals); with "terms" it fits those. `record` is the report's
 // choices.library.
 // The largest d at which the library core is a default candidate.
-inline constexpr Index kLibraryMaxD = 8;
+inline constexpr Index kLibraryMaxD = 4;
 struct LibraryFit {
   Candidate cand;
   nlohmann::json record;

@@ -297,6 +297,16 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
         "that bias)";
   }
   f.split = split_blocks(f.nt, pairs_only, config, r.choices);
+  // Progress reports γ̂ in the data's time units, not the normalised ones the fit works in.
+  IdentifyHooks user_hooks = hooks;
+  if (hooks.progress) {
+    const double tau = r.normalization.time_scale;
+    user_hooks.progress = [&hooks, tau](const TrainProgress& p) {
+      TrainProgress q = p;
+      q.gamma_hat = p.gamma_hat / tau;
+      return hooks.progress(q);
+    };
+  }
 
   // Candidate cores: the given one, the init file's, or an LA and a G core chosen between by
   // validation loss.
@@ -310,7 +320,7 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                                                       : std::vector<nlohmann::json>{c.core};
   if (hooks.stage) hooks.stage("warm start");
   const double beta_init = warm_start(f.split, f.facts.d, config, r);
-  CandidateFit fit(config, c, hooks, comm, f.split,
+  CandidateFit fit(config, c, user_hooks, comm, f.split,
                    1.0 / static_cast<double>(std::max<std::size_t>(cores.size(), 1)));
   // The library core first: where it explains the held-out data to the noise floor, the
   // neural cores are not trained (their budget buys nothing the data can show).

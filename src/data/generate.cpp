@@ -156,7 +156,10 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
   while (static_cast<Index>(out.trajectories.size()) < m) {
     // One round: exactly as many candidates as are still missing (see the header).
     const Index need = m - static_cast<Index>(out.trajectories.size());
-    std::vector<Matrix> hist(static_cast<std::size_t>(need), Matrix(dim, n_steps + 1));
+    // Sized in place: copying one prototype into each would touch every page of a history
+    // before the first step (640 MB at d = 10^5, a second in which no stop request is seen).
+    std::vector<Matrix> hist(static_cast<std::size_t>(need));
+    for (Matrix& record : hist) record.resize(dim, n_steps + 1);
     std::vector<bool> alive(static_cast<std::size_t>(need), true);
     Matrix cur = rng.uniform_matrix(dim, need, -box, box);  // column by column: q then p
     std::vector<Index> ids;                                 // candidate of each column of cur

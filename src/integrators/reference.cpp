@@ -50,12 +50,14 @@ void splitting_steps(const System& sys, Matrix& Q, Matrix& P, double delta, Inde
   }
 }
 
-// Advances all columns of Z (2d x N) by the same h with the splitting.
+// Advances all columns of Z (2d x N) by the same h with the splitting, into out (sized like Z;
+// it may be Z itself). Chunk by chunk from Z, so no whole copy of a large batch is made first
+// (a copy of gigabytes is a second in which no stop request is seen).
 // The columns are independent (every operation is elementwise, the gradient is taken column by
 // column), so a large block goes in chunks of about 2^20 entries: the same bits as in one
 // piece, and a stop request is seen within a chunk's substep (a block of 10^5 dimensions by
 // 10^3 columns took seconds per pass before).
-void splitting_block(const System& sys, Matrix& Z, double h, double h_ref) {
+void splitting_block(const System& sys, const Matrix& Z, Matrix& out, double h, double h_ref) {
   const Index d = sys.d();
   const Index n = substep_count(h, h_ref);
   const Index chunk = std::max<Index>(1, (Index{1} << 20) / std::max<Index>(1, Z.rows()));
@@ -65,8 +67,8 @@ void splitting_block(const System& sys, Matrix& Z, double h, double h_ref) {
     Matrix Q = Z.block(0, c0, d, w);
     Matrix P = Z.block(d, c0, d, w);
     splitting_steps(sys, Q, P, h / static_cast<double>(n), n);
-    Z.block(0, c0, d, w) = Q;
-    Z.block(d, c0, d, w) = P;
+    out.block(0, c0, d, w) = Q;
+    out.block(d, c0, d, w) = P;
   }
 }
 
@@ -145,7 +147,7 @@ void conformal_sv_substep(const System& sys, Matrix& Z, double delta) {
 Vector conformal_sv_flow(const System& sys, const Vector& z, double h, double h_ref) {
   check_state(sys, z, "conformal_sv_flow");
   Matrix Z = z;
-  splitting_block(sys, Z, h, h_ref);
+  splitting_block(sys, Z, Z, h, h_ref);
   return Z.col(0);
 }
 
@@ -278,15 +280,14 @@ Matrix reference_flow(const System& sys, const Matrix& Z, const Vector& h,
   }
 
   if (groups.size() == 1) {  // the common case: one step for the whole batch, no gathering
-    out = Z;
-    splitting_block(sys, out, h(0), opt.h_ref);
+    splitting_block(sys, Z, out, h(0), opt.h_ref);
     return out;
   }
   for (const auto& [step, cols] : groups) {
     throw_if_stop_requested("the splitting reference integration");
     Matrix block(Z.rows(), static_cast<Index>(cols.size()));
     for (std::size_t i = 0; i < cols.size(); ++i) block.col(static_cast<Index>(i)) = Z.col(cols[i]);
-    splitting_block(sys, block, step, opt.h_ref);
+    splitting_block(sys, block, block, step, opt.h_ref);
     for (std::size_t i = 0; i < cols.size(); ++i)
       out.col(cols[i]) = block.col(static_cast<Index>(i));
   }

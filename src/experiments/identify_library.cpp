@@ -690,14 +690,28 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
           short_number(rel) + " (clean data explained): the neural cores were not trained";
     return true;
   }
-  if (val.m == 1 && rho < -0.25) {
+  // Noise at the ends of a window does not grow with its length; a misfit does (about
+  // twice the residual over two steps): both must say noise.
+  double growth = std::numeric_limits<double>::infinity();
+  try {
+    const WindowSet two = windows_from_trajectories(split.val_blocks, 2);
+    const Vector r2 = window_residuals(*x.inner.map, x.theta, two, balanced);
+    if (res.size() > 0 && r2.size() > 0)
+      growth = (r2.squaredNorm() / static_cast<double>(r2.size())) /
+               (res.squaredNorm() / static_cast<double>(res.size()));
+  } catch (const Error&) {
+    // no block has two steps: the rule does not apply
+  }
+  if (val.m == 1 && rho < -0.25 && growth < 1.5) {
     why = "the library core's held-out one-step residuals are noise (lag-one correlation " +
-          short_number(rho) + ", pure measurement noise gives -0.5): the neural cores were " +
-          "not trained";
+          short_number(rho) + ", pure measurement noise gives -0.5; two-step residuals " +
+          short_number(growth) + " times the one-step ones in mean square, a misfit gives " +
+          "about 4): the neural cores were not trained";
     return true;
   }
   why = "the library core leaves structure in the held-out residuals (relative residual " +
         short_number(rel) + ", lag-one correlation " + short_number(rho) +
+        ", two-step over one-step mean square " + short_number(growth) +
         "): the neural cores were trained too";
   return false;
 }

@@ -56,14 +56,14 @@ struct FitArgs {
 void add_fit_options(CLI::App& cmd, FitArgs& a) {
   const FitConfig& recipe = a.classic;
   add_columns_option(cmd, a.columns);
-  cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
-      ->check(one_of(fit_model_names()));
   cmd.add_option("--core", a.core,
                  "Symplectic core: la:L:m, g:L:w, or library (fit only: a Hamiltonian from a "
                  "library of terms, selected from the data). Default: fit tries the library "
                  "core, then, unless it explains the data to the noise floor, an LA and a G "
                  "core, and keeps the lowest validation loss; train takes one by dimension")
       ->check(kCoreSpec);
+  cmd.add_option("--model", a.model, "csympnet (default) or sympnet")
+      ->check(one_of(fit_model_names()));
   // The ranges are the library's (core/options.hpp); here only the syntax is checked first.
   cmd.add_option("--epochs", a.epochs, "Epoch budget (default: by dimension)")
       ->check(kWholeNumber)
@@ -486,6 +486,28 @@ void add_train(CLI::App& app) {
   });
 }
 
+// `fit --help` in groups, by what each option applies to (options of both recipes are many,
+// and most users need only the first group).
+void group_fit_options(CLI::App& cmd) {
+  const std::vector<std::pair<const char*, std::vector<const char*>>> groups = {
+      {"Your data", {"--data", "--columns"}},
+      {"Identification (the default recipe)",
+       {"--core", "--window", "--loss", "--no-normalize", "--dof-scales", "--derived-momenta",
+        "--lm-iterations", "--level", "--blocks", "--init", "--epochs", "--lr", "--seed",
+        "--val-fraction", "--threads"}},
+      {"Only with --recipe classic (training a map: one-step loss, second stage, bootstrap)",
+       {"--recipe", "--model", "--val", "--lr-schedule", "--val-every", "--beta-init",
+        "--no-beta-decay", "--warm-start", "--no-warm-start", "--refine", "--refine-iterations",
+        "--refine-solver", "--bootstrap"}},
+      {"Only for csympnet train (refused by fit)", {"--chunk-pairs", "--batch-size"}},
+      {"Output", {"--out", "--force", "--quiet"}},
+  };
+  for (CLI::Option* o : cmd.get_options())
+    for (const auto& [group, names] : groups)
+      for (const char* name : names)
+        if (o->check_name(name)) o->group(group);
+}
+
 void add_fit(CLI::App& app) {
   // fit identifies γ: with --recipe classic, FitConfig's identification recipe
   // (docs/identification.md).
@@ -495,8 +517,6 @@ void add_fit(CLI::App& app) {
   cmd->add_option("data,--data", a->data, "CSV of pairs or trajectories; - for standard input")
       ->required()
       ->check(kInputFile);
-  cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
-      ->check(kExistingFile);
   add_fit_options(*cmd, *a);
   cmd->add_option("--recipe", a->recipe,
                   "identify (default: windows, balanced residuals, LM, a block interval) or "
@@ -534,6 +554,9 @@ void add_fit(CLI::App& app) {
                   "Model file of CSympNet-ID to start from (from `fit`, or saved by "
                   "csympnet.torch): its core, parameters and units; AdamW only with --epochs")
       ->check(kExistingFile);
+  cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
+      ->check(kExistingFile);
+  group_fit_options(*cmd);
   CLI::App* self = cmd;
   cmd->callback([a, self] {
     if (parse_only()) return;

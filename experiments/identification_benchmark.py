@@ -268,6 +268,21 @@ def _sample_by_energy(rng, m, potential, e_lo, e_hi, q_lo, q_hi):
     return q0[None, :], p0[None, :]
 
 
+def _states_in_energy_band(rng, m, box, energy, e_lo, e_hi):
+    """m states of d = 2, q and p uniform in [-box, box]^2 (q drawn first), each redrawn until
+    e_lo < energy(q, p) < e_hi; returns q0, p0 of shape (2, m)."""
+    q0 = np.empty((2, m))
+    p0 = np.empty((2, m))
+    for j in range(m):
+        while True:
+            q = rng.uniform(-box, box, 2)
+            p = rng.uniform(-box, box, 2)
+            if e_lo < energy(q, p) < e_hi:
+                break
+        q0[:, j], p0[:, j] = q, p
+    return q0, p0
+
+
 def _double_pendulum_energy(q, p, th):
     """H of the planar double pendulum, unit lengths and masses, canonical momenta."""
     dl = q[0] - q[1]
@@ -366,17 +381,9 @@ def make_system(name, rng, quick):
         s["omega_max"] = 1.0
 
         def init(rng, m):
-            q0 = np.empty((2, m))
-            p0 = np.empty((2, m))
-            for j in range(m):
-                while True:
-                    q = rng.uniform(-0.35, 0.35, 2)
-                    p = rng.uniform(-0.35, 0.35, 2)
-                    e = 0.5 * (p @ p + q @ q) + q[0] ** 2 * q[1] - q[1] ** 3 / 3
-                    if 0.01 < e < 0.12:
-                        break
-                q0[:, j], p0[:, j] = q, p
-            return q0, p0
+            return _states_in_energy_band(
+                rng, m, 0.35, lambda q, p: 0.5 * (p @ p + q @ q) + q[0] ** 2 * q[1] - q[1] ** 3 / 3,
+                0.01, 0.12)
     elif name == "coupled-pendulums":
         masses = np.array([1.0, 2.5])
         s.update(d=2, theta=[1.0, 0.4], theta_names=["g", "kc"], masses=masses.tolist())
@@ -420,17 +427,9 @@ def make_system(name, rng, quick):
         def init(rng, m):
             # angles and momenta uniform in [-0.8, 0.8], kept when the energy above the
             # minimum (-3 g) is in [0.05, 0.6]: |q1| <= 0.80, |q2| <= 1.16 rad for all times
-            q0 = np.empty((2, m))
-            p0 = np.empty((2, m))
-            for j in range(m):
-                while True:
-                    q = rng.uniform(-0.8, 0.8, 2)
-                    p = rng.uniform(-0.8, 0.8, 2)
-                    e = float(_double_pendulum_energy(q, p, [1.0])) + 3.0
-                    if 0.05 < e < 0.6:
-                        break
-                q0[:, j], p0[:, j] = q, p
-            return q0, p0
+            return _states_in_energy_band(
+                rng, m, 0.8, lambda q, p: float(_double_pendulum_energy(q, p, [1.0])) + 3.0,
+                0.05, 0.6)
     else:
         raise ValueError(f"unknown system {name!r}")
     s["init"] = init
@@ -1753,7 +1752,8 @@ def progress(i, n, c):
           + ", ".join(parts), file=sys.stderr, flush=True)
 
 
-def main():
+def parse_args():
+    """The parser (main reports its own checks through it) and the parsed options."""
     ap = argparse.ArgumentParser(
         description="Identification benchmark of the damping rate: csympnet fit against a "
                     "SINDy-style regression and a parametric oracle.",
@@ -1793,7 +1793,11 @@ def main():
                          "csympnet_library still runs with --library)")
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
-    args = ap.parse_args()
+    return ap, ap.parse_args()
+
+
+def main():
+    ap, args = parse_args()
     if args.seed < 0:
         ap.error("--seed must be >= 0")
     if args.jobs < 1:

@@ -2,7 +2,6 @@
 // the checks of the model's assumptions, and the verdict (identify_stages.hpp).
 #include <chrono>
 #include <cmath>
-#include <sstream>
 
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/model_checks.hpp"
@@ -17,13 +16,6 @@ namespace {
 // The model's held-out quality below which it has learned no dynamics (the verdict's reasons).
 constexpr double kMaxUnexplainedShare = 0.9;  // of the motion over a window
 constexpr double kMaxNullRatio = 0.5;         // squared error over a pure contraction's
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(4);
-  s << v;
-  return s.str();
-}
 
 }  // namespace
 
@@ -140,8 +132,9 @@ std::string possible_growth(const std::vector<ModelCheck>& checks) {
     const double c = k.details["signed_rate"].get<double>();
     const auto& iv = k.details["interval"];
     if (!(c < 0.0)) return "";
-    return " or from a slow growth (signed rate " + fmt(c) + " [" + fmt(iv[0].get<double>()) +
-           ", " + fmt(iv[1].get<double>()) + "] per time unit, not below 0 with 99% confidence)";
+    return " or from a slow growth (signed rate " + significant(c) + " [" +
+           significant(iv[0].get<double>()) + ", " + significant(iv[1].get<double>()) +
+           "] per time unit, not below 0 with 99% confidence)";
   }
   return "";
 }
@@ -160,11 +153,12 @@ void identification_reasons(const BlockSplit& split, double h_max, bool lm_fits,
     if (!std::isfinite(s.low) || !std::isfinite(s.high))
       reason("the interval is not finite");
     else if (s.low <= 0.0 && !growing)  // growth has its own reason, from the checks
-      reason("the " + fmt(100.0 * level) + "% interval [" + fmt(s.low) + ", " + fmt(s.high) +
+      reason("the " + significant(100.0 * level) + "% interval [" + significant(s.low) + ", " +
+             significant(s.high) +
              "] reaches 0: these data do not tell the damping rate from no damping" +
              possible_growth(r.checks));
     if (!s.stable)
-      reason("the interval changes " + fmt(s.regularisation_ratio) +
+      reason("the interval changes " + significant(s.regularisation_ratio) +
              "-fold with the regularisation of the Gauss-Newton matrix: the data do not "
              "separate the damping from the core's parameters");
   }
@@ -181,18 +175,19 @@ void identification_reasons(const BlockSplit& split, double h_max, bool lm_fits,
     reason(
         "the model explains less than 10% of the motion over a window on held-out data "
         "(unexplained share " +
-        fmt(r.quality.val_relative_residual) + ")");
+        significant(r.quality.val_relative_residual) + ")");
   if (r.quality.null_ratio > kMaxNullRatio)
-    reason("on held-out data the model predicts only " + fmt(100.0 * (1.0 - r.quality.null_ratio)) +
+    reason("on held-out data the model predicts only " +
+           significant(100.0 * (1.0 - r.quality.null_ratio)) +
            "% better than a pure contraction towards a fixed point: it has learned no dynamics "
            "to tell damping from");
   // A generalisation gap matters when the held-out error is itself a visible share of the
   // motion; below 1% the interval's held-out inflation accounts for it.
   if (r.quality.val_loss > 10.0 * r.quality.train_loss && r.quality.val_loss > 1e-20 &&
       r.quality.val_relative_residual > 1e-2)
-    reason("the validation loss is " + fmt(r.quality.val_loss / r.quality.train_loss) +
+    reason("the validation loss is " + significant(r.quality.val_loss / r.quality.train_loss) +
            " times the training loss and the model misses " +
-           fmt(100.0 * r.quality.val_relative_residual) +
+           significant(100.0 * r.quality.val_relative_residual) +
            "% of the held-out motion: it does not generalise to held-out data");
 }
 

@@ -14,13 +14,6 @@ namespace csympnet::detail {
 
 namespace {
 
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(4);
-  s << v;
-  return s.str();
-}
-
 // Piece [a, b] (point indices, inclusive) of a trajectory.
 Trajectory piece(const Trajectory& t, Index a, Index b) {
   Trajectory s;
@@ -103,7 +96,8 @@ DataFacts inspect_data(const std::vector<Trajectory>& trajs, bool pairs_only) {
   require(!steps.empty(), "fit: the data have no step (every trajectory has a single point)");
   for (double h : steps)
     require(std::isfinite(h) && h >= std::numeric_limits<double>::min(), [&] {
-      return "fit: a step of " + fmt(h) + " is below the smallest normal double; rescale time";
+      return "fit: a step of " + significant(h) +
+             " is below the smallest normal double; rescale time";
     });
   std::sort(steps.begin(), steps.end());
   f.h_min = steps.front();
@@ -232,6 +226,13 @@ double warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given,
     r.warm_start_note = e.what();
   }
   return beta_init;
+}
+
+std::string significant(double v, int digits) {
+  std::ostringstream s;
+  s.precision(digits);
+  s << v;
+  return s.str();
 }
 
 }  // namespace csympnet::detail

@@ -12,7 +12,6 @@
 // Each reported number is a smooth function of θ̂; its interval is the sandwich of γ̂'s
 // (sandwich_interval_of) with its gradient by central differences, inflated alike.
 #include <cmath>
-#include <cstdio>
 
 #include <Eigen/LU>
 
@@ -30,12 +29,6 @@ struct Argument {
   std::string name;  // "q1", "q1-q2", or "0.5*q1-2*q2" when the units differ
   double offset = 0.0, length = 1.0;
 };
-
-std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
 
 Argument argument_of(const HamiltonianLibraryMap& map, const LibraryTerm& t,
                      const Normalization& n) {
@@ -58,7 +51,7 @@ Argument argument_of(const HamiltonianLibraryMap& map, const LibraryTerm& t,
     a.length = 1.0 / gi;
     a.offset = n.q_shift(t.i) - n.q_shift(t.j);
   } else {
-    a.name = number(gi) + "*" + qi + "-" + number(gj) + "*" + qj;
+    a.name = significant(gi, 6) + "*" + qi + "-" + significant(gj, 6) + "*" + qj;
     a.length = 1.0;
     a.offset = gi * n.q_shift(t.i) - gj * n.q_shift(t.j);
   }
@@ -232,7 +225,7 @@ nlohmann::json hamiltonian_report(const OneStepMap& any_map, const Vector& theta
     const double c = t["coefficient"].get<double>();
     std::string body = t["term"].get<std::string>();
     if (t.contains("wavenumber")) {
-      const std::string k = number(t["wavenumber"].get<double>());
+      const std::string k = significant(t["wavenumber"].get<double>(), 6);
       const auto open = body.find('(');
       body = body.substr(0, open + 1) + k + "*(" + body.substr(open + 1, body.size() - open - 2) +
              "))";
@@ -240,7 +233,7 @@ nlohmann::json hamiltonian_report(const OneStepMap& any_map, const Vector& theta
     potential += (potential.empty() ? ""
                   : c < 0           ? " - "
                                     : " + ") +
-                 number(potential.empty() ? c : std::abs(c)) + "*" + body;
+                 significant(potential.empty() ? c : std::abs(c), 6) + "*" + body;
   }
   for (Index r = 0; r < d; ++r) {
     nlohmann::json row = nlohmann::json::array();

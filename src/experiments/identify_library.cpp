@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <optional>
 
 #include <Eigen/Cholesky>
@@ -670,16 +669,6 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
   return out;
 }
 
-namespace {
-
-std::string short_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g", v);
-  return buf;
-}
-
-}  // namespace
-
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why) {
   const WindowSet& val = split.val;
   const Vector res = window_residuals(*x.inner.map, x.theta, val, balanced);
@@ -687,7 +676,7 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
   const double rho = lag_one_correlation(res, val);
   if (rel <= 1e-7) {
     why = "the library core predicts the held-out windows to a relative residual of " +
-          short_number(rel) + " (clean data explained): the neural cores were not trained";
+          significant(rel, 3) + " (clean data explained): the neural cores were not trained";
     return true;
   }
   // Noise at the ends of a window does not grow with its length; a misfit does (about
@@ -704,14 +693,14 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
   }
   if (val.m == 1 && rho < -0.25 && growth < 1.5) {
     why = "the library core's held-out one-step residuals are noise (lag-one correlation " +
-          short_number(rho) + ", pure measurement noise gives -0.5; two-step residuals " +
-          short_number(growth) + " times the one-step ones in mean square, a misfit gives " +
+          significant(rho, 3) + ", pure measurement noise gives -0.5; two-step residuals " +
+          significant(growth, 3) + " times the one-step ones in mean square, a misfit gives " +
           "about 4): the neural cores were not trained";
     return true;
   }
   why = "the library core leaves structure in the held-out residuals (relative residual " +
-        short_number(rel) + ", lag-one correlation " + short_number(rho) +
-        ", two-step over one-step mean square " + short_number(growth) +
+        significant(rel, 3) + ", lag-one correlation " + significant(rho, 3) +
+        ", two-step over one-step mean square " + significant(growth, 3) +
         "): the neural cores were trained too";
   return false;
 }

@@ -13,7 +13,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <sstream>
 
 #include <Eigen/QR>
 
@@ -299,13 +298,6 @@ NormalEquations embedded(const NormalEquations& ne, Index p) {
   return out;
 }
 
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(4);
-  s << v;
-  return s.str();
-}
-
 // γ̂'s interval (and the modes') from the training segments' normal equations with the start
 // states eliminated: the sandwich of interval(), with the degrees-of-freedom correction for the
 // hidden unknowns and the held-out inflation; r.stopped on an interrupt.
@@ -450,7 +442,8 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   rec["sensitivity"] = growth;
   if (!(growth <= kMaxSensitivity) && !r.stopped) {
     r.reasons.push_back(
-        "the fitted map amplifies a perturbation of a segment's start state " + fmt(growth) +
+        "the fitted map amplifies a perturbation of a segment's start state " +
+        significant(growth) +
         "-fold over the segment (more than 1e6): the hidden momenta sit on an unstable "
         "manifold of the map, where its derivatives and the interval mean nothing");
     r.identified = false;
@@ -461,7 +454,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   rec["about"] =
       "the momenta are not observed: each segment's start state is fitted with the "
       "map, and the loss is on the positions alone (errors " +
-      fmt(std::sqrt(rep.final_loss)) + " rms in normalised units on training)";
+      significant(std::sqrt(rep.final_loss)) + " rms in normalised units on training)";
 }
 
 }  // namespace detail

@@ -28,6 +28,9 @@
 
 namespace csympnet::detail {
 
+// v with `digits` significant digits (printf's %g), for the sentences of the report.
+std::string significant(double v, int digits = 4);
+
 // What the data are, before anything is fitted.
 struct DataFacts {
   Index d = 0;

@@ -251,19 +251,34 @@ def _as_trajectories(t, z, traj):
         return [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
 
 
-def fit_trajectories(t, z, traj=None, model="csympnet", **options):
+def _dims(x):
+    """ndim of an array, or of a list's first array (the trajectory forms' lists)."""
+    if isinstance(x, (list, tuple)) and len(x) and not np.isscalar(x[0]):
+        return np.ndim(x[0])
+    return np.ndim(x)
+
+
+def fit_trajectories(z, t, traj=None, model="csympnet", **options):
     """Fits from whole trajectories: consecutive states of each trajectory become pairs at
     whatever steps they have (h = t[n] − t[n−1]); no pair spans two trajectories. The same
     pairs as `csympnet fit --recipe classic` makes from a trajectories CSV, in the same order.
 
-    Accepted forms:
-      - t (M,), z (M, 2d): one trajectory;
-      - t (M,), z (M, 2d), traj (M,): rows labelled by trajectory (rows of one label contiguous);
-      - t (M,) or (K, M), z (K, M, 2d): K trajectories (shared or own times);
-      - t and z lists of arrays: one trajectory each.
+    States first, then times, as in `identify(z, t)` and `CSympNetID.fit(x, t)`. Accepted forms:
+      - z (M, 2d), t (M,): one trajectory;
+      - z (M, 2d), t (M,), traj (M,): rows labelled by trajectory (rows of one label contiguous);
+      - z (K, M, 2d), t (M,) or (K, M): K trajectories (shared or own times);
+      - z and t lists of arrays: one trajectory each.
+
+    The older order (t, z) is recognised, since times always have one dimension fewer than
+    states: it is swapped, with a FutureWarning.
 
     options: those of `csympnet.fit` (epochs, core, seed, validation, ...).
     """
+    if _dims(z) < _dims(t):
+        warnings.warn("fit_trajectories takes (z, t), states first, as identify and "
+                      "CSympNetID.fit do; the arguments given look like (t, z) and were "
+                      "swapped. Pass them as (z, t).", FutureWarning, stacklevel=2)
+        z, t = t, z
     trajs = _as_trajectories(t, z, traj)
     checked = trajectory_list(trajs, "trajectories")
     if sum(len(tr.t) - 1 for tr in checked) < 1:

@@ -6,6 +6,7 @@ import os
 import signal
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -208,7 +209,7 @@ def test_fit_trajectories_equals_cli_fit_of_the_csv(tmp_path, run_cli):
     cli_model = csympnet.load(tmp_path / "out" / "model.json")
     t = [tr.t for tr in trajs]
     z = [tr.z for tr in trajs]
-    py_model = csympnet.fit_trajectories(t, z, epochs=100, bootstrap=0)
+    py_model = csympnet.fit_trajectories(z, t, epochs=100, bootstrap=0)
     assert np.array_equal(py_model.params, cli_model.params)
 
 
@@ -222,7 +223,7 @@ def test_identification_options_equal_cli_fit_bit_for_bit(tmp_path, run_cli):
             "--out", tmp_path / "out", "-q")
     cli_model = csympnet.load(tmp_path / "out" / "model.json")
     report = json.loads((tmp_path / "out" / "report.json").read_text())
-    py_model = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs],
+    py_model = csympnet.fit_trajectories([tr.z for tr in trajs], [tr.t for tr in trajs],
                                          epochs=200, warm_start=True, refine="lm",
                                          refine_iterations=20, bootstrap=10, core="la:3:4:h2")
     assert np.array_equal(py_model.params, cli_model.params)
@@ -289,12 +290,12 @@ def test_chunks_and_mini_batches_equal_the_cli_and_ignore_threads(tmp_path, run_
 
 def test_fit_trajectories_forms_agree():
     trajs = _trajectories(steps=10)
-    lists = csympnet.fit_trajectories([tr.t for tr in trajs], [tr.z for tr in trajs], epochs=20, bootstrap=0)
+    lists = csympnet.fit_trajectories([tr.z for tr in trajs], [tr.t for tr in trajs], epochs=20, bootstrap=0)
     labels = np.repeat([5, 2, 9], 11)
-    flat = csympnet.fit_trajectories(np.concatenate([tr.t for tr in trajs]),
-                                     np.concatenate([tr.z for tr in trajs]), traj=labels, epochs=20, bootstrap=0)
-    stacked = csympnet.fit_trajectories(np.stack([tr.t for tr in trajs]),
-                                        np.stack([tr.z for tr in trajs]), epochs=20, bootstrap=0)
+    flat = csympnet.fit_trajectories(np.concatenate([tr.z for tr in trajs]),
+                                     np.concatenate([tr.t for tr in trajs]), traj=labels, epochs=20, bootstrap=0)
+    stacked = csympnet.fit_trajectories(np.stack([tr.z for tr in trajs]),
+                                        np.stack([tr.t for tr in trajs]), epochs=20, bootstrap=0)
     assert np.array_equal(lists.params, flat.params)
     assert np.array_equal(lists.params, stacked.params)
     # Pairs never span two trajectories: 3 trajectories of 10 steps give 30 pairs.
@@ -303,9 +304,23 @@ def test_fit_trajectories_forms_agree():
 
 def test_fit_trajectories_single_and_pairs_equivalence():
     tr = _trajectories(n=1)[0]
-    a = csympnet.fit_trajectories(tr.t, tr.z, epochs=20, bootstrap=0)
+    a = csympnet.fit_trajectories(tr.z, tr.t, epochs=20, bootstrap=0)
     b = csympnet.fit(tr.z[:-1], tr.z[1:], np.diff(tr.t), epochs=20, bootstrap=0)
     assert np.array_equal(a.params, b.params)
+
+
+def test_fit_trajectories_old_argument_order_is_swapped_with_a_warning():
+    # States first since identify(z, t) and CSympNetID.fit(x, t) take them so; (t, z) is
+    # told apart by dimensions (times have one fewer) in every form, and gives the same fit.
+    trajs = _trajectories(steps=10)
+    zs, ts = [tr.z for tr in trajs], [tr.t for tr in trajs]
+    for z, t in ((zs, ts), (zs[0], ts[0]), (np.stack(zs), np.stack(ts)), (np.stack(zs), ts[0])):
+        with pytest.warns(FutureWarning, match=r"takes \(z, t\)"):
+            old = csympnet.fit_trajectories(t, z, epochs=20, bootstrap=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            now = csympnet.fit_trajectories(z, t, epochs=20, bootstrap=0)
+        assert np.array_equal(old.params, now.params)
 
 
 def test_run_equals_cli_run(tmp_path, run_cli):

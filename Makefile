@@ -5,8 +5,11 @@ JOBS  ?= $(shell nproc)
 ASAN_OPTIONS_CI ?= detect_leaks=1:abort_on_error=1
 CLI   := $(BUILD)/bin/csympnet
 
-# ccache, where installed, caches compiles across builds and build directories.
-LAUNCHER := $(if $(shell command -v ccache 2>/dev/null),-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+# ccache, where installed, caches compiles across builds and build directories. With
+# precompiled headers it caches only with these sloppiness settings (the headers precompiled
+# are third-party ones, named in CMakeLists.txt, so no definition of ours can go unseen).
+CCACHE_RUN := env;CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime;ccache
+LAUNCHER := $(if $(shell command -v ccache 2>/dev/null),"-DCMAKE_CXX_COMPILER_LAUNCHER=$(CCACHE_RUN)" "-DCMAKE_C_COMPILER_LAUNCHER=$(CCACHE_RUN)")
 
 .PHONY: all deps configure build build-demo test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo bench docs format clean
 

@@ -694,7 +694,7 @@ std::vector<Case> output_cases() {
            data,
            [] {
              std::string p;
-             for (int i = 0; i < 40; ++i) p += std::string(120, 'b') + "/";
+             for (int i = 0; i < 40; ++i) p.append(120, 'b').append(1, '/');
              return p;
            }(),
            {1}},

@@ -45,7 +45,7 @@ std::vector<Columns> column_ranges(Index n, int parts);
 // each starting at a multiple of kColumnAlign.
 bool ranges_tile(Index n, const std::vector<Columns>& ranges);
 
-struct ForwardCache;
+class ForwardCache;
 
 // The passes of one training step of a one-step map, in the order a caller runs them:
 //   prepare                    serial

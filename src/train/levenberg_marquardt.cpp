@@ -18,8 +18,12 @@ constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres: min/max_lm
 constexpr double kMinRelativeDecrease = 1e-3;               // Ceres: min_relative_decrease
 
 // JᵀJ (lower triangle) and Jᵀr at the current iterate. Where one dsyrk would run past
-// kMaxUninterruptedFlops, J is taken in blocks of rows with `should_stop` polled between them
-// (false: stopped, a and g incomplete).
+// kMaxUninterruptedFlops, J is taken in blocks of rows with `should_stop` (when given) polled
+// between them (false: stopped, a and g incomplete). The split depends on the size alone, never
+// on whether a `should_stop` was given: a polled and an unpolled solve then sum the same blocks
+// in the same order and agree to the bit on every CPU. (A single dsyrk and a sum of row blocks
+// differ by rounding, and how much depends on the BLAS kernel the CPU gets: 4e-9 relative after
+// 20 iterations of a 9000 × 400 problem on AVX2, none seen on AVX-512.)
 struct NormalEquations {
   Matrix a;
   Vector g;
@@ -29,7 +33,7 @@ struct NormalEquations {
     g.resize(n);
     // A row-major m × n J is a column-major n × m Jᵀ.
     const double per_row = static_cast<double>(n) * static_cast<double>(n);
-    if (!should_stop || static_cast<double>(m) * per_row <= lapack::kMaxUninterruptedFlops) {
+    if (static_cast<double>(m) * per_row <= lapack::kMaxUninterruptedFlops) {
       lapack::gram_from_transpose(jac.data(), n, m, a.data());
       lapack::transpose_times(jac.data(), n, m, r.data(), g.data());
       return true;
@@ -37,7 +41,7 @@ struct NormalEquations {
     const Index rows = std::max<Index>(
         1, static_cast<Index>(lapack::kMaxUninterruptedFlops / std::max(per_row, 1.0)));
     for (Index i = 0; i < m; i += rows) {
-      if (should_stop()) return false;
+      if (should_stop && should_stop()) return false;
       const Index k = std::min(rows, m - i);
       const double* block = jac.data() + i * n;
       if (i == 0) {
@@ -53,10 +57,10 @@ struct NormalEquations {
 };
 
 // The damped system's factor: one dpotrf where that is short, else block by block polling
-// `should_stop`.
+// `should_stop` (when given). As for the normal equations, the choice depends on the size alone.
 lapack::Factor factor(Matrix& lhs, const std::function<bool()>& should_stop) {
   const double n = static_cast<double>(lhs.rows());
-  if (!should_stop || n * n * n / 3.0 <= lapack::kMaxUninterruptedFlops)
+  if (n * n * n / 3.0 <= lapack::kMaxUninterruptedFlops)
     return lapack::cholesky(lhs.data(), lhs.rows()) ? lapack::Factor::kDone
                                                     : lapack::Factor::kNotPositiveDefinite;
   return lapack::cholesky_blocked(lhs.data(), lhs.rows(), should_stop);

@@ -121,7 +121,8 @@ TEST(LevenbergMarquardt, LargeProblemsPollBetweenBlocksAndStop) {
   Vector polled = Vector::Zero(n);
   levenberg_marquardt(p, polled, settings);
   EXPECT_GT(polls, 0);
-  EXPECT_LE((polled - plain).norm(), 1e-10 * plain.norm());
+  // The row blocks are the same with and without a poll, so the bits are too, on every CPU.
+  EXPECT_EQ(polled, plain) << "max difference " << (polled - plain).cwiseAbs().maxCoeff();
   p.should_stop = [] { return true; };
   Vector stopped = Vector::Zero(n);
   const LmReport r = levenberg_marquardt(p, stopped, settings);

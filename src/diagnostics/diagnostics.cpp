@@ -13,6 +13,9 @@ Matrix rollout(const LearnedMap& map, const Vector& z0, const Vector& steps) {
   Matrix out(z0.size(), steps.size() + 1);
   out.col(0) = z0;
   for (Index n = 0; n < steps.size(); ++n) {
+    // Between steps too (the maps poll within a long step): a rollout of millions of cheap
+    // steps ends on Ctrl-C.
+    if (n % 1024 == 1023) throw_if_stop_requested("rollout");
     try {
       out.col(n + 1) = map.step(out.col(n), steps(n));
     } catch (const StopRequested&) {

@@ -2,8 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <tuple>
+#include <utility>
+
+#include <Eigen/Cholesky>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "shape_checks.hpp"
 
 namespace csympnet {
@@ -23,6 +31,23 @@ std::vector<double> composition_weights(int order) {
     w = std::move(next);
   }
   return w;
+}
+
+// A step of many substeps (4,000,000 of them take seconds) polls the process-wide stop request
+// every this many stages, so Ctrl-C ends it (rollout, evaluate, Python). A map of the
+// identification's sizes (at most 256 substeps of 9 stages) never reaches it, so its training
+// keeps stopping at its own checkpoints.
+constexpr Index kStagesPerPoll = 4096;
+
+void poll_within_step(Index stage) {
+  if (stage % kStagesPerPoll == kStagesPerPoll - 1)
+    throw_if_stop_requested("hamiltonian library: a step of many substeps");
+}
+
+// A term as an ordered key (LibraryTerm has only ==).
+using TermKey = std::tuple<Index, Index, int, int, double>;
+TermKey key_of(const LibraryTerm& t) {
+  return {t.i, t.j, static_cast<int>(t.shape), t.power, t.kappa_sign};
 }
 
 double abs_derivative(double beta) {
@@ -51,24 +76,29 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
   require(std::isfinite(beta_init) && beta_init != 0.0,
           "hamiltonian library: beta_init must be finite and nonzero");
   Index next = mass_size() + static_cast<Index>(terms_.size());
+  // Repeats and shared wavenumbers by lookup, not by a search of the terms before: a file's
+  // 141,000 terms took 13-31 s to load that way.
+  std::set<TermKey> seen;
+  std::map<std::pair<Index, Index>, Index> sinusoid_kappa;  // (i, j) of a sin or cos: its κ
   for (std::size_t k = 0; k < terms_.size(); ++k) {
+    if (k % 4096 == 4095) throw_if_stop_requested("hamiltonian library: building the terms");
     const LibraryTerm& t = terms_[k];
     require(t.i >= 0 && t.i < d && t.j < d && t.j != t.i, [&] {
       return "hamiltonian library: term " + std::to_string(k) + " has a coordinate out of range";
     });
-    for (std::size_t l = 0; l < k; ++l)
-      require(!(terms_[l] == t),
-              [&] { return "hamiltonian library: term '" + term_name(t) + "' appears twice"; });
+    require(seen.insert(key_of(t)).second,
+            [&] { return "hamiltonian library: term '" + term_name(t) + "' appears twice"; });
     // sin and cos of one argument share their wavenumber: together they are a sinusoid of
     // any phase.
-    Index shared = -1;
-    if (t.shape == TermShape::kSin || t.shape == TermShape::kCos)
-      for (std::size_t l = 0; l < k; ++l) {
-        const LibraryTerm& u = terms_[l];
-        if ((u.shape == TermShape::kSin || u.shape == TermShape::kCos) && u.i == t.i && u.j == t.j)
-          shared = kappa_index_[l];
-      }
-    kappa_index_.push_back(!t.has_wavenumber() ? -1 : shared >= 0 ? shared : next++);
+    Index kappa = -1;
+    if (t.shape == TermShape::kSin || t.shape == TermShape::kCos) {
+      const auto [at, added] = sinusoid_kappa.try_emplace({t.i, t.j}, next);
+      kappa = at->second;
+      if (added) ++next;
+    } else if (t.has_wavenumber()) {
+      kappa = next++;
+    }
+    kappa_index_.push_back(kappa);
   }
   beta_index_ = next;
   weights_ = composition_weights(order);
@@ -106,6 +136,31 @@ Matrix HamiltonianLibraryMap::inverse_mass(ConstParams theta) const {
     for (Index c = 0; c <= r; ++c) w(r, c) = w(c, r) = theta(r * (r + 1) / 2 + c);
   }
   return w;
+}
+
+void HamiltonianLibraryMap::check_inverse_mass(ConstParams theta, const std::string& where) const {
+  check_theta(*this, theta, "check_inverse_mass");
+  const auto mass_kind = [&] {
+    return std::string(" (the inverse mass W = M^-1 of core 'mass': \"") +
+           (full_mass_ ? "full" : "diagonal") + "\")";
+  };
+  for (Index r = 0; r < d_; ++r) {
+    const Index k = full_mass_ ? r * (r + 1) / 2 + r : r;
+    require(theta(k) > 0.0, [&] {
+      char value[32];
+      std::snprintf(value, sizeof value, "%.17g", theta(k));
+      return where + ": params[" + std::to_string(k) + "] = " + value +
+             " is W[" + std::to_string(r + 1) + "," + std::to_string(r + 1) + "]" + mass_kind() +
+             "; expected a positive inverse mass (a positive kinetic energy)";
+    });
+  }
+  if (!full_mass_ || d_ == 1) return;
+  const Eigen::LLT<Matrix> llt(inverse_mass(theta));
+  require(llt.info() == Eigen::Success, [&] {
+    return where + ": params[0.." + std::to_string(mass_size() - 1) + "]" + mass_kind() +
+           " are not positive definite; expected a positive-definite inverse mass (a positive "
+           "kinetic energy 1/2 p^T W p for every p != 0)";
+  });
 }
 
 void HamiltonianLibraryMap::mass_times(ConstParams theta, const double* x, double* out) const {
@@ -211,6 +266,7 @@ Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const 
         std::copy(g.begin(), g.end(), rec + s * 3 * d + 2 * d);
       }
       if (s == stages) break;
+      poll_within_step(s);
       const double tau =
           weights_[static_cast<std::size_t>(s % nw)] * h(col) / static_cast<double>(substeps_);
       const double a = std::exp(-0.5 * gamma * tau);
@@ -245,6 +301,7 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
     }
     const double* rec = ctx.states.data() + col * (stages + 1) * 3 * d;
     for (Index s = stages - 1; s >= 0; --s) {
+      poll_within_step(s);
       const double* q0 = rec + s * 3 * d;
       const double* p0 = q0 + d;
       const double* g0 = q0 + 2 * d;
@@ -319,6 +376,7 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
   };
   gradient(theta, q.data(), g.data());
   for (Index s = 0; s < stages; ++s) {
+    poll_within_step(s);
     const double tau =
         weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
     const double a = std::exp(-0.5 * gamma * tau);

@@ -23,6 +23,7 @@
 #include <string>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/models/normalized_map.hpp"
@@ -44,56 +45,24 @@ using namespace specs;
 constexpr const char* kValidTypes =
     "csympnet, sympnet, map, ode, dhnn, dhnn2, phnn, phnn2, or a bare core la, g";
 constexpr const char* kValidCoreTypes = "la, g (and library inside a csympnet spec)";
+constexpr const char* kTermsExpected =
+    "key 'terms' must be a non-empty list of term names, e.g. [\"q1^2\", \"q1^4\"] "
+    "(csympnet fit --core library selects them)";
+
+// A value as a message quotes it: at most 40 characters of its JSON.
+std::string short_dump(const json& v) {
+  const std::string text = v.dump();
+  return text.size() <= 40 ? text : text.substr(0, 40) + "\u2026";
+}
 
 // {"type": "library", "terms": [...], "order": 4, "substeps": n, "mass": "full"|"diagonal"}
 // inside a "csympnet" spec: the Hamiltonian-library map (hamiltonian_library.hpp).
 std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double beta_init,
                                              const std::string& where) {
-  reject_unknown_keys(spec, where,
-                      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales"});
-  require(spec.contains("terms") && spec.at("terms").is_array() && !spec.at("terms").empty(), [&] {
-    return where + ": key 'terms' must be a non-empty list of term names, e.g. " +
-           "[\"q1^2\", \"q1^4\"] (csympnet fit --core library selects them)";
-  });
-  std::vector<LibraryTerm> terms;
-  for (const json& name : spec.at("terms")) {
-    require(name.is_string(),
-            [&] { return where + ".terms: expected strings, got " + name.dump(); });
-    terms.push_back(parse_term(name.get<std::string>(), d, where + ".terms"));
-  }
-  const Index order = spec.contains("order") ? get_count(spec, "order", where) : 4;
-  const Index substeps = spec.contains("substeps") ? get_count(spec, "substeps", where) : 1;
-  std::string mass = "full";
-  if (spec.contains("mass")) {
-    require(spec.at("mass") == "full" || spec.at("mass") == "diagonal", [&] {
-      return where + ": key 'mass' = " + spec.at("mass").dump() +
-             ", expected \"full\" or \"diagonal\"";
-    });
-    mass = spec.at("mass").get<std::string>();
-  }
-  require(order == 2 || order == 4 || order == 6, [&] {
-    return where + ": key 'order' = " + std::to_string(order) + ", expected 2, 4 or 6";
-  });
-  Vector scales;
-  if (spec.contains("coordinate_scales")) {
-    const json& v = spec.at("coordinate_scales");
-    require(v.is_array() && static_cast<Index>(v.size()) == d, [&] {
-      return where + ": key 'coordinate_scales' must be a list of " + std::to_string(d) +
-             " positive numbers";
-    });
-    scales.resize(d);
-    for (Index i = 0; i < d; ++i) {
-      const json& x = v.at(static_cast<std::size_t>(i));
-      require(x.is_number() && x.get<double>() > 0.0 && std::isfinite(x.get<double>()), [&] {
-        return where + ".coordinate_scales[" + std::to_string(i) + "] = " + x.dump() +
-               ", expected a positive finite number";
-      });
-      scales(i) = x.get<double>();
-    }
-  }
-  return std::make_unique<HamiltonianLibraryMap>(d, std::move(terms), static_cast<int>(order),
-                                                 substeps, mass == "full", beta_init,
-                                                 std::move(scales));
+  LibrarySpec s = read_library_spec(spec, d, where);
+  require(!s.terms.empty(), [&] { return where + ": " + kTermsExpected; });
+  return std::make_unique<HamiltonianLibraryMap>(d, std::move(s.terms), s.order, s.substeps,
+                                                 s.full_mass, beta_init, std::move(s.scales));
 }
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.
@@ -126,6 +95,61 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
 
 }  // namespace
 
+LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where) {
+  require_object(spec, where);
+  reject_unknown_keys(spec, where,
+                      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales"});
+  if (spec.contains("d"))
+    require(spec.at("d") == d, [&] {
+      return where + ": key 'd' disagrees with the model's d = " + std::to_string(d);
+    });
+  LibrarySpec out;
+  if (spec.contains("terms")) {
+    const json& names = spec.at("terms");
+    require(names.is_array() && !names.empty(), [&] { return where + ": " + kTermsExpected; });
+    out.terms.reserve(names.size());
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      if (k % 4096 == 4095) throw_if_stop_requested(where + ": reading the terms");
+      const json& name = names[k];
+      require(name.is_string(), [&] {
+        return where + ".terms[" + std::to_string(k) + "] = " + short_dump(name) +
+               ", expected a term name (a string such as \"q1^2\")";
+      });
+      out.terms.push_back(parse_term(name.get<std::string>(), d, where + ".terms"));
+    }
+  }
+  const Index order = spec.contains("order") ? get_count(spec, "order", where) : 4;
+  require(order == 2 || order == 4 || order == 6, [&] {
+    return where + ": key 'order' = " + std::to_string(order) + ", expected 2, 4 or 6";
+  });
+  out.order = static_cast<int>(order);
+  out.substeps = spec.contains("substeps") ? get_count(spec, "substeps", where) : 1;
+  if (spec.contains("mass")) {
+    require(spec.at("mass") == "full" || spec.at("mass") == "diagonal", [&] {
+      return where + ": key 'mass' = " + short_dump(spec.at("mass")) +
+             ", expected \"full\" or \"diagonal\"";
+    });
+    out.full_mass = spec.at("mass") == "full";
+  }
+  if (spec.contains("coordinate_scales")) {
+    const json& v = spec.at("coordinate_scales");
+    require(v.is_array() && static_cast<Index>(v.size()) == d, [&] {
+      return where + ": key 'coordinate_scales' must be a list of " + std::to_string(d) +
+             " positive numbers";
+    });
+    out.scales.resize(d);
+    for (Index i = 0; i < d; ++i) {
+      const json& x = v.at(static_cast<std::size_t>(i));
+      require(x.is_number() && x.get<double>() > 0.0 && std::isfinite(x.get<double>()), [&] {
+        return where + ".coordinate_scales[" + std::to_string(i) + "] = " + short_dump(x) +
+               ", expected a positive finite number";
+      });
+      out.scales(i) = x.get<double>();
+    }
+  }
+  return out;
+}
+
 std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
   const std::string where = "model spec";
   require_object(spec, where);
@@ -156,10 +180,6 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     const Index d = get_count(spec, "d", where);
     if (conformal && spec.contains("core") && spec.at("core").is_object() &&
         spec.at("core").contains("type") && spec.at("core").at("type") == "library") {
-      if (spec.at("core").contains("d"))
-        require(spec.at("core").at("d") == d, [&] {
-          return where + ".core: key 'd' disagrees with the model's d = " + std::to_string(d);
-        });
       return make_library_map(spec.at("core"), d,
                               get_beta_init(spec, where, CSympNetId::kDefaultBetaInit),
                               where + ".core");

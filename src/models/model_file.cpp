@@ -11,6 +11,9 @@
 #include "csympnet/core/hash.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/json_text.hpp"
+#include "csympnet/models/dof_scaled_map.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/models/normalized_map.hpp"
 
 namespace csympnet {
 
@@ -34,6 +37,23 @@ void product_of_sizes(const nlohmann::json& spec, double& product) {
   } else if (spec.is_object() || spec.is_array()) {
     for (const auto& item : spec) product_of_sizes(item, product);
   }
+}
+
+// What a map's parameters must satisfy beyond being finite: a library map's inverse mass
+// positive definite (hamiltonian_library.hpp). The wrappers keep the inner map's θ first.
+void check_map_params(const Model& model, const Vector& theta, const std::string& where) {
+  const OneStepMap* map = model.map.get();
+  for (;;) {
+    if (const auto* n = dynamic_cast<const NormalizedMap*>(map)) {
+      map = &n->inner();
+    } else if (const auto* s = dynamic_cast<const DofScaledMap*>(map)) {
+      map = &s->inner();
+    } else {
+      break;
+    }
+  }
+  if (const auto* lib = dynamic_cast<const HamiltonianLibraryMap*>(map))
+    lib->check_inverse_mass(theta.head(lib->n_params()), where);
 }
 
 }  // namespace
@@ -166,6 +186,7 @@ SavedModel model_from_json(const nlohmann::json& doc, const std::string& where) 
              "expected the file exactly as csympnet wrote it";
     });
   }
+  check_map_params(out.model, out.theta, where);
   return out;
 }
 

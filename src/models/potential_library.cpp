@@ -1,7 +1,8 @@
 #include "csympnet/models/potential_library.hpp"
 
 #include <cmath>
-#include <regex>
+#include <string_view>
+#include <utility>
 
 #include "csympnet/core/error.hpp"
 
@@ -39,44 +40,110 @@ std::string term_name(const LibraryTerm& t) {
   return "?";
 }
 
+namespace {
+
+// A name as a message quotes it: a long one cut to its first 40 characters (a name of 50,000
+// digits is one line of an error, not 50 kB of it).
+std::string quoted_name(const std::string& name) {
+  constexpr std::size_t kShown = 40;
+  return name.size() <= kShown ? name : name.substr(0, kShown) + "\u2026";
+}
+
+// A left-to-right reading of one name: no recursion and no allocation per character, so a name
+// of any length costs its length (std::regex_match recursed per character and overflowed the
+// stack past about 30,000). The grammar is the one term_name() writes:
+//   qI | qI^N | (qI-qJ)^N | F(qI) | F(-qI) | F(qI-qJ),  F in sin, cos, exp,  N one digit.
+class NameReader {
+ public:
+  explicit NameReader(const std::string& text) : s_(text) {}
+  bool at_end() const { return at_ == s_.size(); }
+  bool eat(std::string_view literal) {
+    if (s_.compare(at_, literal.size(), literal) != 0) return false;
+    at_ += literal.size();
+    return true;
+  }
+  // "q" and one or more digits; the digits' text in `digits`.
+  bool coordinate(std::string_view& digits) {
+    if (!eat("q")) return false;
+    const std::size_t from = at_;
+    while (at_ < s_.size() && s_[at_] >= '0' && s_[at_] <= '9') ++at_;
+    digits = std::string_view(s_).substr(from, at_ - from);
+    return !digits.empty();
+  }
+  bool digit(int& value) {
+    if (at_ >= s_.size() || s_[at_] < '0' || s_[at_] > '9') return false;
+    value = s_[at_++] - '0';
+    return true;
+  }
+
+ private:
+  const std::string& s_;
+  std::size_t at_ = 0;
+};
+
+struct ParsedName {
+  TermShape shape = TermShape::kPower;
+  std::string_view first, second;  // the coordinates' digits (second empty: one coordinate)
+  int power = 1;
+  bool minus = false;  // F(-qI)
+};
+
+bool read_name(const std::string& name, ParsedName& out) {
+  NameReader r(name);
+  for (const auto& [f, shape] : {std::pair{"sin(", TermShape::kSin},
+                                 std::pair{"cos(", TermShape::kCos},
+                                 std::pair{"exp(", TermShape::kExp}}) {
+    if (!r.eat(f)) continue;
+    out.shape = shape;
+    out.power = 0;
+    out.minus = r.eat("-");
+    if (!r.coordinate(out.first)) return false;
+    if (r.eat("-") && !r.coordinate(out.second)) return false;
+    return r.eat(")") && r.at_end();
+  }
+  if (r.eat("(")) {
+    return r.coordinate(out.first) && r.eat("-") && r.coordinate(out.second) && r.eat(")^") &&
+           r.digit(out.power) && r.at_end();
+  }
+  if (!r.coordinate(out.first)) return false;
+  if (r.eat("^") && !r.digit(out.power)) return false;
+  return r.at_end();
+}
+
+}  // namespace
+
 LibraryTerm parse_term(const std::string& name, Index d, const std::string& where) {
   const auto refuse = [&](const std::string& why) -> Error {
-    return Error(where + ": term '" + name + "': " + why +
+    return Error(where + ": term '" + quoted_name(name) + "': " + why +
                  "; expected one of qI, qI^N (N = 2..4), (qI-qJ)^N, sin(qI), cos(qI), "
                  "sin(qI-qJ), cos(qI-qJ), exp(qI), exp(-qI), exp(qI-qJ), with I, J in 1.." +
                  std::to_string(d) + " and I != J");
   };
-  static const std::regex power(R"(q(\d+)(\^(\d))?)");
-  static const std::regex diff_power(R"(\(q(\d+)-q(\d+)\)\^(\d))");
-  static const std::regex func(R"((sin|cos|exp)\((-?)q(\d+)(-q(\d+))?\))");
-  std::smatch m;
-  LibraryTerm t;
-  const auto index = [&](const std::string& s) {
-    const long v = std::stol(s);
-    if (v < 1 || v > d) throw refuse("coordinate " + s + " out of range");
-    return static_cast<Index>(v - 1);
-  };
-  if (std::regex_match(name, m, power)) {
-    t.i = index(m[1]);
-    t.power = m[3].matched ? std::stoi(m[3]) : 1;
-    if (t.power < 1 || t.power > 4) throw refuse("power out of range");
-  } else if (std::regex_match(name, m, diff_power)) {
-    t.i = index(m[1]);
-    t.j = index(m[2]);
-    t.power = std::stoi(m[3]);
-    if (t.power < 2 || t.power > 4) throw refuse("a difference's power must be 2..4");
-  } else if (std::regex_match(name, m, func)) {
-    const std::string f = m[1];
-    t.shape = f == "sin" ? TermShape::kSin : f == "cos" ? TermShape::kCos : TermShape::kExp;
-    t.power = 0;
-    t.i = index(m[3]);
-    if (m[5].matched) t.j = index(m[5]);
-    if (m[2].length() > 0) {
-      if (t.shape != TermShape::kExp || t.j >= 0) throw refuse("a minus sign only in exp(-qI)");
-      t.kappa_sign = -1.0;
+  ParsedName parsed;
+  if (!read_name(name, parsed)) throw refuse("not a library term");
+  // 1..d, read without std::stol: digits past any d (hundreds of them) are out of range, not
+  // an exception of the standard library.
+  const auto index = [&](std::string_view digits) {
+    Index v = 0;
+    for (const char c : digits) {
+      v = v * 10 + (c - '0');
+      if (v > d) throw refuse("coordinate " + quoted_name(std::string(digits)) + " out of range");
     }
-  } else {
-    throw refuse("not a library term");
+    if (v < 1) throw refuse("coordinate " + std::string(digits) + " out of range");
+    return v - 1;
+  };
+  LibraryTerm t;
+  t.shape = parsed.shape;
+  t.power = parsed.power;
+  t.i = index(parsed.first);
+  if (!parsed.second.empty()) t.j = index(parsed.second);
+  if (t.shape == TermShape::kPower) {
+    if (t.j < 0 && (t.power < 1 || t.power > 4)) throw refuse("power out of range");
+    if (t.j >= 0 && (t.power < 2 || t.power > 4))
+      throw refuse("a difference's power must be 2..4");
+  } else if (parsed.minus) {
+    if (t.shape != TermShape::kExp || t.j >= 0) throw refuse("a minus sign only in exp(-qI)");
+    t.kappa_sign = -1.0;
   }
   if (t.j == t.i) throw refuse("a difference of a coordinate with itself");
   // exp(qJ-qI) with J < I is stored as the difference (qI − qJ) with κ starting negative.

@@ -36,8 +36,10 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/cli_support.hpp"
+#include "csympnet/core/rng.hpp"
 #include "csympnet/core/types.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/models/model.hpp"
 #include "csympnet/models/model_file.hpp"
 
 namespace csympnet {
@@ -163,6 +165,22 @@ std::string resigned(json doc) {
     // params unreadable: the mutation is refused before the checksum anyway
   }
   return doc.dump(1);
+}
+
+// A Hamiltonian-library model file (d = 1: q1^2 and q1^4; `substeps` and `order` of its
+// integrator), made by the library itself.
+std::string library_model(Index substeps = 1, int order = 4) {
+  const Model m = make_model({{"type", "csympnet"},
+                              {"d", 1},
+                              {"core",
+                               {{"type", "library"},
+                                {"terms", {"q1^2", "q1^4"}},
+                                {"order", order},
+                                {"substeps", substeps}}}});
+  Vector theta(m.n_params());
+  Rng rng(1, "unused");  // the map draws nothing
+  m.init_params(rng, theta);
+  return model_file_text(m, theta, json::object());
 }
 
 // ----- a case ----------------------------------------------------------------------------------
@@ -532,6 +550,41 @@ std::vector<Case> model_cases() {
                return t.substr(0, static_cast<std::size_t>(frac * static_cast<double>(t.size())));
              },
              {1});
+  // Library models (the base model has an LA core): hostile terms and masses, re-signed.
+  // A name of 50,000 digits overflowed the stack (exit 139), 20 digits escaped as
+  // "internal error: stol" (exit 3); a zero or negative inverse mass rolled out silently.
+  const auto add_library = [&](const std::string& name, DocEdit edit, std::set<int> codes,
+                               std::vector<std::string> say) {
+    if (!codes.count(0)) say.insert(say.begin(), "m.json");
+    for (const auto& cmd : commands("m.json"))
+      cases.push_back({"model_" + cmd[0] + "_library_" + name,
+                       [edit](const fs::path& d) {
+                         json doc = json::parse(library_model());
+                         edit(doc);
+                         write_file(d / "m.json", resigned(doc));
+                         write_file(d / "t.csv", base_trajectories());
+                       },
+                       cmd, codes, say, {}});
+  };
+  add_library("valid", [](json&) {}, {0}, {});
+  add_library(
+      "term_of_50000_digits",
+      [](json& d) { d["model"]["core"]["terms"][0] = "q" + std::string(50000, '1'); }, {1},
+      {"m.json: model spec.core.terms: term 'q1111111111", "\u2026': coordinate", "out of range"});
+  add_library(
+      "term_index_of_20_digits",
+      [](json& d) { d["model"]["core"]["terms"][1] = "q99999999999999999999^4"; }, {1},
+      {"term 'q99999999999999999999^4': coordinate 99999999999999999999 out of range",
+       "I, J in 1..1"});
+  add_library(
+      "term_not_a_string", [](json& d) { d["model"]["core"]["terms"][0] = json::array({5}); },
+      {1}, {"model spec.core.terms[0] = [5], expected a term name"});
+  for (const auto& [label, w] : std::vector<std::pair<std::string, double>>{
+           {"zero", 0.0}, {"negative", -1.0}, {"negative_zero", -0.0}, {"tiny_negative", -1e-300}})
+    add_library(
+        "inverse_mass_" + label, [w = w](json& d) { d["params"][0] = w; }, {1},
+        {"m.json: params[0] = ", " is W[1,1] (the inverse mass W = M^-1 of core 'mass': \"full\")",
+         "expected a positive inverse mass"});
   add_text("garbage_after", [](const std::string& t) { return t + "}}garbage"; }, {1});
   add_text("deep_nesting",
            [](const std::string&) { return std::string(100000, '[') + std::string(100000, ']'); },
@@ -1043,7 +1096,13 @@ TEST_F(HostileFiles, LongStagesStopWithinASecondOfASignal) {
        "--out", "r"},
       {"rollout", "--model", "ode/model.json", "--z0", "0.1,0.2", "--h", "1e12", "--steps", "2"},
       {"evaluate", "--model", "ode/model.json", "--data", "far.csv"},
+      // A library map of 4,000,000 substeps of order 6 (seconds a step): rollout ran to the
+      // end after SIGINT and exited 0.
+      {"rollout", "--model", "slow.json", "--z0", "0.1,0.2", "--h", "0.1", "--steps", "100"},
+      {"evaluate", "--model", "slow.json", "--data", "slow.csv"},
   };
+  write_file(dir_ / "slow.json", library_model(4000000, 6));
+  write_file(dir_ / "slow.csv", base_trajectories());
   for (const auto& args : stages)
     for (const int sig : {SIGINT, SIGTERM}) {
       SCOPED_TRACE(::testing::PrintToString(args) + " signal " + std::to_string(sig));

@@ -47,6 +47,8 @@ class DofScaledMap final : public OneStepMap {
 
   // μ (length d, μ_1 = 1) at θ.
   Vector scales(ConstParams theta) const;
+  // The wrapped map; its parameters are the first inner().n_params() of θ.
+  const OneStepMap& inner() const { return *inner_; }
 
  private:
   std::unique_ptr<OneStepMap> inner_;

@@ -73,6 +73,10 @@ class HamiltonianLibraryMap final : public OneStepMap {
   Index wavenumber_index(Index k) const { return kappa_index_[static_cast<std::size_t>(k)]; }
   // W = M⁻¹ from θ (d x d, symmetric).
   Matrix inverse_mass(ConstParams theta) const;
+  // Throws Error, naming `where` and the entries of θ, unless W is positive definite (a
+  // kinetic energy ½ pᵀWp > 0 for every p ≠ 0): a model file's θ comes from outside, and a
+  // zero or negative mass would roll out without a word.
+  void check_inverse_mass(ConstParams theta, const std::string& where) const;
   // V(q) and ∇V(q) at θ.
   double potential(ConstParams theta, const double* q) const;
   // The stage weights b_s of one substep (they sum to 1).
@@ -110,5 +114,19 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // Per term: ∂u/∂q_i and ∂u/∂q_j (0 for a single coordinate).
   std::vector<double> wi_, wj_;
 };
+
+// The core spec {"type": "library", "terms": [...], "order": 4, "substeps": n, "mass":
+// "full"|"diagonal", "coordinate_scales": [...]} read and checked for d coordinates: the one
+// reading of it, by model files (make_model) and by the identification's given core. Throws
+// Error naming `where`, the key and what was expected. "terms" may be absent (terms empty: the
+// identification selects them; a model needs them).
+struct LibrarySpec {
+  std::vector<LibraryTerm> terms;
+  int order = 4;
+  Index substeps = 1;
+  bool full_mass = true;
+  Vector scales;  // empty: all 1
+};
+LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where);
 
 }  // namespace csympnet

@@ -368,6 +368,122 @@ def test_ctrl_c_stops_a_vector_field_prediction_over_a_huge_step(ode_model):
     assert np.all(np.isfinite(ode_model.predict(np.array([0.1, 0.2]), 0.1)))
 
 
+# --- the Hamiltonian-library core ------------------------------------------------------------
+
+def _oscillator(n=60, h=0.1, gamma=0.1):
+    t = np.arange(n) * h
+    e = np.exp(-0.5 * gamma * t)
+    return np.stack([e * np.cos(t), -e * np.sin(t)], axis=1), t
+
+
+def _library_spec(**core):
+    return {"type": "csympnet", "d": 1,
+            "core": {"type": "library", "terms": ["q1^2", "q1^4"], **core}}
+
+
+def _library_model(params=(1.0, 0.5, 0.0, 0.1), **core):
+    """A library model through the model file's own reader (W, c(q1^2), c(q1^4), beta)."""
+    return csympnet.Model(csympnet._core.from_spec(json.dumps(_library_spec(**core)),
+                                                   np.array(params, dtype=float), "{}"))
+
+
+def _file_refusal(core):
+    spec = {"type": "csympnet", "d": 1, "core": core}
+    with pytest.raises(csympnet.Error) as e:
+        csympnet._core.from_spec(json.dumps(spec), np.ones(4), "{}")
+    return str(e.value)
+
+
+@pytest.mark.parametrize("name", ["q" + "1" * 50000, "sin(q" + "1" * 50000 + ")",
+                                  "q99999999999999999999", "(q1-q99999999999999999999)^2"])
+def test_library_term_names_of_any_length_are_refused_by_name(name):
+    """A name of 50,000 digits crashed the interpreter (SIGSEGV in std::regex); 20 digits
+    raised an IndexError (std::stol's out_of_range)."""
+    shown = name if len(name) <= 40 else name[:40] + "\u2026"
+    message = _file_refusal({"type": "library", "terms": [name]})
+    assert f"term '{shown}': coordinate" in message and "out of range" in message
+    assert len(message) < 600
+    z, t = _oscillator()
+    with pytest.raises(csympnet.Error, match="out of range") as e:
+        csympnet.identify(z, t, core={"type": "library", "terms": [name]})
+    assert f"core.terms: term '{shown}'" in str(e.value)
+
+
+# The core dicts the model-file reader refuses; identify() refused none of them but the terms.
+BAD_LIBRARY_CORES = {
+    "order_3": {"type": "library", "terms": ["q1^2"], "order": 3},
+    "mass_heavy": {"type": "library", "terms": ["q1^2"], "mass": "heavy"},
+    "negative_scale": {"type": "library", "terms": ["q1^2"], "coordinate_scales": [-1]},
+    "unknown_key": {"type": "library", "terms": ["q1^2"], "wavenumbers": 2},
+    "terms_as_dict": {"type": "library", "terms": {"q1^2": 1}},
+    "terms_empty": {"type": "library", "terms": []},
+    "term_a_number": {"type": "library", "terms": [5]},
+    "substeps_zero": {"type": "library", "terms": ["q1^2"], "substeps": 0},
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_LIBRARY_CORES))
+def test_a_given_library_core_is_refused_as_a_model_file_refuses_it(case):
+    """One reading of the core (read_library_spec): the same refusal in the same words."""
+    core = BAD_LIBRARY_CORES[case]
+    in_file = _file_refusal(core)
+    z, t = _oscillator()
+    with pytest.raises(csympnet.Error) as e:
+        csympnet.identify(z, t, core=core)
+    assert str(e.value).startswith("core")
+    # "model: model spec.core…" from the file, "core…" from identify: the rest is the same.
+    assert in_file.split("model spec.core", 1)[1] == str(e.value)[len("core"):]
+
+
+@pytest.mark.parametrize("key, value", [("order", 4), ("substeps", 10**7), ("mass", "diagonal"),
+                                        ("coordinate_scales", [2.0])])
+def test_identify_refuses_library_keys_it_would_ignore(key, value):
+    """Valid in a model file, chosen by the identification itself: refused, not ignored."""
+    z, t = _oscillator()
+    with pytest.raises(csympnet.Error, match=f"core: key '{key}' is chosen by the identification"):
+        csympnet.identify(z, t, core={"type": "library", "terms": ["q1^2"], key: value})
+
+
+@pytest.mark.parametrize("key, value, said", [
+    ("derived_momenta", None, "derived_momenta: got null; expected a string"),
+    ("derived_momenta", 3, "derived_momenta: got 3; expected a string"),
+])
+def test_identify_names_a_setting_of_the_wrong_kind(key, value, said):
+    """A raw json.exception.type_error.302 named neither the key nor what was expected."""
+    z, t = _oscillator()
+    with pytest.raises(csympnet.Error) as e:
+        csympnet.identify(z, t, **{key: value})
+    assert said in str(e.value)
+    assert "type_error" not in str(e.value)
+
+
+@pytest.mark.parametrize("mass, params, said", [
+    ("full", (0.0, 0.5, 0.0, 0.1), r"params\[0\] = 0 is W\[1,1\]"),
+    ("diagonal", (-1.0, 0.5, 0.0, 0.1), r"params\[0\] = -1 is W\[1,1\]"),
+])
+def test_a_library_model_with_a_non_positive_inverse_mass_is_refused(mass, params, said):
+    """It loaded and rolled out without a word."""
+    with pytest.raises(csympnet.Error, match=said + r".*expected a positive inverse mass"):
+        _library_model(params, mass=mass)
+    assert np.isfinite(_library_model((1.0, 0.5, 0.0, 0.1), mass=mass).rollout(
+        np.array([0.1, 0.2]), np.full(3, 0.1))).all()
+
+
+def test_ctrl_c_stops_a_library_rollout_of_many_substeps():
+    """4,000,000 substeps of order 6 a step: Model.rollout ran to its end after SIGINT."""
+    model = _library_model(substeps=4_000_000, order=6)
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            model.rollout(np.array([0.1, 0.2]), np.full(100, 0.1))
+        stopped = time.monotonic() - start
+    finally:
+        timer.cancel()
+    assert stopped < 1.5, f"stopped {stopped - 0.5:.2f} s after SIGINT"
+
+
 def test_the_suite_has_at_least_two_hundred_cases():
     n = (len(FIT_CASES) + len(OPTION_CASES) + len(IDENTIFY_CASES) + len(MODEL_CASES)
          + len(FILE_CASES))

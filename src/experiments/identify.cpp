@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -14,6 +16,7 @@
 #include "csympnet/experiments/model_checks.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/io/json_text.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/models/normalized_map.hpp"
 #include "csympnet/train/window_loss.hpp"
@@ -122,26 +125,52 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
                                    [&](const char* k) { return item.key() == k; });
     require(known, [&] { return "identify settings: unknown key '" + item.key() + "'"; });
   }
+  // Each value of the JSON kind its key needs, refused by name otherwise (nlohmann's own
+  // type_error.302 named neither the key nor what was expected).
+  using J = nlohmann::json;
+  const auto given = [&](const char* key, const std::function<bool(const J&)>& is_kind,
+                         const std::string& expected) {
+    if (!settings.contains(key)) return false;
+    const J& v = settings.at(key);
+    // What was given, in words without braces (an OptionError's problem spells {key}).
+    const std::string what = v.is_null()     ? "null"
+                             : v.is_string() ? "a string"
+                             : v.is_array()  ? "a list"
+                             : v.is_object() ? "an object"
+                                             : v.dump();
+    if (!is_kind(v)) throw OptionError(key, "got " + what + "; expected " + expected);
+    return true;
+  };
+  const auto whole = [](const J& v) { return v.is_number_integer(); };
+  const auto number = [](const J& v) { return v.is_number(); };
+  const auto flag = [](const J& v) { return v.is_boolean(); };
+  const auto text = [](const J& v) { return v.is_string(); };
   IdentifyConfig c;
   if (settings.contains("core")) c.core = settings.at("core");
-  c.seed = settings.value("seed", c.seed);
-  c.window = settings.value("window", c.window);
-  c.balanced = settings.value("balanced", c.balanced);
-  c.normalize = settings.value("normalize", c.normalize);
-  if (settings.contains("dof_scales"))
+  if (given(
+          "seed",
+          [](const J& v) {
+            return v.is_number_unsigned() || (v.is_number_integer() && v.get<std::int64_t>() >= 0);
+          },
+          "a whole number >= 0"))
+    c.seed = settings.at("seed").get<std::uint64_t>();
+  if (given("window", whole, "a whole number")) c.window = settings.at("window");
+  if (given("balanced", flag, "true or false")) c.balanced = settings.at("balanced");
+  if (given("normalize", flag, "true or false")) c.normalize = settings.at("normalize");
+  if (given("dof_scales", text, "a string (one of auto, learned, fixed)"))
     c.dof_scales = parse_dof_scales(settings.at("dof_scales").get<std::string>());
-  c.epochs = settings.value("epochs", c.epochs);
-  c.lr = settings.value("lr", c.lr);
-  c.lm_iterations = settings.value("lm_iterations", c.lm_iterations);
-  c.val_fraction = settings.value("val_fraction", c.val_fraction);
-  c.target_blocks = settings.value("blocks", c.target_blocks);
-  c.level = settings.value("level", c.level);
-  c.threads = settings.value("threads", c.threads);
-  if (settings.contains("derived_momenta")) {
-    static const std::vector<std::string> kDerived = {"set_aside", "use"};
+  if (given("epochs", whole, "a whole number")) c.epochs = settings.at("epochs");
+  if (given("lr", number, "a number")) c.lr = settings.at("lr");
+  if (given("lm_iterations", whole, "a whole number"))
+    c.lm_iterations = settings.at("lm_iterations");
+  if (given("val_fraction", number, "a number")) c.val_fraction = settings.at("val_fraction");
+  if (given("blocks", whole, "a whole number")) c.target_blocks = settings.at("blocks");
+  if (given("level", number, "a number")) c.level = settings.at("level");
+  if (given("threads", whole, "a whole number")) c.threads = settings.at("threads");
+  static const std::vector<std::string> kDerived = {"set_aside", "use"};
+  if (given("derived_momenta", text, "a string (one of set_aside, use)"))
     c.use_derived_momenta = choice_index("derived_momenta", kDerived,
                                          settings.at("derived_momenta").get<std::string>()) == 1;
-  }
   c.validate();
   if (settings.contains("init") && !settings.at("init").is_null()) {
     if (!settings.at("init").is_string() || settings.at("init").get<std::string>().empty())
@@ -175,12 +204,31 @@ void to_json(nlohmann::json& j, const IdentifyQuality& q) {
 
 namespace {
 
+// A given library core is read by the model files' reader (read_library_spec), so it refuses
+// what a model file refuses, in the same words. Of its keys the identification takes only the
+// terms (none: it selects them); the integrator, the mass matrix and the scales it chooses
+// itself (identification.md, "The Hamiltonian-library core"), so a key that sets them is
+// refused rather than ignored.
+void check_given_library_core(const nlohmann::json& core, Index d) {
+  if (!core.is_object() || !core.contains("type") || core.at("type") != "library") return;
+  read_library_spec(core, d, "core");
+  for (const char* key : {"order", "substeps", "mass", "coordinate_scales"})
+    require(!core.contains(key), [&] {
+      return std::string("core: key '") + key +
+             "' is chosen by the identification (order 6, substeps refined until the "
+             "integrator's error is below the residuals, the mass matrix and the scales from "
+             "the data); expected only the keys type and terms (a model file of such a core is "
+             "refitted with init)";
+    });
+}
+
 void check_inputs(const std::vector<Trajectory>& trajs, const IdentifyConfig& config) {
   config.validate();
   require(!trajs.empty(), "fit: no data");
   for (std::size_t k = 0; k < trajs.size(); ++k)
     trajs[k].validate("fit: trajectory " + std::to_string(k));
   const Index d = trajs.front().z.rows() / 2;
+  check_given_library_core(config.core, d);
   const IdentifyInit* init = config.init.get();
   if (init != nullptr && init->model.dim() != 2 * d)
     throw OptionError("init",

@@ -98,6 +98,39 @@ TEST(IdentifyConfigBuilder, OutOfRangeValuesAreRefusedByKey) {
   }
 }
 
+// A value of the wrong JSON kind is refused by key with what was expected (Python's
+// derived_momenta=None raised nlohmann's bare "type_error.302").
+TEST(IdentifyConfigBuilder, ValuesOfTheWrongKindAreRefusedByKey) {
+  const auto message = [](const nlohmann::json& s) {
+    try {
+      make_identify_config(s);
+    } catch (const OptionError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(message({{"derived_momenta", nullptr}}),
+            "derived_momenta: got null; expected a string (one of set_aside, use)");
+  EXPECT_EQ(message({{"derived_momenta", 1}}),
+            "derived_momenta: got 1; expected a string (one of set_aside, use)");
+  EXPECT_EQ(message({{"dof_scales", {{"a", 1}}}}),
+            "dof_scales: got an object; expected a string (one of auto, learned, fixed)");
+  EXPECT_EQ(message({{"seed", "7"}}), "seed: got a string; expected a whole number >= 0");
+  EXPECT_EQ(message({{"seed", -1}}), "seed: got -1; expected a whole number >= 0");
+  EXPECT_EQ(message({{"window", 1.5}}), "window: got 1.5; expected a whole number");
+  EXPECT_EQ(message({{"balanced", 1}}), "balanced: got 1; expected true or false");
+  EXPECT_EQ(message({{"normalize", nullptr}}), "normalize: got null; expected true or false");
+  EXPECT_EQ(message({{"lr", "0.1"}}), "lr: got a string; expected a number");
+  EXPECT_EQ(message({{"threads", {1, 2}}}), "threads: got a list; expected a whole number");
+  for (const char* key : {"epochs", "lm_iterations", "blocks"})
+    EXPECT_EQ(message({{key, true}}), std::string(key) + ": got true; expected a whole number");
+  for (const char* key : {"val_fraction", "level"})
+    EXPECT_EQ(message({{key, nullptr}}), std::string(key) + ": got null; expected a number");
+  EXPECT_EQ(make_identify_config({{"seed", 18446744073709551615ULL}}).seed,
+            18446744073709551615ULL);
+  EXPECT_TRUE(make_identify_config({{"derived_momenta", "use"}}).use_derived_momenta);
+}
+
 TEST(IdentifyConfigBuilder, DofScalesSpellingsRoundTrip) {
   for (const std::string& name : dof_scales_names())
     EXPECT_EQ(to_string(parse_dof_scales(name)), name);

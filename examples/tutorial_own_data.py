@@ -78,7 +78,7 @@ def main():
 
     # Step 3: fit on the first 45 s; keep the last 15 s to test the model on.
     fit_rows = t <= 45.0
-    est = csympnet.CSympNetID(seed=0).fit(z[fit_rows], t[fit_rows])
+    est = csympnet.CSympNetID(seed=0, observed="states").fit(z[fit_rows], t[fit_rows])
     if not est.identified_:
         raise SystemExit("not identified: " + "; ".join(est.reasons_))
     low, high = est.gamma_interval_

@@ -26,6 +26,7 @@ packages=(
   pybind11-dev         # Python module: bindings
   python3-pytest       # Python module: tests
   python3-matplotlib   # csympnet.plot: the paper's figure types
+  python3-pandas       # DataFrames as data (identify, CSympNetID.fit) and their tests
   python3-sklearn      # Python tests: CSympNetID under clone and cross_val_score
   python3-tqdm         # CSympNetID(verbose=True): progress bars
   python3-torch        # csympnet.torch and its tests; bench/torch_peer.py (make bench)

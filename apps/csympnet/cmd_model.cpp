@@ -18,6 +18,7 @@
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
+#include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "interrupt.hpp"
 #include "standard_streams.hpp"
@@ -189,17 +190,19 @@ namespace {
 
 // The state at the last sample of a positions file (one trajectory), its momenta fitted with
 // the model (state_from_positions); t0 receives that sample's time.
-Vector state_at_end_of_positions(const SavedModel& saved, const std::string& path, double& t0) {
+Vector state_at_end_of_positions(const SavedModel& saved, const std::string& path,
+                                 const std::string& columns, double& t0) {
   if (!saved.model.is_map() || saved.model.type() != "csympnet")
     throw Error(path +
                 ": --from-positions needs a csympnet model (a one-step map with a damping "
                 "rate, as fit writes); the model is of type '" +
                 saved.model.type() + "'");
-  const CsvInput input = read_csv_input(path);
+  const CsvInput input = read_csv_input(path, parse_column_map(columns));
   if (input.kind != CsvKind::kPositions)
     throw Error(input.name +
                 ": expected a positions header '[traj,]t,q1..qd' for "
-                "--from-positions (the positions alone; use --z0 for a state)");
+                "--from-positions (the positions alone, or --columns t=TIME,q1=POSITION "
+                "naming them; use --z0 for a state)");
   const std::vector<Trajectory> trajs = parse_positions_csv(input.text, input.name);
   if (trajs.size() != 1 || trajs.front().t.size() < 2)
     throw Error(input.name +
@@ -211,7 +214,9 @@ Vector state_at_end_of_positions(const SavedModel& saved, const std::string& pat
     throw Error(input.name + ": " + std::to_string(w.z.rows()) +
                 " positions per row; the model has d = " + std::to_string(saved.model.dim() / 2));
   double rms = 0.0;
-  const Vector z = state_from_positions(*saved.model.map, saved.theta, w.z, w.t, &rms);
+  // Refused, exit 1, when the fit does not explain the window: no forecast from nonsense.
+  const Vector z =
+      checked_state_from_positions(*saved.model.map, saved.theta, w.z, w.t, &rms, input.name);
   t0 = w.t(w.t.size() - 1);
   std::fprintf(stderr, "rollout: state at t = %s fitted to %lld positions (rms residual %s)\n",
                number_text(t0).c_str(), static_cast<long long>(w.t.size()),
@@ -237,6 +242,8 @@ void add_rollout(CLI::App& app) {
                       "CSV 't,q1..qd', one trajectory): its momenta are fitted with the model "
                       "(a csympnet model); the rollout starts at its last time")
           ->check(kExistingFile);
+  auto columns = std::make_shared<std::string>();
+  add_columns_option(*cmd, *columns)->needs(pos_opt);
   z0_opt->excludes(pos_opt);
   pos_opt->excludes(z0_opt);
   cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(kStep);
@@ -253,7 +260,7 @@ void add_rollout(CLI::App& app) {
                                  "expected the initial state q1,..,qd,p1,..,pd, or "
                                  "--from-positions FILE (a record of positions alone)");
     double t0 = 0.0;
-    Vector z = from_positions ? state_at_end_of_positions(saved, *positions, t0)
+    Vector z = from_positions ? state_at_end_of_positions(saved, *positions, *columns, t0)
                               : parse_state(*z0, saved.model.dim());
     const LearnedMap map = learned_map(saved.model, saved.theta);
     const Index d = saved.model.dim() / 2;

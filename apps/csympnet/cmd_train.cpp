@@ -17,9 +17,11 @@
 #include "csympnet/experiments/fit.hpp"
 #include "csympnet/experiments/identify.hpp"
 #include "csympnet/experiments/outputs.hpp"
+#include "csympnet/experiments/time_unit.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/train/loss.hpp"
+#include "identify_summary.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
 #include "system_options.hpp"
@@ -48,7 +50,8 @@ struct FitArgs {
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;
   std::string loss = "balanced", dof_scales = "auto", derived_momenta = "set-aside";
-  std::string init;  // --init FILE: a model file to start from (IdentifyConfig::init)
+  std::string init;       // --init FILE: a model file to start from (IdentifyConfig::init)
+  std::string time_unit;  // --time-unit: the clock's unit, for the report only (time_unit.hpp)
   bool no_normalize = false;
   double level = 0.95;
 };
@@ -274,54 +277,6 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
                       ") and its report are in " + a.out);
   }
 }
-// The checks of the model's assumptions: a failed one always, in words; the others unless
-// quiet.
-void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
-  for (const ModelCheck& k : checks) {
-    if (k.passed && quiet) continue;
-    const char* mark = !k.applicable ? "untestable" : k.passed ? "ok" : "FAILED";
-    std::printf("check %-16s %-10s %s\n", k.name.c_str(), mark, k.sentence.c_str());
-  }
-}
-
-// The modes of an identified fit, one line each (report.json "modes" has them in every case).
-void print_modes(const IdentifyResult& r) {
-  const auto range = [](const std::optional<SandwichInterval>& iv) {
-    char buf[96] = "";
-    if (iv) std::snprintf(buf, sizeof buf, " [%.6g, %.6g]", iv->low, iv->high);
-    return std::string(buf);
-  };
-  for (std::size_t k = 0; k < r.modes.size(); ++k) {
-    const Mode& m = r.modes[k];
-    std::printf("mode %zu: angular frequency %.6g%s rad per time unit, damping ratio %.6g%s\n",
-                k + 1, m.frequency, range(m.frequency_interval).c_str(), m.damping_ratio,
-                range(m.damping_ratio_interval).c_str());
-  }
-  if (!r.modes_note.empty()) std::printf("modes: %s\n", r.modes_note.c_str());
-  if (r.hamiltonian.is_object())
-    std::printf(
-        "hamiltonian: H = 1/2 p^T M^-1 p + V(q), V(q) = %s (report.json has each term's "
-        "interval)\n",
-        r.hamiltonian.value("potential", std::string()).c_str());
-}
-
-// What `fit` prints beyond γ̂ and the checks unless -q: the model, the budgets, the quality.
-void print_identify_details(const IdentifyResult& r, const std::string& out) {
-  std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
-              static_cast<long long>(r.model.dim() / 2), static_cast<long long>(r.model.n_params()),
-              r.config.window, r.config.core.dump().c_str());
-  std::printf("%s\n", r.training.brief_report().c_str());
-  std::printf(
-      "%s\n",
-      lm_summary_words(r.lm.iterations, r.lm.accepted, r.lm_best_iteration, r.lm.message).c_str());
-  std::printf(
-      "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
-      "max %.2e\n",
-      r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
-      r.quality.val_relative_residual, r.quality.structure_residual_max);
-  std::printf("wrote %s/{report.json,model.json,timings.json}\n", out.c_str());
-}
-
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
@@ -360,7 +315,13 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (lead) out_dir.emplace(prepare_output_dir(a.out, a.force));
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
-  const CsvInput input = read_csv_input(a.data, parse_column_map(a.columns));  // once: a pipe works
+  const ColumnMap columns = parse_column_map(a.columns);
+  // The clock's unit changes only the report: given, or stated by the time column's name.
+  std::optional<TimeUnit> unit;
+  if (!a.time_unit.empty()) unit = parse_time_unit(a.time_unit, "--time-unit");
+  for (const auto& [canonical, own] : columns.columns)
+    if (canonical == "t" && !unit) unit = time_unit_of_column(own);
+  const CsvInput input = read_csv_input(a.data, columns);  // once: a pipe works
   const bool positions_only = input.kind == CsvKind::kPositions;
   const PairSet checked = positions_only ? PairSet{} : parse_any_as_pairs(input.text, input.name);
   const bool pairs_only = input.kind == CsvKind::kPairs;
@@ -435,6 +396,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
   if (!a.columns.empty()) report["data"]["columns"] = a.columns;
+  report["time_unit"] = time_unit_report(unit, report);
   out_dir->commit(
       {{"report.json", json_file_text(report)},
        {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
@@ -443,16 +405,17 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
        {"model.json", model_file_text(r.model, r.theta, [&] {
           nlohmann::json meta = {{"data", a.data}, {"seed", r.config.seed}, {"recipe", "identify"}};
           if (r.config.init) meta["init"] = r.config.init->file;
+          // The interval travels with the model (csympnet.load(...).gamma_interval), as the
+          // model files of Python's identify carry it: only an identified γ̂ has one.
+          if (r.identified && r.interval) {
+            meta["gamma_interval"] = {r.interval->low, r.interval->high};
+            meta["gamma_interval_level"] = r.interval->level;
+          }
           return meta;
         }())}});
   if (r.identified) {
-    const SandwichInterval& s = *r.interval;
-    std::printf(
-        "gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per time unit of the data (%g%% interval, "
-        "%s, %ld blocks)\n",
-        r.gamma, s.quantile * s.std_error, s.low, s.high, 100.0 * s.level, s.method.c_str(),
-        s.blocks);
-    print_modes(r);
+    print_gamma(r, unit);
+    print_modes(r, unit);
   } else {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }
@@ -470,13 +433,27 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
 }
 }  // namespace
 
+// DATA as the first argument, or as --data: one option each, so that help lists it once as
+// required and --data once as its other spelling (one "data,--data" option was listed in both
+// places, each time as REQUIRED). Given neither, a usage error (exit 2) as CLI11's own.
+void add_data_argument(CLI::App& cmd, std::string& data, const std::string& help) {
+  CLI::Option* positional =
+      cmd.add_option("data", data, help + " (required; or give it as --data)")->check(kInputFile);
+  CLI::Option* named = cmd.add_option("--data", data, "The same as DATA, named")->check(kInputFile);
+  positional->excludes(named);
+  cmd.parse_complete_callback([&cmd, positional, named] {
+    const CLI::Option* help_flag = cmd.get_help_ptr();
+    const bool help_asked = help_flag != nullptr && help_flag->count() > 0;
+    if (positional->count() == 0 && named->count() == 0 && !help_asked)
+      throw CLI::RequiredError("DATA (a CSV file, or --data FILE)");
+  });
+}
+
 void add_train(CLI::App& app) {
   // train: AdamW alone unless told otherwise (FitConfig::adamw_only).
   auto a = std::make_shared<FitArgs>(FitConfig::adamw_only());
   CLI::App* cmd = app.add_subcommand("train", "Train a model on pairs (or trajectories) CSV");
-  cmd->add_option("data,--data", a->data, "Training CSV (pairs or trajectories); - for stdin")
-      ->required()
-      ->check(kInputFile);
+  add_data_argument(*cmd, a->data, "Training CSV (pairs or trajectories); - for stdin");
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
       ->check(kExistingFile);
   add_fit_options(*cmd, *a);
@@ -490,7 +467,7 @@ void add_train(CLI::App& app) {
 // and most users need only the first group).
 void group_fit_options(CLI::App& cmd) {
   const std::vector<std::pair<const char*, std::vector<const char*>>> groups = {
-      {"Your data", {"--data", "--columns"}},
+      {"Your data", {"--data", "--columns", "--time-unit"}},
       {"Identification (the default recipe)",
        {"--core", "--window", "--loss", "--no-normalize", "--dof-scales", "--derived-momenta",
         "--lm-iterations", "--level", "--blocks", "--init", "--epochs", "--lr", "--seed",
@@ -498,8 +475,7 @@ void group_fit_options(CLI::App& cmd) {
       {"Only with --recipe classic (training a map: one-step loss, second stage, bootstrap)",
        {"--recipe", "--model", "--val", "--lr-schedule", "--val-every", "--beta-init",
         "--no-beta-decay", "--warm-start", "--no-warm-start", "--refine", "--refine-iterations",
-        "--refine-solver", "--bootstrap"}},
-      {"Only for csympnet train (refused by fit)", {"--chunk-pairs", "--batch-size"}},
+        "--refine-solver", "--bootstrap", "--chunk-pairs", "--batch-size"}},
       {"Output", {"--out", "--force", "--quiet"}},
   };
   for (CLI::Option* o : cmd.get_options())
@@ -514,9 +490,7 @@ void add_fit(CLI::App& app) {
   auto a = std::make_shared<FitArgs>(FitConfig::identification());
   CLI::App* cmd = app.add_subcommand(
       "fit", "Fit CSympNet-ID to your own pairs or trajectories and print gamma_hat");
-  cmd->add_option("data,--data", a->data, "CSV of pairs or trajectories; - for standard input")
-      ->required()
-      ->check(kInputFile);
+  add_data_argument(*cmd, a->data, "CSV of pairs or trajectories; - for standard input");
   add_fit_options(*cmd, *a);
   cmd->add_option("--recipe", a->recipe,
                   "identify (default: windows, balanced residuals, LM, a block interval) or "
@@ -550,6 +524,11 @@ void add_fit(CLI::App& app) {
                   "(default 20)")
       ->check(kWholeNumber)
       ->check(library_range(kBlocksRange));
+  cmd->add_option("--time-unit", a->time_unit,
+                  "The unit of the time column: s, ms, us, ns, min or h (default: read from a "
+                  "--columns time name such as t_ms or timestamp_s). Only the report changes: "
+                  "gamma also per s, and the amplitude decay rate gamma/2")
+      ->check(one_of(time_unit_names()));
   cmd->add_option("--init", a->init,
                   "Model file of CSympNet-ID to start from (from `fit`, or saved by "
                   "csympnet.torch): its core, parameters and units; AdamW only with --epochs")
@@ -563,6 +542,10 @@ void add_fit(CLI::App& app) {
     const FitModel model =
         a->model ? parse_fit_model(*a->model) : a->classic.model;  // --model was checked
     const bool identify = a->recipe == "identify" && model == FitModel::kCSympNet;
+    if (self->count("--time-unit") > 0 && !identify)
+      throw CLI::ValidationError("--time-unit",
+                                 "belongs to the default recipe (--recipe identify) "
+                                 "with --model csympnet");
     if (!a->init.empty() && !identify)
       throw CLI::ValidationError("--init",
                                  "belongs to the default recipe (--recipe identify) "

@@ -25,10 +25,12 @@ void keep_standard_descriptors_taken() {
 }
 
 std::string stdout_write_error(int err) {
-  return std::string("write error on standard output") +
-         (err != 0 ? std::string(": ") + std::strerror(err) : std::string()) +
-         "; expected standard output to take the output (is the disk full, or the stream "
-         "closed?)";
+  // The system's own reason, as coreutils give it ("write error: Broken pipe", "No space
+  // left on device"); a guess at the cause would be wrong for all but one of them.
+  return std::string("write error on standard output: ") +
+         (err != 0 ? std::string(std::strerror(err))
+                   : std::string("the system gave no reason (the stream is in error)")) +
+         "; expected standard output to stay writable to the end";
 }
 
 void print_line(const std::string& line) {

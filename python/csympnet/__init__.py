@@ -37,7 +37,8 @@ from ._core import Error
 from ._data import Pairs, System, Trajectory, generate, model_types, read_csv, systems, write_csv
 from ._estimator import CSympNetID, NoTimesWarning
 from ._fit import RunResult, fit, fit_trajectories, run
-from ._identify import Identification, ModelRejectedWarning, NotIdentifiedWarning, identify
+from ._identify import (Identification, LayoutWarning, ModelRejectedWarning, NotIdentifiedWarning,
+                        identify)
 from ._model import Model, from_json, load
 
 __version__ = _core.__version__
@@ -47,7 +48,8 @@ ValueError). The message names the argument, file or line and what was expected.
 Error.__module__ = "csympnet"
 
 __all__ = [
-    "CSympNetID", "Error", "Identification", "Model", "ModelRejectedWarning", "NoTimesWarning",
+    "CSympNetID", "Error", "Identification", "LayoutWarning", "Model", "ModelRejectedWarning",
+    "NoTimesWarning",
     "NotIdentifiedWarning", "Pairs", "RunResult", "System",
     "Trajectory", "fit", "fit_trajectories", "from_json", "generate", "identify", "load",
     "model_types", "read_csv", "run", "systems", "write_csv",

@@ -11,8 +11,9 @@ import warnings
 
 import numpy as np
 
-from . import _checks
-from ._identify import OBSERVED, NotIdentifiedWarning, _padded_positions, identify
+from . import _checks, _core, _frames
+from ._identify import (OBSERVED, TIME_UNITS, NotIdentifiedWarning, _columns_of,
+                        _layout_warning, _padded_positions, _time_unit_report, identify)
 
 
 class NoTimesWarning(UserWarning):
@@ -73,7 +74,13 @@ class CSympNetID:
         verbose: progress bars on stderr for each stage (tqdm where it is installed);
         observed: "states" (x holds q and p, or velocities), or "positions" (x holds the
             positions alone, (M, d): the momenta are fitted as hidden states; trajectories
-            only). The fitted model_ still maps states (q, p) in the units it chose for p;
+            only). Left at None, an array's columns are read as states with a LayoutWarning
+            that names observed="positions"; a pandas DataFrame says which by its column
+            names (q1..qd with p1..pd: states; any other names: positions; a t, time or t_ms
+            column: the times; a traj column: the trajectories);
+        time_unit: the unit of the times ("s", "ms", "us", "ns", "min", "h"), or None (read
+            from a DataFrame's time column name such as t_ms, else unknown). Only the report
+            changes: gamma_per_s_, report_["time_unit"]; the fit is the same. The fitted model_ still maps states (q, p) in the units it chose for p;
             model_.state_from_positions(q, t) gives the state at the end of a window of
             positions, to predict or roll out from;
         derived_momenta: "set_aside" (default) or "use", as in `csympnet.identify`.
@@ -81,6 +88,8 @@ class CSympNetID:
     After fit:
         gamma_           γ̂ in the data's time units, or None when the data do not identify γ
         gamma_interval_  (low, high) at `level`, or None
+        time_unit_       the times' unit, or None when unknown
+        gamma_per_s_     γ̂ per second when the unit is known and γ identified, else None
         identified_      False when the data do not identify γ or break the model's
                          assumptions (`reasons_` says why)
         verdict_         "identified", "not identified" or "model rejected"
@@ -101,7 +110,7 @@ class CSympNetID:
     def __init__(self, *, core=None, seed=42, window=0, loss="balanced", normalize=True,
                  epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
                  dof_scales="auto", threads=1, init=None, t_default=None, verbose=False,
-                 observed="states", derived_momenta="set_aside"):
+                 observed=None, derived_momenta="set_aside", time_unit=None):
         self.core = core
         self.seed = seed
         self.window = window
@@ -120,6 +129,7 @@ class CSympNetID:
         self.verbose = verbose
         self.observed = observed
         self.derived_momenta = derived_momenta
+        self.time_unit = time_unit
 
     # --- scikit-learn's parameter protocol ------------------------------------------------
     @classmethod
@@ -172,8 +182,26 @@ class CSympNetID:
                 "CSympNetID.fit: no times given (t) and no t_default: the samples are taken 1 "
                 "time unit apart, so gamma_ is per sample, not per unit of time; pass the "
                 "sample times or the step as t, or set t_default", NoTimesWarning, stacklevel=2)
-        _checks.choice("observed", self.observed, OBSERVED)
-        positions_only = self.observed == "positions"
+        observed, time_unit, unit_source = self.observed, self.time_unit, "time_unit"
+        if observed is not None:
+            _checks.choice("observed", observed, OBSERVED)
+        if time_unit is not None:
+            _checks.choice("time_unit", time_unit, TIME_UNITS)
+        if _frames.is_pandas(x):
+            if x_next is not None:
+                raise ValueError("x_next: pairs are arrays; a DataFrame holds trajectories")
+            frame = _frames.unpack(x, t, observed, "x")
+            x, t, observed = frame.z, frame.t, frame.observed
+            if time_unit is None and frame.time_column is not None:
+                time_unit = _core.time_unit_of_column(frame.time_column)
+                unit_source = f"column {frame.time_column!r}"
+        elif observed is None and x_next is None:
+            ncols = _columns_of(x)
+            if ncols is not None and ncols % 2 == 0:
+                _layout_warning("CSympNetID.fit", ncols, stacklevel=2)
+        observed = observed or "states"
+        self.observed_ = observed
+        positions_only = observed == "positions"
         if positions_only and x_next is not None:
             raise ValueError('x_next: pairs need whole states; observed="positions" takes '
                              "trajectories of positions")
@@ -192,13 +220,15 @@ class CSympNetID:
             zs = [z[:, :z.shape[1] // 2] if positions_only else z for _, z in trajs]
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", NotIdentifiedWarning)
-                result = identify(zs, [tt for tt, _ in trajs], observed=self.observed,
+                result = identify(zs, [tt for tt, _ in trajs], observed=observed,
                                   **options)
             steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
         for w in caught:  # re-raised here, so that it points at the caller's fit()
             warnings.warn(str(w.message), w.category, stacklevel=2)
         self.model_ = result.model
-        self.report_ = result.report
+        self.report_ = _time_unit_report(result.report, time_unit, unit_source)
+        self.time_unit_ = time_unit
+        self.gamma_per_s_ = self.report_["time_unit"]["gamma_per_s"] if time_unit else None
         self.identified_ = result.identified
         self.reasons_ = result.reasons
         self.verdict_ = result.verdict
@@ -246,7 +276,7 @@ class CSympNetID:
         taken as fit takes them, except that without times the step is dt_, the step fitted
         (as in predict). 1 is perfect; predicting no change at all scores about 0. It is `model_.score(...)["one_step_r2"]`; Model.score also gives rollout errors."""
         self._check_fitted()
-        if getattr(self, "observed", "states") == "positions" and x_next is None and \
+        if getattr(self, "observed_", "states") == "positions" and x_next is None and \
                 np.ndim(x) >= 1 and np.shape(x)[-1] != self.n_features_in_:
             raise ValueError(
                 f"x: score takes states (q, p), {self.n_features_in_} columns; this estimator "

@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 
-from . import _checks, _core
+from . import _checks, _core, _frames
 from ._fit import _as_trajectories, _core_spec
 from ._verbose import progress_callback
 from ._data import trajectory_list
@@ -19,6 +19,41 @@ DOF_SCALES = tuple(_core.dof_scales())
 
 class NotIdentifiedWarning(UserWarning):
     """The data do not identify γ; `Identification.reasons` says why."""
+
+
+class LayoutWarning(UserWarning):
+    """Warned by `identify` and `CSympNetID.fit` when `observed` is not given and the columns
+    of an array are read as whole states, q1..qd then p1..pd: two columns are then one
+    coordinate and its momentum (d = 1), not two positions. Pass observed="positions" when
+    the columns are positions alone (a camera, an encoder), or observed="states" to say that
+    they are states and silence this. A pandas DataFrame says which by its column names
+    (q1..qd with p1..pd: states; any other names: positions), so it is not warned about."""
+
+
+def _layout_warning(who, ncols, stacklevel):
+    d = ncols // 2
+    qs = ", ".join(f"q{i}" for i in range(1, d + 1))
+    ps = ", ".join(f"p{i}" for i in range(1, d + 1))
+    warnings.warn(
+        f"{who}: observed not given: the {ncols} columns are read as a state ({qs}, {ps}), "
+        f"d = {d}; if they are {ncols} positions alone, pass observed=\"positions\" (the "
+        "momenta are then fitted as hidden states); observed=\"states\" silences this",
+        LayoutWarning, stacklevel=stacklevel + 1)
+
+
+def _columns_of(z):
+    """The number of columns of z in any accepted form, or None."""
+    first = z[0] if isinstance(z, (list, tuple)) and len(z) else z
+    return np.shape(first)[-1] if np.ndim(first) >= 1 else None
+
+
+TIME_UNITS = tuple(_core.time_units())
+
+
+def _time_unit_report(report, time_unit, source):
+    """The report's "time_unit" object (experiments/time_unit.hpp), added in place."""
+    report["time_unit"] = json.loads(_core.time_unit_report(time_unit, source, json.dumps(report)))
+    return report
 
 
 class ModelRejectedWarning(NotIdentifiedWarning):
@@ -49,6 +84,12 @@ class Identification:
       frequencies the modes' angular frequencies (numpy array); None unless identified
       damping_ratios  the modes' damping ratios (numpy array, γ̂ / (2ω)); None unless
                   identified
+      time_unit   the clock's unit ("s", "ms", "us", "ns", "min", "h"), given as time_unit=
+                  or read from a DataFrame's time column name (t_ms, ...); None when unknown
+      gamma_per_s γ̂ per second when the unit is known (only the report changes with it, never
+                  the fit); None otherwise or unless identified
+      amplitude_decay_rate  γ̂/2, the rate at which amplitudes decay (e^{−γt/2}), in the
+                  data's time units; None unless identified
       hamiltonian the library core's Hamiltonian in the data's units (dict: "potential" as
                   text, "terms" with coefficient, interval and, for sin/cos/exp, wavenumber,
                   "inverse_mass", "mass"); None when an LA or G core was chosen
@@ -74,12 +115,17 @@ class Identification:
         self.damping_ratios = (np.array([m["damping_ratio"] for m in self.modes])
                                if self.identified else None)
         self.hamiltonian = report.get("hamiltonian")
+        unit = report.get("time_unit")
+        self.time_unit = unit["unit"] if unit else None
+        self.gamma_per_s = unit["gamma_per_s"] if unit else None
+        self.amplitude_decay_rate = self.gamma / 2.0 if self.identified else None
 
     def __repr__(self):
         if not self.identified:
             return f"Identification({self.verdict}: {'; '.join(self.reasons) or 'interrupted'})"
         low, high = self.interval
-        return (f"Identification(gamma={self.gamma:.6g}, {100 * self.level:g}% interval "
+        per = f" per {self.time_unit}" if self.time_unit else ""
+        return (f"Identification(gamma={self.gamma:.6g}{per}, {100 * self.level:g}% interval "
                 f"[{low:.6g}, {high:.6g}])")
 
 
@@ -103,13 +149,26 @@ def _padded_positions(z):
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
-             init=None, progress=None, verbose=False, observed="states",
-             derived_momenta="set_aside"):
+             init=None, progress=None, verbose=False, observed=None,
+             derived_momenta="set_aside", time_unit=None):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
     (z (M, 2d), t (M,)), `identify(z, t, traj)` for rows labelled by trajectory, or lists of
     arrays, or z (K, M, 2d); `identify(pairs=(z0, z1, h))` for independent pairs.
+
+    z may be a pandas DataFrame (or Series), read by column name (pandas is not imported
+    unless you give one): a time column t, time or with a unit (t_ms, time_s, "t [s]"), a
+    traj column, and q1..qd with p1..pd (states) or any other names (positions alone).
+
+    observed: "states" (z holds q and p, or velocities) or "positions". Not given, an array's
+    columns are read as states, q1..qd then p1..pd, with a LayoutWarning naming
+    observed="positions" (two position columns would otherwise be one coordinate and its
+    momentum); a DataFrame's layout comes from its column names.
+
+    time_unit: the unit of t ("s", "ms", "us", "ns", "min", "h"), or None (then read from a
+    DataFrame's time column name, else unknown). It changes only the report: report
+    ["time_unit"] gives γ̂ and its interval per second and the amplitude decay rate γ̂/2.
 
     observed="positions": z holds positions alone, (M, d) (or (M,) for d = 1, lists, or
     (K, M, d)), as a camera or an encoder records them. The momenta are then hidden states
@@ -146,7 +205,24 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
 
     Returns an Identification.
     """
-    _checks.choice("observed", observed, OBSERVED)
+    if time_unit is not None:
+        _checks.choice("time_unit", time_unit, TIME_UNITS)
+    if observed is not None:
+        _checks.choice("observed", observed, OBSERVED)
+    unit_source = "time_unit"
+    if _frames.is_pandas(z):
+        frame = _frames.unpack(z, t, observed, "z")
+        if traj is not None and isinstance(frame.z, list):
+            raise ValueError("traj: the frame has a trajectory column; expected one of them")
+        z, t, observed = frame.z, frame.t, frame.observed
+        if time_unit is None and frame.time_column is not None:
+            time_unit = _core.time_unit_of_column(frame.time_column)
+            unit_source = f"column {frame.time_column!r}"
+    if observed is None:
+        ncols = _columns_of(z) if pairs is None else None
+        if ncols is not None and ncols % 2 == 0:
+            _layout_warning("csympnet.identify", ncols, stacklevel=2)
+        observed = "states"
     positions_only = observed == "positions"
     if pairs is not None:
         if positions_only:
@@ -201,7 +277,8 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     with progress_callback(progress, verbose) as callback:
         core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
                                                  callback, positions_only)
-    result = Identification(Model(core_model), json.loads(report_text))
+    report = _time_unit_report(json.loads(report_text), time_unit, unit_source)
+    result = Identification(Model(core_model), report)
     if not result.identified:
         rejected = result.verdict == "model rejected"
         warnings.warn(f"csympnet.identify: {result.verdict}: " + "; ".join(result.reasons),

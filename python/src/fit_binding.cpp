@@ -13,6 +13,7 @@
 #include "csympnet/experiments/fit.hpp"
 #include "csympnet/experiments/identify.hpp"
 #include "csympnet/experiments/run.hpp"
+#include "csympnet/experiments/time_unit.hpp"
 #include "model_binding.hpp"
 
 namespace csympnet::py_binding {
@@ -229,8 +230,10 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   if (r.identified && r.interval)
     out->gamma_interval = std::pair{r.interval->low, r.interval->high};
   out->meta = {{"source", "python identify"}, {"seed", r.config.seed}, {"recipe", "identify"}};
-  if (out->gamma_interval)
+  if (out->gamma_interval) {
     out->meta["gamma_interval"] = {out->gamma_interval->first, out->gamma_interval->second};
+    out->meta["gamma_interval_level"] = r.interval->level;
+  }
   out->model = std::move(r.model);
   out->theta = std::move(r.theta);
   return py::make_tuple(std::move(out), report.dump());
@@ -251,6 +254,19 @@ void bind_fit(py::module_& m) {
   m.def("dof_scales", &dof_scales_names);
   m.def("identify_losses", &identify_loss_names);
   m.def("run_recipes", &run_recipe_names);
+  // The clock's unit (experiments/time_unit.hpp): its names, the unit a time column's name
+  // states, and the report's "time_unit" object for an identification's report.
+  m.def("time_units", &time_unit_names);
+  m.def("time_unit_of_column", [](const std::string& column) -> std::optional<std::string> {
+    const std::optional<TimeUnit> u = time_unit_of_column(column);
+    return u ? std::optional<std::string>(u->name) : std::nullopt;
+  });
+  m.def("time_unit_report", [](const std::optional<std::string>& unit, const std::string& source,
+                               const std::string& report_json) {
+    std::optional<TimeUnit> u;
+    if (unit) u = parse_time_unit(*unit, source);
+    return time_unit_report(u, parse_json(report_json, "report")).dump();
+  });
   // The recipe csympnet.fit's defaults mirror, as JSON text (tests/test_fit.py compares them).
   m.def("fit_recipe_json", [] { return nlohmann::json(FitConfig::identification()).dump(); });
   m.def(

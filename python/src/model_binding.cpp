@@ -17,6 +17,7 @@
 #include "csympnet/diagnostics/observed.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/systems/system.hpp"
+#include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 
 namespace csympnet::py_binding {
@@ -80,7 +81,8 @@ py::tuple positions_state(const PyModel& m, const DArray& q, const DArray& t) {
   Vector z;
   {
     py::gil_scoped_release nogil;
-    z = state_from_positions(*m.model.map, m.theta, qs, ts, &rms);
+    // Refused (csympnet.Error) when the fit does not explain the window, as rollout does.
+    z = checked_state_from_positions(*m.model.map, m.theta, qs, ts, &rms, "state_from_positions");
   }
   return py::make_tuple(states_to(z), rms);
 }

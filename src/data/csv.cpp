@@ -6,6 +6,7 @@
 #include <limits>
 #include <unordered_map>
 
+#include "column_hint.hpp"
 #include "csv_text.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/stop.hpp"
@@ -14,6 +15,7 @@
 namespace csympnet {
 
 using csv_detail::at;
+using csv_detail::columns_example;
 using csv_detail::CsvText;
 using csv_detail::Line;
 using csv_detail::quote;
@@ -78,29 +80,6 @@ std::unordered_map<std::string_view, Index> group_counts(
   return n;
 }
 
-// A --columns that would read a header of these names, built from the user's own names: the
-// first column as t, then half the rest as q and half as p (with a traj column first when
-// that is what makes the count even).
-std::string columns_example(const std::vector<std::string_view>& fields) {
-  std::vector<std::string> names;
-  for (std::string_view f : fields)
-    names.emplace_back(f.empty() ? std::string("COLUMN") : std::string(f.substr(0, 40)));
-  std::size_t first = 0;
-  std::string out;
-  if (names.size() >= 4 && names.size() % 2 == 0) {
-    out = "traj=" + names[0] + ",";
-    first = 1;
-  }
-  if (names.size() < 3 || names.size() > 41) return "--columns t=TIME,q1=POSITION,p1=MOMENTUM";
-  out += "t=" + names[first];
-  const std::size_t d = (names.size() - first - 1) / 2;
-  for (std::size_t i = 0; i < d; ++i)
-    out += ",q" + std::to_string(i + 1) + "=" + names[first + 1 + i];
-  for (std::size_t i = 0; i < d; ++i)
-    out += ",p" + std::to_string(i + 1) + "=" + names[first + 1 + d + i];
-  return "--columns " + out;
-}
-
 Header parse_header(const CsvText& f) {
   const std::vector<std::string_view> fields = csv_detail::split_fields(f.lines[0].text);
   const std::string where = at(f.path, f.lines[0].number);
@@ -114,8 +93,9 @@ Header parse_header(const CsvText& f) {
     throw Error(where + "unrecognised header " + quote(f.lines[0].text) +
                 "; expected a pairs header '" + kPairsForm + "' (d=1: 'h,q1,p1,next_q1,next_p1')" +
                 " or a trajectories header '" + kTrajForm +
-                "' (d=1: 'traj,t,q1,p1' or 't,q1,p1'), or name your columns with --columns, "
-                "e.g. " +
+                "' (d=1: 'traj,t,q1,p1' or 't,q1,p1'), or positions alone '" + kPositionsForm +
+                "' (csympnet fit fits the momenta as hidden states), or name your columns with "
+                "--columns, e.g. " +
                 columns_example(fields));
   }
   // A name given twice would be counted twice below (two q1 read as d = 2).
@@ -177,10 +157,17 @@ Header parse_header(const CsvText& f) {
     if (h.kind == CsvKind::kPairs)
       counts += " and " + std::to_string(n["next_q"]) + " next_q and " +
                 std::to_string(n["next_p"]) + " next_p";
+    // No column named as csympnet names them beside t: the user's own names, read with
+    // --columns (positions unless their names say otherwise).
+    const bool own_names = h.kind == CsvKind::kTrajectories && n["q"] == 0 && n["p"] == 0;
     throw Error(where + (h.kind == CsvKind::kPairs ? "pairs" : "trajectories") + " header " +
                 quote(f.lines[0].text) + " has " + std::to_string(cols) + " columns with " +
                 counts + " columns; expected the same number d >= 1 of each, as '" +
-                (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "'");
+                (h.kind == CsvKind::kPairs ? kPairsForm : kTrajForm) + "'" +
+                (own_names
+                     ? std::string(", or positions alone '") + kPositionsForm +
+                           "', or --columns naming your columns, e.g. " + columns_example(fields)
+                     : std::string()));
   }
   h.names = header_names(h.kind, h.d, h.has_traj);
   const char* form = h.kind == CsvKind::kPairs       ? kPairsForm

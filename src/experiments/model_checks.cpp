@@ -111,9 +111,11 @@ ModelCheck dissipation_check(const CheckInput& in, double c, double se, Index n_
         fmt(-c / tau, 4) + " [" + fmt(-(c + tq * se) / tau, 4) + ", " +
         fmt(-(c - tq * se) / tau, 4) + "] per time unit";
   } else {
-    k.sentence = "the signed damping rate is " + fmt(c / tau, 4) + " [" +
-                 fmt((c - tq * se) / tau, 4) + ", " + fmt((c + tq * se) / tau, 4) +
-                 "]: no sign of energy input";
+    // The same rate as γ̂: a second interval for it on the same screen (this one from the
+    // blocks' t-quantiles) would only compete with γ̂'s; details keep it.
+    k.sentence = "no sign of energy input: the damping rate is not below 0 with " +
+                 fmt(100.0 * in.thresholds.growth_confidence, 3) +
+                 "% confidence (its value and interval are gamma_hat's)";
   }
   return k;
 }
@@ -238,9 +240,15 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
                          " at the largest amplitudes and " + fmt(t.at(lo) / tau, 4) +
                          " at the smallest";
   if (k.passed) {
-    k.sentence = "no amplitude dependence beyond a change of " +
-                 fmt(100.0 * std::max(std::abs(k.effect), k.detectable_effect), 2) +
-                 "% across energies a factor " + fmt(std::exp(range), 2) + " apart (" + hl + ")";
+    // The effect with its interval, in plain words: how much the rate changes from the
+    // smallest amplitudes to the largest.
+    const double half = tl * t.se_slope * range / std::abs(c);
+    const auto pct = [](double v) { return (v > 0 ? "+" : "") + fmt(100.0 * v, 2) + "%"; };
+    k.sentence =
+        "no clear dependence on amplitude: from the smallest to the largest "
+        "amplitudes (energies a factor " +
+        fmt(std::exp(range), 2) + " apart) the rate changes by " + pct(k.effect) + " [" +
+        pct(k.effect - half) + ", " + pct(k.effect + half) + "] (" + hl + ")";
   } else if (t.slope < 0.0) {
     k.sentence =
         "the damping rate rises as the amplitude falls, as dry (Coulomb) friction does: " + hl;

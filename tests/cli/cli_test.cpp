@@ -644,3 +644,42 @@ TEST_F(Cli, ReproduceFigureStepRunsNoShellAndFailsLoudly) {
 }
 
 }  // namespace
+
+namespace csympnet {
+namespace {
+
+// fit --help lists DATA once as required, --data once as its other spelling, no group of
+// options "refused by fit", and the clock's unit; a missing DATA is a usage error.
+TEST_F(Cli, FitHelpListsTheDataOnceAndNoOptionsForOtherCommands) {
+  for (const char* command : {"fit", "train"}) {
+    SCOPED_TRACE(command);
+    Result r = run(std::string(command) + " --help");
+    ASSERT_EQ(r.code, 0) << r.err;
+    // CLI11's marker is on --out alone: DATA says "(required; ...)" itself, and --data is
+    // its other spelling (once both were marked, each as REQUIRED).
+    std::size_t required = 0, data_lines = 0;
+    std::istringstream lines(r.out);
+    for (std::string line; std::getline(lines, line);) {
+      if (line.find("REQUIRED") == std::string::npos) continue;
+      ++required;
+      EXPECT_NE(line.find("--out"), std::string::npos) << line;
+    }
+    for (std::size_t at = r.out.find("--data TEXT"); at != std::string::npos;
+         at = r.out.find("--data TEXT", at + 1))
+      ++data_lines;
+    EXPECT_EQ(required, 1u) << r.out;
+    EXPECT_EQ(data_lines, 1u) << r.out;
+    EXPECT_NE(r.out.find("(required; or give it as --data)"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("refused by fit"), std::string::npos) << r.out;
+    r = run(std::string(command) + " --out " + (dir_ / "out").string());
+    EXPECT_EQ(r.code, 2);
+    EXPECT_FALSE(fs::exists(dir_ / "out"));
+    EXPECT_NE(r.err.find("DATA"), std::string::npos) << r.err;
+  }
+  EXPECT_NE(run("fit --help").out.find("--time-unit"), std::string::npos);
+  const Result both = run("fit a.csv --data b.csv");
+  EXPECT_EQ(both.code, 2) << both.err;
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -819,6 +819,9 @@ std::vector<Case> output_cases() {
 struct SpawnOptions {
   std::string stdout_path;  // empty: a file in the case's directory
   bool close_stdout = false;
+  // Standard output a pipe whose reader has gone (`| head` once head has exited), with
+  // SIGPIPE ignored as some shells and Python's subprocess leave it: the write fails, EPIPE.
+  bool broken_pipe = false;
   double signal_after = -1;  // seconds; < 0: none
   int signal = SIGINT;
   long address_space_kb = 0;  // RLIMIT_AS, 0: unlimited
@@ -841,6 +844,13 @@ Timed spawn_with(const std::vector<std::string>& args, const fs::path& cwd, cons
     ::dup2(e, 2);
     if (o.close_stdout) {
       ::close(1);
+    } else if (o.broken_pipe) {
+      int fds[2];
+      if (::pipe(fds) != 0) ::_exit(127);
+      ::close(fds[0]);
+      ::dup2(fds[1], 1);
+      ::close(fds[1]);
+      ::signal(SIGPIPE, SIG_IGN);
     } else {
       const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       if (fd < 0) ::_exit(127);
@@ -1059,6 +1069,12 @@ TEST_F(HostileFiles, WriteErrorsOnStandardOutputFailTheCommand) {
     closed.close_stdout = true;
     r = spawn_with(args, dir_, closed);
     expect_refusal(r, {"write error on standard output", "Bad file descriptor"});
+    // A closed pipe is named as the system names it, not guessed to be a full disk.
+    SpawnOptions pipe;
+    pipe.broken_pipe = true;
+    r = spawn_with(args, dir_, pipe);
+    expect_refusal(r, {"write error on standard output: Broken pipe"});
+    EXPECT_EQ(r.err.find("disk"), std::string::npos) << r.err;
   }
   // With standard output closed, what the command prints goes nowhere near its files (the
   // lock file or a result would otherwise get descriptor 1).

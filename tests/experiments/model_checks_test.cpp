@@ -305,6 +305,34 @@ TEST(ModelChecks, FalseAlarmsOnValidDataAreRare) {
   std::printf("\n");
 }
 
+// Passed checks in plain words: the amplitude check states the change of the rate with its
+// interval ("changes by +3% [-20%, +26%]"), and the dissipation check points at γ̂'s interval
+// rather than printing a second one for the same rate.
+TEST(ModelChecks, PassedChecksSayTheirFindingInPlainWords) {
+  Rng rng(7, "checks-words");
+  const Matrix k = Matrix::Identity(1, 1);
+  const double gamma = 0.1;
+  const Dissipation f = [gamma](double, const Vector&, const Vector& p) -> Vector {
+    return -gamma * p;
+  };
+  Vector z0(2);
+  z0 << 1.0, 0.0;
+  const Trajectory t = integrate(k, f, z0, 0.25, 400);
+  const std::vector<ModelCheck> c = run(k, gamma, blocks_of(t, 20, 1e-3, rng));
+  const ModelCheck& g = by_name(c, "dissipation");
+  ASSERT_TRUE(g.passed) << g.sentence;
+  EXPECT_NE(g.sentence.find("gamma_hat's"), std::string::npos) << g.sentence;
+  EXPECT_EQ(g.sentence.find('['), std::string::npos) << g.sentence;
+  EXPECT_TRUE(g.details.contains("interval"));  // still in the report
+  const ModelCheck& l = by_name(c, "linear_damping");
+  ASSERT_TRUE(l.passed) << l.sentence;
+  if (l.applicable) {
+    EXPECT_NE(l.sentence.find("the rate changes by "), std::string::npos) << l.sentence;
+    EXPECT_EQ(l.sentence.find("beyond a change"), std::string::npos) << l.sentence;
+    EXPECT_NE(l.sentence.find("%, "), std::string::npos) << l.sentence;  // the interval
+  }
+}
+
 TEST(ModelChecks, EnergyGainIsNamedWithItsRate) {
   int named = 0;
   for (int n = 0; n < 40; ++n) {

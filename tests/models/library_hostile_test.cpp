@@ -44,7 +44,7 @@ TEST(LibraryHostile, LongNamesAndHugeIndicesAreRefusedByName) {
   }
   EXPECT_NE(refusal("q" + digits, 3).find("out of range"), std::string::npos);
   EXPECT_NE(refusal("q1^" + digits, 3).find("not a library term"), std::string::npos);
-  for (const std::string& name : {"q99999999999999999999", "q18446744073709551617",
+  for (const char* name : {"q99999999999999999999", "q18446744073709551617",
                                   "sin(q1-q99999999999999999999)", "(q99999999999999999999-q1)^2"}) {
     const std::string m = refusal(name, 2);
     EXPECT_NE(m.find("out of range"), std::string::npos) << name << ": " << m;

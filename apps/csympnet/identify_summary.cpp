@@ -1,0 +1,85 @@
+#include "identify_summary.hpp"
+
+#include <cstdio>
+
+#include "progress.hpp"
+
+namespace csympnet::cli {
+
+namespace {
+
+// "ms", or "time unit" when the data's clock has no unit given.
+std::string per(const std::optional<TimeUnit>& unit) {
+  return unit ? unit->name : std::string("time unit of the data");
+}
+
+}  // namespace
+
+void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
+  const SandwichInterval& s = *r.interval;
+  std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per %s (%g%% interval, %s, %ld blocks)\n",
+              r.gamma, s.quantile * s.std_error, s.low, s.high, per(unit).c_str(), 100.0 * s.level,
+              s.method.c_str(), s.blocks);
+  // γ is the energy's decay rate; amplitudes decay as e^{-γt/2}.
+  if (unit && unit->name != "s")
+    std::printf(
+        "gamma_hat = %.6g [%.6g, %.6g] per s; amplitude decay rate gamma/2 = %.6g per s "
+        "(time unit %s, from %s)\n",
+        r.gamma / unit->seconds, s.low / unit->seconds, s.high / unit->seconds,
+        r.gamma / unit->seconds / 2.0, unit->name.c_str(), unit->source.c_str());
+  else
+    std::printf("amplitude decay rate gamma/2 = %.6g [%.6g, %.6g] per %s\n", r.gamma / 2.0,
+                s.low / 2.0, s.high / 2.0, per(unit).c_str());
+}
+
+void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
+  for (const ModelCheck& k : checks) {
+    if (k.passed && quiet) continue;
+    const char* mark = !k.applicable ? "untestable" : k.passed ? "ok" : "FAILED";
+    std::printf("check %-16s %-10s %s\n", k.name.c_str(), mark, k.sentence.c_str());
+  }
+}
+
+void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
+  const auto range = [](const std::optional<SandwichInterval>& iv) {
+    char buf[96] = "";
+    if (iv) std::snprintf(buf, sizeof buf, " [%.6g, %.6g]", iv->low, iv->high);
+    return std::string(buf);
+  };
+  for (std::size_t k = 0; k < r.modes.size(); ++k) {
+    const Mode& m = r.modes[k];
+    std::printf("mode %zu: angular frequency %.6g%s rad per %s, damping ratio %.6g%s\n", k + 1,
+                m.frequency, range(m.frequency_interval).c_str(), per(unit).c_str(),
+                m.damping_ratio, range(m.damping_ratio_interval).c_str());
+  }
+  if (!r.modes_note.empty()) std::printf("modes: %s\n", r.modes_note.c_str());
+  if (r.hamiltonian.is_object())
+    std::printf(
+        "hamiltonian: H = 1/2 p^T M^-1 p + V(q), V(q) = %s (report.json has each term's "
+        "interval)\n",
+        r.hamiltonian.value("potential", std::string()).c_str());
+}
+
+void print_identify_details(const IdentifyResult& r, const std::string& out) {
+  std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
+              static_cast<long long>(r.model.dim() / 2), static_cast<long long>(r.model.n_params()),
+              r.config.window, r.config.core.dump().c_str());
+  // The library core is fitted by Levenberg-Marquardt alone: its AdamW summary ("trained 0
+  // epochs ... best validation loss 0") would read as a perfect fit.
+  if (r.training.epochs_run == 0 && r.config.core.is_object() &&
+      r.config.core.value("type", std::string()) == "library")
+    std::printf("library core: fitted by Levenberg-Marquardt alone (no AdamW epochs)\n");
+  else
+    std::printf("%s\n", r.training.brief_report().c_str());
+  std::printf(
+      "%s\n",
+      lm_summary_words(r.lm.iterations, r.lm.accepted, r.lm_best_iteration, r.lm.message).c_str());
+  std::printf(
+      "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
+      "max %.2e\n",
+      r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
+      r.quality.val_relative_residual, r.quality.structure_residual_max);
+  std::printf("wrote %s/{report.json,model.json,timings.json}\n", out.c_str());
+}
+
+}  // namespace csympnet::cli

@@ -1,0 +1,33 @@
+// state_from_positions (train/shooting.hpp) for a front end: `rollout --from-positions` and
+// Python's Model.state_from_positions. A window the fit cannot take (a gap in its times) is
+// refused before the fit, and a fit that does not explain the window after it (a residual
+// that is not finite or beyond a tenth of the window's spread, a state that is not finite),
+// rather than a forecast from a state that means nothing (rms 2.8e63 and a forecast of 4.8e63
+// from a window with a gap; rms 2e4 from a window far from the data fitted).
+#pragma once
+
+#include <string>
+
+#include "csympnet/core/types.hpp"
+#include "csympnet/models/one_step_map.hpp"
+
+namespace csympnet {
+
+// A step longer than this many times the window's median step is a gap.
+inline constexpr double kWindowGapFactor = 5.0;
+// The largest rms position residual accepted, as a share of the window's spread (the rms
+// distance of its positions from their mean).
+inline constexpr double kStateFitMaxRelativeRms = 0.1;
+
+// Refuses (Error naming `what`) a window whose times are not finite and increasing or that has
+// a gap.
+void check_positions_window(const Matrix& q, const Vector& t, const std::string& what);
+// Refuses a fitted state that is not finite, or whose rms position residual is not finite or
+// beyond kStateFitMaxRelativeRms of the window's spread.
+void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what);
+
+// check_positions_window, state_from_positions, check_state_fit.
+Vector checked_state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
+                                    const Vector& t, double* rms, const std::string& what);
+
+}  // namespace csympnet

@@ -1,0 +1,72 @@
+#include "csympnet/train/positions_state.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/train/shooting.hpp"
+
+namespace csympnet {
+
+namespace {
+
+// The rms distance of the positions from their mean, over every coordinate.
+double spread_of(const Matrix& q) {
+  if (q.cols() == 0) return 0.0;
+  const Vector mean = q.rowwise().mean();
+  return std::sqrt((q.colwise() - mean).squaredNorm() / static_cast<double>(q.size()));
+}
+
+}  // namespace
+
+void check_positions_window(const Matrix& q, const Vector& t, const std::string& what) {
+  require(q.cols() == t.size() && t.size() >= 2,
+          [&] { return what + ": expected at least 2 positions, each with its time"; });
+  std::vector<double> steps;
+  for (Index k = 1; k < t.size(); ++k) {
+    const double s = t(k) - t(k - 1);
+    if (!(std::isfinite(s) && s > 0.0))
+      throw Error(what + ": the times " + number_text(t(k - 1)) + " and " + number_text(t(k)) +
+                  " do not increase; expected strictly increasing times");
+    steps.push_back(s);
+  }
+  std::vector<double> sorted = steps;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2),
+                   sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  for (std::size_t k = 0; k < steps.size(); ++k)
+    if (steps[k] > kWindowGapFactor * median)
+      throw Error(what + ": a gap from t = " + number_text(t(static_cast<Index>(k))) +
+                  " to t = " + number_text(t(static_cast<Index>(k) + 1)) + " (a step of " +
+                  number_text(steps[k]) + ", more than " + number_text(kWindowGapFactor) +
+                  " times the median step " + number_text(median) +
+                  "); expected a window without gaps: keep the positions after the gap");
+}
+
+void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what) {
+  const double spread = spread_of(q);
+  const bool finite_state = z.allFinite();
+  if (!std::isfinite(rms) || !finite_state || rms > kStateFitMaxRelativeRms * spread)
+    throw Error(
+        what + ": the model does not explain this window of positions: the fitted motion " +
+        (finite_state && std::isfinite(rms)
+             ? "misses the positions by " + number_text(rms) + " rms, more than " +
+                   number_text(100.0 * kStateFitMaxRelativeRms) + "% of their spread " +
+                   number_text(spread)
+             : std::string("is not finite")) +
+        "; expected a recent window of the system the model was fitted to, in the same units "
+        "and sampled as the data it was fitted on (no forecast is made from such a state)");
+}
+
+Vector checked_state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
+                                    const Vector& t, double* rms, const std::string& what) {
+  check_positions_window(q, t, what);
+  double r = 0.0;
+  const Vector z = state_from_positions(map, theta, q, t, &r);
+  check_state_fit(q, z, r, what);
+  if (rms != nullptr) *rms = r;
+  return z;
+}
+
+}  // namespace csympnet

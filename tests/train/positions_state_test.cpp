@@ -1,0 +1,58 @@
+// The checks around state_from_positions for the front ends: a window with a gap, and a fit
+// that does not explain its window, are refused rather than forecast from.
+#include "csympnet/train/positions_state.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+
+#include "csympnet/core/error.hpp"
+
+namespace csympnet {
+namespace {
+
+std::string refusal(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(PositionsState, AWindowWithAGapIsRefused) {
+  Matrix q(1, 6);
+  q << 0, 1, 2, 3, 4, 5;
+  Vector t(6);
+  t << 0, 0.1, 0.2, 0.3, 0.4, 0.5;
+  EXPECT_EQ(refusal([&] { check_positions_window(q, t, "w.csv"); }), "");
+  t << 0, 0.1, 0.2, 5.0, 5.1, 5.2;
+  const std::string why = refusal([&] { check_positions_window(q, t, "w.csv"); });
+  EXPECT_NE(why.find("w.csv: a gap from t = 0.2 to t = 5"), std::string::npos) << why;
+  // Irregular steps within a factor 5 of the median are no gap.
+  t << 0, 0.1, 0.15, 0.3, 0.45, 0.5;
+  EXPECT_EQ(refusal([&] { check_positions_window(q, t, "w.csv"); }), "");
+  t << 0, 0.1, 0.1, 0.3, 0.4, 0.5;
+  EXPECT_NE(refusal([&] { check_positions_window(q, t, "w.csv"); }).find("do not increase"),
+            std::string::npos);
+}
+
+TEST(PositionsState, AFitThatMissesItsWindowIsRefused) {
+  Matrix q(2, 4);
+  q << 0, 1, 0, -1, 1, 0, -1, 0;  // spread sqrt(0.5)
+  Vector z = Vector::Zero(4);
+  EXPECT_EQ(refusal([&] { check_state_fit(q, z, 0.01, "w"); }), "");
+  const std::string far = refusal([&] { check_state_fit(q, z, 20091.0, "w"); });
+  EXPECT_NE(far.find("does not explain"), std::string::npos) << far;
+  EXPECT_NE(far.find("20091 rms"), std::string::npos) << far;
+  EXPECT_NE(refusal([&] { check_state_fit(q, z, 2.79e63, "w"); }), "");
+  EXPECT_NE(refusal([&] { check_state_fit(q, z, std::nan(""), "w"); }).find("not finite"),
+            std::string::npos);
+  z(3) = std::numeric_limits<double>::infinity();
+  EXPECT_NE(refusal([&] { check_state_fit(q, z, 0.0, "w"); }), "");
+}
+
+}  // namespace
+}  // namespace csympnet

@@ -149,6 +149,7 @@ def run_case(case, args):
                                   "covers": gp - 1.96 * se <= g <= gp + 1.96 * se}
             if res.get("low") is not None:
                 case["overlap"] = res["low"] <= gp + 1.96 * se and gp - 1.96 * se <= res["high"]
+                case["width_ratio"] = (res["high"] - res["low"]) / max(2 * 1.96 * se, 1e-300)
         except Exception as e:  # a failed reference is recorded, not fatal
             case["parametric"] = {"failed": f"{type(e).__name__}: {e}"}
     return case
@@ -177,12 +178,15 @@ def summarize(cases):
     if lin:
         lines += ["", "Linear records beside the parametric fit of the true form:", "",
                   "| n | parametric covered | parametric median rel. error | "
-                  "csympnet intervals overlapping the parametric one |", "|---|---|---|---|"]
+                  "csympnet intervals overlapping the parametric one | median width, csympnet "
+                  "over parametric |", "|---|---|---|---|---|"]
         pc = sum(1 for c in lin if c["parametric"]["covers"])
         pe = np.median([c["parametric"]["rel_err"] for c in lin])
         ov = [c for c in lin if "overlap" in c]
+        wr = [c["width_ratio"] for c in lin if "width_ratio" in c]
+        wtext = f"{np.median(wr):.2f}" if wr else "n/a"
         lines.append(f"| {len(lin)} | {pc}/{len(lin)} | {pe:.2e} | "
-                     f"{sum(1 for c in ov if c['overlap'])}/{len(ov)} |")
+                     f"{sum(1 for c in ov if c['overlap'])}/{len(ov)} | {wtext} |")
     return "\n".join(lines) + "\n"
 
 

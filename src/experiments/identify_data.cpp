@@ -26,17 +26,24 @@ Trajectory piece(const Trajectory& t, Index a, Index b) {
 // cut into contiguous segments of at least `min_steps` steps (neighbours share an end point,
 // so no step is lost).
 std::vector<Trajectory> make_blocks(const std::vector<Trajectory>& trajs, long target,
-                                    Index min_steps) {
-  if (static_cast<long>(trajs.size()) >= target) return trajs;
+                                    Index min_steps,
+                                    std::vector<std::pair<Index, Index>>& origin) {
+  origin.clear();
+  if (static_cast<long>(trajs.size()) >= target) {
+    for (std::size_t k = 0; k < trajs.size(); ++k) origin.emplace_back(static_cast<Index>(k), 0);
+    return trajs;
+  }
   const auto per = static_cast<Index>((target + static_cast<long>(trajs.size()) - 1) /
                                       static_cast<long>(trajs.size()));
   std::vector<Trajectory> out;
-  for (const Trajectory& t : trajs) {
+  for (std::size_t j = 0; j < trajs.size(); ++j) {
+    const Trajectory& t = trajs[j];
     const Index steps = t.steps();
     const Index pieces = std::clamp<Index>(steps / std::max<Index>(1, min_steps), 1, per);
     for (Index k = 0; k < pieces; ++k) {
       const Index a = steps * k / pieces, b = steps * (k + 1) / pieces;
       out.push_back(piece(t, a, b));
+      origin.emplace_back(static_cast<Index>(j), a);
     }
   }
   return out;
@@ -165,6 +172,7 @@ BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
                                       " needs trajectories; a pairs file gives one-step windows");
     m = 1;
     s.blocks = nt;
+    for (std::size_t k = 0; k < nt.size(); ++k) s.origin.emplace_back(static_cast<Index>(k), 0);
   } else {
     // Shortest trajectories decide an automatic window: a window must fit in most blocks.
     if (config.window == 0) {
@@ -174,7 +182,7 @@ BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
       const Index short_len = lens[lens.size() / 4];
       m = std::clamp<Index>(short_len / 2, 1, 4);
     }
-    s.blocks = make_blocks(nt, config.target_blocks, std::max<Index>(2 * m, 6));
+    s.blocks = make_blocks(nt, config.target_blocks, std::max<Index>(2 * m, 6), s.origin);
   }
   const Index n_blocks = static_cast<Index>(s.blocks.size());
   require(n_blocks >= 3, [&] {
@@ -185,6 +193,8 @@ BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
   const auto [train_ids, val_ids] = hold_out(n_blocks, config);
   for (Index i : train_ids) s.train_blocks.push_back(s.blocks[static_cast<std::size_t>(i)]);
   for (Index i : val_ids) s.val_blocks.push_back(s.blocks[static_cast<std::size_t>(i)]);
+  s.train_ids = train_ids;
+  s.val_ids = val_ids;
   // An automatic window starts at one step and grows to m_long only if the one-step residuals
   // show that noise, not misfit, dominates (adapt_windows): windows fight noise but compound
   // misfit.

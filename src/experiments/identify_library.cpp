@@ -400,24 +400,31 @@ class LibrarySelection {
       const std::vector<Addition> all = tries(ranked_additions(
           x, pool_, active_, kappas, fit_, comm_, balanced_, d_, beta_init_, scales_));
       // The joint batch (d > 2) is kept as soon as it earns its place; of the single groups,
-      // each of the best three is fitted and the lowest held-out loss is kept: the linearised
-      // gain ranks them, the fit decides (a sinusoid's gain at a trial wavenumber can outrank
-      // the exact polynomial).
+      // each of the best three is fitted (with, beside a sinusoid or an exponential, the powers
+      // of the same argument), and the lowest held-out loss is kept among the simplest family
+      // that earns its place: the linearised gain ranks them, the fit decides, and a sinusoid
+      // or an exponential replaces a polynomial only when its held-out loss is lower by the
+      // keep threshold (parsimony: a sinusoid at a fitted wavenumber mimics a polynomial over
+      // the data's range at about the same loss).
       std::optional<Candidate> best;
       std::vector<Index> best_terms;
+      int best_family = 0;
       for (const Addition& ad : all) {
         if (ad.gain < 1e-6 || fit_.stop_requested()) break;
         Candidate y = with(x, ad);
         const std::string name = names(ad.terms);
         const bool earns = improves(x.val_loss, y.val_loss);
+        const int family = family_rank(ad);
         steps.push_back({{"terms", name},
+                         {"family", family == 0 ? "power" : family == 1 ? "sin/cos" : "exp"},
                          {"predicted_gain", ad.gain},
                          {"val_loss_before", x.val_loss},
                          {"val_loss_after", y.val_loss},
                          {"earns_its_place", earns}});
-        if (earns && (!best || y.val_loss < best->val_loss)) {
+        if (earns && (!best || preferred(y.val_loss, family, best->val_loss, best_family))) {
           best = std::move(y);
           best_terms = ad.terms;
+          best_family = family;
         }
         if (best && ad.joint) break;
       }
@@ -580,11 +587,46 @@ class LibrarySelection {
       }
       if (taken >= 2) out.push_back(joint);
     }
+    const std::size_t singles = out.size();
     for (std::size_t r = 0; r < std::min<std::size_t>(ranked.size(), 3); ++r) {
       out.push_back(ranked[r]);
       out.back().kappas.assign(ranked[r].terms.size(), ranked[r].kappa);
     }
+    // Beside a sinusoid or an exponential, the powers of the same argument, so that the
+    // simpler family is always fitted before the other can win.
+    for (std::size_t r = singles; r < std::min(out.size(), singles + 3); ++r) {
+      if (family_rank(out[r]) == 0) continue;
+      const LibraryTerm& t = pool_[static_cast<std::size_t>(out[r].terms.front())];
+      for (const Addition& ad : ranked) {
+        const LibraryTerm& u = pool_[static_cast<std::size_t>(ad.terms.front())];
+        const bool same_argument = (u.i == t.i && u.j == t.j) || (t.j >= 0 && u.i == t.j && u.j == t.i);
+        if (u.shape != TermShape::kPower || !same_argument) continue;
+        const bool listed = std::any_of(out.begin(), out.end(),
+                                        [&](const Addition& o) { return o.terms == ad.terms; });
+        if (!listed) {
+          out.push_back(ad);
+          out.back().kappas.assign(ad.terms.size(), ad.kappa);
+        }
+        break;
+      }
+    }
     return out;
+  }
+
+  // 0 for powers, 1 for sin/cos, 2 for exp: the order in which a physicist would try them.
+  int family_rank(const Addition& ad) const {
+    const LibraryTerm& t = pool_[static_cast<std::size_t>(ad.terms.front())];
+    if (ad.joint) return 0;  // a joint batch is of one family, kept as soon as it earns
+    return t.shape == TermShape::kPower ? 0 : t.shape == TermShape::kExp ? 2 : 1;
+  }
+
+  // Whether an addition of family `fy` with held-out loss `vy` is preferred to the best so far
+  // (`vb`, family `fb`): within a family the lower loss; a more complex family only when it is
+  // lower by the keep threshold; a simpler one unless the other is lower by the threshold.
+  bool preferred(double vy, int fy, double vb, int fb) const {
+    if (fy == fb) return vy < vb;
+    if (fy > fb) return improves(vb, vy);
+    return !improves(vy, vb);
   }
 
   // Each active pool term's t-ratio (coefficient over its sandwich standard error); empty when

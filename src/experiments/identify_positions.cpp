@@ -13,16 +13,19 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <Eigen/QR>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/experiments/identify.hpp"
 #include "csympnet/experiments/model_checks.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "csympnet/train/shooting.hpp"
+#include "identify_chain.hpp"
 #include "identify_stages.hpp"
 
 namespace csympnet {
@@ -227,6 +230,27 @@ Index segment_length(const OneStepMap& map, ConstParams theta,
   return chosen;
 }
 
+// Per normalised trajectory, the state at every sample: the segments' fitted rollouts where a
+// segment covers it (training and held-out blocks alike), the velocity start elsewhere.
+std::vector<Matrix> segment_states(const std::vector<Trajectory>& nt, const detail::BlockSplit& split,
+                                   const Cut& train, const Cut& val, const OneStepMap& map,
+                                   ConstParams theta) {
+  std::vector<Matrix> states;
+  for (const Trajectory& t : nt) states.push_back(t.z);
+  const auto write = [&](const Cut& c, const std::vector<Index>& ids) {
+    for (Index s = 0; s < c.segs.size(); ++s) {
+      const auto [b, first] = c.at[static_cast<std::size_t>(s)];
+      const auto [j, a] = split.origin[static_cast<std::size_t>(ids[static_cast<std::size_t>(b)])];
+      const Matrix z =
+          shooting_states(map, theta, c.z0.col(s), c.segs.h[static_cast<std::size_t>(s)]);
+      states[static_cast<std::size_t>(j)].middleCols(a + first, z.cols()) = z;
+    }
+  };
+  write(val, split.val_ids);
+  write(train, split.train_ids);
+  return states;
+}
+
 // The blocks with q observed and p from the fitted rollouts of their segments.
 std::vector<Trajectory> reconstructed(const std::vector<Trajectory>& blocks, const Cut& c,
                                       const OneStepMap& map, ConstParams theta, Index d) {
@@ -252,10 +276,17 @@ SegmentSums segment_sums(const OneStepMap& map, ConstParams theta, const Cut& c)
     const auto i = static_cast<std::size_t>(s);
     const Matrix& obs = c.segs.q[i];
     const Matrix z = shooting_states(map, theta, c.z0.col(s), c.segs.h[i]);
-    out.res += (z.topRows(obs.rows()) - obs).squaredNorm();
-    out.motion += (obs.colwise() - obs.col(0)).squaredNorm();
-    out.still += (obs.colwise() - obs.rowwise().mean()).squaredNorm();
-    out.n += obs.size();
+    // Only the observed positions count (a linked chain passes held-out ones unobserved).
+    const Vector w = c.segs.observed.empty() ? Vector(Vector::Ones(obs.cols())) : c.segs.observed[i];
+    const double count = w.sum();
+    if (!(count > 0.0)) continue;
+    Index first = 0;
+    while (w(first) == 0.0) ++first;
+    const Vector mean = (obs * w) / count;
+    out.res += ((z.topRows(obs.rows()) - obs) * w.asDiagonal()).squaredNorm();
+    out.motion += ((obs.colwise() - obs.col(first)) * w.asDiagonal()).squaredNorm();
+    out.still += ((obs.colwise() - mean) * w.asDiagonal()).squaredNorm();
+    out.n += static_cast<Index>(std::llround(count)) * obs.rows();
   }
   return out;
 }
@@ -343,6 +374,140 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
       map, split.train, {&all, n_res, scale, detail::data_scale(split.blocks), inflation, stop}, r);
 }
 
+// One candidate's segment fit on the positions: start states from three starts, then θ and the
+// starts jointly (fit_shooting).
+struct SegmentFit {
+  Vector theta;
+  Cut train, val;
+  ShootingReport rep;
+};
+SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& train,
+                        const Cut& val, const ShootingOptions& opt) {
+  SegmentFit out{theta, train, val, {}};
+  fit_start_states(map, out.theta, out.train.segs, out.train.z0, 30, true, kMaxAbsState);
+  fit_start_states(map, out.theta, out.val.segs, out.val.z0, 30, true, kMaxAbsState);
+  out.rep = fit_shooting(map, out.theta, out.train.z0, out.train.segs, out.val.z0, out.val.segs,
+                         opt);
+  return out;
+}
+
+// The gauge: each dof's momentum scale is not in the positions; the learned dof scales are
+// held where the velocity start put them (θ's first n_free parameters are fitted).
+Index free_parameters(const OneStepMap& map, Index d) {
+  const Index p = map.n_params();
+  return dynamic_cast<const DofScaledMap*>(&map) != nullptr ? p - (d - 1) : p;
+}
+
+// The cores compared on what was observed: every trained candidate's segment fit on the
+// positions, and the held-out loss of the positions decides. The velocity start's choice was
+// made on velocities from local fits, whose noise hides the force law at many samples per
+// period. Parsimony: the library core (a readable Hamiltonian with few parameters) is kept
+// unless a neural core's held-out loss is lower by more than three of its standard errors
+// (√(2/n) of itself); between neural cores the lower loss wins. Returns the chosen index, its
+// fit in `chosen`, and records every candidate.
+std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut& val, Index d,
+                                const ShootingOptions& base, SegmentFit& chosen,
+                                nlohmann::json& rec) {
+  std::vector<std::optional<SegmentFit>> fits(f.cand.size());
+  nlohmann::json tried = nlohmann::json::array();
+  const double n_val = static_cast<double>(std::max<Index>(1, val.segs.n_residuals()));
+  for (std::size_t i = 0; i < f.cand.size(); ++i) {
+    const detail::Candidate& x = f.cand[i];
+    if (i != f.best && !(std::isfinite(x.val_loss) && x.theta.allFinite())) continue;
+    const auto t0 = std::chrono::steady_clock::now();
+    ShootingOptions opt = base;
+    opt.n_free = free_parameters(*x.inner.map, d);
+    fits[i] = fit_segments(*x.inner.map, x.theta, train, val, opt);
+    tried.push_back(
+        {{"core", detail::core_name(x.core)},
+         {"held_out_position_loss", fits[i]->rep.val_loss},
+         {"training_position_loss", fits[i]->rep.final_loss},
+         {"lm_iterations", fits[i]->rep.iterations},
+         {"lm_message", fits[i]->rep.message},
+         {"chosen_on_velocities", i == f.best},
+         {"seconds",
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+    if (fits[i]->rep.stopped) break;
+  }
+  const auto is_library = [&](std::size_t i) {
+    return f.cand[i].core.is_object() && f.cand[i].core.value("type", "") == "library";
+  };
+  std::size_t pick = f.best;
+  const auto val_of = [&](std::size_t i) {
+    const double v = fits[i] ? fits[i]->rep.val_loss : std::numeric_limits<double>::infinity();
+    return std::isfinite(v) ? v : std::numeric_limits<double>::infinity();
+  };
+  std::optional<std::size_t> lib, neural;
+  for (std::size_t i = 0; i < fits.size(); ++i) {
+    if (!fits[i]) continue;
+    if (is_library(i) && (!lib || val_of(i) < val_of(*lib))) lib = i;
+    if (!is_library(i) && (!neural || val_of(i) < val_of(*neural))) neural = i;
+  }
+  std::string why;
+  if (lib && neural) {
+    const double v = val_of(*neural);
+    const bool neural_wins = val_of(*lib) > v * (1.0 + 3.0 * std::sqrt(2.0 / n_val));
+    pick = neural_wins ? *neural : *lib;
+    why = neural_wins ? "the held-out loss of the positions: the neural core's is lower than "
+                        "the library's by more than three standard errors"
+                      : "the held-out loss of the positions: the library core's is within "
+                        "three standard errors of the lowest (parsimony: a readable Hamiltonian "
+                        "with few parameters)";
+  } else {
+    pick = lib ? *lib : neural ? *neural : f.best;
+    why = "the only candidate fitted on the positions";
+  }
+  if (!fits[pick]) pick = f.best;
+  rec["core_choice"] = {{"candidates", tried}, {"reason", why}};
+  chosen = std::move(*fits[pick]);
+  return pick;
+}
+
+// Parsimony judged on the positions: each sin/cos or exp group of the chosen library core is
+// replaced by the powers of the same argument (started from their fit to the group's
+// potential), both are fitted on the positions, and the polynomial is kept unless the group's
+// held-out loss is lower by more than three standard errors. On velocities from local fits a
+// sinusoid at a small fitted wavenumber mimics a quadratic at about the same loss; the
+// positions decide. Repeated until no group is replaced; every trial recorded.
+void prefer_polynomials(detail::CoreFit& f, const Cut& train, const Cut& val, Index d,
+                        const ShootingOptions& base, SegmentFit& seg, nlohmann::json& rec) {
+  Matrix q(d, 0);
+  for (const Trajectory& t : f.split.train_blocks) {
+    q.conservativeResize(d, q.cols() + t.z.cols());
+    q.rightCols(t.z.cols()) = t.z.topRows(d);
+  }
+  const double n_val = static_cast<double>(std::max<Index>(1, val.segs.n_residuals()));
+  const double margin = 3.0 * std::sqrt(2.0 / n_val);
+  nlohmann::json trials = nlohmann::json::array();
+  for (bool swapped = true; swapped;) {
+    swapped = false;
+    for (detail::PolynomialAlternative& alt : detail::polynomial_alternatives(f.cand[f.best], d, q)) {
+      throw_if_stop_requested("the comparison of library terms on the positions");
+      ShootingOptions opt = base;
+      opt.n_free = free_parameters(*alt.candidate.inner.map, d);
+      SegmentFit a = fit_segments(*alt.candidate.inner.map, alt.candidate.theta, train, val, opt);
+      const bool keep_group = seg.rep.val_loss < a.rep.val_loss * (1.0 - margin);
+      trials.push_back({{"group", alt.replaced},
+                        {"polynomial", alt.by},
+                        {"held_out_position_loss_group", seg.rep.val_loss},
+                        {"held_out_position_loss_polynomial", a.rep.val_loss},
+                        {"kept", keep_group ? "group" : "polynomial"}});
+      if (keep_group || !std::isfinite(a.rep.val_loss) || a.rep.stopped) continue;
+      alt.candidate.theta = a.theta;
+      f.cand[f.best] = std::move(alt.candidate);
+      seg = std::move(a);
+      swapped = true;
+      break;
+    }
+  }
+  if (!trials.empty())
+    rec["polynomial_preferred"] = {
+        {"rule",
+         "a sin/cos or exp group stays only when its held-out position loss is lower than "
+         "that of the powers of its argument by more than three standard errors"},
+        {"trials", trials}};
+}
+
 }  // namespace
 
 namespace detail {
@@ -351,15 +516,12 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
                          const IdentifyHooks& hooks, IdentifyResult& r) {
   const auto t0 = std::chrono::steady_clock::now();
   const Index d = f.facts.d;
-  Candidate& best = f.cand[f.best];
-  const OneStepMap& map = *best.inner.map;
-  const Index p = map.n_params();
-  // The gauge: each dof's momentum scale is not in the positions; the learned dof scales are
-  // held where the velocity start put them.
-  const Index n_free = dynamic_cast<const DofScaledMap*>(&map) != nullptr ? p - (d - 1) : p;
+  const OneStepMap& start_map = *f.cand[f.best].inner.map;
+  const Index p_start = start_map.n_params();
+  const Index n_start = free_parameters(start_map, d);
   const double spp = samples_per_period(positions);
   nlohmann::json tried = nlohmann::json::array();
-  const Index len = segment_length(map, r.theta, f.split.train_blocks, d, spp, tried);
+  const Index len = segment_length(start_map, r.theta, f.split.train_blocks, d, spp, tried);
   Cut train = cut_segments(f.split.train_blocks, d, len);
   Cut val = cut_segments(f.split.val_blocks, d, len);
   nlohmann::json& rec = r.choices["positions"];
@@ -369,8 +531,8 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
          {"training_segments", train.segs.size()},
          {"validation_segments", val.segs.size()},
          {"hidden_unknowns", 2 * d * (train.segs.size() + val.segs.size())},
-         {"gauge", n_free < p ? "the per-dof momentum scales held at the velocity start's"
-                              : "d = 1: the momentum's scale is the core's"}};
+         {"gauge", n_start < p_start ? "the per-dof momentum scales held at the velocity start's"
+                                      : "d = 1: the momentum's scale is the core's"}};
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   // The data's own check does not apply: the momenta were not given.
   ModelCheck none;
@@ -384,21 +546,45 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   r.checks = {none};
   if (r.stopped || !f.lm_fits || r.training.stop_reason == StopReason::kDiverged) {
     verdict(f.split, f.facts.h_max, f.lm_fits, r);
-    r.model = user_model(best.inner, r);
+    r.model = user_model(f.cand[f.best].inner, r);
     return;
   }
-  if (hooks.stage) hooks.stage("hidden momenta: start states");
-  Vector theta = r.theta;
-  fit_start_states(map, theta, train.segs, train.z0, 30, true, kMaxAbsState);
-  fit_start_states(map, theta, val.segs, val.z0, 30, true, kMaxAbsState);
   if (hooks.stage) hooks.stage("hidden momenta: positions-only Levenberg-Marquardt");
   ShootingOptions opt;
   opt.iterations = std::min<long>(r.config.lm_iterations, 100);
   opt.patience = 20;
-  opt.n_free = n_free;
   opt.max_abs_state = kMaxAbsState;
   opt.should_stop = stop;
-  const ShootingReport rep = fit_shooting(map, theta, train.z0, train.segs, val.z0, val.segs, opt);
+  opt.converged_chi2 = 1e-3;
+  SegmentFit seg;
+  const bool choosing = r.config.init == nullptr && f.cand.size() > 1;
+  if (choosing) {
+    const std::size_t was = f.best;
+    f.best = choose_on_positions(f, train, val, d, opt, seg, rec);
+    if (f.best != was) {
+      r.choices["core"] = f.cand[f.best].core;
+      r.config.core = f.cand[f.best].core;
+      r.choices["core_reason"] = rec["core_choice"]["reason"];
+      r.training = f.cand[f.best].training;
+      r.lm = f.cand[f.best].lm;
+    }
+  } else {
+    opt.n_free = free_parameters(start_map, d);
+    seg = fit_segments(start_map, r.theta, train, val, opt);
+  }
+  if (choosing && !r.stopped && f.cand[f.best].core.value("type", "") == "library") {
+    prefer_polynomials(f, train, val, d, opt, seg, rec);
+    r.choices["core"] = f.cand[f.best].core;
+    r.config.core = f.cand[f.best].core;
+  }
+  Candidate& best = f.cand[f.best];
+  const OneStepMap& map = *best.inner.map;
+  const Index n_free = free_parameters(map, d);
+  opt.n_free = n_free;
+  Vector theta = seg.theta;
+  train = std::move(seg.train);
+  val = std::move(seg.val);
+  const ShootingReport rep = seg.rep;
   rec["lm"] = {{"iterations", rep.iterations},
                {"accepted", rep.accepted},
                {"best_iteration", rep.best_iteration},
@@ -407,17 +593,39 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
                {"validation_loss", rep.val_loss},
                {"message", rep.message}};
   if (rep.stopped) r.stopped = true;
+
+  // The segments linked by continuity into chains over whole stretches of the record.
+  BlockSplit& split = f.split;
+  std::vector<Matrix> states = segment_states(f.nt, split, train, val, map, theta);
+  ShootingReport final_rep = rep;
+  if (!r.stopped) {
+    if (hooks.stage) hooks.stage("hidden momenta: linking the segments");
+    const RecordLayout layout = record_layout(f.nt, split);
+    LinkedFit linked =
+        link_segments(map, theta, f.nt, layout, len, states, val.segs, val.z0, opt, rep);
+    rec["linking"] = linked.record;
+    if (linked.chain.segs.size() > 0) {
+      train.segs = std::move(linked.chain.segs);
+      train.z0 = std::move(linked.chain.z0);
+      train.at.clear();
+      final_rep = linked.report;
+    }
+    if (linked.report.stopped) r.stopped = true;
+  }
   r.theta = theta;
   best.theta = theta;
   const double tau = r.normalization.time_scale;
   const double gamma_n = map.damping_rate(theta).value_or(0.0);
   r.gamma = gamma_n / tau;
-  r.quality.train_loss = rep.final_loss;
-  r.quality.val_loss = rep.val_loss;
+  r.quality.train_loss = final_rep.final_loss;
+  r.quality.val_loss = final_rep.val_loss;
 
   // The blocks with reconstructed momenta: the checks, the modes' mean state, the structure.
-  BlockSplit& split = f.split;
-  split.train_blocks = reconstructed(split.train_blocks, train, map, theta, d);
+  for (std::size_t i = 0; i < split.train_blocks.size(); ++i) {
+    const auto [j, a] = split.origin[static_cast<std::size_t>(split.train_ids[i])];
+    Trajectory& blk = split.train_blocks[i];
+    blk.z.bottomRows(d) = states[static_cast<std::size_t>(j)].block(d, a, d, blk.z.cols());
+  }
   split.val_blocks = reconstructed(split.val_blocks, val, map, theta, d);
   split.set_window(1);
   split.blocks.clear();
@@ -454,7 +662,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   rec["about"] =
       "the momenta are not observed: each segment's start state is fitted with the "
       "map, and the loss is on the positions alone (errors " +
-      significant(std::sqrt(rep.final_loss)) + " rms in normalised units on training)";
+      significant(std::sqrt(final_rep.final_loss)) + " rms in normalised units on training)";
 }
 
 }  // namespace detail

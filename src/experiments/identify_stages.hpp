@@ -49,6 +49,10 @@ std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool 
 struct BlockSplit {
   std::vector<Trajectory> blocks;  // every block, normalised, in order
   std::vector<Trajectory> train_blocks, val_blocks;
+  // Per block of `blocks`: its trajectory and first sample there (neighbouring blocks of one
+  // trajectory share an end sample); which blocks train and which are held out, in order.
+  std::vector<std::pair<Index, Index>> origin;
+  std::vector<Index> train_ids, val_ids;
   Index m = 1;            // the window length in use
   Index m_long = 1;       // the length an automatic window may grow to
   bool adaptive = false;  // an automatic window: starts at one step, may grow (adapt_windows)
@@ -208,6 +212,18 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
 // The model in the user's units: the inner map wrapped in the normalisation (unless an init
 // file without one fixed the units).
 Model user_model(const Model& inner, const IdentifyResult& r);
+
+// A library candidate with one sin/cos or exp group replaced by the powers of the same
+// argument (1..4 of a coordinate; 2..4 of a difference, its linear part on the two
+// coordinates), started from the group's potential fitted by that polynomial over the
+// arguments of the positions q (d × N, the fit's units): one per such group
+// (identify_library_swap.cpp).
+struct PolynomialAlternative {
+  std::string replaced, by;
+  Candidate candidate;
+};
+std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib, Index d,
+                                                           const Matrix& q);
 
 // identify_positions() after the core is trained on the positions with velocities from a
 // local polynomial: the momenta as hidden states (identify_positions.cpp).

@@ -9,14 +9,22 @@
 #include <Eigen/QR>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
 #include "lapack.hpp"
 
 namespace csympnet {
 
-Index ShootingSegments::n_residuals() const {
+Index ShootingSegments::n_rows() const {
   Index n = 0;
   for (const Matrix& x : q) n += x.size();
   return n;
+}
+
+Index ShootingSegments::n_residuals() const {
+  if (observed.empty()) return n_rows();
+  double n = 0.0;
+  for (std::size_t s = 0; s < q.size(); ++s) n += static_cast<double>(d) * observed[s].sum();
+  return static_cast<Index>(std::llround(n));
 }
 
 void ShootingSegments::validate(const std::string& where) const {
@@ -31,7 +39,20 @@ void ShootingSegments::validate(const std::string& where) const {
     require(q[s].allFinite() && h[s].allFinite(), [&] { return at + ": non-finite value"; });
     require((h[s].array() > 0.0).all(), [&] { return at + ": every step must be > 0"; });
     require(block[s] >= 0, [&] { return at + ": block indices must be >= 0"; });
+    if (!observed.empty())
+      require(observed[s].size() == q[s].cols() &&
+                  (observed[s].array() == 0.0 || observed[s].array() == 1.0).all(),
+              [&] { return at + ": expected one weight, 0 or 1, per position"; });
+    if (!column_block.empty())
+      require(static_cast<Index>(column_block[s].size()) == q[s].cols() &&
+                  std::all_of(column_block[s].begin(), column_block[s].end(),
+                              [](Index b) { return b >= 0; }),
+              [&] { return at + ": expected one block index >= 0 per position"; });
   }
+  require(observed.empty() || observed.size() == q.size(),
+          [&] { return where + ": need weights for every segment or none"; });
+  require(column_block.empty() || column_block.size() == q.size(),
+          [&] { return where + ": need position blocks for every segment or none"; });
 }
 
 Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0,
@@ -48,22 +69,31 @@ Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z
 
 namespace {
 
-// r = P_q z − q, as one column per position flattened position-major.
-Vector position_residuals(const Matrix& z, const Matrix& q) {
-  const Matrix r = z.topRows(q.rows()) - q;
+// r = P_q z − q, as one column per position flattened position-major; each column times its
+// weight w (empty: all 1).
+Vector position_residuals(const Matrix& z, const Matrix& q, const Vector& w = Vector()) {
+  Matrix r = z.topRows(q.rows()) - q;
+  if (w.size() > 0) r *= w.asDiagonal();
   return Eigen::Map<const Vector>(r.data(), r.size());
+}
+
+const Vector& weights_of(const ShootingSegments& segs, std::size_t s) {
+  static const Vector kNone;
+  return segs.observed.empty() ? kNone : segs.observed[s];
 }
 
 // B = ∂r/∂z0 along one segment (the T recursion alone), with its residuals.
 void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
-                          const Matrix& q, const Vector& h, Matrix& b, Vector& r) {
+                          const Matrix& q, const Vector& h, const Vector& w, Matrix& b,
+                          Vector& r) {
   const Index d = q.rows(), len = q.cols(), dim = 2 * d;
   const Matrix z = shooting_states(map, theta, z0, h);
-  r = position_residuals(z, q);
+  r = position_residuals(z, q, w);
   b.resize(len * d, dim);
   Matrix t = Matrix::Identity(dim, dim);
   for (Index k = 0; k < len; ++k) {
     b.middleRows(k * d, d) = t.topRows(d);
+    if (w.size() > 0) b.middleRows(k * d, d) *= w(k);
     if (k + 1 < len) t = map.jacobian(theta, z.col(k), h(k)) * t;
   }
 }
@@ -83,12 +113,13 @@ Eigen::LLT<Matrix> small_factor(const Matrix& u) {
 
 Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                           const ShootingSegments& segs) {
-  Vector out(segs.n_residuals());
+  Vector out(segs.n_rows());
   Index at = 0;
   for (Index s = 0; s < segs.size(); ++s) {
     const auto& q = segs.q[static_cast<std::size_t>(s)];
     const Matrix z = shooting_states(map, theta, z0.col(s), segs.h[static_cast<std::size_t>(s)]);
-    out.segment(at, q.size()) = position_residuals(z, q);
+    out.segment(at, q.size()) =
+        position_residuals(z, q, weights_of(segs, static_cast<std::size_t>(s)));
     at += q.size();
   }
   return out;
@@ -97,35 +128,38 @@ Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix
 double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                      const ShootingSegments& segs) {
   const Vector r = shooting_residuals(map, theta, z0, segs);
-  return r.size() > 0 ? r.squaredNorm() / static_cast<double>(r.size()) : 0.0;
+  const Index n = segs.n_residuals();
+  return n > 0 ? r.squaredNorm() / static_cast<double>(n) : 0.0;
 }
 
 void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
                                const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
-                               Matrix& b, Vector& r) {
+                               Matrix& b, Vector& r, const Vector& w) {
   const Index d = q.rows(), len = q.cols(), dim = 2 * d, p = map.n_params();
   require(n_free >= 0 && n_free <= p, "shooting: n_free out of range");
+  require(w.size() == 0 || w.size() == len, "shooting: expected one weight per position");
   const Matrix z = shooting_states(map, theta, z0, h);
-  r = position_residuals(z, q);
+  r = position_residuals(z, q, w);
   a.setZero(len * d, n_free);
   b.resize(len * d, dim);
   // ∂Φ̂/∂θ at each state of the segment but the last: one-step windows (their residuals unused).
   RowMajorMatrix g;
   if (len > 1) {
-    WindowSet w;
-    w.m = 1;
-    w.z0 = z.leftCols(len - 1);
-    w.zm = Matrix::Zero(dim, len - 1);
-    w.h = h.transpose();
+    WindowSet steps;
+    steps.m = 1;
+    steps.z0 = z.leftCols(len - 1);
+    steps.zm = Matrix::Zero(dim, len - 1);
+    steps.h = h.transpose();
     g.resize((len - 1) * dim, p);
     Vector unused((len - 1) * dim);
-    window_jacobian_rows(map, theta, w, false, 0, len - 1, g, unused);
+    window_jacobian_rows(map, theta, steps, false, 0, len - 1, g, unused);
   }
   Matrix sens = Matrix::Zero(dim, n_free);
   Matrix t = Matrix::Identity(dim, dim);
   for (Index k = 0; k < len; ++k) {
-    a.middleRows(k * d, d) = sens.topRows(d);
-    b.middleRows(k * d, d) = t.topRows(d);
+    const double wk = w.size() > 0 ? w(k) : 1.0;
+    a.middleRows(k * d, d) = wk * sens.topRows(d);
+    b.middleRows(k * d, d) = wk * t.topRows(d);
     if (k + 1 == len) break;
     const Matrix jac = map.jacobian(theta, z.col(k), h(k));
     sens = jac * sens;
@@ -141,7 +175,22 @@ struct SegmentTerms {
   Matrix u;   // BᵀB (2d × 2d)
   Matrix w;   // AᵀB (n_free × 2d)
   Vector gb;  // Bᵀr
+  // With scores, for a segment spanning several blocks: (block, B_bᵀr_b) over its positions in
+  // each block (empty: the whole gb is the segment's block's).
+  std::vector<std::pair<Index, Vector>> gb_by_block;
 };
+
+// Rows [k·d, (k+1)·d) of a segment belong to position k: the runs of positions in one block.
+template <class F>
+void for_each_block_run(const ShootingSegments& segs, Index s, Index len, F f) {
+  for (Index k = 0; k < len;) {
+    const Index b = segs.block_of(s, k);
+    Index e = k + 1;
+    while (e < len && segs.block_of(s, e) == b) ++e;
+    f(b, k, e);
+    k = e;
+  }
+}
 
 // Σ AᵀA (lower) and Σ Aᵀr into ne.a, ne.g, the per-segment terms into `terms`, the cost, and
 // per block Aᵀr (the efficient score is completed in reduce()).
@@ -154,6 +203,8 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
   ne.g.setZero(n_free);
   Index blocks = 0;
   for (Index b : segs.block) blocks = std::max(blocks, b + 1);
+  for (const auto& cb : segs.column_block)
+    for (Index b : cb) blocks = std::max(blocks, b + 1);
   if (with_scores) ne.scores.setZero(n_free, blocks);
   terms.assign(static_cast<std::size_t>(segs.size()), {});
   const lapack::SingleThreaded one_thread;
@@ -166,7 +217,8 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
       return ne;
     }
     const auto i = static_cast<std::size_t>(s);
-    shooting_segment_jacobian(map, theta, z0.col(s), segs.q[i], segs.h[i], n_free, a, b, r);
+    shooting_segment_jacobian(map, theta, z0.col(s), segs.q[i], segs.h[i], n_free, a, b, r,
+                              weights_of(segs, i));
     a *= scale;
     b *= scale;
     r *= scale;
@@ -175,11 +227,22 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
     Vector ar = Vector::Zero(n_free);
     lapack::add_transpose_times(a.data(), n_free, a.rows(), r.data(), ar.data());
     ne.g += ar;
-    if (with_scores) ne.scores.col(segs.block[i]) += ar;
     SegmentTerms& x = terms[i];
     x.u = b.transpose() * b;
     x.w.noalias() = a.transpose() * b;
     x.gb = b.transpose() * r;
+    if (with_scores && segs.column_block.empty()) {
+      ne.scores.col(segs.block[i]) += ar;
+    } else if (with_scores) {
+      const Index d = segs.d, len = segs.q[i].cols();
+      for_each_block_run(segs, s, len, [&](Index blk, Index k0, Index k1) {
+        const Index rows = (k1 - k0) * d;
+        ne.scores.col(blk).noalias() +=
+            a.middleRows(k0 * d, rows).transpose() * r.segment(k0 * d, rows);
+        x.gb_by_block.emplace_back(blk, b.middleRows(k0 * d, rows).transpose() *
+                                            r.segment(k0 * d, rows));
+      });
+    }
   }
   return ne;
 }
@@ -208,7 +271,14 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
     a.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
     const Vector ug = f.solve(x.gb);
     g.noalias() -= x.w * ug;
-    if (ne.scores.size() > 0) ne.scores.col(segs.block[i]).noalias() -= x.w * ug;
+    if (ne.scores.size() == 0) continue;
+    if (x.gb_by_block.empty()) {
+      ne.scores.col(segs.block[i]).noalias() -= x.w * ug;
+    } else {
+      // The efficient score of the positions in block b: A_bᵀr_b − W U⁻¹ B_bᵀr_b.
+      for (const auto& [blk, gbb] : x.gb_by_block)
+        ne.scores.col(blk).noalias() -= x.w * f.solve(gbb);
+    }
   }
 }
 
@@ -236,15 +306,16 @@ namespace {
 // One segment's start state by Levenberg–Marquardt on its 2d unknowns, θ fixed, from z (updated
 // in place). Returns ‖r‖² after (infinite when no start gives a finite rollout).
 double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
-                     Eigen::Ref<Vector> z, long iterations, double max_abs) {
+                     const Vector& w, Eigen::Ref<Vector> z, long iterations, double max_abs) {
   Matrix b;
   Vector r, r_try;
   double lambda = 1e-3;
-  start_state_jacobian(map, theta, z, q, h, b, r);
+  start_state_jacobian(map, theta, z, q, h, w, b, r);
   double cost = r.allFinite() && b.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs
                     ? r.squaredNorm()
                     : std::numeric_limits<double>::infinity();
   for (long it = 0; it < iterations && std::isfinite(cost); ++it) {
+    throw_if_stop_requested("the fit of a hidden start state");
     const Matrix u = b.transpose() * b;
     const Vector gb = b.transpose() * r;
     Matrix ul = u;
@@ -253,13 +324,13 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
     // A start state beyond the bound is a run along a direction the positions do not fix.
     const double c_try =
         trial.cwiseAbs().maxCoeff() <= max_abs
-            ? position_residuals(shooting_states(map, theta, trial, h), q).squaredNorm()
+            ? position_residuals(shooting_states(map, theta, trial, h), q, w).squaredNorm()
             : std::numeric_limits<double>::infinity();
     if (std::isfinite(c_try) && c_try < cost) {
       z = trial;
       const bool done = cost - c_try <= 1e-14 * cost;
       lambda = std::max(lambda / 3.0, 1e-12);
-      start_state_jacobian(map, theta, z, q, h, b, r);
+      start_state_jacobian(map, theta, z, q, h, w, b, r);
       cost = r.squaredNorm();
       if (done) break;
     } else {
@@ -311,11 +382,13 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
                         Matrix& z0, long iterations, bool several_starts, double max_abs) {
   const Index d = segs.d;
   for (Index s = 0; s < segs.size(); ++s) {
+    throw_if_stop_requested("the fit of the hidden start states");
     const auto i = static_cast<std::size_t>(s);
     const Matrix& q = segs.q[i];
     const Vector& h = segs.h[i];
+    const Vector& w = weights_of(segs, i);
     Vector best = z0.col(s);
-    double best_cost = fit_one_start(map, theta, q, h, best, iterations, max_abs);
+    double best_cost = fit_one_start(map, theta, q, h, w, best, iterations, max_abs);
     if (!several_starts) {
       z0.col(s) = best;
       continue;
@@ -327,7 +400,7 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
       z.head(d) = q.col(0);
       z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
                          : one_step_momentum(map, theta, q.col(0), q.col(1), h(0));
-      const double c = fit_one_start(map, theta, q, h, z, iterations, max_abs);
+      const double c = fit_one_start(map, theta, q, h, w, z, iterations, max_abs);
       if (c < best_cost) {
         best_cost = c;
         best = z;
@@ -438,7 +511,10 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     }
     nu = 2.0;
     ++rep.accepted;
-    small_steps = (loss - loss_try) <= 1e-10 * loss ? small_steps + 1 : 0;
+    const double n_train = static_cast<double>(train.n_residuals());
+    const bool small = (loss - loss_try) <= 1e-10 * loss ||
+                       n_train * (loss - loss_try) <= options.converged_chi2 * loss_try;
+    small_steps = small ? small_steps + 1 : 0;
     theta = std::move(theta_try);
     z0 = std::move(z0_try);
     loss = loss_try;
@@ -459,7 +535,11 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       break;
     }
     if (small_steps >= 3) {
-      rep.message = "converged: the loss changes by less than 1e-10 of itself per step";
+      rep.message = options.converged_chi2 > 0.0
+                        ? "converged: the loss changes by less than " +
+                              std::to_string(options.converged_chi2) +
+                              " of chi-square (or 1e-10 of itself) per step"
+                        : "converged: the loss changes by less than 1e-10 of itself per step";
       break;
     }
   }

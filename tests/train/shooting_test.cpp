@@ -133,6 +133,111 @@ TEST_P(ShootingTest, EliminatedNormalEquationsAreTheSchurComplement) {
   EXPECT_LE((ne.scores.rowwise().sum() - ne.g).norm(), 1e-9 * (1.0 + ne.g.norm()));
 }
 
+// Segments spanning several blocks, with positions passed through unobserved (a linked chain
+// through a held-out block): the weighted Jacobians against central differences, the eliminated
+// system against the Schur complement of the explicit weighted JᵀJ, and each block's score
+// against the efficient score of its own rows, at random parameters, weights and blocks.
+TEST_P(ShootingTest, WeightedSegmentsAcrossBlocksGiveEachBlockItsEfficientScore) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2, dim = 2 * d, p = map->n_params();
+  Rng rng(33, GetParam());
+  const Vector theta = random_theta(*map, rng, 0.3, 0.5);
+  Matrix z0;
+  ShootingSegments segs = random_segments(d, 5, rng, z0);
+  const Index blocks = 4;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const Index len = segs.q[static_cast<std::size_t>(s)].cols();
+    Vector w(len);
+    std::vector<Index> cb(static_cast<std::size_t>(len));
+    for (Index k = 0; k < len; ++k) {
+      w(k) = k == 0 || rng.uniform(0.0, 1.0) < 0.6 ? 1.0 : 0.0;
+      cb[static_cast<std::size_t>(k)] =
+          static_cast<Index>(rng.uniform(0.0, 0.999) * static_cast<double>(blocks));
+    }
+    segs.observed.push_back(w);
+    segs.column_block.push_back(cb);
+  }
+  segs.validate();
+  double observed = 0.0;
+  for (const Vector& w : segs.observed) observed += w.sum();
+  ASSERT_EQ(segs.n_residuals(), static_cast<Index>(observed) * d);
+  ASSERT_LT(segs.n_residuals(), segs.n_rows());
+  // Derivatives of the weighted residuals, segment by segment.
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    ShootingSegments one = one_segment(segs, i);
+    one.observed = {segs.observed[i]};
+    const Vector start = z0.col(s);
+    const auto a_of = [&](const Vector& th) -> Matrix {
+      RowMajorMatrix a;
+      Matrix b;
+      Vector r;
+      shooting_segment_jacobian(*map, th, start, segs.q[i], segs.h[i], p, a, b, r,
+                                segs.observed[i]);
+      return a;
+    };
+    const auto c1 = check_jacobian(
+        [&](const Vector& th) { return shooting_residuals(*map, th, start, one); }, a_of, theta);
+    EXPECT_TRUE(c1.ok()) << c1.report("weighted shooting: dr/dtheta");
+    const auto b_of = [&](const Vector& z) -> Matrix {
+      RowMajorMatrix a;
+      Matrix b;
+      Vector r;
+      shooting_segment_jacobian(*map, theta, z, segs.q[i], segs.h[i], 0, a, b, r,
+                                segs.observed[i]);
+      return b;
+    };
+    const auto c2 = check_jacobian(
+        [&](const Vector& z) { return shooting_residuals(*map, theta, z, one); }, b_of, start);
+    EXPECT_TRUE(c2.ok()) << c2.report("weighted shooting: dr/dz0");
+  }
+  // The explicit joint system, and its rows per block.
+  const double scale = 0.37;
+  const NormalEquations ne = shooting_normal_equations(*map, theta, z0, segs, p, scale, true);
+  const Index n = segs.n_rows(), cols = p + dim * segs.size();
+  Matrix j = Matrix::Zero(n, cols);
+  Vector r(n);
+  std::vector<Index> row_block(static_cast<std::size_t>(n));
+  Index row = 0;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    RowMajorMatrix a;
+    Matrix b;
+    Vector rs;
+    shooting_segment_jacobian(*map, theta, z0.col(s), segs.q[i], segs.h[i], p, a, b, rs,
+                              segs.observed[i]);
+    j.block(row, 0, a.rows(), p) = a;
+    j.block(row, p + dim * s, b.rows(), dim) = b;
+    r.segment(row, rs.size()) = rs;
+    for (Index k = 0; k < rs.size(); ++k)
+      row_block[static_cast<std::size_t>(row + k)] = segs.block_of(s, k / d);
+    row += rs.size();
+  }
+  j *= scale;
+  r *= scale;
+  const Matrix full = j.transpose() * j;
+  const Matrix zz = full.bottomRightCorner(cols - p, cols - p);
+  const Matrix tz = full.topRightCorner(p, cols - p);
+  const Eigen::LDLT<Matrix> f(zz);
+  const Matrix schur = full.topLeftCorner(p, p) - tz * f.solve(tz.transpose());
+  const Matrix lower_ne = ne.a.triangularView<Eigen::Lower>();
+  const Matrix lower_schur = schur.triangularView<Eigen::Lower>();
+  EXPECT_LE((lower_ne - lower_schur).norm(), 1e-9 * full.norm());
+  EXPECT_NEAR(ne.cost, 0.5 * r.squaredNorm(), 1e-12 * ne.cost);
+  EXPECT_NEAR(shooting_loss(*map, theta, z0, segs),
+              r.squaredNorm() / (scale * scale) / static_cast<double>(segs.n_residuals()),
+              1e-12 * r.squaredNorm() / (scale * scale));
+  ASSERT_EQ(ne.scores.cols(), blocks);
+  for (Index b = 0; b < blocks; ++b) {
+    Vector gb = Vector::Zero(cols);
+    for (Index k = 0; k < n; ++k)
+      if (row_block[static_cast<std::size_t>(k)] == b) gb += j.row(k).transpose() * r(k);
+    const Vector efficient = gb.head(p) - tz * f.solve(gb.tail(cols - p));
+    EXPECT_LE((ne.scores.col(b) - efficient).norm(), 1e-9 * (1.0 + efficient.norm()))
+        << "block " << b;
+  }
+}
+
 // Positions made by the map itself: the start states are recovered from positions alone, and
 // a joint fit from perturbed parameters returns to zero loss.
 TEST_P(ShootingTest, FitsRecoverExactPositions) {
@@ -219,6 +324,15 @@ TEST(Shooting, RefusesMalformedSegments) {
   EXPECT_THROW(s.validate(), Error);
   s.q = {Matrix::Zero(1, 3)};
   s.h = {Vector::Constant(2, -0.1)};
+  EXPECT_THROW(s.validate(), Error);
+  s.h = {Vector::Constant(2, 0.1)};
+  s.validate();
+  s.observed = {Vector::Constant(3, 0.5)};  // a weight is 0 or 1
+  EXPECT_THROW(s.validate(), Error);
+  s.observed = {Vector::Ones(2)};  // one per position
+  EXPECT_THROW(s.validate(), Error);
+  s.observed.clear();
+  s.column_block = {{0, -1, 0}};  // a block index is >= 0
   EXPECT_THROW(s.validate(), Error);
 }
 

@@ -40,8 +40,24 @@ struct ShootingSegments {
   std::vector<Matrix> q;     // per segment, d × L observed positions (L ≥ 2)
   std::vector<Vector> h;     // per segment, the L − 1 steps
   std::vector<Index> block;  // per segment, its resampling block (0 … B − 1)
+  // Optional (empty: every position observed): per segment, L weights, 1 where the position
+  // enters the loss and 0 where the rollout only passes through it (a held-out stretch inside a
+  // linked chain: the map carries the state across it, its positions are not fitted).
+  std::vector<Vector> observed;
+  // Optional (empty: the segment's `block`): per segment, each position's resampling block, for
+  // a segment that spans several blocks (a chain of the whole record).
+  std::vector<std::vector<Index>> column_block;
   Index size() const { return static_cast<Index>(q.size()); }
-  Index n_residuals() const;  // Σ_s L_s d
+  Index n_residuals() const;  // d × the observed positions: the residuals the loss averages
+  Index n_rows() const;       // Σ_s L_s d: the residual vector's length, unobserved rows included
+  double weight(Index s, Index k) const {
+    return observed.empty() ? 1.0 : observed[static_cast<std::size_t>(s)](k);
+  }
+  Index block_of(Index s, Index k) const {
+    return column_block.empty()
+               ? block[static_cast<std::size_t>(s)]
+               : column_block[static_cast<std::size_t>(s)][static_cast<std::size_t>(k)];
+  }
   // Throws Error (prefixed by `where`) on inconsistent shapes, fewer than 2 positions in a
   // segment, steps ≤ 0 or non-finite values.
   void validate(const std::string& where = "segments") const;
@@ -50,7 +66,8 @@ struct ShootingSegments {
 // The states along segment s from start state z0: 2d × L.
 Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0, const Vector& h);
 
-// The residuals of every segment (sample-major: segment by segment, d per position), unscaled.
+// The residuals of every segment (sample-major: segment by segment, d per position), unscaled;
+// an unobserved position's are 0 (length n_rows()).
 Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                           const ShootingSegments& segs);
 
@@ -59,10 +76,11 @@ double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                      const ShootingSegments& segs);
 
 // One segment's residuals r (L·d), A = ∂r/∂θ restricted to θ's first n_free parameters
-// (L·d × n_free, row-major) and B = ∂r/∂z0 (L·d × 2d).
+// (L·d × n_free, row-major) and B = ∂r/∂z0 (L·d × 2d); each position's rows multiplied by its
+// weight w (L; empty: all 1), so an unobserved position's rows are 0.
 void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
                                const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
-                               Matrix& b, Vector& r);
+                               Matrix& b, Vector& r, const Vector& w = Vector());
 
 // The normal equations with the start states eliminated, at (θ, z0), over θ's first n_free
 // parameters, all scaled by `scale` (as window_normal_equations): a = the reduced JᵀJ (lower
@@ -94,6 +112,11 @@ struct ShootingOptions {
   std::function<bool()> should_stop;
   // After every accepted step: iteration, training loss, validation loss.
   std::function<void(long, double, double)> on_accepted;
+  // Convergence in the data's own units: a step that lowers the training loss by less than
+  // this many units of χ² (n · Δloss / loss, n the residuals) counts as small, and three small
+  // steps in a row end the fit. 1e-3 moves θ by about 0.03 of its standard error per step; the
+  // default 0 keeps only the rule below (a change under 1e-10 of the loss itself).
+  double converged_chi2 = 0.0;
 };
 
 struct ShootingReport {

@@ -1,0 +1,74 @@
+// Multiple shooting with continuity (Bock): the segments of a positions-only record linked
+// into chains over whole stretches of the record (docs/derivations.md, "Positions only: linked
+// segments"; docs/identification.md, "Positions only").
+//
+// The segment fit of identify_positions.cpp gives every segment its own start state, so the
+// decay from one segment to the next, where γ lives, is thrown away. Here the segments are
+// merged, four at a time, into longer ones whose start states are carried from the previous
+// fit's rollout, and θ and the remaining start states are refitted, until one segment spans
+// each stretch of the record (a gap breaks a stretch) or the model stops following the
+// positions. Merging two segments is imposing their matching condition exactly (the end state
+// of one is the start state of the next); growing the segments by steps keeps each fit within
+// the basin of the previous one, which is what multiple shooting's free start states buy.
+//
+// The held-out blocks stay out of the loss: a chain passes through them unobserved (weight 0),
+// the map carrying the state across, and each position of a training block keeps its block as
+// its cluster for the sandwich interval.
+#pragma once
+
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/core/types.hpp"
+#include "csympnet/data/dataset.hpp"
+#include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/shooting.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet::detail {
+
+// Per normalised trajectory: which positions are training positions, and their block.
+struct RecordLayout {
+  std::vector<Vector> observed;           // per trajectory: 1 at a training position, else 0
+  std::vector<std::vector<Index>> block;  // per trajectory: each position's training block
+  double gap = 0.0;                       // a step above this breaks a chain (3 × the median)
+};
+RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& split);
+
+// Segments over the stretches of the record, each holding at least `per_piece` training
+// positions (a shorter rest joins the one before), starts read from `states` (per trajectory,
+// 2d × n: the current estimate of the state at every sample).
+struct Chain {
+  ShootingSegments segs;
+  Matrix z0;
+  std::vector<std::pair<Index, Index>> span;  // per segment: trajectory, first sample
+  Index longest_stretch = 0;                  // training positions in the longest stretch
+};
+Chain cut_chain(const std::vector<Trajectory>& nt, const RecordLayout& layout, Index per_piece,
+                const std::vector<Matrix>& states);
+
+// The fitted rollouts of the chain's segments written into `states`.
+void write_chain_states(const OneStepMap& map, ConstParams theta, const Chain& c,
+                        std::vector<Matrix>& states);
+
+struct LinkedFit {
+  Chain chain;               // the segments of the last accepted stage
+  ShootingReport report;     // its fit
+  bool linked_fully = false; // one segment per stretch
+  nlohmann::json record;     // what was tried and why it stopped
+};
+
+// From the segment fit (θ, `states` from its rollouts, the held-out segments and their starts),
+// segments grown fourfold per stage up to whole stretches. A stage is kept while its training
+// loss, corrected for the unknowns fitted (θ's n_free and 2d per segment), stays within three
+// standard errors of the previous stage's: a model that cannot follow the positions over the
+// longer segments stops the linking there, and the report says so. θ, `states` and `val_z0`
+// are those of the last kept stage.
+LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<Trajectory>& nt,
+                        const RecordLayout& layout, Index first_length,
+                        std::vector<Matrix>& states, const ShootingSegments& val, Matrix& val_z0,
+                        const ShootingOptions& options, const ShootingReport& segment_fit);
+
+}  // namespace csympnet::detail

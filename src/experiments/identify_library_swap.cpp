@@ -1,0 +1,135 @@
+// Parsimony on what was observed: a sin/cos or exp group of the library core replaced by the
+// powers of the same argument (identify_positions.cpp compares the two on the positions).
+#include <algorithm>
+
+#include <Eigen/QR>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet::detail {
+
+namespace {
+
+bool same_argument(const LibraryTerm& a, const LibraryTerm& b) {
+  return (a.i == b.i && a.j == b.j) || (a.j >= 0 && a.i == b.j && a.j == b.i);
+}
+
+LibraryTerm power_of(const LibraryTerm& arg, int n) {
+  LibraryTerm t;
+  t.i = arg.i;
+  t.j = arg.j;
+  t.shape = TermShape::kPower;
+  t.power = n;
+  return t;
+}
+
+}  // namespace
+
+std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib, Index d,
+                                                           const Matrix& q) {
+  std::vector<PolynomialAlternative> out;
+  const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
+  if (map == nullptr || q.cols() < 8) return out;
+  const std::vector<LibraryTerm>& terms = map->terms();
+  const Vector& scales = map->coordinate_scales();
+  std::vector<bool> done(terms.size(), false);
+  for (std::size_t g = 0; g < terms.size(); ++g) {
+    if (done[g] || terms[g].shape == TermShape::kPower) continue;
+    // The group: every sin/cos of this argument, or this exp alone.
+    std::vector<std::size_t> group;
+    for (std::size_t k = 0; k < terms.size(); ++k)
+      if (!done[k] && terms[k].shape != TermShape::kPower && same_argument(terms[k], terms[g]) &&
+          (terms[g].shape == TermShape::kExp ? k == g : terms[k].shape != TermShape::kExp))
+        group.push_back(k);
+    for (std::size_t k : group) done[k] = true;
+    const LibraryTerm& arg = terms[g];
+    // The new terms: the others, then the powers of the argument (a difference's linear part
+    // goes to its two coordinates' linear terms).
+    std::vector<LibraryTerm> next;
+    for (std::size_t k = 0; k < terms.size(); ++k)
+      if (std::find(group.begin(), group.end(), k) == group.end()) next.push_back(terms[k]);
+    const auto ensure = [&next](const LibraryTerm& t) {
+      if (std::find(next.begin(), next.end(), t) == next.end()) next.push_back(t);
+    };
+    const LibraryTerm base = power_of(arg, 1);
+    const bool difference = arg.j >= 0;
+    if (difference) {
+      LibraryTerm a = power_of(arg, 1), b = power_of(arg, 1);
+      a.j = -1;
+      b.i = arg.j;
+      b.j = -1;
+      ensure(a);
+      ensure(b);
+    }
+    for (int n = difference ? 2 : 1; n <= 4; ++n) ensure(power_of(base, n));
+    // The group's potential as a polynomial of degree 4 in its argument, by least squares over
+    // the positions' arguments: the new coefficients' start.
+    const Index n = q.cols();
+    Matrix x(n, 4);
+    Vector y = Vector::Zero(n);
+    for (Index s = 0; s < n; ++s) {
+      const double u = difference ? scales(arg.i) * q(arg.i, s) - scales(arg.j) * q(arg.j, s)
+                                  : q(arg.i, s);
+      for (int p = 1; p <= 4; ++p) x(s, p - 1) = std::pow(u, p);
+      for (std::size_t k : group) {
+        const Index ki = static_cast<Index>(k);
+        const double kappa = lib.theta(map->wavenumber_index(ki));
+        const double uk = difference && terms[k].i != arg.i ? -u : u;
+        y(s) += lib.theta(map->coefficient_index(ki)) * term_values(terms[k], uk, kappa).phi;
+      }
+    }
+    // Centred columns: the constant is no term.
+    const Vector ones = Vector::Ones(n);
+    const Matrix xc = x.rowwise() - x.colwise().mean();
+    const Vector poly = xc.colPivHouseholderQr().solve(y - ones * y.mean());
+    if (!poly.allFinite()) continue;
+    nlohmann::json core = lib.core;
+    core["terms"] = nlohmann::json::array();
+    for (const LibraryTerm& t : next) core["terms"].push_back(term_name(t));
+    PolynomialAlternative alt;
+    alt.replaced = "";
+    for (std::size_t k : group) alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
+    for (const LibraryTerm& t : next)
+      if (std::find(terms.begin(), terms.end(), t) == terms.end())
+        alt.by += (alt.by.empty() ? "" : ", ") + term_name(t);
+    Candidate& c = alt.candidate;
+    c.core = core;
+    c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", core}, {"beta_init", 0.1}});
+    const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
+    require(nm != nullptr, "library: the alternative is not a library map");
+    c.theta = Vector::Zero(c.inner.n_params());
+    c.theta.head(nm->mass_size()) = lib.theta.head(map->mass_size());
+    c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+    const auto index_of = [&](const LibraryTerm& t) {
+      return static_cast<Index>(std::find(next.begin(), next.end(), t) - next.begin());
+    };
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+      if (std::find(group.begin(), group.end(), k) != group.end()) continue;
+      const Index to = index_of(terms[k]);
+      c.theta(nm->coefficient_index(to)) = lib.theta(map->coefficient_index(static_cast<Index>(k)));
+      if (nm->wavenumber_index(to) >= 0)
+        c.theta(nm->wavenumber_index(to)) =
+            lib.theta(map->wavenumber_index(static_cast<Index>(k)));
+    }
+    for (int p = 1; p <= 4; ++p) {
+      if (difference && p == 1) {
+        LibraryTerm a = base, b = base;
+        a.j = -1;
+        b.i = arg.j;
+        b.j = -1;
+        c.theta(nm->coefficient_index(index_of(a))) += poly(0) * scales(arg.i);
+        c.theta(nm->coefficient_index(index_of(b))) -= poly(0) * scales(arg.j);
+        continue;
+      }
+      c.theta(nm->coefficient_index(index_of(power_of(base, p)))) += poly(p - 1);
+    }
+    c.training = lib.training;
+    c.pretrained = true;
+    out.push_back(std::move(alt));
+  }
+  return out;
+}
+
+}  // namespace csympnet::detail

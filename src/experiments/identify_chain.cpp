@@ -173,7 +173,7 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     Vector th = theta;
     Matrix vz = val_z0;
     const auto t0 = std::chrono::steady_clock::now();
-    const ShootingReport rep = fit_shooting(map, th, c.z0, c.segs, vz, val, options);
+    const ShootingReport rep = fit_shooting(map, th, c.z0, c.segs, vz, val, watching_damping(map, options));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     n = c.segs.n_residuals();

@@ -16,6 +16,7 @@
 // its cluster for the sandwich interval.
 #pragma once
 
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -28,6 +29,16 @@
 #include "identify_stages.hpp"
 
 namespace csympnet::detail {
+
+// Every positions fit of the identification ends once the damping rate has stopped moving
+// (ShootingOptions::watch_index): three near-Gauss–Newton steps in a row each move it by less
+// than this share of its standard error.
+inline constexpr double kDampingConvergedSe = 0.01;
+// `options` watching this map's damping parameter (unchanged for a map without one).
+inline ShootingOptions watching_damping(const OneStepMap& map, ShootingOptions options) {
+  if (const std::optional<Index> b = map.damping_param_index()) options.watch_index = *b;
+  return options;
+}
 
 // Per normalised trajectory: which positions are training positions, and their block.
 struct RecordLayout {

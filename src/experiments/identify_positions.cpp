@@ -387,7 +387,7 @@ SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& t
   fit_start_states(map, out.theta, out.train.segs, out.train.z0, 30, true, kMaxAbsState);
   fit_start_states(map, out.theta, out.val.segs, out.val.z0, 30, true, kMaxAbsState);
   out.rep = fit_shooting(map, out.theta, out.train.z0, out.train.segs, out.val.z0, out.val.segs,
-                         opt);
+                         detail::watching_damping(map, opt));
   return out;
 }
 
@@ -556,6 +556,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   opt.max_abs_state = kMaxAbsState;
   opt.should_stop = stop;
   opt.converged_chi2 = 1e-3;
+  opt.converged_se = detail::kDampingConvergedSe;
   SegmentFit seg;
   const bool choosing = r.config.init == nullptr && f.cand.size() > 1;
   if (choosing) {

@@ -441,7 +441,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
   const auto standard_error = [n_val](double loss) { return loss * std::sqrt(2.0 / n_val); };
   double best_val = kept.back().val;
   double lambda = 1e-4, nu = 2.0;
-  long since_best = 0, small_steps = 0;
+  long since_best = 0, small_steps = 0, watch_steps = 0;
   std::vector<SegmentTerms> terms;
   NormalEquations ne;
   bool fresh = false;
@@ -472,6 +472,17 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       continue;
     }
     lapack::cholesky_solve(a.data(), n_free, step.data());
+    // The watched parameter's variance, loss · [A⁻¹]_bb / n (A = JᵀJ / n at this λ).
+    double watch_se = 0.0;
+    const Index b = options.watch_index;
+    if (b >= 0 && b < n_free && options.converged_se > 0.0) {
+      Vector e = Vector::Zero(n_free);
+      e(b) = 1.0;
+      lapack::cholesky_solve(a.data(), n_free, e.data());
+      watch_se = std::sqrt(std::max(0.0, loss * e(b) /
+                                              static_cast<double>(train.n_residuals())));
+      rep.watch_se = watch_se;
+    }
     // A step ten times the size of θ is a run along a direction the positions do not fix.
     if (!step.allFinite() || step.norm() > 10.0 * (1.0 + theta.head(n_free).norm())) {
       lambda *= 4.0;
@@ -514,6 +525,12 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     const double n_train = static_cast<double>(train.n_residuals());
     const bool small = (loss - loss_try) <= 1e-10 * loss ||
                        n_train * (loss - loss_try) <= options.converged_chi2 * loss_try;
+    // Counted only for a step near Gauss–Newton's (λ small) that lowers χ² by less than 1: a
+    // heavily damped step is small in every direction, and a larger fall of χ² still moves θ.
+    const bool watch_small = watch_se > 0.0 && lambda <= 1e-2 &&
+                             n_train * (loss - loss_try) <= loss_try &&
+                             std::abs(step(b)) <= options.converged_se * watch_se;
+    watch_steps = watch_small ? watch_steps + 1 : 0;
     small_steps = small ? small_steps + 1 : 0;
     theta = std::move(theta_try);
     z0 = std::move(z0_try);
@@ -532,6 +549,12 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     } else if (++since_best >= options.patience) {
       rep.message = "the held-out loss stayed more than its standard error above the lowest for " +
                     std::to_string(options.patience) + " steps";
+      break;
+    }
+    if (watch_steps >= 3) {
+      rep.watch_converged = true;
+      rep.message = "converged: three steps in a row each moved the damping parameter by less "
+                    "than " + std::to_string(options.converged_se) + " of its standard error";
       break;
     }
     if (small_steps >= 3) {

@@ -315,6 +315,79 @@ INSTANTIATE_TEST_SUITE_P(
         R"({"type":"csympnet","d":2,"core":{"type":"g","layers":3,"width":5}})",
         R"({"type":"csympnet","d":2,"dof_scales":"learned","core":{"type":"la","layers":2,"sublayers":3}})"));
 
+// The damping parameter's convergence rule (ShootingOptions::watch_index): on noisy positions
+// the watched fit ends earlier than one run to the loss's own convergence, at a damping
+// parameter within a tenth of its standard error of that one; and the standard error it uses
+// matches the spread of the estimate over noise draws (within the sampling error of 24 draws).
+TEST(Shooting, DampingWatchEndsOnceTheDampingStopsMoving) {
+  const auto map = make_one_step_map(nlohmann::json::parse(
+      R"({"type":"csympnet","d":1,"core":{"type":"library","terms":["q1^2","q1^4"]}})"));
+  const Index b = *map->damping_param_index();
+  Rng rng(41, "damping-watch");
+  // θ = (W, c of q1^2, c of q1^4, β): W = 1, c = ½ and 0.05 (a hardening spring), γ = 0.1.
+  Vector truth(map->n_params());
+  map->init_params(rng, truth);
+  ASSERT_EQ(truth.size(), 4);
+  truth(2) = 0.05;
+  truth(b) = 0.1;
+  const int count = 10;
+  Matrix z_true(2, count);
+  std::vector<Matrix> clean;
+  for (int k = 0; k < count; ++k) {
+    z_true.col(k) = rng.normal_matrix(2, 1, 0.6);
+    clean.push_back(shooting_states(*map, truth, z_true.col(k), Vector::Constant(21, 0.1))
+                        .topRows(1));
+  }
+  const double sigma = 0.01;
+  std::vector<double> estimates, ses;
+  long watched_iterations = 0, full_iterations = 0;
+  int ended_by_watch = 0;
+  for (int draw = 0; draw < 24; ++draw) {
+    ShootingSegments train, val;
+    train.d = val.d = 1;
+    for (int k = 0; k < count; ++k) {
+      ShootingSegments& s = k < count - 2 ? train : val;
+      s.q.push_back(clean[static_cast<std::size_t>(k)] + rng.normal_matrix(1, 22, sigma));
+      s.h.push_back(Vector::Constant(21, 0.1));
+      s.block.push_back(k % 4);
+    }
+    ShootingOptions opt;
+    opt.iterations = 300;
+    opt.patience = 300;
+    opt.converged_se = 0.01;
+    opt.watch_index = b;
+    Vector theta_w = truth;
+    Matrix zt = z_true.leftCols(count - 2), zv = z_true.rightCols(2);
+    const ShootingReport watched = fit_shooting(*map, theta_w, zt, train, zv, val, opt);
+    opt.watch_index = -1;
+    Vector theta_f = truth;
+    zt = z_true.leftCols(count - 2);
+    zv = z_true.rightCols(2);
+    const ShootingReport full = fit_shooting(*map, theta_f, zt, train, zv, val, opt);
+    ASSERT_GT(watched.watch_se, 0.0);
+    if (watched.watch_converged) {
+      ++ended_by_watch;
+      EXPECT_LE(std::abs(theta_w(b) - theta_f(b)), 0.1 * watched.watch_se)
+          << watched.message << " / " << full.message;
+    }
+    watched_iterations += watched.iterations;
+    full_iterations += full.iterations;
+    estimates.push_back(theta_f(b));
+    ses.push_back(watched.watch_se);
+  }
+  EXPECT_GE(ended_by_watch, 12);
+  EXPECT_LT(watched_iterations, full_iterations);
+  std::printf("watched fits: %d of 24 ended by the rule, %ld iterations against %ld\n",
+              ended_by_watch, watched_iterations, full_iterations);
+  double mean = 0.0, var = 0.0, se = 0.0;
+  for (double e : estimates) mean += e / 24.0;
+  for (double e : estimates) var += (e - mean) * (e - mean) / 23.0;
+  for (double s : ses) se += s / 24.0;
+  // The sample sd of 24 draws is within a factor 1.5 of the true sd with probability > 0.99.
+  EXPECT_GT(std::sqrt(var), se / 1.5);
+  EXPECT_LT(std::sqrt(var), se * 1.5);
+}
+
 TEST(Shooting, RefusesMalformedSegments) {
   ShootingSegments s;
   s.d = 1;

@@ -117,6 +117,13 @@ struct ShootingOptions {
   // steps in a row end the fit. 1e-3 moves θ by about 0.03 of its standard error per step; the
   // default 0 keeps only the rule below (a change under 1e-10 of the loss itself).
   double converged_chi2 = 0.0;
+  // Convergence of the one parameter asked about (the damping rate's): three accepted steps in
+  // a row, each near Gauss–Newton's (λ ≤ 1e-2), lowering χ² by less than 1 and moving
+  // θ[watch_index] by less than converged_se of its standard error (the Gauss–Newton one,
+  // σ̂² [A⁻¹], the start states eliminated), end the fit. A fit that creeps along a direction
+  // the positions barely fix then ends once γ has stopped moving; −1: not used.
+  Index watch_index = -1;
+  double converged_se = 0.0;
 };
 
 struct ShootingReport {
@@ -126,6 +133,8 @@ struct ShootingReport {
   double initial_loss = 0.0, final_loss = 0.0;  // training, at the start and at the best iterate
   double val_loss = 0.0;                        // at the best iterate
   bool stopped = false;
+  bool watch_converged = false;  // ended by ShootingOptions::watch_index's rule
+  double watch_se = 0.0;          // that parameter's standard error at the last step (0: none)
   std::string message;
 };
 

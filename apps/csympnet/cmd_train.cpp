@@ -21,6 +21,7 @@
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/train/loss.hpp"
+#include "fit_figure.hpp"
 #include "identify_summary.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
@@ -53,6 +54,7 @@ struct FitArgs {
   std::string init;       // --init FILE: a model file to start from (IdentifyConfig::init)
   std::string time_unit;  // --time-unit: the clock's unit, for the report only (time_unit.hpp)
   bool no_normalize = false;
+  bool no_figures = false;  // --no-figures: no OUT/fit.png, OUT/fit.pdf (fit_figure.hpp)
   double level = 0.95;
 };
 
@@ -279,6 +281,19 @@ void run_fit(const FitArgs& a, bool verbose_summary) {
 }
 // `fit` with the identification recipe.
 namespace fs = std::filesystem;
+
+// The figure of a committed fit (OUT/fit.png, OUT/fit.pdf), or why there is none: the
+// figure reads the record again, so it needs a file, not standard input or a pipe, and a
+// record, not pairs.
+FigureOutcome figure_of(const FitArgs& a, bool pairs_only) {
+  std::error_code ec;
+  if (pairs_only) return {false, a.data + " holds pairs, not a record to simulate"};
+  if (a.data == "-" || !fs::is_regular_file(a.data, ec))
+    return {false,
+            "the data were read from standard input or a pipe; `python3 -m "
+            "csympnet.fit_figure OUT --data FILE` draws it from a copy"};
+  return draw_fit_figure(a.out);
+}
 void run_identify(const FitArgs& a, const CLI::App& cmd) {
   for (const char* only_train : {"--chunk-pairs", "--batch-size"})
     if (cmd.count(only_train) > 0)
@@ -413,6 +428,11 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
           }
           return meta;
         }())}});
+  // A figure of an earlier fit in this directory would not show this one.
+  for (const char* name : kFitFigureFiles) {
+    std::error_code ec;
+    fs::remove(fs::path(a.out) / name, ec);
+  }
   if (r.identified) {
     print_gamma(r, unit);
     print_modes(r, unit);
@@ -420,7 +440,25 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }
   print_checks(r.checks, a.quiet);
-  if (!a.quiet) print_identify_details(r, a.out);
+  bool figure = false;
+  if (!a.no_figures && !r.stopped && !interrupted()) {
+    std::fflush(stdout);  // the answer first, while the figure is drawn
+    const FigureOutcome f = figure_of(a, pairs_only);
+    figure = f.drawn;
+    if (interrupted()) {
+      for (const char* name : kFitFigureFiles) {  // no half set of figures
+        std::error_code ec;
+        fs::remove(fs::path(a.out) / name, ec);
+      }
+      throw Interrupted(
+          "stopped while drawing the figure; report.json and model.json are "
+          "complete in " +
+          a.out);
+    }
+    if (!f.drawn)
+      std::fprintf(stderr, "fit: figure not drawn: %s (--no-figures skips it)\n", f.why.c_str());
+  }
+  if (!a.quiet) print_identify_details(r, a.out, figure);
   if (r.stopped)
     throw Interrupted("stopped; the best parameters so far and their report are in " + a.out);
   if (!r.identified) {
@@ -476,7 +514,7 @@ void group_fit_options(CLI::App& cmd) {
        {"--recipe", "--model", "--val", "--lr-schedule", "--val-every", "--beta-init",
         "--no-beta-decay", "--warm-start", "--no-warm-start", "--refine", "--refine-iterations",
         "--refine-solver", "--bootstrap", "--chunk-pairs", "--batch-size"}},
-      {"Output", {"--out", "--force", "--quiet"}},
+      {"Output", {"--out", "--force", "--quiet", "--no-figures"}},
   };
   for (CLI::Option* o : cmd.get_options())
     for (const auto& [group, names] : groups)
@@ -535,6 +573,10 @@ void add_fit(CLI::App& app) {
       ->check(kExistingFile);
   cmd->add_option("--val", a->val, "Validation CSV (default: a split of DATA)")
       ->check(kExistingFile);
+  cmd->add_flag("--no-figures", a->no_figures,
+                "Draw no figure. By default the identification draws OUT/fit.png and "
+                "OUT/fit.pdf (python3 with matplotlib): the record against the model's free "
+                "run, the residuals, the amplitude decay with gamma_hat, the modes");
   group_fit_options(*cmd);
   CLI::App* self = cmd;
   cmd->callback([a, self] {

@@ -60,7 +60,7 @@ void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
         r.hamiltonian.value("potential", std::string()).c_str());
 }
 
-void print_identify_details(const IdentifyResult& r, const std::string& out) {
+void print_identify_details(const IdentifyResult& r, const std::string& out, bool figure) {
   std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
               static_cast<long long>(r.model.dim() / 2), static_cast<long long>(r.model.n_params()),
               r.config.window, r.config.core.dump().c_str());
@@ -79,7 +79,8 @@ void print_identify_details(const IdentifyResult& r, const std::string& out) {
       "max %.2e\n",
       r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
       r.quality.val_relative_residual, r.quality.structure_residual_max);
-  std::printf("wrote %s/{report.json,model.json,timings.json}\n", out.c_str());
+  std::printf("wrote %s/{report.json,model.json,timings.json%s}\n", out.c_str(),
+              figure ? ",fit.png,fit.pdf" : "");
 }
 
 }  // namespace csympnet::cli

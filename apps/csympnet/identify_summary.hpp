@@ -21,7 +21,8 @@ void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit);
 void print_checks(const std::vector<ModelCheck>& checks, bool quiet);
 // The modes of an identified fit, one line each (report.json "modes" has them in every case).
 void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit);
-// What `fit` prints beyond γ̂ and the checks unless -q: the model, the budgets, the quality.
-void print_identify_details(const IdentifyResult& r, const std::string& out);
+// What `fit` prints beyond γ̂ and the checks unless -q: the model, the budgets, the quality,
+// and the files written (the figure's when it was drawn).
+void print_identify_details(const IdentifyResult& r, const std::string& out, bool figure);
 
 }  // namespace csympnet::cli

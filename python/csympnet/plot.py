@@ -19,7 +19,8 @@ model, then the others in the order given.
 
 Functions (signatures in docs/python.md): phase_portrait, trajectory, accumulated_error, energy,
 rollout_figure, accumulated_errors, bars, error_vs_noise, lambda_vs_noise, noise_labels,
-summarize, save.
+summarize, save; fit_figure (the figure of a `csympnet fit` output directory, which alone
+needs the compiled module, for the model's rollouts).
 """
 
 import math
@@ -494,21 +495,38 @@ def energy(t, energies, reference=None, *, log=None, highlight=None, units=None,
         return _finish(_style(ax, size), path)
 
 
+def _positions_reference(reference, d):
+    """The reference as (n+1, 2d) states and whether it holds positions alone: a (n+1, d)
+    array of q columns (d from the predictions), or states whose momenta are all NaN."""
+    r = np.asarray(reference, dtype=float)
+    if r.ndim == 2 and d is not None and r.shape[1] == d and r.shape[1] != 2 * d:
+        return np.hstack([r, np.full_like(r, np.nan)]), True
+    r = _states("reference", r)
+    half = r.shape[1] // 2
+    return r, bool(r.shape[0]) and bool(np.all(np.isnan(r[:, half:])))
+
+
 def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None, coord=0,
                    highlight=None, units=None, size="page", ncols=None, path=None, title=None,
                    caption=None):
     """The paper's rollout figure: phase portrait (q_i, p_i), q_i(t), accumulated error and,
     when `energies` ({label: (n+1,)}) is given, energy, with one legend for all panels.
 
+    reference: states (n+1, 2d), or positions alone: (n+1, d) q columns, or states whose
+    momenta are all NaN (a record without momenta). Then the phase portrait is left out and
+    the accumulated error compares the positions only.
+
     title: a heading above the panels. caption: a sentence set below the figure, in the text's
     size and weight, as a paper's caption ("Table 2, S1: rollouts from the first test
     trajectory.").
 
-    The panels wrap onto rows of `ncols` (default: all four in one row for size="page", two
+    The panels wrap onto rows of `ncols` (default: four in one row for size="page", two
     per row for "column"); the legend takes a free cell of the grid or a row below it."""
     preds = _predictions(predictions)
     featured = _featured(preds, highlight)
-    panels = 4 if energies is not None else 3
+    d = next(iter(preds.values())).shape[1] // 2 if preds else None
+    reference, positions_only = _positions_reference(reference, d)
+    panels = (4 if energies is not None else 3) - positions_only
     if ncols is None:
         ncols = 2 if _preset(size)[0] < 5.0 else 4
     width, _, p = _preset(size)
@@ -521,9 +539,20 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
                                        entries=len(preds) + 1, caption_h=caption_h)
         common = {"highlight": featured if featured is not None else False, "units": units,
                   "size": size}
-        phase_portrait(preds, reference, coord=coord, ax=axes[0], **common)
-        trajectory(t, preds, reference, coord=coord, ax=axes[1], **common)
-        accumulated_error(t, preds, reference, ax=axes[2], **common)
+        if positions_only:
+            axes = [None] + axes
+            half = reference.shape[1] // 2
+            # The error of the positions: the momenta set to zero on both sides.
+            zero = {k: np.hstack([z[:, :half], np.zeros_like(z[:, half:])])
+                    for k, z in preds.items()}
+            error_ref = np.hstack([reference[:, :half], np.zeros_like(reference[:, half:])])
+            trajectory(t, preds, reference, coord=coord, ax=axes[1], **common)
+            accumulated_error(t, zero, error_ref, ax=axes[2], **common)
+            axes[2].set_title("Accumulated error (positions)")
+        else:
+            phase_portrait(preds, reference, coord=coord, ax=axes[0], **common)
+            trajectory(t, preds, reference, coord=coord, ax=axes[1], **common)
+            accumulated_error(t, preds, reference, ax=axes[2], **common)
         if energies is not None:
             energy(t, energies, energy_ref, ax=axes[3],
                    **{**common, "highlight": featured if featured in energies else False})
@@ -533,7 +562,7 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
         # has every entry (the reference included).
         items = _legend_order(_entries(axes[1], preds), featured)
         for ax in axes:
-            if ax.get_legend() is not None:
+            if ax is not None and ax.get_legend() is not None:
                 ax.get_legend().remove()
         _put_legend(legend_ax, [h for _, h in items], [lab for lab, _ in items], size,
                     inside=False)
@@ -543,6 +572,24 @@ def rollout_figure(t, predictions, reference, *, energies=None, energy_ref=None,
             fig.caption_ax.text(0.0, 1.0, caption, ha="left", va="top", wrap=True,
                                 fontsize=p["small"], transform=fig.caption_ax.transAxes)
         return _finish(fig, path)
+
+
+def fit_figure(out_dir, data=None, path=None, *, model=None, size="page"):
+    """The figure of a `csympnet fit` output directory (`fit` draws it as OUT/fit.png and
+    OUT/fit.pdf): each dof's positions, record against the model's free run over the record's
+    own sample times, from its first state (or, for positions alone, from the state fitted to
+    the first window of positions); the residuals; the amplitude per half-cycle beside
+    A0 exp(-gamma_hat t / 2) (gamma_hat is the energy's decay rate, so amplitudes decay at
+    gamma_hat / 2); the modes with their intervals. Up to three dofs one panel each, then a
+    summary of every dof's free-run error; of several trajectories the longest.
+
+    data: the record (default: report.json's data file, read with its --columns map);
+    model: a loaded Model (default: out_dir's model.json); path: save as PATH.png and
+    PATH.pdf. Needs the compiled module for the model's rollouts (this module alone does
+    not). Returns the Figure."""
+    from csympnet.fit_figure import draw  # the package: the rollouts are the library's
+
+    return draw(out_dir, data, path, model=model, size=size)
 
 
 def summarize(samples):

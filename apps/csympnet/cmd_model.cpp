@@ -14,6 +14,7 @@
 #include "csympnet/data/csv.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/diagnostics/observed.hpp"
+#include "csympnet/diagnostics/positions_score.hpp"
 #include "csympnet/experiments/outputs.hpp"
 #include "csympnet/experiments/run.hpp"
 #include "csympnet/io/files.hpp"
@@ -30,6 +31,7 @@ namespace {
 struct EvaluateArgs {
   std::string model, preset, data, out, columns;
   std::optional<double> h_test;
+  std::optional<long> warmup;
   bool force = false;
   SystemOverrides system;
 };
@@ -69,9 +71,19 @@ void add_evaluate(CLI::App& app) {
   cmd->add_option("--data", a->data,
                   "Observed trajectories CSV: the model is rolled out on them and scored "
                   "(one-step and rollout errors, no system needed); with a system, also the "
-                  "test set of its diagnostics (default: the preset's test set)")
+                  "test set of its diagnostics (default: the preset's test set). A file of "
+                  "positions alone ('[traj,]t,q1..qd') is scored from a state fitted to a "
+                  "warm-up window (--warmup), under \"positions\"")
       ->check(kExistingFile);
   add_columns_option(*cmd, a->columns);
+  cmd->add_option("--warmup", a->warmup,
+                  "With a positions file: the first N samples of each trajectory, to which the "
+                  "start state is fitted and which are left out of the score (default: a tenth "
+                  "of the samples, at least " +
+                      std::to_string(kWarmupDefaultMin) + " and at most " +
+                      std::to_string(kWarmupDefaultMax) + ")")
+      ->check(kWholeNumber)
+      ->check(library_range(kWarmupRange));
   cmd->add_option("--h-test", a->h_test, "Step of the Jacobian diagnostics (default 0.2)")
       ->check(kFiniteNumber)
       ->check(kStep);
@@ -123,10 +135,32 @@ void add_evaluate(CLI::App& app) {
                " does not match the system's " + std::to_string(sys->dim());
       });
     }
+    require(!a->warmup || !a->data.empty(), [&] {
+      return std::string(
+          "--warmup is the warm-up window of a positions file; expected --data POSITIONS.csv "
+          "with it");
+    });
     std::vector<Trajectory> tests;
-    if (!a->data.empty()) {
-      const CsvInput input = read_csv_input(a->data, parse_column_map(a->columns));
-      tests = parse_trajectories_csv(input.text, input.name);
+    std::vector<Trajectory> positions;  // a positions file: d × n per trajectory
+    std::optional<CsvInput> input;
+    if (!a->data.empty()) input = read_csv_input(a->data, parse_column_map(a->columns));
+    const bool positions_data = input && input->kind == CsvKind::kPositions;
+    require(!a->warmup || positions_data, [&] {
+      return "--warmup is the warm-up window of a positions file, and " + a->data +
+             " holds states (their rollouts start from the first observed state); expected "
+             "--warmup only with a positions file '[traj,]t,q1..qd'";
+    });
+    if (positions_data) {
+      positions = parse_positions_csv(std::move(input->text), input->name);
+      // A known system is diagnosed on its own test set (the preset's) when there is one.
+      if (!a->preset.empty()) {
+        Rng rng(c->test_seed, "test-trajectories");
+        tests = generate_test_set(*sys, c->preset.n_test, c->preset.h_test, c->preset.horizon, rng,
+                                  c->reference)
+                    .trajectories;
+      }
+    } else if (input) {
+      tests = parse_trajectories_csv(std::move(input->text), input->name);
       // Reading accepts single-point trajectories (they are valid data); a rollout needs two.
       for (std::size_t k = 0; k < tests.size(); ++k) {
         require(tests[k].z.rows() == saved.model.dim(), [&] {
@@ -157,19 +191,31 @@ void add_evaluate(CLI::App& app) {
                                 c->reference)
                   .trajectories;
     }
+    // The positions first: a refusal (a short trajectory, a window the model does not explain)
+    // comes before any diagnostics of a test set.
+    nlohmann::json positions_score;
+    if (positions_data) {
+      PositionsScoreOptions opt;
+      opt.warmup = a->warmup;
+      opt.where = input->name;
+      positions_score = score_positions(saved.model, saved.theta, positions, opt);
+    }
     const LearnedMap map = learned_map(saved.model, saved.theta);
     nlohmann::json rep;
-    if (sys) {
+    if (sys && !tests.empty()) {
       rep = evaluate(map, *sys, tests, c->preset.h_test);
       rep["gamma_true"] = sys->gamma();
       rep["system"] = c->preset.system;
       rep["h_test"] = c->preset.h_test;
     } else {
       rep["gamma_hat"] = map.gamma_hat ? nlohmann::json(*map.gamma_hat) : nlohmann::json(nullptr);
-      rep["gamma_true"] = nullptr;  // no system given: nothing is assumed about it
-      rep["system"] = nullptr;
+      rep["gamma_true"] = sys ? nlohmann::json(sys->gamma()) : nlohmann::json(nullptr);
+      rep["system"] = sys ? nlohmann::json(c->preset.system) : nlohmann::json(nullptr);
     }
-    if (!a->data.empty()) {
+    if (positions_data) {
+      rep["positions"] = std::move(positions_score);
+      rep["data"] = a->data;
+    } else if (!a->data.empty()) {
       try {
         rep["observed"] = score_observed(map, tests);
       } catch (const Error& e) {
@@ -180,7 +226,8 @@ void add_evaluate(CLI::App& app) {
     rep["model_file"] = a->model;
     rep["model"] = saved.model.type();
     rep["params"] = saved.model.n_params();
-    rep["test_trajectories"] = tests.size();
+    // The trajectories rolled out: the system's test set, else the positions scored.
+    rep["test_trajectories"] = tests.empty() ? positions.size() : tests.size();
     if (out_dir) out_dir->commit({{"report.json", json_file_text(rep)}});
     std::cout << rep.dump(2) << "\n";
   });

@@ -183,9 +183,10 @@ class Model:
         out = {"R": r, "lambda_hat": lam, "structure_residual": s}
         return {k: v[0] for k, v in out.items()} if single else out
 
-    def score(self, z, t, traj=None):
+    def score(self, z, t, traj=None, *, observed=None, warmup=None):
         """Scores the model against observed trajectories, with no system needed (what
-        `csympnet evaluate --model M --data traj.csv` reports under "observed").
+        `csympnet evaluate --model M --data traj.csv` reports under "observed", or under
+        "positions" for a record of positions alone).
 
         z, t, traj: trajectories in the forms `identify` and `fit_trajectories` take (z (M, 2d)
         with t (M,); rows labelled by traj; z (K, M, 2d); lists of arrays), in the model's units.
@@ -196,11 +197,48 @@ class Model:
         spread), rollout_finite, structure_residual_mean/max (exactness at the observed states),
         gamma_hat, per_trajectory (a list of dicts), and "rollouts" (arrays (n+1, 2d)).
         Definitions: include/csympnet/diagnostics/observed.hpp.
+
+        observed: "states" or "positions"; not given, z with d columns (or (M,) for d = 1) is
+        positions and z with 2d columns is states (the model's d tells them apart).
+
+        observed="positions": z holds positions alone, (M, d) in the same forms (a csympnet
+        model, as `fit` writes it). For each trajectory the state at sample warmup − 1 is fitted
+        to its first `warmup` positions (as `state_from_positions`, which refuses a window with a
+        gap or one the model does not explain), the map is rolled out from there one step per
+        sample interval, and the positions after the warm-up are scored. warmup: samples, at
+        least 3; default a tenth of each trajectory's samples, at least 10 and at most 80; a
+        trajectory not longer than its warm-up is refused. Returns the dict `csympnet evaluate`
+        reports under "positions", to the bit: trajectories, warmup (None for the default),
+        samples_scored, rmse and rmse_per_coordinate (in the data's units), spread and
+        spread_per_coordinate (of the scored positions about each trajectory's mean), nrmse
+        (rmse / spread), rollout_finite, per_trajectory (samples, warmup, scored, t_start,
+        state_fit_rms, rmse, rmse_per_coordinate, spread, rollout_finite), and "rollouts"
+        (arrays (n − warmup + 1, 2d): the fitted state at t_start, then the forecast at each
+        scored sample). Definitions: include/csympnet/diagnostics/positions_score.hpp.
         """
         from ._fit import _as_trajectories  # _fit imports this module
+        from ._identify import OBSERVED, _padded_positions
 
-        data = trajectory_list(_as_trajectories(t, z, traj), "data", dim=2 * self.d)
-        scores, rollouts = self._m.score(data)
+        if observed is None:
+            first = z[0] if isinstance(z, (list, tuple)) and len(z) else z
+            width = 1 if np.ndim(first) == 1 else np.shape(first)[-1] if np.ndim(first) else None
+            observed = "positions" if width == self.d and width != 2 * self.d else "states"
+        else:
+            _checks.choice("observed", observed, OBSERVED)
+        if observed == "states":
+            if warmup is not None:
+                raise ValueError('warmup: the warm-up window of positions alone; with states the '
+                                 'rollout starts from the first observed state (expected '
+                                 'observed="positions" with warmup=)')
+            data = trajectory_list(_as_trajectories(t, z, traj), "data", dim=2 * self.d)
+            scores, rollouts = self._m.score(data)
+        else:
+            if warmup is not None:
+                warmup = _checks.integer("warmup", warmup)
+            padded = trajectory_list(_as_trajectories(t, _padded_positions(z), traj), "data",
+                                     dim=2 * self.d)
+            data = [(tr.t, np.ascontiguousarray(tr.z[:, :self.d])) for tr in padded]
+            scores, rollouts = self._m.score_positions(data, warmup)
         out = json.loads(scores)
         out["rollouts"] = list(rollouts)
         return out

@@ -15,6 +15,7 @@
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/diagnostics/observed.hpp"
+#include "csympnet/diagnostics/positions_score.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/systems/system.hpp"
 #include "csympnet/train/positions_state.hpp"
@@ -152,6 +153,31 @@ py::tuple score_model(const PyModel& m, const py::sequence& data) {
   return py::make_tuple(scores.dump(), rollouts);
 }
 
+// score_positions() as `csympnet evaluate --data POSITIONS.csv` runs it, on (t (n,), q (n, d))
+// pairs: (scores as JSON text, rollouts). The library checks the values, times and lengths.
+py::tuple score_positions_model(const PyModel& m, const py::sequence& data,
+                                std::optional<long> warmup) {
+  std::vector<Trajectory> trajs;
+  for (std::size_t k = 0; k < data.size(); ++k) {
+    const std::string where = "data[" + std::to_string(k) + "]";
+    const auto item = data[k].cast<py::sequence>();
+    require(item.size() == 2, [&] { return where + ": expected a (t, q) pair"; });
+    Trajectory tr;
+    tr.t = vector_from(item[0].cast<DArray>(), where + ".t");
+    tr.z = states_from(item[1].cast<DArray>(), where + ".q", m.model.dim() / 2);
+    trajs.push_back(std::move(tr));
+  }
+  PositionsScores s;
+  {
+    py::gil_scoped_release nogil;
+    s = score_positions(m.model, m.theta, trajs, {warmup, "data"});
+  }
+  const nlohmann::json scores = s;
+  py::list rollouts;
+  for (const Matrix& r : s.rollouts) rollouts.append(states_to(r));
+  return py::make_tuple(scores.dump(), rollouts);
+}
+
 // evaluate() as `csympnet evaluate` runs it: returns (scalars as JSON text, rollouts,
 // energy_pred, energy_ref).
 py::tuple evaluate_model(const PyModel& m, const std::string& system_json,
@@ -234,6 +260,7 @@ void bind_model(py::module_& m) {
       .def("jacobian", guarded(&jacobians), py::arg("z"), py::arg("h"))
       .def("structure", guarded(&structure), py::arg("z"), py::arg("h"), py::arg("gamma_true"))
       .def("score", guarded(&score_model), py::arg("data"))
+      .def("score_positions", guarded(&score_positions_model), py::arg("data"), py::arg("warmup"))
       .def("evaluate", guarded(&evaluate_model), py::arg("system_json"), py::arg("tests"),
            py::arg("h_test"))
       .def(

@@ -17,6 +17,12 @@ Side by side in one run:
 Usage:
     /usr/bin/python3 experiments/linked_positions_study.py --out DIR [--cases 12] [--seed 1]
         [--jobs 1] [--csympnet build/bin/csympnet] [--dofs 1,2,3] [--sigmas 0.002,0.01]
+        [--forecast 20,10]
+
+--forecast FIT_S,AHEAD_S makes records FIT_S + AHEAD_S seconds long, fits both methods on the
+first FIT_S seconds, and scores each one's forecast of the rest (csympnet: the state fitted to
+the last 50 positions with the model, then the map; textbook: its formula) by the RMSE per
+coordinate in pixels, beside the noise.
 
 Writes DIR/results.json (every case: its configuration, seed, command and outcome) and prints
 the median width ratio and the coverage of each method.
@@ -72,7 +78,17 @@ def make_case(i, d, sigma, seed, fps=25.0, duration=58.0, drop=0.03):
     offset = rng.uniform(100.0, 500.0, size=d)
     px = q * scale + offset
     w = np.sqrt(np.linalg.eigvalsh(K))
-    return {"t": t, "q": px, "gamma": gamma, "omegas": w, "d": d, "sigma": sigma}
+    return {"t": t, "q": px, "gamma": gamma, "omegas": w, "d": d, "sigma": sigma,
+            "noise_px": sigma * spread * scale}
+
+
+def truncated(case, until):
+    """The case's record up to time `until` (the rest kept apart, for the forecast)."""
+    keep = case["t"] <= until
+    out = dict(case)
+    out["t"], out["q"] = case["t"][keep], case["q"][keep]
+    out["t_ahead"], out["q_ahead"] = case["t"][~keep], case["q"][~keep]
+    return out
 
 
 def textbook(case, level):
@@ -80,7 +96,7 @@ def textbook(case, level):
     w0 = case["omegas"] * (1.0 + 0.0)  # started at the true frequencies: the user's best case
     m = len(w0)
 
-    def model(x):
+    def model(x, t=t):
         g = x[0]
         w = x[1:1 + m]
         rest = x[1 + m:].reshape(d, 1 + 2 * m)
@@ -115,7 +131,27 @@ def textbook(case, level):
     se = math.sqrt(max(cov[0, 0], 0.0))
     from scipy.stats import norm
     z = norm.ppf(0.5 + level / 2)
-    return {"gamma": float(res.x[0]), "low": float(res.x[0] - z * se), "high": float(res.x[0] + z * se)}
+    out = {"gamma": float(res.x[0]), "low": float(res.x[0] - z * se), "high": float(res.x[0] + z * se)}
+    if "t_ahead" in case:
+        out["forecast_rmse_px"] = rmse(model(res.x, case["t_ahead"]), case["q_ahead"])
+    return out
+
+
+def rmse(pred, obs):
+    return [float(v) for v in np.sqrt(np.mean((pred - obs) ** 2, axis=0))]
+
+
+def csympnet_forecast(case, fit_dir, window=50):
+    """The fitted model's forecast of the kept-apart positions: the state at the record's last
+    sample fitted to its last `window` positions (Model.state_from_positions), then one map step
+    per sample interval."""
+    sys.path.insert(0, os.path.join(REPO, "build", "python"))
+    import csympnet
+    model = csympnet.load(os.path.join(fit_dir, "model.json"))
+    state, _ = model.state_from_positions(case["q"][-window:], case["t"][-window:])
+    hs = np.diff(np.concatenate([[case["t"][-1]], case["t_ahead"]]))
+    path = model.rollout(state, hs)[1:, :case["d"]]
+    return rmse(path, case["q_ahead"])
 
 
 def run_csympnet(case, path, out_dir, exe, extra):
@@ -145,15 +181,20 @@ def run_csympnet(case, path, out_dir, exe, extra):
 
 
 def one(args, i, d, sigma):
-    case = make_case(i, d, sigma, args.seed)
+    case = make_case(i, d, sigma, args.seed, **({"duration": args.duration} if args.forecast else {}))
+    if args.forecast:
+        until, _ = (float(v) for v in args.forecast.split(","))
+        case = truncated(case, until)
     tag = f"d{d}_s{sigma:g}_{i}"
     path = os.path.join(args.out, tag + ".csv")
     c = run_csympnet(case, path, os.path.join(args.out, tag), args.csympnet, args.fit_args.split())
+    if args.forecast and "error" not in c:
+        c["forecast_rmse_px"] = csympnet_forecast(case, os.path.join(args.out, tag))
     c0 = time.thread_time()
     tb = textbook(case, 0.95)
     tb["cpu_seconds"] = time.thread_time() - c0
     return {"case": tag, "d": d, "sigma": sigma, "gamma_true": case["gamma"], "seed": args.seed,
-            "csympnet": c, "textbook": tb}
+            "csympnet": c, "textbook": tb, "noise_px": [float(v) for v in case["noise_px"]]}
 
 
 def covers(r, g):
@@ -170,7 +211,13 @@ def main():
     ap.add_argument("--sigmas", default="0.002,0.01")
     ap.add_argument("--csympnet", default=os.path.join(REPO, "build", "bin", "csympnet"))
     ap.add_argument("--fit-args", default="")
+    ap.add_argument("--forecast", default="",
+                    help="FIT_S,AHEAD_S: fit the first FIT_S seconds only and forecast the next "
+                         "AHEAD_S (RMSE per coordinate in pixels, beside the noise)")
     args = ap.parse_args()
+    if args.forecast:
+        until, ahead = (float(v) for v in args.forecast.split(","))
+        args.duration = until + ahead
     os.makedirs(args.out, exist_ok=True)
     jobs = [(i, int(d), float(s)) for d in args.dofs.split(",") for s in args.sigmas.split(",")
             for i in range(args.cases)]
@@ -190,6 +237,13 @@ def main():
               for r in results if r["csympnet"].get("low") is not None]
     print(f"median width ratio csympnet/textbook: {np.median(ratios) if ratios else float('nan'):.2f} "
           f"over {len(ratios)} identified of {len(results)}")
+    if args.forecast:
+        ratios_c = [max(np.array(r["csympnet"]["forecast_rmse_px"]) / np.array(r["noise_px"]))
+                    for r in results if "forecast_rmse_px" in r["csympnet"]]
+        ratios_t = [max(np.array(r["textbook"]["forecast_rmse_px"]) / np.array(r["noise_px"]))
+                    for r in results]
+        print(f"forecast RMSE over the noise, worst coordinate, median: csympnet "
+              f"{np.median(ratios_c):.2f}, textbook {np.median(ratios_t):.2f}")
     print("coverage csympnet:", sum(covers(r["csympnet"], r["gamma_true"]) for r in results), "/", len(results),
           " textbook:", sum(covers(r["textbook"], r["gamma_true"]) for r in results), "/", len(results))
 

@@ -1,6 +1,7 @@
 // Parsimony on what was observed: a sin/cos or exp group of the library core replaced by the
 // powers of the same argument (identify_positions.cpp compares the two on the positions).
 #include <algorithm>
+#include <optional>
 
 #include <Eigen/QR>
 
@@ -130,6 +131,46 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     out.push_back(std::move(alt));
   }
   return out;
+}
+
+std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d) {
+  const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
+  if (map == nullptr) return std::nullopt;
+  std::vector<LibraryTerm> next = map->terms();
+  for (Index i = 0; i < d; ++i) {
+    LibraryTerm t;
+    t.i = i;
+    t.j = -1;
+    t.shape = TermShape::kPower;
+    t.power = 1;
+    if (std::find(next.begin(), next.end(), t) == next.end()) next.push_back(t);
+  }
+  if (next.size() == map->terms().size()) return std::nullopt;
+  Candidate c;
+  c.core = lib.core;
+  c.training = lib.training;
+  c.lm = lib.lm;
+  c.lm_best_iteration = lib.lm_best_iteration;
+  c.lm_seconds = lib.lm_seconds;
+  c.val_loss = lib.val_loss;
+  c.pretrained = lib.pretrained;
+  c.core["terms"] = nlohmann::json::array();
+  for (const LibraryTerm& t : next) c.core["terms"].push_back(term_name(t));
+  c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
+  const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
+  require(nm != nullptr, "library: the rest-position candidate is not a library map");
+  // The old terms keep their places (the new ones come last), so θ's entries carry over one
+  // for one, the wavenumbers and β shifted past the new coefficients.
+  c.theta = Vector::Zero(c.inner.n_params());
+  c.theta.head(map->mass_size()) = lib.theta.head(map->mass_size());
+  const Index old_terms = static_cast<Index>(map->terms().size());
+  for (Index k = 0; k < old_terms; ++k) {
+    c.theta(nm->coefficient_index(k)) = lib.theta(map->coefficient_index(k));
+    if (map->wavenumber_index(k) >= 0 && nm->wavenumber_index(k) >= 0)
+      c.theta(nm->wavenumber_index(k)) = lib.theta(map->wavenumber_index(k));
+  }
+  c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+  return c;
 }
 
 }  // namespace csympnet::detail

@@ -513,9 +513,23 @@ void prefer_polynomials(detail::CoreFit& f, const Cut& train, const Cut& val, In
 namespace detail {
 
 void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         const IdentifyHooks& hooks, IdentifyResult& r) {
+                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r) {
   const auto t0 = std::chrono::steady_clock::now();
   const Index d = f.facts.d;
+  // The rest position is unknown from positions alone: every selected library core gets a
+  // linear term per coordinate (with_rest_position_terms), given terms and an init excepted.
+  std::string rest_terms;
+  if (r.config.init == nullptr && !terms_given && !r.stopped)
+    for (std::size_t i = 0; i < f.cand.size(); ++i)
+      if (std::optional<Candidate> x = with_rest_position_terms(f.cand[i], d)) {
+        f.cand[i] = std::move(*x);
+        if (i != f.best) continue;
+        r.theta = f.cand[i].theta;
+        r.choices["core"] = f.cand[i].core;
+        r.config.core = f.cand[i].core;
+        rest_terms = "a linear term per coordinate added to the selected library terms: the rest "
+                     "position is not known from positions alone";
+      }
   const OneStepMap& start_map = *f.cand[f.best].inner.map;
   const Index p_start = start_map.n_params();
   const Index n_start = free_parameters(start_map, d);
@@ -533,6 +547,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
          {"hidden_unknowns", 2 * d * (train.segs.size() + val.segs.size())},
          {"gauge", n_start < p_start ? "the per-dof momentum scales held at the velocity start's"
                                       : "d = 1: the momentum's scale is the core's"}};
+  if (!rest_terms.empty()) rec["rest_position"] = rest_terms;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   // The data's own check does not apply: the momenta were not given.
   ModelCheck none;
@@ -693,7 +708,8 @@ IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
       {"half_width_time", half},
       {"half_correlation_lag_samples", lag},
       {"about", "a start for the hidden momenta only; gamma comes from the positions alone"}};
-  detail::refine_on_positions(positions, f, hooks, r);
+  const bool terms_given = config.core.is_object() && config.core.contains("terms");
+  detail::refine_on_positions(positions, f, terms_given, hooks, r);
   return r;
 }
 

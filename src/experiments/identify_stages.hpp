@@ -17,6 +17,7 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -224,10 +225,17 @@ struct PolynomialAlternative {
 };
 std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib, Index d,
                                                            const Matrix& q);
+// The library candidate with a linear term qI for every coordinate that has none (coefficients
+// 0, the rest of θ as it was), or none when it has them all or is no library core. From
+// positions alone the rest position is not known: the normalisation's shift (the mean of the
+// positions) misses it by a share of the amplitude that, at low noise, is larger than the noise
+// (identify_library_swap.cpp).
+std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d);
 
 // identify_positions() after the core is trained on the positions with velocities from a
 // local polynomial: the momenta as hidden states (identify_positions.cpp).
+// terms_given: the user named the library terms (they are fitted as given).
 void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         const IdentifyHooks& hooks, IdentifyResult& r);
+                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r);
 
 }  // namespace csympnet::detail

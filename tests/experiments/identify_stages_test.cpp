@@ -231,3 +231,48 @@ TEST(IdentifyStages, VaryingStepsGiveTheLaCandidateStepPolynomials) {
 
 }  // namespace
 }  // namespace csympnet::detail
+
+namespace csympnet::detail {
+namespace {
+
+// A library candidate given a linear term per coordinate: the same map at every θ (the new
+// coefficients start at 0, the rest of θ carried over, wavenumbers and β moved past them),
+// and nothing to add when the terms are there or the core is no library.
+TEST(IdentifyStages, RestPositionTermsLeaveTheMapAsItWas) {
+  Rng rng(12, "rest-terms");
+  const nlohmann::json core = {{"type", "library"},
+                               {"terms", {"q1^2", "sin(q1-q2)", "cos(q1-q2)", "q2^4", "q1"}},
+                               {"mass", "full"}};
+  Candidate lib;
+  lib.core = core;
+  lib.inner = make_model({{"type", "csympnet"}, {"d", 2}, {"core", core}, {"beta_init", 0.1}});
+  for (int draw = 0; draw < 5; ++draw) {
+    lib.theta = Vector(lib.inner.n_params());
+    lib.inner.map->init_params(rng, lib.theta);
+    lib.theta += 0.2 * rng.normal_matrix(lib.theta.size(), 1, 1.0);
+    const std::optional<Candidate> x = with_rest_position_terms(lib, 2);
+    ASSERT_TRUE(x.has_value());
+    const std::vector<std::string> terms = x->core.at("terms");
+    ASSERT_EQ(terms.size(), 6u);
+    EXPECT_EQ(terms.back(), "q2");
+    EXPECT_EQ(x->theta.size(), lib.theta.size() + 1);
+    EXPECT_EQ(x->inner.map->damping_rate(x->theta), lib.inner.map->damping_rate(lib.theta));
+    const Matrix z = rng.normal_matrix(4, 6, 0.7);
+    Vector h(6);
+    for (Index k = 0; k < 6; ++k) h(k) = rng.uniform(0.05, 0.2);
+    const Matrix before = lib.inner.map->forward(lib.theta, z, h, nullptr);
+    const Matrix after = x->inner.map->forward(x->theta, z, h, nullptr);
+    EXPECT_LE((after - before).cwiseAbs().maxCoeff(), 1e-14 * (1.0 + before.norm()));
+  }
+  Candidate whole;
+  whole.core = {{"type", "library"}, {"terms", {"q1", "q2", "q1^2", "q2^2"}}};
+  whole.inner = make_model({{"type", "csympnet"}, {"d", 2}, {"core", whole.core}});
+  EXPECT_FALSE(with_rest_position_terms(whole, 2).has_value());
+  Candidate neural;
+  neural.core = {{"type", "la"}, {"layers", 2}, {"sublayers", 2}};
+  neural.inner = make_model({{"type", "csympnet"}, {"d", 2}, {"core", neural.core}});
+  EXPECT_FALSE(with_rest_position_terms(neural, 2).has_value());
+}
+
+}  // namespace
+}  // namespace csympnet::detail

@@ -204,6 +204,10 @@ void to_json(nlohmann::json& j, const IdentifyQuality& q) {
 
 namespace {
 
+IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_only,
+                             const IdentifyConfig& config, const IdentifyHooks& hooks,
+                             bool confirm_growth);
+
 // A given library core is read by the model files' reader (read_library_spec), so it refuses
 // what a model file refuses, in the same words. Of its keys the identification takes only the
 // terms (none: it selects them); the integrator, the mass matrix and the scales it chooses
@@ -237,65 +241,6 @@ void check_inputs(const std::vector<Trajectory>& trajs, const IdentifyConfig& co
                           "; expected a model of the data's dimension");
 }
 
-// The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its
-// end, t' = t_end − t. Growing motion, dp/dt = −∇V + g p (g > 0), is then decaying motion at
-// the rate g (with p' = −p, a change of sign the model's core absorbs).
-std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs) {
-  std::vector<Trajectory> out;
-  for (const Trajectory& t : trajs) {
-    Trajectory r;
-    r.t = (t.t(t.t.size() - 1) - t.t.array()).reverse().matrix();
-    r.z = t.z.rowwise().reverse();
-    out.push_back(std::move(r));
-  }
-  return out;
-}
-
-IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_only,
-                             const IdentifyConfig& config, const IdentifyHooks& hooks,
-                             bool confirm_growth);
-
-// When the dissipation check finds growing motion, the same pipeline runs on the record in
-// reversed time, where growing motion decays: its γ̂ and interval are the growth rate and its
-// interval. If the reversed record seems to grow too, no process explains both directions:
-// the "growth" is a bias (noise at small damping), and the check is left undecided.
-void confirm_growth(const std::vector<Trajectory>& trajs, bool pairs_only,
-                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
-  ModelCheck* growth = nullptr;
-  for (ModelCheck& k : r.checks)
-    if (k.name == "dissipation" && !k.passed) growth = &k;
-  if (growth == nullptr || r.stopped || config.init != nullptr) return;
-  if (hooks.stage) hooks.stage("growth rate (the same fit in reversed time)");
-  const IdentifyResult rev =
-      identify_once(reversed_in_time(trajs), pairs_only, config, hooks, false);
-  if (rev.stopped) {
-    r.stopped = true;
-    return;
-  }
-  nlohmann::json g = {{"rate", rev.gamma}, {"verdict", rev.verdict}, {"reasons", rev.reasons}};
-  bool grows_backwards = false;
-  for (const ModelCheck& k : rev.checks)
-    grows_backwards = grows_backwards || (k.name == "dissipation" && !k.passed);
-  std::ostringstream s;
-  s.precision(4);
-  if (grows_backwards) {
-    growth->passed = true;
-    growth->applicable = false;
-    s << "not decided: the record seems to gain energy in both directions of time, which no "
-         "energy input explains (a bias of noise at weak damping); signed rate "
-      << growth->details.value("signed_rate", 0.0) << " forwards";
-    growth->sentence = s.str();
-  } else if (rev.identified) {
-    g["interval"] = {rev.interval->low, rev.interval->high};
-    s << "the motion grows: energy is being added (negative damping or forcing), at a rate "
-      << rev.gamma << " [" << rev.interval->low << ", " << rev.interval->high
-      << "] per time unit (the same fit in reversed time, where the motion decays)";
-    growth->sentence = s.str();
-    growth->effect = rev.gamma;
-  }
-  growth->details["reversed_time_fit"] = g;
-}
-
 }  // namespace
 
 IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
@@ -324,6 +269,63 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 }
 
 namespace detail {
+
+// The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its
+// end, t' = t_end − t. Growing motion, dp/dt = −∇V + g p (g > 0), is then decaying motion at
+// the rate g (with p' = −p, a change of sign the model's core absorbs).
+std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs) {
+  std::vector<Trajectory> out;
+  for (const Trajectory& t : trajs) {
+    Trajectory r;
+    r.t = (t.t(t.t.size() - 1) - t.t.array()).reverse().matrix();
+    r.z = t.z.rowwise().reverse();
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+
+// When the dissipation check finds growing motion, the same pipeline runs on the record in
+// reversed time, where growing motion decays: its γ̂ and interval are the growth rate and its
+// interval. If the reversed record seems to grow too, no process explains both directions:
+// the "growth" is a bias (noise at small damping), and the check is left undecided.
+void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
+                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
+  ModelCheck* growth = nullptr;
+  for (ModelCheck& k : r.checks)
+    if (k.name == "dissipation" && !k.passed) growth = &k;
+  if (growth == nullptr || r.stopped || config.init != nullptr) return;
+  if (hooks.stage) hooks.stage("growth rate (the same fit in reversed time)");
+  const IdentifyResult rev = refit(reversed_in_time(trajs));
+  if (rev.stopped) {
+    r.stopped = true;
+    return;
+  }
+  nlohmann::json g = {{"rate", rev.gamma}, {"verdict", rev.verdict}, {"reasons", rev.reasons}};
+  bool grows_backwards = false;
+  for (const ModelCheck& k : rev.checks)
+    grows_backwards = grows_backwards || (k.name == "dissipation" && !k.passed);
+  std::ostringstream s;
+  s.precision(4);
+  if (grows_backwards) {
+    growth->passed = true;
+    growth->applicable = false;
+    s << "not decided: the record seems to gain energy in both directions of time, which no "
+         "energy input explains (a bias of noise at weak damping); signed rate "
+      << growth->details.value("signed_rate", 0.0) << " forwards";
+    growth->sentence = s.str();
+  } else if (rev.identified) {
+    g["interval"] = {rev.interval->low, rev.interval->high};
+    s << "the motion grows: energy is being added (negative damping or forcing), at a rate "
+      << rev.gamma << " [" << rev.interval->low << ", " << rev.interval->high
+      << "] per time unit (the same fit in reversed time, where the motion decays)";
+    growth->sentence = s.str();
+    growth->effect = rev.gamma;
+  }
+  growth->details["reversed_time_fit"] = g;
+}
+
+
 
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                  const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
@@ -446,7 +448,13 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   if (assess) interval(map, f.split, f.nt, hooks, comm, r);
   measure_quality(map, f.split, f.facts.d, r);
   if (assess && !r.stopped) run_checks(map, f.split, hooks, r);
-  if (confirm_growth_in_reversed_time) confirm_growth(trajs, pairs_only, config, hooks, r);
+  if (confirm_growth_in_reversed_time)
+    confirm_growth(
+        trajs,
+        [&](const std::vector<Trajectory>& reversed) {
+          return identify_once(reversed, pairs_only, config, hooks, false);
+        },
+        config, hooks, r);
   verdict(f.split, f.facts.h_max, f.lm_fits, r);
   if (r.hamiltonian.is_null())
     r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});

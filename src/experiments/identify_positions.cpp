@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 
@@ -513,7 +514,8 @@ void prefer_polynomials(detail::CoreFit& f, const Cut& train, const Cut& val, In
 namespace detail {
 
 void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r) {
+                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r,
+                         const std::function<void(IdentifyResult&)>& before_verdict) {
   const auto t0 = std::chrono::steady_clock::now();
   const Index d = f.facts.d;
   // The rest position is unknown from positions alone: every selected library core gets a
@@ -653,6 +655,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
 
   if (!r.stopped && r.interval) run_checks(map, split, hooks, r);
+  if (before_verdict && !r.stopped) before_verdict(r);
   verdict(split, f.facts.h_max, f.lm_fits, r);
   // From positions alone the momenta's unit is not observed: H is fixed up to one factor
   // (docs/derivations.md, "Positions only"), and its terms carry no intervals here.
@@ -683,8 +686,13 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
 
 }  // namespace detail
 
-IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
-                                  const IdentifyConfig& config, const IdentifyHooks& hooks) {
+namespace {
+
+// identify_positions; with `confirm_growth`, a record that gains energy is fitted again in
+// reversed time for its growth rate (detail::confirm_growth), as identify() does with momenta.
+IdentifyResult positions_once(const std::vector<Trajectory>& positions,
+                              const IdentifyConfig& config, const IdentifyHooks& hooks,
+                              bool confirm_growth) {
   check_positions(positions);
   // Half the time over which the motion stays correlated, in the median step: the local fits
   // stay within the motion's own time scale.
@@ -709,8 +717,25 @@ IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
       {"half_correlation_lag_samples", lag},
       {"about", "a start for the hidden momenta only; gamma comes from the positions alone"}};
   const bool terms_given = config.core.is_object() && config.core.contains("terms");
-  detail::refine_on_positions(positions, f, terms_given, hooks, r);
+  std::function<void(IdentifyResult&)> growth;
+  if (confirm_growth)
+    growth = [&](IdentifyResult& out) {
+      detail::confirm_growth(
+          positions,
+          [&](const std::vector<Trajectory>& reversed) {
+            return positions_once(reversed, config, hooks, false);
+          },
+          config, hooks, out);
+    };
+  detail::refine_on_positions(positions, f, terms_given, hooks, r, growth);
   return r;
+}
+
+}  // namespace
+
+IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
+                                  const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  return positions_once(positions, config, hooks, true);
 }
 
 }  // namespace csympnet

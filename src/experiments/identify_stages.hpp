@@ -234,8 +234,20 @@ std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d)
 
 // identify_positions() after the core is trained on the positions with velocities from a
 // local polynomial: the momenta as hidden states (identify_positions.cpp).
-// terms_given: the user named the library terms (they are fitted as given).
+// terms_given: the user named the library terms (they are fitted as given). before_verdict,
+// when set, runs after the checks and before the verdict (the growth rate's refit).
 void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r);
+                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r,
+                         const std::function<void(IdentifyResult&)>& before_verdict = {});
+
+// The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its
+// end, t' = t_end − t (identify.cpp).
+std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs);
+// When the dissipation check of r finds growing motion: `refit` (the same pipeline) on the
+// record in reversed time, where growing motion decays, gives the growth rate and its interval
+// for the check's sentence; a record that seems to grow both ways leaves the check undecided.
+using Refit = std::function<IdentifyResult(const std::vector<Trajectory>&)>;
+void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
+                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r);
 
 }  // namespace csympnet::detail

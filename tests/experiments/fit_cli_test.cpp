@@ -329,6 +329,27 @@ SmallFit small_fit_positions(const std::vector<Trajectory>& rec) {
   return small_fit_text(text);
 }
 
+// The same from positions alone: rejected as growth, and the growth rate from the positions
+// fitted in reversed time, with an interval that covers the truth (it once printed the forward
+// fit's biased signed rate).
+TEST(FitCli, GrowingPositionsAreRejectedAndNamedWithTheirRate) {
+  const SmallFit f = small_fit_positions(linear_record(-0.1, 300, 0.1, 3));
+  EXPECT_EQ(f.code, 5) << f.printed;
+  EXPECT_NE(f.printed.find("the motion grows"), std::string::npos) << f.printed;
+  ASSERT_TRUE(f.report.is_object()) << f.printed;
+  EXPECT_EQ(f.report["observed"], "positions");
+  EXPECT_EQ(f.report["verdict"], "model rejected");
+  const nlohmann::json* g = nullptr;
+  for (const auto& k : f.report["checks"])
+    if (k["name"] == "dissipation") g = &k;
+  ASSERT_NE(g, nullptr);
+  EXPECT_EQ((*g)["passed"], false);
+  const auto& rev = (*g)["details"]["reversed_time_fit"];
+  ASSERT_TRUE(rev.contains("interval")) << rev.dump();
+  EXPECT_LT(rev["interval"][0].get<double>(), 0.1);
+  EXPECT_GT(rev["interval"][1].get<double>(), 0.1);
+}
+
 // Positions alone are fitted with the momenta as hidden states: identified, an interval that
 // covers the truth, "observed": "positions". Momenta computed from the same noisy positions by
 // central differences (numpy.gradient) are recognised and set aside: the same answer, to the

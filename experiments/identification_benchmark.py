@@ -1192,7 +1192,7 @@ def core_type(rep):
 
 
 def run_csympnet(exe, data, outdir, extra, timeout):
-    cmd = [exe, "fit", data, "--out", outdir, "-q", *extra]
+    cmd = [exe, "fit", data, "--out", outdir, "-q", "--no-figures", *extra]
     t0 = time.monotonic()
     rc, out, err, timed_out = run_child(cmd, timeout)
     res = {"seconds": time.monotonic() - t0, "returncode": rc, "command": cmd,

@@ -158,7 +158,7 @@ def run_csympnet(case, path, out_dir, exe, extra):
     names = ["t"] + [f"q{i + 1}" for i in range(case["d"])]
     np.savetxt(path, np.column_stack([case["t"], case["q"]]), delimiter=",", header=",".join(names),
                comments="", fmt="%.10g")
-    cmd = [exe, "fit", "--data", path, "--out", out_dir, "--force", "--quiet"] + extra
+    cmd = [exe, "fit", "--data", path, "--out", out_dir, "--force", "--quiet", "--no-figures"] + extra
     t0 = time.time()
     with open(out_dir + ".stderr", "w") as err:
         child = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)

@@ -124,7 +124,7 @@ def run_case(case, args):
     with open(data, "w") as f:
         f.write("t,q1\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(t, q)))
     out = os.path.join(cdir, "fit")
-    cmd = [args.csympnet, "fit", data, "--out", out, "--force", "-q"]
+    cmd = [args.csympnet, "fit", data, "--out", out, "--force", "-q", "--no-figures"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     res = {"command": cmd, "returncode": proc.returncode}
     try:

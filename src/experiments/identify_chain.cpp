@@ -42,7 +42,7 @@ RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& 
   if (!steps.empty()) {
     std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2),
                      steps.end());
-    out.gap = 3.0 * steps[steps.size() / 2];
+    out.gap = kWindowGapFactor * steps[steps.size() / 2];
   }
   return out;
 }

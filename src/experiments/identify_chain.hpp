@@ -25,6 +25,7 @@
 #include "csympnet/core/types.hpp"
 #include "csympnet/data/dataset.hpp"
 #include "csympnet/models/one_step_map.hpp"
+#include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "identify_stages.hpp"
 
@@ -44,7 +45,7 @@ inline ShootingOptions watching_damping(const OneStepMap& map, ShootingOptions o
 struct RecordLayout {
   std::vector<Vector> observed;           // per trajectory: 1 at a training position, else 0
   std::vector<std::vector<Index>> block;  // per trajectory: each position's training block
-  double gap = 0.0;                       // a step above this breaks a chain (3 × the median)
+  double gap = 0.0;                       // a step above this breaks a chain (kWindowGapFactor × the median)
 };
 RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& split);
 

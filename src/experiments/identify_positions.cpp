@@ -25,6 +25,7 @@
 #include "csympnet/experiments/model_checks.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
+#include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "identify_chain.hpp"
 #include "identify_stages.hpp"
@@ -49,6 +50,19 @@ void check_positions(const std::vector<Trajectory>& positions) {
       require(t.t(i) > t.t(i - 1), [&] {
         return where + ": times must increase strictly (sample " + std::to_string(i) + ")";
       });
+  }
+  // As the states' normalisation refuses a constant column, before any fit (a constant q2 once
+  // ran half a minute to "not identified").
+  for (Index i = 0; i < d; ++i) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const Trajectory& t : positions) {
+      lo = std::min(lo, t.z.row(i).minCoeff());
+      hi = std::max(hi, t.z.row(i).maxCoeff());
+    }
+    require(hi > lo, [&] {
+      return "fit: q" + std::to_string(i + 1) + " does not vary in the data (every value is " +
+             number_text(lo) + "); expected every coordinate to vary";
+    });
   }
 }
 
@@ -117,26 +131,63 @@ Trajectory with_local_velocities(const Trajectory& t, double half) {
     while (hi < n - 1 && t.t(hi + 1) - t.t(j) <= half) ++hi;
     const Index degree = hi - lo >= 2 ? 2 : 1;
     Matrix x(hi - lo + 1, degree + 1);
+    // In units of `half`: powers of the raw offsets (1e-20 s and its square) would differ by
+    // more than the QR's rank threshold spans, and it would drop the slope as rank-deficient.
     for (Index i = lo; i <= hi; ++i) {
-      const double s = t.t(i) - t.t(j);
+      const double s = (t.t(i) - t.t(j)) / half;
       for (Index p = 0; p <= degree; ++p) x(i - lo, p) = std::pow(s, static_cast<double>(p));
     }
     const Matrix coef = x.colPivHouseholderQr().solve(t.z.middleCols(lo, hi - lo + 1).transpose());
-    out.z.col(j).tail(d) = coef.row(1).transpose();
+    out.z.col(j).tail(d) = coef.row(1).transpose() / half;
   }
   return out;
 }
 
+// The velocity start must be a state the normalisation can scale: Δq/Δt with steps of 1e-200
+// (or 1e200) time units is a velocity whose square is no normal double, and the states'
+// normalisation would blame a "p" the record does not have. Refused in the record's own
+// columns, t and q.
+void check_velocity_start(const std::vector<Trajectory>& states, double h_median) {
+  const Index d = states.front().z.rows() / 2;
+  for (Index i = 0; i < d; ++i) {
+    double sum = 0.0, sq = 0.0, count = 0.0, widest = 0.0;
+    for (const Trajectory& t : states) {
+      sum += t.z.row(d + i).sum();
+      count += static_cast<double>(t.z.cols());
+      widest = std::max(widest, t.z.row(i).maxCoeff() - t.z.row(i).minCoeff());
+    }
+    for (const Trajectory& t : states)
+      sq += (t.z.row(d + i).array() - sum / count).square().sum();
+    const double spread2 = sq / count;
+    if (std::isfinite(spread2) && spread2 >= std::numeric_limits<double>::min()) continue;
+    if (!(widest > 0.0)) continue;  // a constant q: check_positions names it
+    const std::string q = "q" + std::to_string(i + 1);
+    throw Error("fit: the times' median step " + number_text(h_median) + " with " + q +
+                "'s variations (up to " + number_text(widest) +
+                ") give velocities dq/dt whose squares are not normal doubles (" +
+                (std::isfinite(spread2) ? "they underflow" : "they overflow") +
+                "); expected the steps of t and the variations of " + q +
+                " to keep |dq/dt| roughly between 1e-150 and 1e150 (rescale t, e.g. to seconds)");
+  }
+}
+
 // The segments of blocks (normalised): consecutive runs of `len` positions, the last run of a
 // stretch joined to the one before when shorter than len / 2. A segment never spans a gap (a
-// step over 3 times the median step): a stretch between gaps is cut on its own, and a lone
+// step over kWindowGapFactor times the median step, as a rollout window's): a stretch between gaps is cut on its own, and a lone
 // position between two gaps is left out. Returns, per segment, its block and the first column
 // in that block.
 struct Cut {
   ShootingSegments segs;
+  Index set_aside = 0;                      // positions in stretches under kMinSegmentPositions
   std::vector<std::pair<Index, Index>> at;  // (block, first column)
   Matrix z0;                                // starts from the blocks' states
 };
+// The fewest positions a segment may have: 2 fix its hidden start (a position and a momentum
+// per coordinate) and leave no residual; a third per coordinate is the first that tests the
+// dynamics. Shorter stretches are set aside (300 trajectories of 2 positions once ended in a
+// Gauss-Newton matrix that could not be factored).
+inline constexpr Index kMinSegmentPositions = 3;
+
 Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len) {
   std::vector<double> steps;
   for (const Trajectory& t : blocks)
@@ -145,7 +196,7 @@ Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len) {
   if (!steps.empty()) {
     std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2),
                      steps.end());
-    gap = 3.0 * steps[steps.size() / 2];
+    gap = kWindowGapFactor * steps[steps.size() / 2];
   }
   Cut c;
   c.segs.d = d;
@@ -163,6 +214,11 @@ Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len) {
     for (Index begin = 0; begin < n;) {
       Index end = begin + 1;  // one past the stretch without a gap
       while (end < n && t.t(end) - t.t(end - 1) <= gap) ++end;
+      if (end - begin < kMinSegmentPositions) {
+        c.set_aside += end - begin;
+        begin = end;
+        continue;
+      }
       for (Index first = begin; first + 1 < end;) {
         Index count = std::min(len, end - first);
         if (end - first - count < len / 2) count = end - first;
@@ -356,9 +412,19 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
       std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
   ne.scores *= dof_factor;
   const Index bi = *map.damping_param_index();
-  SandwichInterval s =
-      sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0, n_res,
-                        ne.cost, scale, detail::data_scale(split.blocks), r.config.level);
+  SandwichInterval s;
+  try {
+    s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0,
+                          n_res, ne.cost, scale, detail::data_scale(split.blocks),
+                          r.config.level);
+  } catch (const Error&) {
+    // A property of the data (too few positions per hidden start), not an internal failure.
+    r.reasons.push_back(
+        "the positions do not fix the parameters: the Gauss-Newton matrix, with each segment's "
+        "start state eliminated, could not be factored even regularised, so no interval can be "
+        "formed (too few positions per segment for its hidden start and the dynamics)");
+    return;
+  }
   const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
                            ? r.quality.val_loss / r.quality.train_loss
                            : 1.0;
@@ -537,7 +603,9 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   const Index n_start = free_parameters(start_map, d);
   const double spp = samples_per_period(positions);
   nlohmann::json tried = nlohmann::json::array();
-  const Index len = segment_length(start_map, r.theta, f.split.train_blocks, d, spp, tried);
+  const bool any = cut_segments(f.split.train_blocks, d, 10).segs.size() > 0;
+  const Index len =
+      any ? segment_length(start_map, r.theta, f.split.train_blocks, d, spp, tried) : 10;
   Cut train = cut_segments(f.split.train_blocks, d, len);
   Cut val = cut_segments(f.split.val_blocks, d, len);
   nlohmann::json& rec = r.choices["positions"];
@@ -547,6 +615,8 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
          {"training_segments", train.segs.size()},
          {"validation_segments", val.segs.size()},
          {"hidden_unknowns", 2 * d * (train.segs.size() + val.segs.size())},
+         {"positions_set_aside", train.set_aside + val.set_aside},
+         {"shortest_segment", kMinSegmentPositions},
          {"gauge", n_start < p_start ? "the per-dof momentum scales held at the velocity start's"
                                       : "d = 1: the momentum's scale is the core's"}};
   if (!rest_terms.empty()) rec["rest_position"] = rest_terms;
@@ -561,7 +631,14 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
       "not applicable: the record has positions alone; the momenta are hidden states fitted "
       "with the map";
   r.checks = {none};
-  if (r.stopped || !f.lm_fits || r.training.stop_reason == StopReason::kDiverged) {
+  if (train.segs.size() == 0 && !r.stopped)
+    r.reasons.push_back(
+        "no training trajectory has " + std::to_string(kMinSegmentPositions) +
+        " positions in a row without a gap (" + std::to_string(train.set_aside) +
+        " positions set aside): from positions alone a trajectory needs 2 to fix its hidden "
+        "start state (a position and a momentum per coordinate) and at least one more to "
+        "constrain the dynamics; expected longer trajectories");
+  if (train.segs.size() == 0 || r.stopped || !f.lm_fits || r.training.stop_reason == StopReason::kDiverged) {
     verdict(f.split, f.facts.h_max, f.lm_fits, r);
     r.model = user_model(f.cand[f.best].inner, r);
     return;
@@ -708,6 +785,7 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
   const double half = std::clamp(std::floor(lag / 2.0), 2.0, 20.0) * h_median;
   std::vector<Trajectory> states;
   for (const Trajectory& t : positions) states.push_back(with_local_velocities(t, half));
+  check_velocity_start(states, h_median);
   IdentifyResult r;
   detail::CoreFit f = detail::fit_core(states, false, config, hooks, r);
   r.observed = "positions";

@@ -241,6 +241,22 @@ void check_inputs(const std::vector<Trajectory>& trajs, const IdentifyConfig& co
                           "; expected a model of the data's dimension");
 }
 
+// The init file's map at its parameters must predict finite states on these data: a
+// coefficient or wavenumber of 1e300 otherwise surfaced later as an error blamed on the data
+// ("windows: non-finite value", or a Gauss-Newton matrix that could not be factored).
+void check_init_start(const detail::Candidate& x, const detail::CandidateFit& fit,
+                      const detail::BlockSplit& split, const IdentifyInit& init) {
+  const double loss = fit.loss(x, split.train);
+  if (std::isfinite(loss)) return;
+  throw OptionError("init", init.file +
+                                ": the model's map at the file's parameters predicts non-finite "
+                                "states from these data (training loss " +
+                                number_text(loss) +
+                                " at the start); expected a model whose parameters give finite "
+                                "predictions on data like these (its coefficients or "
+                                "wavenumbers may be far too large)");
+}
+
 }  // namespace
 
 IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
@@ -395,6 +411,7 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
     library = std::move(lib.cand);
   }
   f.cand = make_candidates(cores, f.facts.d, beta_init, c, config.seed);
+  if (config.init != nullptr) check_init_start(f.cand.front(), fit, f.split, *config.init);
   if (library) f.cand.insert(f.cand.begin(), std::move(*library));
   f.best = choose_core(f.cand, fit, choosing, f.facts.varying_steps, config, r);
   if (choosing && f.cand.size() == 1) r.choices["core_reason"] = floor_reason;

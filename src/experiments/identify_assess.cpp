@@ -41,9 +41,18 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
     const double gamma_n = map.damping_rate(r.theta).value_or(0.0);
     const Index bi = *map.damping_param_index();
     const double beta = r.theta(bi);
-    SandwichInterval s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n,
-                                           beta >= 0.0 ? 1.0 : -1.0, train.size() * train.dim(),
-                                           ne.cost, scale, data_scale(nt), r.config.level);
+    SandwichInterval s;
+    try {
+      s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, beta >= 0.0 ? 1.0 : -1.0,
+                            train.size() * train.dim(), ne.cost, scale, data_scale(nt),
+                            r.config.level);
+    } catch (const Error&) {
+      // What the data leave undetermined is a reason for no interval, not an error.
+      r.reasons.push_back(
+          "the data do not fix the parameters: the Gauss-Newton matrix could not be factored "
+          "even regularised, so no interval can be formed");
+      return;
+    }
     // The scores are formed from training residuals, which a flexible core has fitted: they
     // understate the residuals it makes on data it has not seen. The held-out blocks measure
     // by how much; the variance is scaled by that ratio of losses when it exceeds 1 (a

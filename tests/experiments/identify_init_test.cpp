@@ -139,5 +139,40 @@ TEST_F(IdentifyInit, KeepsTheFilesCoreThetaAndUnits) {
   EXPECT_EQ(r.lm.iterations, 1);
 }
 
+// A model file whose map, at its parameters, overflows on the data (library coefficients of
+// 1e300) is named as the cause, by --init's key and file, for states and positions alike; it
+// once surfaced as "windows: non-finite value", blamed on the data.
+TEST_F(IdentifyInit, AStartThatIsNotFiniteOnTheDataNamesTheFile) {
+  const Model m = make_model(
+      {{"type", "csympnet"},
+       {"d", 1},
+       {"core", {{"type", "library"}, {"terms", {"q1^2", "q1"}}, {"order", 6}, {"substeps", 1}}}});
+  Vector theta(m.n_params());
+  Rng rng(1, "unused");  // the map draws nothing
+  m.init_params(rng, theta);
+  const Index damping = *m.damping_param_index();
+  for (Index i = 0; i < theta.size(); ++i)
+    if (i != damping) theta(i) = 1e300;
+  const std::string path = (dir_ / "huge.json").string();
+  save_model(path, m, theta);
+  const IdentifyConfig c = make_identify_config({{"init", path}, {"lm_iterations", 1}});
+  const std::vector<Trajectory> states = oscillator(6, 1);
+  std::vector<Trajectory> positions;
+  for (const Trajectory& t : states) positions.push_back({t.t, t.z.topRows(1)});
+  for (bool positions_only : {false, true}) {
+    try {
+      positions_only ? identify_positions(positions, c) : identify(states, false, c);
+      FAIL() << "fitted from a start that overflows, positions only: " << positions_only;
+    } catch (const OptionError& e) {
+      EXPECT_EQ(e.key(), "init");
+      const std::string what = e.what();
+      EXPECT_NE(what.find(path + ": the model's map at the file's parameters predicts "
+                                 "non-finite states"),
+                std::string::npos)
+          << what;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace csympnet

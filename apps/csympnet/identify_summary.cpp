@@ -13,6 +13,20 @@ std::string per(const std::optional<TimeUnit>& unit) {
   return unit ? unit->name : std::string("time unit of the data");
 }
 
+// Whether any key naming an interval ("interval", "wavenumber_interval", ...) holds one.
+bool has_interval(const nlohmann::json& j) {
+  if (j.is_array()) {
+    for (const auto& x : j)
+      if (has_interval(x)) return true;
+  } else if (j.is_object()) {
+    for (const auto& item : j.items())
+      if ((item.key().find("interval") != std::string::npos && !item.value().is_null()) ||
+          has_interval(item.value()))
+        return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
@@ -53,11 +67,17 @@ void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
                 m.damping_ratio, range(m.damping_ratio_interval).c_str());
   }
   if (!r.modes_note.empty()) std::printf("modes: %s\n", r.modes_note.c_str());
-  if (r.hamiltonian.is_object())
-    std::printf(
-        "hamiltonian: H = 1/2 p^T M^-1 p + V(q), V(q) = %s (report.json has each term's "
-        "interval)\n",
-        r.hamiltonian.value("potential", std::string()).c_str());
+  if (r.hamiltonian.is_object()) {
+    // From positions alone the momenta's unit, hence H's scale, is not observed: its terms
+    // carry no intervals, and the sentence must not promise them.
+    const char* where = has_interval(r.hamiltonian) ? "report.json has each term's interval"
+                        : r.observed == "positions"
+                            ? "from positions alone H is known up to one common factor: its "
+                              "terms carry no intervals"
+                            : "its terms carry no intervals";
+    std::printf("hamiltonian: H = 1/2 p^T M^-1 p + V(q), V(q) = %s (%s)\n",
+                r.hamiltonian.value("potential", std::string()).c_str(), where);
+  }
 }
 
 void print_identify_details(const IdentifyResult& r, const std::string& out, bool figure) {

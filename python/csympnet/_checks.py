@@ -158,6 +158,28 @@ def choice(name, x, options):
     return x
 
 
+def same_dimension(name, arrays, positions):
+    """A list of trajectories' arrays, (M, d) positions (or (M,): d = 1) or (M, 2d) states:
+    each must have the first's d, refused naming the entry and both dimensions (the library
+    would say only that the trajectories differ). Entries that are no 1-D or 2-D array are
+    left to the shape checks that follow."""
+    def columns(a):
+        n = np.ndim(a)
+        return 1 if n == 1 else np.shape(a)[1] if n == 2 else None
+    if not isinstance(arrays, (list, tuple)) or not arrays:
+        return
+    first = columns(arrays[0])
+    kind = "position" if positions else "state"
+    for k, a in enumerate(arrays[1:], start=1):
+        c = columns(a)
+        if first is None or c is None or c == first:
+            continue
+        d0, dk = (first, c) if positions else (first / 2, c / 2)
+        raise ValueError(f"{name}[{k}]: {c} {kind} columns (d = {dk:g}), but {name}[0] has "
+                         f"{first} (d = {d0:g}); expected every trajectory of the list to "
+                         f"have the same d")
+
+
 def trajectory(name, t, z, dim=None):
     """One trajectory: times (n+1,) strictly increasing, states (n+1, 2d)."""
     za, _ = states(f"{name} z", z, dim=dim, allow_single=False)

@@ -242,6 +242,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     else:
         if t is None:
             raise ValueError("t: the sample times are needed with trajectories (identify(z, t))")
+        _checks.same_dimension("z", z, positions_only)
         trajs = _as_trajectories(t, _padded_positions(z) if positions_only else z, traj)
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")

@@ -204,3 +204,21 @@ def test_given_library_terms_are_fitted_as_given():
     assert abs(r.gamma - 0.1) < 1e-6
     with pytest.raises(Exception, match="q1\\^9"):
         csympnet.identify(z, t, core={"type": "library", "terms": ["q1^9"]})
+
+
+def test_lists_of_trajectories_of_different_d_are_refused_naming_the_entry():
+    """A list of position (or state) arrays whose d differ: the entry and both dimensions are
+    named (the library once said "expected 1 position rows", or that trajectories differ)."""
+    t = np.arange(100) * 0.1
+    one = np.cos(t)[:, None]
+    two = np.stack([np.cos(t), np.sin(t)], axis=1)
+    with pytest.raises(ValueError, match=r"z\[1\]: 2 position columns \(d = 2\), but z\[0\] has "
+                                         r"1 \(d = 1\); expected every trajectory"):
+        csympnet.identify([one, two], [t, t], observed="positions")
+    with pytest.raises(ValueError, match=r"z\[1\]: 1 position columns \(d = 1\), but z\[0\] has "
+                                         r"2 \(d = 2\)"):
+        csympnet.identify([two, np.cos(t)], [t, t], observed="positions")
+    with pytest.raises(ValueError, match=r"z\[1\]: 4 state columns \(d = 2\), but z\[0\] has 2 "
+                                         r"\(d = 1\)"):
+        csympnet.identify([np.hstack([one, one]), np.hstack([two, two])], [t, t],
+                          observed="states")

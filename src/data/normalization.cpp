@@ -135,20 +135,26 @@ Normalization from_states(const Matrix& z, const std::vector<double>& steps) {
     // The spread of p about its mean; p itself is not shifted (the damping pulls p to 0).
     sp(i) = std::sqrt((z.row(d + i).array() - mp).square().sum() / m);
     const std::string dof = std::to_string(i + 1);
-    // A spread of 0 with values that differ: their squares underflowed (below ~1e-154 the
-    // square of a difference is no longer a normal double), which is not "does not vary".
+    // Equal extremes, not a spread of 0, mean "does not vary": the mean of a constant 0.7 is
+    // not 0.7 to the bit, and the spread about it is a rounding error (a constant column once
+    // passed). A spread of 0 or infinity with values that differ: their squares underflowed
+    // (below ~1e-154 the square of a difference is no longer a normal double) or overflowed.
+    const auto varies = [&](Index row) { return z.row(row).maxCoeff() > z.row(row).minCoeff(); };
     auto why_zero = [&](Index row, double mean, const char* name) {
+      const std::string what = "normalization: " + std::string(name) + dof;
+      if (!varies(row))
+        return what + " does not vary in the data; expected every coordinate to vary";
       const double widest = (z.row(row).array() - mean).abs().maxCoeff();
-      if (widest > 0.0)
-        return "normalization: " + std::string(name) + dof + " varies only by about " +
-               number_text(widest) +
-               ", too little for its square to be a normal double (it underflows to 0); "
-               "expected variations above 1e-150 (rescale the data, e.g. to SI units)";
-      return "normalization: " + std::string(name) + dof +
-             " does not vary in the data; expected every coordinate to vary";
+      const bool large = !(widest < 1.0);
+      return what + " varies by about " + number_text(widest) + ", too " +
+             (large ? "much" : "little") + " for its square to be a normal double (it " +
+             (large ? "overflows" : "underflows to 0") +
+             "); expected variations between 1e-150 and 1e150 (rescale the data, e.g. to SI "
+             "units)";
     };
-    require(sq(i) > 0.0 && std::isfinite(sq(i)), [&] { return why_zero(i, mq, "q"); });
-    require(sp(i) > 0.0 && std::isfinite(sp(i)), [&] { return why_zero(d + i, mp, "p"); });
+    require(varies(i) && sq(i) > 0.0 && std::isfinite(sq(i)), [&] { return why_zero(i, mq, "q"); });
+    require(varies(d + i) && sp(i) > 0.0 && std::isfinite(sp(i)),
+            [&] { return why_zero(d + i, mp, "p"); });
   }
   // c = geometric mean of σ_q σ_p, in logs (no overflow for spreads of 1e±150).
   double log_c = 0.0;

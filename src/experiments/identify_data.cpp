@@ -95,8 +95,13 @@ DataFacts inspect_data(const std::vector<Trajectory>& trajs, bool pairs_only) {
   f.d = trajs.front().z.rows() / 2;
   std::vector<double> steps;
   Index samples = 0;
-  for (const Trajectory& t : trajs) {
-    require(t.z.rows() == 2 * f.d, "fit: trajectories differ in dimension");
+  for (std::size_t j = 0; j < trajs.size(); ++j) {
+    const Trajectory& t = trajs[j];
+    require(t.z.rows() == 2 * f.d, [&] {
+      return "fit: trajectory " + std::to_string(j) + " has " + std::to_string(t.z.rows()) +
+             " state rows, but trajectory 0 has " + std::to_string(2 * f.d) +
+             " (d = " + std::to_string(f.d) + "); expected every trajectory to have the same d";
+    });
     samples += t.z.cols();
     for (Index k = 0; k < t.steps(); ++k) steps.push_back(t.t(k + 1) - t.t(k));
   }

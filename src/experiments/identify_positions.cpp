@@ -41,7 +41,9 @@ void check_positions(const std::vector<Trajectory>& positions) {
     const Trajectory& t = positions[k];
     const std::string where = "fit: trajectory " + std::to_string(k);
     require(d >= 1 && t.z.rows() == d, [&] {
-      return where + ": expected " + std::to_string(d) + " position rows, like the first";
+      return where + " has " + std::to_string(t.z.rows()) +
+             " position rows (d = " + std::to_string(t.z.rows()) + "), but trajectory 0 has " +
+             std::to_string(d) + "; expected every trajectory to have the same d";
     });
     require(t.t.size() >= 1 && t.z.cols() == t.t.size(),
             [&] { return where + ": expected one time per sample"; });

@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -1381,6 +1382,69 @@ std::vector<Case> message_cases() {
                    {"out"},
                    {},
                    {"does not vary"}});
+  // Positions-only records (docs/hardening.md): the file's own columns are named, never a p.
+  const auto positions = [](double unit, const std::string& q2) {
+    std::ostringstream s;
+    s.precision(17);
+    s << "t,q1" << (q2.empty() ? "" : ",q2") << '\n';
+    for (int i = 0; i < 60; ++i)
+      s << 0.2 * i * unit << ',' << std::exp(-0.01 * i) * std::cos(0.2 * i)
+        << (q2.empty() ? "" : "," + q2) << '\n';
+    return s.str();
+  };
+  for (double unit : {1e-200, 1e200})
+    cases.push_back({std::string("msg_positions_time_unit_") + (unit < 1.0 ? "tiny" : "huge"),
+                     files({{"d.csv", positions(unit, "")}}),
+                     {"fit", "d.csv", "-q", "--out", "out"},
+                     {1},
+                     {"median step", "q1", "rescale t"},
+                     {"out"},
+                     {},
+                     {"p1"}});
+  cases.push_back({"msg_positions_constant_q2",
+                   files({{"d.csv", positions(1.0, "0.7")}}),
+                   {"fit", "d.csv", "-q", "--out", "out"},
+                   {1},
+                   {"q2 does not vary"},
+                   {"out"}});
+  // 300 trajectories of 2 positions: not identified with a report, never an internal-looking
+  // "Gauss-Newton matrix could not be factored" (exit 1).
+  cases.push_back({"msg_positions_two_samples_each",
+                   files({{"d.csv",
+                           [] {
+                             std::string s = "traj,t,q1\n";
+                             for (int j = 0; j < 300; ++j)
+                               s += std::to_string(j) + ",0," + std::to_string(j % 7) + "\n" +
+                                    std::to_string(j) + ",0.1," + std::to_string(j % 5) + "\n";
+                             return s;
+                           }()}}),
+                   {"fit", "d.csv", "-q", "--no-figures", "--out", "out"},
+                   {4},
+                   {},
+                   {}});
+  // --init with a model whose map overflows on the data at its parameters (a coefficient of
+  // 1e300): the model file is the cause, not the data ("windows: non-finite value").
+  const std::string huge_init = [] {
+    json doc = json::parse(library_model());
+    for (std::size_t i = 0; i + 1 < doc["params"].size(); ++i) doc["params"][i] = 1e300;
+    return resigned(doc);
+  }();
+  cases.push_back({"msg_init_huge_coefficients_states",
+                   files({{"d.csv", trajs}, {"m.json", huge_init}}),
+                   {"fit", "d.csv", "-q", "--init", "m.json", "--out", "out"},
+                   {1},
+                   {"--init", "m.json", "non-finite"},
+                   {"out"},
+                   {},
+                   {"windows", "Gauss-Newton"}});
+  cases.push_back({"msg_init_huge_coefficients_positions",
+                   files({{"d.csv", positions(1.0, "")}, {"m.json", huge_init}}),
+                   {"fit", "d.csv", "-q", "--init", "m.json", "--out", "out"},
+                   {1},
+                   {"--init", "m.json", "non-finite"},
+                   {"out"},
+                   {},
+                   {"windows", "Gauss-Newton"}});
   // evaluate --data with a model whose meta.system is a label, not a system: evaluated on
   // the data, no --preset asked for.
   cases.push_back({"msg_evaluate_meta_system_string",

@@ -2,6 +2,7 @@
 // report.json, wall times apart in timings.json; and a smoke run of experiments/coverage.py.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -395,6 +396,125 @@ TEST(FitCli, ValidDampedRecordPassesTheChecks) {
   for (const auto& c : rep["checks"]) EXPECT_EQ(c["passed"], true) << c.dump();
   EXPECT_LT(rep["gamma_ci_low"].get<double>(), 0.1);
   EXPECT_GT(rep["gamma_ci_high"].get<double>(), 0.1);
+}
+
+}  // namespace
+}  // namespace csympnet
+
+namespace csympnet {
+namespace {
+
+// The same positions with the times in units of 1e-20 and 1e20 of the original: the same
+// answer in the new unit (the local-velocity start once fitted its quadratic in raw time
+// offsets, whose powers spanned 40 decades: it dropped the slope, and the fit refused with
+// "p1 does not vary", a column the file does not have).
+TEST(FitCli, PositionsTimesIn1e20UnitsGiveTheSameAnswer) {
+  const std::vector<Trajectory> rec = linear_record(0.1, 300, 0.2, 5);
+  const SmallFit ref = small_fit_positions(rec);
+  ASSERT_EQ(ref.code, 0) << ref.printed;
+  const double g = ref.report["gamma_hat"].get<double>();
+  const double width =
+      ref.report["gamma_ci_high"].get<double>() - ref.report["gamma_ci_low"].get<double>();
+  for (double unit : {1e-20, 1e20}) {
+    std::vector<Trajectory> scaled = rec;
+    scaled.front().t *= unit;
+    const SmallFit f = small_fit_positions(scaled);
+    EXPECT_EQ(f.code, 0) << unit << ": " << f.printed;
+    ASSERT_TRUE(f.report.is_object()) << f.printed;
+    // γ per time unit of the file: γ / unit.
+    EXPECT_LE(std::abs(f.report["gamma_hat"].get<double>() * unit - g), 1e-4 * width) << unit;
+    EXPECT_LE(std::abs(f.report["gamma_ci_low"].get<double>() * unit -
+                       ref.report["gamma_ci_low"].get<double>()),
+              1e-3 * width)
+        << unit;
+  }
+}
+
+// Steps of 1e-200 time units: velocities whose squares overflow. Refused at once, in the
+// file's own columns (t and q1), never naming a p1 the file does not have.
+TEST(FitCli, PositionsWithStepsBeyondComputationAreRefusedInTheirColumns) {
+  std::vector<Trajectory> rec = linear_record(0.1, 100, 0.2, 5);
+  rec.front().t *= 1e-200;
+  const SmallFit f = small_fit_positions(rec);
+  EXPECT_EQ(f.code, 1) << f.printed;
+  EXPECT_NE(f.printed.find("median step"), std::string::npos) << f.printed;
+  EXPECT_NE(f.printed.find("q1"), std::string::npos) << f.printed;
+  EXPECT_NE(f.printed.find("rescale t"), std::string::npos) << f.printed;
+  EXPECT_EQ(f.printed.find("p1"), std::string::npos) << f.printed;
+}
+
+// A constant coordinate is refused before any fit, named, with exit 1 as the states route
+// refuses one (it once ran half a minute to "not identified").
+TEST(FitCli, PositionsWithAConstantCoordinateAreRefusedAtOnce) {
+  const std::vector<Trajectory> rec = linear_record(0.1, 300, 0.2, 5);
+  std::string positions = "t,q1,q2\n", states = "t,q1,q2,p1,p2\n";
+  for (Index k = 0; k < rec.front().t.size(); ++k) {
+    const std::string t = round_trip_text(rec.front().t(k));
+    const std::string q = round_trip_text(rec.front().z(0, k));
+    positions += t + "," + q + ",0.7\n";
+    // 0.7 is not the mean of 300 copies of 0.7 to the bit: the states' check once missed it.
+    states += t + "," + q + ",0.7," + round_trip_text(rec.front().z(1, k)) + ",0.01\n";
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const SmallFit f = small_fit_text(positions);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
+  EXPECT_EQ(f.code, 1) << f.printed;
+  EXPECT_NE(f.printed.find("q2 does not vary"), std::string::npos) << f.printed;
+  const SmallFit s = small_fit_text(states);
+  EXPECT_EQ(s.code, 1) << s.printed;
+  EXPECT_NE(s.printed.find("q2 does not vary"), std::string::npos) << s.printed;
+}
+
+// The library core's Hamiltonian line says what report.json holds: from positions alone H is
+// known up to one factor and its terms carry no intervals (it once pointed to intervals that
+// were all null); with momenta, each term has one.
+TEST(FitCli, TheHamiltonianLineSaysWhetherItsTermsHaveIntervals) {
+  const std::vector<Trajectory> rec = linear_record(0.1, 300, 0.2, 5);
+  std::string positions = "t,q1\n";
+  for (Index k = 0; k < rec.front().t.size(); ++k)
+    positions +=
+        round_trip_text(rec.front().t(k)) + "," + round_trip_text(rec.front().z(0, k)) + "\n";
+  for (const std::string& text : {positions, trajectories_csv_text(rec)}) {
+    const bool alone = text == positions;
+    testing::TempDir dir;
+    const fs::path data = dir.path() / "record.csv", out = dir.path() / "fit";
+    const fs::path stdout_file = dir.path() / "stdout.txt";
+    write_text_atomic(data.string(), text);
+    const int code =
+        shell(std::string(CSYMPNET_CLI_PATH) + " fit " + data.string() + " --out " + out.string() +
+              " --core library --no-figures -q > " + stdout_file.string() + " 2>&1");
+    const std::string printed = slurp(stdout_file);
+    ASSERT_EQ(code, 0) << printed;
+    const auto rep = nlohmann::json::parse(slurp(out / "report.json"));
+    ASSERT_TRUE(rep["hamiltonian"].is_object()) << rep.dump();
+    for (const auto& term : rep["hamiltonian"]["terms"])
+      EXPECT_EQ(term["interval"].is_null(), alone) << term.dump();
+    EXPECT_EQ(printed.find("report.json has each term's interval") != std::string::npos, !alone)
+        << printed;
+    EXPECT_EQ(printed.find("from positions alone H is known up to one common factor: its terms "
+                           "carry no intervals") != std::string::npos,
+              alone)
+        << printed;
+  }
+}
+
+// Trajectories of 2 positions each: each fits its hidden start state exactly and leaves
+// nothing for the dynamics. Not identified, with that reason, and a report (exit 4); it once
+// ended in "the Gauss-Newton matrix could not be factored" (exit 1).
+TEST(FitCli, PositionsTrajectoriesOfTwoSamplesAreNotIdentifiedWithTheReason) {
+  Rng rng(11, "two-sample-trajectories");
+  std::string text = "traj,t,q1\n";
+  for (int j = 0; j < 300; ++j)
+    for (int k = 0; k < 2; ++k)
+      text += std::to_string(j) + "," + round_trip_text(0.1 * k) + "," +
+              round_trip_text(rng.normal()) + "\n";
+  const SmallFit f = small_fit_text(text);
+  EXPECT_EQ(f.code, 4) << f.printed;
+  ASSERT_TRUE(f.report.is_object()) << f.printed;
+  EXPECT_EQ(f.report["verdict"], "not identified");
+  const std::string why = f.report["not_identified_reason"].get<std::string>();
+  EXPECT_NE(why.find("3 positions in a row"), std::string::npos) << why;
+  EXPECT_EQ(f.printed.find("Gauss-Newton"), std::string::npos) << f.printed;
 }
 
 }  // namespace

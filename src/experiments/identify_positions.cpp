@@ -258,6 +258,9 @@ inline constexpr double kMaxSensitivity = 1e6;
 // A bound on the hidden start states in the fit's units, where the data have unit spread (the
 // normalisation): a momentum a thousand times the data's is no motion they show.
 inline constexpr double kMaxAbsState = 1e3;
+// The positions fit of a neural candidate core, for the comparison of cores: at most this many
+// Levenberg–Marquardt steps (a G core on a 3-cart record ran its 100, 32 s, to lose).
+inline constexpr long kNeuralComparisonIterations = 40;
 
 // The segment length: the longest of 10, 20, 40, 80 (up to two periods) over which the
 // velocity-start model still follows the training positions, its start states fitted: the
@@ -479,6 +482,9 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
                                 nlohmann::json& rec) {
   std::vector<std::optional<SegmentFit>> fits(f.cand.size());
   nlohmann::json tried = nlohmann::json::array();
+  const auto is_library = [&](std::size_t i) {
+    return f.cand[i].core.is_object() && f.cand[i].core.value("type", "") == "library";
+  };
   const double n_val = static_cast<double>(std::max<Index>(1, val.segs.n_residuals()));
   for (std::size_t i = 0; i < f.cand.size(); ++i) {
     const detail::Candidate& x = f.cand[i];
@@ -486,6 +492,9 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
     const auto t0 = std::chrono::steady_clock::now();
     ShootingOptions opt = base;
     opt.n_free = free_parameters(*x.inner.map, d);
+    // A neural core is compared after at most kNeuralComparisonIterations steps: the library
+    // wins ties anyway, and a neural core chosen is fitted further by the linking.
+    if (!is_library(i)) opt.iterations = std::min(opt.iterations, kNeuralComparisonIterations);
     fits[i] = fit_segments(*x.inner.map, x.theta, train, val, opt);
     tried.push_back(
         {{"core", detail::core_name(x.core)},
@@ -498,9 +507,6 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
           std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
     if (fits[i]->rep.stopped) break;
   }
-  const auto is_library = [&](std::size_t i) {
-    return f.cand[i].core.is_object() && f.cand[i].core.value("type", "") == "library";
-  };
   std::size_t pick = f.best;
   const auto val_of = [&](std::size_t i) {
     const double v = fits[i] ? fits[i]->rep.val_loss : std::numeric_limits<double>::infinity();

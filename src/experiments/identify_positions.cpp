@@ -587,25 +587,32 @@ void prefer_polynomials(detail::CoreFit& f, const Cut& train, const Cut& val, In
 
 namespace detail {
 
+// The rest position is unknown from positions alone: every library candidate gets a linear
+// term per coordinate (with_rest_position_terms); the chosen one's θ and core are recorded in
+// r. Returns the sentence for the report, empty when no term was added to the chosen core.
+std::string add_rest_position_terms(CoreFit& f, IdentifyResult& r) {
+  std::string said;
+  for (std::size_t i = 0; i < f.cand.size(); ++i)
+    if (std::optional<Candidate> x = with_rest_position_terms(f.cand[i], f.facts.d)) {
+      f.cand[i] = std::move(*x);
+      if (i != f.best) continue;
+      r.theta = f.cand[i].theta;
+      r.choices["core"] = f.cand[i].core;
+      r.config.core = f.cand[i].core;
+      said = "a linear term per coordinate added to the selected library terms: the rest "
+             "position is not known from positions alone";
+    }
+  return said;
+}
+
 void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
                          bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r,
                          const std::function<void(IdentifyResult&)>& before_verdict) {
   const auto t0 = std::chrono::steady_clock::now();
   const Index d = f.facts.d;
-  // The rest position is unknown from positions alone: every selected library core gets a
-  // linear term per coordinate (with_rest_position_terms), given terms and an init excepted.
-  std::string rest_terms;
-  if (r.config.init == nullptr && !terms_given && !r.stopped)
-    for (std::size_t i = 0; i < f.cand.size(); ++i)
-      if (std::optional<Candidate> x = with_rest_position_terms(f.cand[i], d)) {
-        f.cand[i] = std::move(*x);
-        if (i != f.best) continue;
-        r.theta = f.cand[i].theta;
-        r.choices["core"] = f.cand[i].core;
-        r.config.core = f.cand[i].core;
-        rest_terms = "a linear term per coordinate added to the selected library terms: the rest "
-                     "position is not known from positions alone";
-      }
+  const std::string rest_terms =
+      r.config.init == nullptr && !terms_given && !r.stopped ? add_rest_position_terms(f, r)
+                                                              : std::string();
   const OneStepMap& start_map = *f.cand[f.best].inner.map;
   const Index p_start = start_map.n_params();
   const Index n_start = free_parameters(start_map, d);

@@ -411,6 +411,19 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
   return shooting_loss(map, theta, z0, segs);
 }
 
+namespace {
+
+// θ[b]'s Gauss–Newton standard error, √(loss · [A⁻¹]_bb / n), from `a`, the Cholesky factor of
+// A = JᵀJ / n (n residuals; at the current λ, which only shrinks it).
+double factored_standard_error(const Matrix& a, Index n_free, Index b, double loss, Index n) {
+  Vector e = Vector::Zero(n_free);
+  e(b) = 1.0;
+  lapack::cholesky_solve(a.data(), n_free, e.data());
+  return std::sqrt(std::max(0.0, loss * e(b) / static_cast<double>(n)));
+}
+
+}  // namespace
+
 ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
                             const ShootingSegments& train, Matrix& val_z0,
                             const ShootingSegments& val, const ShootingOptions& options) {
@@ -472,17 +485,12 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       continue;
     }
     lapack::cholesky_solve(a.data(), n_free, step.data());
-    // The watched parameter's variance, loss · [A⁻¹]_bb / n (A = JᵀJ / n at this λ).
-    double watch_se = 0.0;
     const Index b = options.watch_index;
-    if (b >= 0 && b < n_free && options.converged_se > 0.0) {
-      Vector e = Vector::Zero(n_free);
-      e(b) = 1.0;
-      lapack::cholesky_solve(a.data(), n_free, e.data());
-      watch_se = std::sqrt(std::max(0.0, loss * e(b) /
-                                              static_cast<double>(train.n_residuals())));
-      rep.watch_se = watch_se;
-    }
+    const double watch_se =
+        b >= 0 && b < n_free && options.converged_se > 0.0
+            ? factored_standard_error(a, n_free, b, loss, train.n_residuals())
+            : 0.0;
+    if (watch_se > 0.0) rep.watch_se = watch_se;
     // A step ten times the size of θ is a run along a direction the positions do not fix.
     if (!step.allFinite() || step.norm() > 10.0 * (1.0 + theta.head(n_free).norm())) {
       lambda *= 4.0;

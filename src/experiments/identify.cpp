@@ -300,7 +300,6 @@ std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs) {
   return out;
 }
 
-
 // When the dissipation check finds growing motion, the same pipeline runs on the record in
 // reversed time, where growing motion decays: its γ̂ and interval are the growth rate and its
 // interval. If the reversed record seems to grow too, no process explains both directions:
@@ -340,8 +339,6 @@ void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
   }
   growth->details["reversed_time_fit"] = g;
 }
-
-
 
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                  const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {

@@ -134,9 +134,9 @@ double corrected_loss(double loss, Index n, Index unknowns) {
 }  // namespace
 
 LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<Trajectory>& nt,
-                        const RecordLayout& layout, Index first_length,
-                        std::vector<Matrix>& states, const ShootingSegments& val, Matrix& val_z0,
-                        const ShootingOptions& options, const ShootingReport& segment_fit) {
+                        const RecordLayout& layout, Index first_length, std::vector<Matrix>& states,
+                        const ShootingSegments& val, Matrix& val_z0, const ShootingOptions& options,
+                        const ShootingReport& segment_fit) {
   const Index dim = map.dim();
   const Index n_free = options.n_free < 0 ? map.n_params() : options.n_free;
   LinkedFit out;
@@ -150,8 +150,8 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
   if (out.chain.segs.size() == 0) return out;
   out.report = segment_fit;
   // The starts of segments that begin where the segment fit had none (in a held-out block).
-  double loss = fit_start_states(map, theta, out.chain.segs, out.chain.z0, 30, false,
-                                 options.max_abs_state);
+  double loss =
+      fit_start_states(map, theta, out.chain.segs, out.chain.z0, 30, false, options.max_abs_state);
   Index n = out.chain.segs.n_residuals();
   double kept = corrected_loss(loss, n, n_free + dim * out.chain.segs.size());
   out.record["stages"].push_back({{"positions_per_segment", first_length},
@@ -173,12 +173,12 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     Vector th = theta;
     Matrix vz = val_z0;
     const auto t0 = std::chrono::steady_clock::now();
-    const ShootingReport rep = fit_shooting(map, th, c.z0, c.segs, vz, val, watching_damping(map, options));
+    const ShootingReport rep =
+        fit_shooting(map, th, c.z0, c.segs, vz, val, watching_damping(map, options));
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     n = c.segs.n_residuals();
-    const double corrected =
-        corrected_loss(rep.final_loss, n, n_free + dim * c.segs.size());
+    const double corrected = corrected_loss(rep.final_loss, n, n_free + dim * c.segs.size());
     const double allowed = kept * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(n)));
     const bool accept = !rep.stopped && std::isfinite(corrected) && corrected <= allowed;
     out.record["stages"].push_back({{"positions_per_segment", per},
@@ -196,8 +196,8 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     }
     if (!accept) {
       why = "the model does not follow the positions over segments of " + std::to_string(per) +
-            " positions: the corrected training loss rose from " + std::to_string(kept) +
-            " to " + std::to_string(corrected) +
+            " positions: the corrected training loss rose from " + std::to_string(kept) + " to " +
+            std::to_string(corrected) +
             " (more than three standard errors), so the chain is broken into the segments of "
             "the stage before";
       break;

@@ -45,7 +45,7 @@ inline ShootingOptions watching_damping(const OneStepMap& map, ShootingOptions o
 struct RecordLayout {
   std::vector<Vector> observed;           // per trajectory: 1 at a training position, else 0
   std::vector<std::vector<Index>> block;  // per trajectory: each position's training block
-  double gap = 0.0;                       // a step above this breaks a chain (kWindowGapFactor × the median)
+  double gap = 0.0;  // a step above this breaks a chain (kWindowGapFactor × the median)
 };
 RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& split);
 
@@ -66,10 +66,10 @@ void write_chain_states(const OneStepMap& map, ConstParams theta, const Chain& c
                         std::vector<Matrix>& states);
 
 struct LinkedFit {
-  Chain chain;               // the segments of the last accepted stage
-  ShootingReport report;     // its fit
-  bool linked_fully = false; // one segment per stretch
-  nlohmann::json record;     // what was tried and why it stopped
+  Chain chain;                // the segments of the last accepted stage
+  ShootingReport report;      // its fit
+  bool linked_fully = false;  // one segment per stretch
+  nlohmann::json record;      // what was tried and why it stopped
 };
 
 // From the segment fit (θ, `states` from its rollouts, the held-out segments and their starts),
@@ -79,8 +79,8 @@ struct LinkedFit {
 // longer segments stops the linking there, and the report says so. θ, `states` and `val_z0`
 // are those of the last kept stage.
 LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<Trajectory>& nt,
-                        const RecordLayout& layout, Index first_length,
-                        std::vector<Matrix>& states, const ShootingSegments& val, Matrix& val_z0,
-                        const ShootingOptions& options, const ShootingReport& segment_fit);
+                        const RecordLayout& layout, Index first_length, std::vector<Matrix>& states,
+                        const ShootingSegments& val, Matrix& val_z0, const ShootingOptions& options,
+                        const ShootingReport& segment_fit);
 
 }  // namespace csympnet::detail

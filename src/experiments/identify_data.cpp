@@ -26,8 +26,7 @@ Trajectory piece(const Trajectory& t, Index a, Index b) {
 // cut into contiguous segments of at least `min_steps` steps (neighbours share an end point,
 // so no step is lost).
 std::vector<Trajectory> make_blocks(const std::vector<Trajectory>& trajs, long target,
-                                    Index min_steps,
-                                    std::vector<std::pair<Index, Index>>& origin) {
+                                    Index min_steps, std::vector<std::pair<Index, Index>>& origin) {
   origin.clear();
   if (static_cast<long>(trajs.size()) >= target) {
     for (std::size_t k = 0; k < trajs.size(); ++k) origin.emplace_back(static_cast<Index>(k), 0);

@@ -417,7 +417,9 @@ class LibrarySelection {
         const bool earns = improves(x.val_loss, y.val_loss);
         const int family = family_rank(ad);
         steps.push_back({{"terms", name},
-                         {"family", family == 0 ? "power" : family == 1 ? "sin/cos" : "exp"},
+                         {"family", family == 0   ? "power"
+                                    : family == 1 ? "sin/cos"
+                                                  : "exp"},
                          {"predicted_gain", ad.gain},
                          {"val_loss_before", x.val_loss},
                          {"val_loss_after", y.val_loss},
@@ -600,7 +602,8 @@ class LibrarySelection {
       const LibraryTerm& t = pool_[static_cast<std::size_t>(out[r].terms.front())];
       for (const Addition& ad : ranked) {
         const LibraryTerm& u = pool_[static_cast<std::size_t>(ad.terms.front())];
-        const bool same_argument = (u.i == t.i && u.j == t.j) || (t.j >= 0 && u.i == t.j && u.j == t.i);
+        const bool same_argument =
+            (u.i == t.i && u.j == t.j) || (t.j >= 0 && u.i == t.j && u.j == t.i);
         if (u.shape != TermShape::kPower || !same_argument) continue;
         const bool listed = std::any_of(out.begin(), out.end(),
                                         [&](const Addition& o) { return o.terms == ad.terms; });

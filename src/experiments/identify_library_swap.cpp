@@ -71,8 +71,8 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     Matrix x(n, 4);
     Vector y = Vector::Zero(n);
     for (Index s = 0; s < n; ++s) {
-      const double u = difference ? scales(arg.i) * q(arg.i, s) - scales(arg.j) * q(arg.j, s)
-                                  : q(arg.i, s);
+      const double u =
+          difference ? scales(arg.i) * q(arg.i, s) - scales(arg.j) * q(arg.j, s) : q(arg.i, s);
       for (int p = 1; p <= 4; ++p) x(s, p - 1) = std::pow(u, p);
       for (std::size_t k : group) {
         const Index ki = static_cast<Index>(k);
@@ -91,7 +91,8 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     for (const LibraryTerm& t : next) core["terms"].push_back(term_name(t));
     PolynomialAlternative alt;
     alt.replaced = "";
-    for (std::size_t k : group) alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
+    for (std::size_t k : group)
+      alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
     for (const LibraryTerm& t : next)
       if (std::find(terms.begin(), terms.end(), t) == terms.end())
         alt.by += (alt.by.empty() ? "" : ", ") + term_name(t);
@@ -111,8 +112,7 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
       const Index to = index_of(terms[k]);
       c.theta(nm->coefficient_index(to)) = lib.theta(map->coefficient_index(static_cast<Index>(k)));
       if (nm->wavenumber_index(to) >= 0)
-        c.theta(nm->wavenumber_index(to)) =
-            lib.theta(map->wavenumber_index(static_cast<Index>(k)));
+        c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(static_cast<Index>(k)));
     }
     for (int p = 1; p <= 4; ++p) {
       if (difference && p == 1) {

@@ -158,8 +158,7 @@ void check_velocity_start(const std::vector<Trajectory>& states, double h_median
       count += static_cast<double>(t.z.cols());
       widest = std::max(widest, t.z.row(i).maxCoeff() - t.z.row(i).minCoeff());
     }
-    for (const Trajectory& t : states)
-      sq += (t.z.row(d + i).array() - sum / count).square().sum();
+    for (const Trajectory& t : states) sq += (t.z.row(d + i).array() - sum / count).square().sum();
     const double spread2 = sq / count;
     if (std::isfinite(spread2) && spread2 >= std::numeric_limits<double>::min()) continue;
     if (!(widest > 0.0)) continue;  // a constant q: check_positions names it
@@ -175,9 +174,9 @@ void check_velocity_start(const std::vector<Trajectory>& states, double h_median
 
 // The segments of blocks (normalised): consecutive runs of `len` positions, the last run of a
 // stretch joined to the one before when shorter than len / 2. A segment never spans a gap (a
-// step over kWindowGapFactor times the median step, as a rollout window's): a stretch between gaps is cut on its own, and a lone
-// position between two gaps is left out. Returns, per segment, its block and the first column
-// in that block.
+// step over kWindowGapFactor times the median step, as a rollout window's): a stretch between gaps
+// is cut on its own, and a lone position between two gaps is left out. Returns, per segment, its
+// block and the first column in that block.
 struct Cut {
   ShootingSegments segs;
   Index set_aside = 0;                      // positions in stretches under kMinSegmentPositions
@@ -294,9 +293,9 @@ Index segment_length(const OneStepMap& map, ConstParams theta,
 
 // Per normalised trajectory, the state at every sample: the segments' fitted rollouts where a
 // segment covers it (training and held-out blocks alike), the velocity start elsewhere.
-std::vector<Matrix> segment_states(const std::vector<Trajectory>& nt, const detail::BlockSplit& split,
-                                   const Cut& train, const Cut& val, const OneStepMap& map,
-                                   ConstParams theta) {
+std::vector<Matrix> segment_states(const std::vector<Trajectory>& nt,
+                                   const detail::BlockSplit& split, const Cut& train,
+                                   const Cut& val, const OneStepMap& map, ConstParams theta) {
   std::vector<Matrix> states;
   for (const Trajectory& t : nt) states.push_back(t.z);
   const auto write = [&](const Cut& c, const std::vector<Index>& ids) {
@@ -339,7 +338,8 @@ SegmentSums segment_sums(const OneStepMap& map, ConstParams theta, const Cut& c)
     const Matrix& obs = c.segs.q[i];
     const Matrix z = shooting_states(map, theta, c.z0.col(s), c.segs.h[i]);
     // Only the observed positions count (a linked chain passes held-out ones unobserved).
-    const Vector w = c.segs.observed.empty() ? Vector(Vector::Ones(obs.cols())) : c.segs.observed[i];
+    const Vector w =
+        c.segs.observed.empty() ? Vector(Vector::Ones(obs.cols())) : c.segs.observed[i];
     const double count = w.sum();
     if (!(count > 0.0)) continue;
     Index first = 0;
@@ -419,9 +419,8 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
   const Index bi = *map.damping_param_index();
   SandwichInterval s;
   try {
-    s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0,
-                          n_res, ne.cost, scale, detail::data_scale(split.blocks),
-                          r.config.level);
+    s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0, n_res,
+                          ne.cost, scale, detail::data_scale(split.blocks), r.config.level);
   } catch (const Error&) {
     // A property of the data (too few positions per hidden start), not an internal failure.
     r.reasons.push_back(
@@ -556,7 +555,8 @@ void prefer_polynomials(detail::CoreFit& f, const Cut& train, const Cut& val, In
   nlohmann::json trials = nlohmann::json::array();
   for (bool swapped = true; swapped;) {
     swapped = false;
-    for (detail::PolynomialAlternative& alt : detail::polynomial_alternatives(f.cand[f.best], d, q)) {
+    for (detail::PolynomialAlternative& alt :
+         detail::polynomial_alternatives(f.cand[f.best], d, q)) {
       throw_if_stop_requested("the comparison of library terms on the positions");
       ShootingOptions opt = base;
       opt.n_free = free_parameters(*alt.candidate.inner.map, d);
@@ -599,20 +599,21 @@ std::string add_rest_position_terms(CoreFit& f, IdentifyResult& r) {
       r.theta = f.cand[i].theta;
       r.choices["core"] = f.cand[i].core;
       r.config.core = f.cand[i].core;
-      said = "a linear term per coordinate added to the selected library terms: the rest "
-             "position is not known from positions alone";
+      said =
+          "a linear term per coordinate added to the selected library terms: the rest "
+          "position is not known from positions alone";
     }
   return said;
 }
 
-void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r,
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, bool terms_given,
+                         const IdentifyHooks& hooks, IdentifyResult& r,
                          const std::function<void(IdentifyResult&)>& before_verdict) {
   const auto t0 = std::chrono::steady_clock::now();
   const Index d = f.facts.d;
-  const std::string rest_terms =
-      r.config.init == nullptr && !terms_given && !r.stopped ? add_rest_position_terms(f, r)
-                                                              : std::string();
+  const std::string rest_terms = r.config.init == nullptr && !terms_given && !r.stopped
+                                     ? add_rest_position_terms(f, r)
+                                     : std::string();
   const OneStepMap& start_map = *f.cand[f.best].inner.map;
   const Index p_start = start_map.n_params();
   const Index n_start = free_parameters(start_map, d);
@@ -633,7 +634,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
          {"positions_set_aside", train.set_aside + val.set_aside},
          {"shortest_segment", kMinSegmentPositions},
          {"gauge", n_start < p_start ? "the per-dof momentum scales held at the velocity start's"
-                                      : "d = 1: the momentum's scale is the core's"}};
+                                     : "d = 1: the momentum's scale is the core's"}};
   if (!rest_terms.empty()) rec["rest_position"] = rest_terms;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   // The data's own check does not apply: the momenta were not given.
@@ -653,7 +654,8 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
         " positions set aside): from positions alone a trajectory needs 2 to fix its hidden "
         "start state (a position and a momentum per coordinate) and at least one more to "
         "constrain the dynamics; expected longer trajectories");
-  if (train.segs.size() == 0 || r.stopped || !f.lm_fits || r.training.stop_reason == StopReason::kDiverged) {
+  if (train.segs.size() == 0 || r.stopped || !f.lm_fits ||
+      r.training.stop_reason == StopReason::kDiverged) {
     verdict(f.split, f.facts.h_max, f.lm_fits, r);
     r.model = user_model(f.cand[f.best].inner, r);
     return;

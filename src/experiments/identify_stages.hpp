@@ -236,8 +236,8 @@ std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d)
 // local polynomial: the momenta as hidden states (identify_positions.cpp).
 // terms_given: the user named the library terms (they are fitted as given). before_verdict,
 // when set, runs after the checks and before the verdict (the growth rate's refit).
-void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         bool terms_given, const IdentifyHooks& hooks, IdentifyResult& r,
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, bool terms_given,
+                         const IdentifyHooks& hooks, IdentifyResult& r,
                          const std::function<void(IdentifyResult&)>& before_verdict = {});
 
 // The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its

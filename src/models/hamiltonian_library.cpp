@@ -149,8 +149,8 @@ void HamiltonianLibraryMap::check_inverse_mass(ConstParams theta, const std::str
     require(theta(k) > 0.0, [&] {
       char value[32];
       std::snprintf(value, sizeof value, "%.17g", theta(k));
-      return where + ": params[" + std::to_string(k) + "] = " + value +
-             " is W[" + std::to_string(r + 1) + "," + std::to_string(r + 1) + "]" + mass_kind() +
+      return where + ": params[" + std::to_string(k) + "] = " + value + " is W[" +
+             std::to_string(r + 1) + "," + std::to_string(r + 1) + "]" + mass_kind() +
              "; expected a positive inverse mass (a positive kinetic energy)";
     });
   }

@@ -90,9 +90,9 @@ struct ParsedName {
 
 bool read_name(const std::string& name, ParsedName& out) {
   NameReader r(name);
-  for (const auto& [f, shape] : {std::pair{"sin(", TermShape::kSin},
-                                 std::pair{"cos(", TermShape::kCos},
-                                 std::pair{"exp(", TermShape::kExp}}) {
+  for (const auto& [f, shape] :
+       {std::pair{"sin(", TermShape::kSin}, std::pair{"cos(", TermShape::kCos},
+        std::pair{"exp(", TermShape::kExp}}) {
     if (!r.eat(f)) continue;
     out.shape = shape;
     out.power = 0;
@@ -139,8 +139,7 @@ LibraryTerm parse_term(const std::string& name, Index d, const std::string& wher
   if (!parsed.second.empty()) t.j = index(parsed.second);
   if (t.shape == TermShape::kPower) {
     if (t.j < 0 && (t.power < 1 || t.power > 4)) throw refuse("power out of range");
-    if (t.j >= 0 && (t.power < 2 || t.power > 4))
-      throw refuse("a difference's power must be 2..4");
+    if (t.j >= 0 && (t.power < 2 || t.power > 4)) throw refuse("a difference's power must be 2..4");
   } else if (parsed.minus) {
     if (t.shape != TermShape::kExp || t.j >= 0) throw refuse("a minus sign only in exp(-qI)");
     t.kappa_sign = -1.0;

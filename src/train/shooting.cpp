@@ -84,8 +84,7 @@ const Vector& weights_of(const ShootingSegments& segs, std::size_t s) {
 
 // B = ∂r/∂z0 along one segment (the T recursion alone), with its residuals.
 void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
-                          const Matrix& q, const Vector& h, const Vector& w, Matrix& b,
-                          Vector& r) {
+                          const Matrix& q, const Vector& h, const Vector& w, Matrix& b, Vector& r) {
   const Index d = q.rows(), len = q.cols(), dim = 2 * d;
   const Matrix z = shooting_states(map, theta, z0, h);
   r = position_residuals(z, q, w);
@@ -239,8 +238,8 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
         const Index rows = (k1 - k0) * d;
         ne.scores.col(blk).noalias() +=
             a.middleRows(k0 * d, rows).transpose() * r.segment(k0 * d, rows);
-        x.gb_by_block.emplace_back(blk, b.middleRows(k0 * d, rows).transpose() *
-                                            r.segment(k0 * d, rows));
+        x.gb_by_block.emplace_back(
+            blk, b.middleRows(k0 * d, rows).transpose() * r.segment(k0 * d, rows));
       });
     }
   }
@@ -486,10 +485,9 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     }
     lapack::cholesky_solve(a.data(), n_free, step.data());
     const Index b = options.watch_index;
-    const double watch_se =
-        b >= 0 && b < n_free && options.converged_se > 0.0
-            ? factored_standard_error(a, n_free, b, loss, train.n_residuals())
-            : 0.0;
+    const double watch_se = b >= 0 && b < n_free && options.converged_se > 0.0
+                                ? factored_standard_error(a, n_free, b, loss, train.n_residuals())
+                                : 0.0;
     if (watch_se > 0.0) rep.watch_se = watch_se;
     // A step ten times the size of θ is a run along a direction the positions do not fix.
     if (!step.allFinite() || step.norm() > 10.0 * (1.0 + theta.head(n_free).norm())) {
@@ -561,8 +559,10 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     }
     if (watch_steps >= 3) {
       rep.watch_converged = true;
-      rep.message = "converged: three steps in a row each moved the damping parameter by less "
-                    "than " + std::to_string(options.converged_se) + " of its standard error";
+      rep.message =
+          "converged: three steps in a row each moved the damping parameter by less "
+          "than " +
+          std::to_string(options.converged_se) + " of its standard error";
       break;
     }
     if (small_steps >= 3) {

@@ -49,7 +49,8 @@ class FitFigureCli : public CliTest {
 };
 
 TEST_F(FitFigureCli, DrawnByDefaultAndNamedInTheWroteLine) {
-  if (!python_with_matplotlib()) GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
+  if (!python_with_matplotlib())
+    GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
   const fs::path out = dir_ / "out";
   const CliResult r = run(fit(out));
   ASSERT_EQ(r.code, 0) << r.err;
@@ -62,7 +63,8 @@ TEST_F(FitFigureCli, DrawnByDefaultAndNamedInTheWroteLine) {
 }
 
 TEST_F(FitFigureCli, NoFiguresDrawsNoneAndRemovesAnEarlierOne) {
-  if (!python_with_matplotlib()) GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
+  if (!python_with_matplotlib())
+    GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
   const fs::path out = dir_ / "out";
   ASSERT_EQ(run(fit(out, " -q")).code, 0);
   ASSERT_TRUE(has_figure(out));
@@ -124,7 +126,8 @@ TEST_F(FitFigureCli, AnUnidentifiedFitKeepsExitCode4) {
 }
 
 TEST_F(FitFigureCli, AnOutputPathReachesNoShell) {
-  if (!python_with_matplotlib()) GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
+  if (!python_with_matplotlib())
+    GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
   const fs::path out = dir_ / "a b;touch pwned;'$(touch pwned2)'";
   const CliResult r = run(fit(out, " -q"));
   ASSERT_EQ(r.code, 0) << r.err;

@@ -565,21 +565,23 @@ std::vector<Case> model_cases() {
                          write_file(d / "m.json", resigned(doc));
                          write_file(d / "t.csv", base_trajectories());
                        },
-                       cmd, codes, say, {}});
+                       cmd,
+                       codes,
+                       say,
+                       {}});
   };
   add_library("valid", [](json&) {}, {0}, {});
   add_library(
       "term_of_50000_digits",
       [](json& d) { d["model"]["core"]["terms"][0] = "q" + std::string(50000, '1'); }, {1},
       {"m.json: model spec.core.terms: term 'q1111111111", "\u2026': coordinate", "out of range"});
-  add_library(
-      "term_index_of_20_digits",
-      [](json& d) { d["model"]["core"]["terms"][1] = "q99999999999999999999^4"; }, {1},
-      {"term 'q99999999999999999999^4': coordinate 99999999999999999999 out of range",
-       "I, J in 1..1"});
-  add_library(
-      "term_not_a_string", [](json& d) { d["model"]["core"]["terms"][0] = json::array({5}); },
-      {1}, {"model spec.core.terms[0] = [5], expected a term name"});
+  add_library("term_index_of_20_digits",
+              [](json& d) { d["model"]["core"]["terms"][1] = "q99999999999999999999^4"; }, {1},
+              {"term 'q99999999999999999999^4': coordinate 99999999999999999999 out of range",
+               "I, J in 1..1"});
+  add_library("term_not_a_string",
+              [](json& d) { d["model"]["core"]["terms"][0] = json::array({5}); }, {1},
+              {"model spec.core.terms[0] = [5], expected a term name"});
   for (const auto& [label, w] : std::vector<std::pair<std::string, double>>{
            {"zero", 0.0}, {"negative", -1.0}, {"negative_zero", -0.0}, {"tiny_negative", -1e-300}})
     add_library(

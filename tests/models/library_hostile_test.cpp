@@ -45,7 +45,7 @@ TEST(LibraryHostile, LongNamesAndHugeIndicesAreRefusedByName) {
   EXPECT_NE(refusal("q" + digits, 3).find("out of range"), std::string::npos);
   EXPECT_NE(refusal("q1^" + digits, 3).find("not a library term"), std::string::npos);
   for (const char* name : {"q99999999999999999999", "q18446744073709551617",
-                                  "sin(q1-q99999999999999999999)", "(q99999999999999999999-q1)^2"}) {
+                           "sin(q1-q99999999999999999999)", "(q99999999999999999999-q1)^2"}) {
     const std::string m = refusal(name, 2);
     EXPECT_NE(m.find("out of range"), std::string::npos) << name << ": " << m;
     EXPECT_NE(m.find("I, J in 1..2"), std::string::npos) << m;
@@ -145,11 +145,10 @@ TEST(LibraryHostile, AStepOfManySubstepsStopsOnRequest) {
 
 // A model file of a library map with θ's inverse-mass entries replaced.
 std::string library_file(const std::string& mass, const std::vector<double>& w) {
-  const Model model = make_model({{"type", "csympnet"},
-                                  {"d", 2},
-                                  {"core", {{"type", "library"},
-                                            {"terms", {"q1^2", "q2^2"}},
-                                            {"mass", mass}}}});
+  const Model model =
+      make_model({{"type", "csympnet"},
+                  {"d", 2},
+                  {"core", {{"type", "library"}, {"terms", {"q1^2", "q2^2"}}, {"mass", mass}}}});
   Vector theta(model.n_params());
   Rng rng(1, "unused");
   model.init_params(rng, theta);

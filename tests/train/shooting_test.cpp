@@ -183,8 +183,7 @@ TEST_P(ShootingTest, WeightedSegmentsAcrossBlocksGiveEachBlockItsEfficientScore)
       RowMajorMatrix a;
       Matrix b;
       Vector r;
-      shooting_segment_jacobian(*map, theta, z, segs.q[i], segs.h[i], 0, a, b, r,
-                                segs.observed[i]);
+      shooting_segment_jacobian(*map, theta, z, segs.q[i], segs.h[i], 0, a, b, r, segs.observed[i]);
       return b;
     };
     const auto c2 = check_jacobian(
@@ -335,8 +334,8 @@ TEST(Shooting, DampingWatchEndsOnceTheDampingStopsMoving) {
   std::vector<Matrix> clean;
   for (int k = 0; k < count; ++k) {
     z_true.col(k) = rng.normal_matrix(2, 1, 0.6);
-    clean.push_back(shooting_states(*map, truth, z_true.col(k), Vector::Constant(21, 0.1))
-                        .topRows(1));
+    clean.push_back(
+        shooting_states(*map, truth, z_true.col(k), Vector::Constant(21, 0.1)).topRows(1));
   }
   const double sigma = 0.01;
   std::vector<double> estimates, ses;

@@ -134,7 +134,7 @@ struct ShootingReport {
   double val_loss = 0.0;                        // at the best iterate
   bool stopped = false;
   bool watch_converged = false;  // ended by ShootingOptions::watch_index's rule
-  double watch_se = 0.0;          // that parameter's standard error at the last step (0: none)
+  double watch_se = 0.0;         // that parameter's standard error at the last step (0: none)
   std::string message;
 };
 

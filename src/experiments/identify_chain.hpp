@@ -83,4 +83,19 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
                         const ShootingSegments& val, Matrix& val_z0, const ShootingOptions& options,
                         const ShootingReport& segment_fit);
 
+// The change of the Bayesian information criterion, n log(loss) + k log n, when `dropped`
+// parameters are removed and the mean squared residual goes from loss_with to loss_without
+// (negative: dropping them is preferred); +inf when either loss is not a positive number.
+double bic_change_of_dropping(double loss_with, double loss_without, Index n_residuals,
+                              Index dropped);
+
+// Parsimony over the linked chain (identify_prune.cpp): while dropping one of the library
+// core's powers of degree 3 or 4 lowers the information criterion of the positions fit, the
+// best such drop is made, θ and the start states refitted. `lib` (its θ the linked fit's),
+// `linked`'s start states and report, `val_z0` and `states` follow; every trial is recorded in
+// rec["terms_pruned"]. Returns whether a term was dropped; throws Error on a stop request.
+bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const ShootingSegments& val,
+                         Matrix& val_z0, const ShootingOptions& options,
+                         std::vector<Matrix>& states, nlohmann::json& rec);
+
 }  // namespace csympnet::detail

@@ -133,6 +133,39 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
   return out;
 }
 
+Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next) {
+  const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
+  require(map != nullptr, "library: the candidate to change is not a library map");
+  Candidate c;
+  c.core = lib.core;
+  c.training = lib.training;
+  c.lm = lib.lm;
+  c.lm_best_iteration = lib.lm_best_iteration;
+  c.lm_seconds = lib.lm_seconds;
+  c.val_loss = lib.val_loss;
+  c.pretrained = lib.pretrained;
+  c.core["terms"] = nlohmann::json::array();
+  for (const LibraryTerm& t : next) c.core["terms"].push_back(term_name(t));
+  c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
+  const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
+  require(nm != nullptr, "library: the changed candidate is not a library map");
+  // Each term kept carries its coefficient (and wavenumber) over; a new term starts at 0.
+  c.theta = Vector::Zero(c.inner.n_params());
+  c.theta.head(map->mass_size()) = lib.theta.head(map->mass_size());
+  const std::vector<LibraryTerm>& old = map->terms();
+  for (std::size_t k = 0; k < next.size(); ++k) {
+    const auto at = std::find(old.begin(), old.end(), next[k]);
+    if (at == old.end()) continue;
+    const Index from = static_cast<Index>(at - old.begin());
+    const Index to = static_cast<Index>(k);
+    c.theta(nm->coefficient_index(to)) = lib.theta(map->coefficient_index(from));
+    if (map->wavenumber_index(from) >= 0 && nm->wavenumber_index(to) >= 0)
+      c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(from));
+  }
+  c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+  return c;
+}
+
 std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d) {
   const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
   if (map == nullptr) return std::nullopt;
@@ -146,31 +179,8 @@ std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d)
     if (std::find(next.begin(), next.end(), t) == next.end()) next.push_back(t);
   }
   if (next.size() == map->terms().size()) return std::nullopt;
-  Candidate c;
-  c.core = lib.core;
-  c.training = lib.training;
-  c.lm = lib.lm;
-  c.lm_best_iteration = lib.lm_best_iteration;
-  c.lm_seconds = lib.lm_seconds;
-  c.val_loss = lib.val_loss;
-  c.pretrained = lib.pretrained;
-  c.core["terms"] = nlohmann::json::array();
-  for (const LibraryTerm& t : next) c.core["terms"].push_back(term_name(t));
-  c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
-  const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
-  require(nm != nullptr, "library: the rest-position candidate is not a library map");
-  // The old terms keep their places (the new ones come last), so θ's entries carry over one
-  // for one, the wavenumbers and β shifted past the new coefficients.
-  c.theta = Vector::Zero(c.inner.n_params());
-  c.theta.head(map->mass_size()) = lib.theta.head(map->mass_size());
-  const Index old_terms = static_cast<Index>(map->terms().size());
-  for (Index k = 0; k < old_terms; ++k) {
-    c.theta(nm->coefficient_index(k)) = lib.theta(map->coefficient_index(k));
-    if (map->wavenumber_index(k) >= 0 && nm->wavenumber_index(k) >= 0)
-      c.theta(nm->wavenumber_index(k)) = lib.theta(map->wavenumber_index(k));
-  }
-  c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
-  return c;
+  // The old terms keep their places (the new ones come last, at 0).
+  return library_with_terms(lib, d, next);
 }
 
 }  // namespace csympnet::detail

@@ -606,6 +606,70 @@ std::string add_rest_position_terms(CoreFit& f, IdentifyResult& r) {
   return said;
 }
 
+// After the linking (and the pruning): γ̂, the reconstructed momenta, the interval, the quality,
+// the checks, the verdict and the Hamiltonian of the fitted `map` (best's), all in r.
+void finish_on_positions(const OneStepMap& map, Candidate& best, Vector theta, CoreFit& f,
+                         Cut& train, Cut& val, std::vector<Matrix>& states,
+                         const ShootingReport& final_rep, const IdentifyHooks& hooks,
+                         IdentifyResult& r,
+                         const std::function<void(IdentifyResult&)>& before_verdict) {
+  const Index d = f.facts.d;
+  const Index n_free = free_parameters(map, d);
+  BlockSplit& split = f.split;
+  nlohmann::json& rec = r.choices["positions"];
+  r.theta = theta;
+  best.theta = theta;
+  const double tau = r.normalization.time_scale;
+  const double gamma_n = map.damping_rate(theta).value_or(0.0);
+  r.gamma = gamma_n / tau;
+  r.quality.train_loss = final_rep.final_loss;
+  r.quality.val_loss = final_rep.val_loss;
+
+  // The blocks with reconstructed momenta: the checks, the modes' mean state, the structure.
+  for (std::size_t i = 0; i < split.train_blocks.size(); ++i) {
+    const auto [j, a] = split.origin[static_cast<std::size_t>(split.train_ids[i])];
+    Trajectory& blk = split.train_blocks[i];
+    blk.z.bottomRows(d) = states[static_cast<std::size_t>(j)].block(d, a, d, blk.z.cols());
+  }
+  split.val_blocks = reconstructed(split.val_blocks, val, map, theta, d);
+  split.set_window(1);
+  split.blocks.clear();
+  for (const auto& t : split.train_blocks) split.blocks.push_back(t);
+  for (const auto& t : split.val_blocks) split.blocks.push_back(t);
+
+  if (!r.stopped) positions_interval(map, train, split, n_free, hooks, r);
+  measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
+  rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
+
+  if (!r.stopped && r.interval) run_checks(map, split, hooks, r);
+  if (before_verdict && !r.stopped) before_verdict(r);
+  verdict(split, f.facts.h_max, f.lm_fits, r);
+  // From positions alone the momenta's unit is not observed: H is fixed up to one factor
+  // (docs/derivations.md, "Positions only"), and its terms carry no intervals here.
+  r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
+  if (!r.hamiltonian.is_null())
+    r.hamiltonian["note"] =
+        "fitted from positions alone: the momenta's unit is not observed, so H (kinetic and "
+        "potential alike) is known up to one common factor; ratios of coefficients and the "
+        "wavenumbers are what the data fix; no intervals";
+  const double growth = largest_sensitivity(map, theta, train);
+  rec["sensitivity"] = growth;
+  if (!(growth <= kMaxSensitivity) && !r.stopped) {
+    r.reasons.push_back(
+        "the fitted map amplifies a perturbation of a segment's start state " +
+        significant(growth) +
+        "-fold over the segment (more than 1e6): the hidden momenta sit on an unstable "
+        "manifold of the map, where its derivatives and the interval mean nothing");
+    r.identified = false;
+    if (r.verdict == "identified") r.verdict = "not identified";
+  }
+  r.model = user_model(best.inner, r);
+  rec["about"] =
+      "the momenta are not observed: each segment's start state is fitted with the "
+      "map, and the loss is on the positions alone (errors " +
+      significant(std::sqrt(final_rep.final_loss)) + " rms in normalised units on training)";
+}
+
 void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, bool terms_given,
                          const IdentifyHooks& hooks, IdentifyResult& r,
                          const std::function<void(IdentifyResult&)>& before_verdict) {
@@ -716,6 +780,16 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, b
     LinkedFit linked =
         link_segments(map, theta, f.nt, layout, len, states, val.segs, val.z0, opt, rep);
     rec["linking"] = linked.record;
+    // The velocity stage's higher powers judged on the linked positions (replaces `best`, so
+    // `map` is not used below: the fitted map is read from `best` again).
+    if (r.config.init == nullptr && !terms_given && !linked.report.stopped) {
+      best.theta = theta;
+      if (prune_library_terms(best, d, linked, val.segs, val.z0, opt, states, rec)) {
+        theta = best.theta;
+        r.choices["core"] = best.core;
+        r.config.core = best.core;
+      }
+    }
     if (linked.chain.segs.size() > 0) {
       train.segs = std::move(linked.chain.segs);
       train.z0 = std::move(linked.chain.z0);
@@ -724,58 +798,9 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, b
     }
     if (linked.report.stopped) r.stopped = true;
   }
-  r.theta = theta;
-  best.theta = theta;
-  const double tau = r.normalization.time_scale;
-  const double gamma_n = map.damping_rate(theta).value_or(0.0);
-  r.gamma = gamma_n / tau;
-  r.quality.train_loss = final_rep.final_loss;
-  r.quality.val_loss = final_rep.val_loss;
-
-  // The blocks with reconstructed momenta: the checks, the modes' mean state, the structure.
-  for (std::size_t i = 0; i < split.train_blocks.size(); ++i) {
-    const auto [j, a] = split.origin[static_cast<std::size_t>(split.train_ids[i])];
-    Trajectory& blk = split.train_blocks[i];
-    blk.z.bottomRows(d) = states[static_cast<std::size_t>(j)].block(d, a, d, blk.z.cols());
-  }
-  split.val_blocks = reconstructed(split.val_blocks, val, map, theta, d);
-  split.set_window(1);
-  split.blocks.clear();
-  for (const auto& t : split.train_blocks) split.blocks.push_back(t);
-  for (const auto& t : split.val_blocks) split.blocks.push_back(t);
-
-  if (!r.stopped) positions_interval(map, train, split, n_free, hooks, r);
-  measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
-  rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
-
-  if (!r.stopped && r.interval) run_checks(map, split, hooks, r);
-  if (before_verdict && !r.stopped) before_verdict(r);
-  verdict(split, f.facts.h_max, f.lm_fits, r);
-  // From positions alone the momenta's unit is not observed: H is fixed up to one factor
-  // (docs/derivations.md, "Positions only"), and its terms carry no intervals here.
-  r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
-  if (!r.hamiltonian.is_null())
-    r.hamiltonian["note"] =
-        "fitted from positions alone: the momenta's unit is not observed, so H (kinetic and "
-        "potential alike) is known up to one common factor; ratios of coefficients and the "
-        "wavenumbers are what the data fix; no intervals";
-  const double growth = largest_sensitivity(map, theta, train);
-  rec["sensitivity"] = growth;
-  if (!(growth <= kMaxSensitivity) && !r.stopped) {
-    r.reasons.push_back(
-        "the fitted map amplifies a perturbation of a segment's start state " +
-        significant(growth) +
-        "-fold over the segment (more than 1e6): the hidden momenta sit on an unstable "
-        "manifold of the map, where its derivatives and the interval mean nothing");
-    r.identified = false;
-    if (r.verdict == "identified") r.verdict = "not identified";
-  }
-  r.model = user_model(best.inner, r);
+  finish_on_positions(*best.inner.map, best, theta, f, train, val, states, final_rep, hooks, r,
+                      before_verdict);
   rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  rec["about"] =
-      "the momenta are not observed: each segment's start state is fitted with the "
-      "map, and the loss is on the positions alone (errors " +
-      significant(std::sqrt(final_rep.final_loss)) + " rms in normalised units on training)";
 }
 
 }  // namespace detail

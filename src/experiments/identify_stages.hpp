@@ -25,6 +25,7 @@
 
 #include "csympnet/core/communicator.hpp"
 #include "csympnet/experiments/identify.hpp"
+#include "csympnet/models/potential_library.hpp"
 #include "csympnet/train/window_loss.hpp"
 
 namespace csympnet::detail {
@@ -231,6 +232,10 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
 // positions) misses it by a share of the amplitude that, at low noise, is larger than the noise
 // (identify_library_swap.cpp).
 std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d);
+// The library candidate with the terms `next`: the mass, β and each kept term's coefficient
+// (and wavenumber) carried over from `lib`, a new term at 0. Throws for a candidate that is no
+// library core.
+Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next);
 
 // identify_positions() after the core is trained on the positions with velocities from a
 // local polynomial: the momenta as hidden states (identify_positions.cpp).

@@ -748,7 +748,9 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, b
     opt.n_free = free_parameters(start_map, d);
     seg = fit_segments(start_map, r.theta, train, val, opt);
   }
-  if (choosing && !r.stopped && f.cand[f.best].core.value("type", "") == "library") {
+  // Whenever the library core was selected here (also when it was the only candidate trained).
+  if (r.config.init == nullptr && !terms_given && !r.stopped &&
+      f.cand[f.best].core.value("type", "") == "library") {
     prefer_polynomials(f, train, val, d, opt, seg, rec);
     r.choices["core"] = f.cand[f.best].core;
     r.config.core = f.cand[f.best].core;

@@ -13,6 +13,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
+#include "support/refusal.hpp"
 
 namespace csympnet {
 namespace {
@@ -57,14 +58,7 @@ Vector regular_times(Index n, double h) {
   return Vector::LinSpaced(n, 0.0, h * static_cast<double>(n - 1));
 }
 
-std::string refusal(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::refusal;
 
 TEST(ScorePositions, TheTrueModelScoresAtTheStateFitsPrecision) {
   const Oscillator o = oscillator(0.1);

@@ -9,18 +9,12 @@
 #include <limits>
 
 #include "csympnet/core/error.hpp"
+#include "support/refusal.hpp"
 
 namespace csympnet {
 namespace {
 
-std::string refusal(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::refusal;
 
 TEST(PositionsState, AWindowWithAGapIsRefused) {
   Matrix q(1, 6);

@@ -127,10 +127,14 @@ Trajectory with_local_velocities(const Trajectory& t, double half) {
     out.z.bottomRows(d).setZero();
     return out;
   }
+  // A sample exactly `half` away (half is a whole number of median steps) is inside: with a
+  // margin far above rounding, so that times in s and in ms (0.2 s is 0.19999999999999907
+  // after the arithmetic, 200 ms is 200) take the same samples and give the same answer.
+  const double reach = half * (1.0 + 1e-9);
   for (Index j = 0; j < n; ++j) {
     Index lo = std::max<Index>(0, j - 2), hi = std::min<Index>(n - 1, j + 2);
-    while (lo > 0 && t.t(j) - t.t(lo - 1) <= half) --lo;
-    while (hi < n - 1 && t.t(hi + 1) - t.t(j) <= half) ++hi;
+    while (lo > 0 && t.t(j) - t.t(lo - 1) <= reach) --lo;
+    while (hi < n - 1 && t.t(hi + 1) - t.t(j) <= reach) ++hi;
     const Index degree = hi - lo >= 2 ? 2 : 1;
     Matrix x(hi - lo + 1, degree + 1);
     // In units of `half`: powers of the raw offsets (1e-20 s and its square) would differ by
@@ -260,6 +264,9 @@ inline constexpr double kMaxAbsState = 1e3;
 // The positions fit of a neural candidate core, for the comparison of cores: at most this many
 // Levenberg–Marquardt steps (a G core on a 3-cart record ran its 100, 32 s, to lose).
 inline constexpr long kNeuralComparisonIterations = 40;
+// Each positions fit's Levenberg–Marquardt budget unless the user gives --lm-iterations (the
+// fits end earlier on their convergence rules).
+inline constexpr long kPositionsLmIterations = 100;
 
 // The segment length: the longest of 10, 20, 40, 80 (up to two periods) over which the
 // velocity-start model still follows the training positions, its start states fitted: the
@@ -670,17 +677,16 @@ void finish_on_positions(const OneStepMap& map, Candidate& best, Vector theta, C
       significant(std::sqrt(final_rep.final_loss)) + " rms in normalised units on training)";
 }
 
-void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, bool terms_given,
-                         const IdentifyHooks& hooks, IdentifyResult& r,
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                         const IdentifyConfig& given, const IdentifyHooks& hooks, IdentifyResult& r,
                          const std::function<void(IdentifyResult&)>& before_verdict) {
   const auto t0 = std::chrono::steady_clock::now();
+  const bool terms_given = given.core.is_object() && given.core.contains("terms");
   const Index d = f.facts.d;
   const std::string rest_terms = r.config.init == nullptr && !terms_given && !r.stopped
                                      ? add_rest_position_terms(f, r)
                                      : std::string();
   const OneStepMap& start_map = *f.cand[f.best].inner.map;
-  const Index p_start = start_map.n_params();
-  const Index n_start = free_parameters(start_map, d);
   const double spp = samples_per_period(positions);
   nlohmann::json tried = nlohmann::json::array();
   const bool any = cut_segments(f.split.train_blocks, d, 10).segs.size() > 0;
@@ -696,9 +702,7 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, b
          {"validation_segments", val.segs.size()},
          {"hidden_unknowns", 2 * d * (train.segs.size() + val.segs.size())},
          {"positions_set_aside", train.set_aside + val.set_aside},
-         {"shortest_segment", kMinSegmentPositions},
-         {"gauge", n_start < p_start ? "the per-dof momentum scales held at the velocity start's"
-                                     : "d = 1: the momentum's scale is the core's"}};
+         {"shortest_segment", kMinSegmentPositions}};
   if (!rest_terms.empty()) rec["rest_position"] = rest_terms;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   // The data's own check does not apply: the momenta were not given.
@@ -726,7 +730,9 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, b
   }
   if (hooks.stage) hooks.stage("hidden momenta: positions-only Levenberg-Marquardt");
   ShootingOptions opt;
-  opt.iterations = std::min<long>(r.config.lm_iterations, 100);
+  // Not r.config.lm_iterations: that is what the windows' LM spent (2 when the library core
+  // arrived converged), and a positions fit started from velocities from local fits needs more.
+  opt.iterations = given.lm_iterations > 0 ? given.lm_iterations : kPositionsLmIterations;
   opt.patience = 20;
   opt.max_abs_state = kMaxAbsState;
   opt.should_stop = stop;
@@ -759,6 +765,10 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, b
   const OneStepMap& map = *best.inner.map;
   const Index n_free = free_parameters(map, d);
   opt.n_free = n_free;
+  rec["gauge"] = n_free < map.n_params() ? "the per-dof momentum scales held at the velocity start's"
+                 : d == 1 ? "d = 1: the momentum's scale is the core's"
+                          : "the core's own: the momenta's units are in the library core's W and "
+                            "V, fixed up to one common factor of H";
   Vector theta = seg.theta;
   train = std::move(seg.train);
   val = std::move(seg.val);
@@ -838,7 +848,6 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
       {"half_width_time", half},
       {"half_correlation_lag_samples", lag},
       {"about", "a start for the hidden momenta only; gamma comes from the positions alone"}};
-  const bool terms_given = config.core.is_object() && config.core.contains("terms");
   std::function<void(IdentifyResult&)> growth;
   if (confirm_growth)
     growth = [&](IdentifyResult& out) {
@@ -849,7 +858,7 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
           },
           config, hooks, out);
     };
-  detail::refine_on_positions(positions, f, terms_given, hooks, r, growth);
+  detail::refine_on_positions(positions, f, config, hooks, r, growth);
   return r;
 }
 

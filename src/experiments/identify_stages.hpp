@@ -239,10 +239,11 @@ Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<Li
 
 // identify_positions() after the core is trained on the positions with velocities from a
 // local polynomial: the momenta as hidden states (identify_positions.cpp).
-// terms_given: the user named the library terms (they are fitted as given). before_verdict,
+// `given` is the configuration as the user gave it: library terms named there are fitted as
+// given, and its lm_iterations (0: automatic, 100) bounds each positions fit. before_verdict,
 // when set, runs after the checks and before the verdict (the growth rate's refit).
-void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f, bool terms_given,
-                         const IdentifyHooks& hooks, IdentifyResult& r,
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                         const IdentifyConfig& given, const IdentifyHooks& hooks, IdentifyResult& r,
                          const std::function<void(IdentifyResult&)>& before_verdict = {});
 
 // The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its

@@ -31,9 +31,10 @@ bool has_interval(const nlohmann::json& j) {
 
 void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
   const SandwichInterval& s = *r.interval;
-  std::printf("gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per %s (%g%% interval, %s, %ld blocks)\n",
-              r.gamma, s.quantile * s.std_error, s.low, s.high, per(unit).c_str(), 100.0 * s.level,
-              s.method.c_str(), s.blocks);
+  std::printf(
+      "gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per %s (%g%% interval, %s, %ld training blocks)\n",
+      r.gamma, s.quantile * s.std_error, s.low, s.high, per(unit).c_str(), 100.0 * s.level,
+      s.method.c_str(), s.blocks);
   // γ is the energy's decay rate; amplitudes decay as e^{-γt/2}.
   if (unit && unit->name != "s")
     std::printf(

@@ -177,11 +177,6 @@ class CSympNetID:
             "derived_momenta")}
         options["verbose"] = self.verbose
         t_default = 1.0 if self.t_default is None else self.t_default
-        if t is None and self.t_default is None:
-            warnings.warn(
-                "CSympNetID.fit: no times given (t) and no t_default: the samples are taken 1 "
-                "time unit apart, so gamma_ is per sample, not per unit of time; pass the "
-                "sample times or the step as t, or set t_default", NoTimesWarning, stacklevel=2)
         observed, time_unit, unit_source = self.observed, self.time_unit, "time_unit"
         if observed is not None:
             _checks.choice("observed", observed, OBSERVED)
@@ -199,6 +194,12 @@ class CSympNetID:
             ncols = _columns_of(x)
             if ncols is not None and ncols % 2 == 0:
                 _layout_warning("CSympNetID.fit", ncols, stacklevel=2)
+        # After the DataFrame is read: its time column gives the times.
+        if t is None and self.t_default is None:
+            warnings.warn(
+                "CSympNetID.fit: no times given (t) and no t_default: the samples are taken 1 "
+                "time unit apart, so gamma_ is per sample, not per unit of time; pass the "
+                "sample times or the step as t, or set t_default", NoTimesWarning, stacklevel=2)
         observed = observed or "states"
         self.observed_ = observed
         positions_only = observed == "positions"

@@ -329,7 +329,8 @@ def _envelope_panel(ax, report, rec, start, qhat, tlabel, size):
         i = int(np.argmax(spread))
         tk, rec_peaks, mod_peaks, centre = envelope(ts, rec.q[start:, i], qhat[:, i])
         ax.set_title(f"amplitude of {rec.names[i]} per half-cycle")
-        ylabel = f"|{rec.names[i]} − {centre:.3g}|\n(log scale)"
+        sign = "−" if centre >= 0 else "+"
+        ylabel = f"|{rec.names[i]} {sign} {abs(centre):.3g}|\n(log scale)"
     ax.set_xlabel(tlabel)
     if tk.size < 2:
         ax.text(0.5, 0.5, "the free run completes fewer than two half-cycles: no envelope",

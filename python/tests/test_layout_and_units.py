@@ -80,6 +80,8 @@ def test_dataframes_are_read_by_column_name():
     carts = pd.DataFrame({"timestamp_ms": t * 1e3, "left_cart_px": z[:, 0]})
     with warnings.catch_warnings():
         warnings.simplefilter("error", csympnet.LayoutWarning)
+        # The frame's time column gives the times: no "per sample" warning.
+        warnings.simplefilter("error", csympnet.NoTimesWarning)
         warnings.simplefilter("ignore", csympnet.NotIdentifiedWarning)
         est = csympnet.CSympNetID(**SMALL).fit(carts)
     assert est.report_["observed"] == "positions"

@@ -765,7 +765,8 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
   const OneStepMap& map = *best.inner.map;
   const Index n_free = free_parameters(map, d);
   opt.n_free = n_free;
-  rec["gauge"] = n_free < map.n_params() ? "the per-dof momentum scales held at the velocity start's"
+  rec["gauge"] = n_free < map.n_params()
+                     ? "the per-dof momentum scales held at the velocity start's"
                  : d == 1 ? "d = 1: the momentum's scale is the core's"
                           : "the core's own: the momenta's units are in the library core's W and "
                             "V, fixed up to one common factor of H";

@@ -67,14 +67,14 @@ bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const Shoot
       throw_if_stop_requested("the comparison of library terms on the linked positions");
       std::vector<LibraryTerm> next = terms;
       next.erase(next.begin() + static_cast<long>(k));
-      Trial t{term_name(terms[k]), library_with_terms(lib, d, next), linked.chain.z0, val_z0, {}, 0.0};
+      Trial t{
+          term_name(terms[k]), library_with_terms(lib, d, next), linked.chain.z0, val_z0, {}, 0.0};
       ShootingOptions opt = options;
       opt.n_free = t.candidate.inner.n_params();
       const auto t0 = std::chrono::steady_clock::now();
       t.report = fit_shooting(*t.candidate.inner.map, t.candidate.theta, t.z0, linked.chain.segs,
                               t.val_z0, val, watching_damping(*t.candidate.inner.map, opt));
-      t.delta_bic =
-          bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, 1);
+      t.delta_bic = bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, 1);
       trials.push_back(
           {{"term", t.term},
            {"loss_with", linked.report.final_loss},

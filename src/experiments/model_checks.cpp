@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <numeric>
 #include <optional>
 #include <sstream>
@@ -35,6 +36,23 @@ std::string fmt(double v, int digits = 3) {
   s.precision(digits);
   s << v;
   return s.str();
+}
+
+// A share as a percentage people read: "320%", "45%", "2.5%", never "3.2e+02%".
+std::string percent(double share) {
+  const double v = 100.0 * share;
+  if (!std::isfinite(v)) return fmt(v) + "%";
+  if (std::abs(v) >= 10.0) {
+    std::ostringstream s;
+    s << std::fixed << std::setprecision(0) << v;
+    return s.str() + "%";
+  }
+  return fmt(v, 2) + "%";
+}
+
+// "95%" for a level of 0.95.
+std::string level_words(double level) {
+  return fmt(100.0 * level, 4) + "%";
 }
 
 nlohmann::json nullable(double v) {
@@ -243,7 +261,7 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
     // The effect with its interval, in plain words: how much the rate changes from the
     // smallest amplitudes to the largest.
     const double half = tl * t.se_slope * range / std::abs(c);
-    const auto pct = [](double v) { return (v > 0 ? "+" : "") + fmt(100.0 * v, 2) + "%"; };
+    const auto pct = [](double v) { return (v > 0 ? "+" : "") + percent(v); };
     k.sentence =
         "no clear dependence on amplitude: from the smallest to the largest "
         "amplitudes (energies a factor " +
@@ -467,7 +485,9 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
   k.passed = !(k.p_value < k.alpha && k.effect > k.effect_threshold);
   std::string list;
   for (std::size_t i = 0; i < rates.size(); ++i) {
-    list += (list.empty() ? "" : ", ") + fmt(rates[i] / tau, 4);
+    list += (list.empty() ? "" : ", ") + fmt(rates[i] / tau, 4) + " [" +
+            fmt((rates[i] - tl * mr.se[i]) / tau, 3) + ", " +
+            fmt((rates[i] + tl * mr.se[i]) / tau, 3) + "]";
     if (modes)
       list +=
           " (at angular frequency " + fmt(modes->frequency(static_cast<Index>(i)) / tau, 3) + ")";
@@ -476,13 +496,16 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
     k.sentence =
         "the modes damp at different rates: " + list + " per time unit, where the model has one";
   } else if (k.detectable_effect > k.effect_threshold) {
-    k.sentence = "these data cannot tell one rate from rates per mode spread by less than " +
-                 fmt(100.0 * k.detectable_effect, 2) + "% of the common rate (rates per mode " +
-                 list + ")";
+    k.sentence =
+        "these data cannot tell one rate from rates per mode unless they differ by "
+        "more than " +
+        percent(k.detectable_effect) + " of the common rate (rates per mode, with " +
+        level_words(in.level) + " intervals: " + list + ")";
   } else {
     k.sentence = "one rate fits all modes: no spread beyond " +
-                 fmt(100.0 * std::max(k.effect, k.detectable_effect), 2) +
-                 "% of the common rate (rates per mode " + list + ")";
+                 percent(std::max(k.effect, k.detectable_effect)) +
+                 " of the common rate (rates per mode, with " + level_words(in.level) +
+                 " intervals: " + list + ")";
   }
   return k;
 }
@@ -534,8 +557,8 @@ ModelCheck residuals_check(const CheckInput& in, const std::vector<BlockProfile>
   k.passed = !(k.p_value < k.alpha && k.effect > k.effect_threshold);
   k.sentence = (k.passed ? "the residuals keep a structured part of "
                          : "the model leaves a structured error of ") +
-               fmt(100.0 * k.effect, 2) + "% of the motion per step (lag-1 correlation " +
-               fmt(rho1, 2) + ")" +
+               percent(k.effect) + " of the motion per step (lag-1 correlation " + fmt(rho1, 2) +
+               ")" +
                (k.passed ? ""
                          : ": a force or dissipation the model lacks (forcing, a drifting "
                            "equilibrium, nonlinear damping), or forces too intricate for the core");

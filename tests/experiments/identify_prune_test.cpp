@@ -53,8 +53,8 @@ TEST(IdentifyPrune, DroppingATermAtZeroLeavesTheMapAsItWas) {
 
 TEST(IdentifyPrune, BicChangeWeighsTheLossAgainstTheParameters) {
   // n log(L1/L0) − k log n: 1000 residuals, a 0.1% rise against one parameter's log 1000.
-  EXPECT_NEAR(bic_change_of_dropping(1.0, 1.001, 1000, 1), 1000 * std::log(1.001) - std::log(1000.0),
-              1e-12);
+  EXPECT_NEAR(bic_change_of_dropping(1.0, 1.001, 1000, 1),
+              1000 * std::log(1.001) - std::log(1000.0), 1e-12);
   EXPECT_LT(bic_change_of_dropping(1.0, 1.001, 1000, 1), 0.0);
   EXPECT_GT(bic_change_of_dropping(1.0, 1.01, 1000, 1), 0.0);
   EXPECT_TRUE(std::isinf(bic_change_of_dropping(0.0, 1.0, 1000, 1)));

@@ -1,5 +1,6 @@
 #include "identify_summary.hpp"
 
+#include <cmath>
 #include <cstdio>
 
 #include "progress.hpp"
@@ -63,8 +64,15 @@ void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
   };
   for (std::size_t k = 0; k < r.modes.size(); ++k) {
     const Mode& m = r.modes[k];
-    std::printf("mode %zu: angular frequency %.6g%s rad per %s, damping ratio %.6g%s\n", k + 1,
-                m.frequency, range(m.frequency_interval).c_str(), per(unit).c_str(),
+    // In a named unit other than s, also in rad/s (the scale people compare with).
+    std::string in_s;
+    if (unit && unit->name != "s") {
+      char buf[128];
+      std::snprintf(buf, sizeof buf, " (%.6g rad per s)", m.frequency / unit->seconds);
+      in_s = buf;
+    }
+    std::printf("mode %zu: angular frequency %.6g%s rad per %s%s, damping ratio %.6g%s\n", k + 1,
+                m.frequency, range(m.frequency_interval).c_str(), per(unit).c_str(), in_s.c_str(),
                 m.damping_ratio, range(m.damping_ratio_interval).c_str());
   }
   if (!r.modes_note.empty()) std::printf("modes: %s\n", r.modes_note.c_str());
@@ -76,7 +84,25 @@ void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
                             ? "from positions alone H is known up to one common factor: its "
                               "terms carry no intervals"
                             : "its terms carry no intervals";
-    std::printf("hamiltonian: H = 1/2 p^T M^-1 p + V(q), V(q) = %s (%s)\n",
+    // The kinetic part too (d = 2 to 4): with a full mass matrix the coupling of a chain may sit in
+    // M^-1 alone (V with no difference term), and a potential printed without it reads as
+    // uncoupled.
+    std::string kinetic;
+    const nlohmann::json& w = r.hamiltonian.value("inverse_mass", nlohmann::json());
+    if (w.is_array() && w.size() >= 2 && w.size() <= 4) {
+      kinetic = ", M^-1 = [";
+      for (std::size_t i = 0; i < w.size(); ++i) {
+        kinetic += i ? "; " : "";
+        for (std::size_t j = 0; j < w[i].size(); ++j) {
+          char buf[32];
+          std::snprintf(buf, sizeof buf, "%s%.4g", j ? " " : "",
+                        w[i][j].is_number() ? w[i][j].get<double>() : NAN);
+          kinetic += buf;
+        }
+      }
+      kinetic += "]";
+    }
+    std::printf("hamiltonian: H = 1/2 p^T M^-1 p + V(q)%s, V(q) = %s (%s)\n", kinetic.c_str(),
                 r.hamiltonian.value("potential", std::string()).c_str(), where);
   }
 }

@@ -86,6 +86,28 @@ nlohmann::json time_unit_report(const std::optional<TimeUnit>& unit,
   };
   const nlohmann::json g = per_s("gamma_hat"), lo = per_s("gamma_ci_low"),
                        hi = per_s("gamma_ci_high");
+  // Each mode's angular frequency in rad/s (a damping ratio has no unit).
+  nlohmann::json modes = nlohmann::json::array();
+  const nlohmann::json& listed =
+      identify_report.contains("modes") && identify_report.at("modes").is_object()
+          ? identify_report.at("modes").value("list", nlohmann::json())
+          : nlohmann::json();
+  if (listed.is_array())
+    for (const nlohmann::json& m : listed) {
+      const auto scaled = [&](const nlohmann::json& v) -> nlohmann::json {
+        return v.is_number() ? nlohmann::json(v.get<double>() / unit->seconds)
+                             : nlohmann::json(nullptr);
+      };
+      nlohmann::json iv = nullptr;
+      if (m.contains("angular_frequency_interval") &&
+          m.at("angular_frequency_interval").is_array() &&
+          m.at("angular_frequency_interval").size() == 2)
+        iv = {scaled(m.at("angular_frequency_interval")[0]),
+              scaled(m.at("angular_frequency_interval")[1])};
+      modes.push_back(
+          {{"angular_frequency_per_s", scaled(m.value("angular_frequency", nlohmann::json()))},
+           {"angular_frequency_interval_per_s", iv}});
+    }
   return {{"unit", unit->name},
           {"seconds_per_unit", unit->seconds},
           {"source", unit->source},
@@ -93,7 +115,8 @@ nlohmann::json time_unit_report(const std::optional<TimeUnit>& unit,
           {"gamma_ci_per_s", lo.is_null() || hi.is_null() ? nlohmann::json(nullptr)
                                                           : nlohmann::json::array({lo, hi})},
           {"amplitude_decay_rate_per_s",
-           g.is_null() ? nlohmann::json(nullptr) : nlohmann::json(g.get<double>() / 2.0)}};
+           g.is_null() ? nlohmann::json(nullptr) : nlohmann::json(g.get<double>() / 2.0)},
+          {"modes_per_s", modes}};
 }
 
 }  // namespace csympnet

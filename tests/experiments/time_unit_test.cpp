@@ -52,7 +52,20 @@ TEST(TimeUnit, ReportGivesGammaPerSecondAndTheAmplitudeDecayRate) {
   EXPECT_DOUBLE_EQ(j["gamma_per_s"].get<double>(), 0.04879);
   EXPECT_DOUBLE_EQ(j["amplitude_decay_rate_per_s"].get<double>(), 0.024395);
   EXPECT_DOUBLE_EQ(j["gamma_ci_per_s"][1].get<double>(), 0.05);
+  EXPECT_TRUE(j["modes_per_s"].empty());
   EXPECT_TRUE(time_unit_report(std::nullopt, report).is_null());
+  // The modes' angular frequencies in rad/s: a rate per ms is a thousand per s.
+  nlohmann::json with_modes = report;
+  with_modes["modes"] = {
+      {"list",
+       {{{"angular_frequency", 0.004}, {"angular_frequency_interval", {0.0039, 0.0041}}},
+        {{"angular_frequency", 0.0026}, {"angular_frequency_interval", nullptr}}}}};
+  const nlohmann::json m = time_unit_report(parse_time_unit("ms", "x"), with_modes);
+  ASSERT_EQ(m["modes_per_s"].size(), 2u);
+  EXPECT_DOUBLE_EQ(m["modes_per_s"][0]["angular_frequency_per_s"].get<double>(), 4.0);
+  EXPECT_DOUBLE_EQ(m["modes_per_s"][0]["angular_frequency_interval_per_s"][1].get<double>(), 4.1);
+  EXPECT_DOUBLE_EQ(m["modes_per_s"][1]["angular_frequency_per_s"].get<double>(), 2.6);
+  EXPECT_TRUE(m["modes_per_s"][1]["angular_frequency_interval_per_s"].is_null());
   nlohmann::json not_identified = report;
   not_identified["identified"] = false;
   const nlohmann::json n = time_unit_report(parse_time_unit("s", "x"), not_identified);

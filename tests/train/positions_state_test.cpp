@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/rng.hpp"
 #include "support/refusal.hpp"
 
 namespace csympnet {
@@ -46,6 +47,20 @@ TEST(PositionsState, AFitThatMissesItsWindowIsRefused) {
             std::string::npos);
   z(3) = std::numeric_limits<double>::infinity();
   EXPECT_NE(refusal([&] { check_state_fit(q, z, 0.0, "w"); }), "");
+}
+
+// A decayed window: a slow motion of amplitude 1 under noise of sd 0.5. A state that misses it
+// by the noise is accepted although that is far more than 10% of the spread; one that misses
+// it by twice the noise and more than 10% of the spread is not.
+TEST(PositionsState, AWindowNearTheNoiseIsExplainedByAFitAtTheNoise) {
+  Rng rng(3, "state-noise");
+  const Index n = 200;
+  Matrix q(1, n);
+  for (Index k = 0; k < n; ++k) q(0, k) = std::cos(0.25 * k) + 0.5 * rng.normal();
+  const Vector z = Vector::Zero(2);
+  EXPECT_EQ(refusal([&] { check_state_fit(q, z, 0.5, "w"); }), "");
+  const std::string why = refusal([&] { check_state_fit(q, z, 1.0, "w"); });
+  EXPECT_NE(why.find("times their noise"), std::string::npos) << why;
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
+#include "csympnet/diagnostics/observed.hpp"
 #include "csympnet/train/positions_state.hpp"
 
 namespace csympnet {
@@ -72,6 +73,22 @@ void check_trajectory(const Trajectory& tr, Index d, std::size_t k, std::size_t 
 
 }  // namespace
 
+namespace {
+
+// The last time after t_start at which the running rms of the errors (d × S, at times t) was
+// still within kValidTimeTolerance of `spread`; the whole span when it never left it.
+double valid_time(const Matrix& err, const Vector& t, double t_start, double spread) {
+  double sq = 0.0;
+  for (Index i = 0; i < err.cols(); ++i) {
+    sq += err.col(i).squaredNorm();
+    const double rms = std::sqrt(sq / static_cast<double>((i + 1) * err.rows()));
+    if (!(rms <= kValidTimeTolerance * spread)) return i == 0 ? 0.0 : t(i - 1) - t_start;
+  }
+  return err.cols() > 0 ? t(err.cols() - 1) - t_start : 0.0;
+}
+
+}  // namespace
+
 long default_warmup(long samples) {
   const long tenth = (samples + 9) / 10;
   return std::clamp(tenth, kWarmupDefaultMin, kWarmupDefaultMax);
@@ -86,6 +103,8 @@ void to_json(nlohmann::json& j, const PositionsScores& s) {
        {"spread", s.spread},
        {"spread_per_coordinate", numbers(s.spread_per_coordinate)},
        {"nrmse", optional_number(s.nrmse)},
+       {"valid_time_mean", s.valid_time_mean},
+       {"valid_time_tolerance", kValidTimeTolerance},
        {"rollout_finite", s.rollout_finite}};
   nlohmann::json per = nlohmann::json::array();
   for (const PositionsTrajectoryScore& t : s.per_trajectory)
@@ -97,6 +116,8 @@ void to_json(nlohmann::json& j, const PositionsScores& s) {
                    {"rmse", optional_number(t.rmse)},
                    {"rmse_per_coordinate", numbers(t.rmse_per_coordinate)},
                    {"spread", t.spread},
+                   {"valid_time", t.valid_time},
+                   {"span", t.span},
                    {"rollout_finite", t.finite}});
   j["per_trajectory"] = per;
 }
@@ -153,6 +174,9 @@ PositionsScores score_positions(const Model& model, const Vector& theta,
     ts.rmse = std::sqrt(t_err.sum() / (count * static_cast<double>(d)));
     ts.spread = std::sqrt(t_spread.sum() / (count * static_cast<double>(d)));
     ts.finite = pred.allFinite();
+    ts.span = tr.t(n - 1) - ts.t_start;
+    ts.valid_time = valid_time(err, tr.t.tail(ts.scored), ts.t_start, ts.spread);
+    s.valid_time_mean += ts.valid_time / static_cast<double>(data.size());
     err_sq += t_err;
     spread_sq += t_spread;
     s.samples_scored += ts.scored;

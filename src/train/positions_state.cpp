@@ -27,8 +27,8 @@ double noise_from_differences(const Matrix& q) {
   Index n = 0;
   for (Index i = 0; i < q.rows(); ++i)
     for (Index k = 4; k < q.cols(); ++k) {
-      const double d4 = q(i, k) - 4.0 * q(i, k - 1) + 6.0 * q(i, k - 2) - 4.0 * q(i, k - 3) +
-                        q(i, k - 4);
+      const double d4 =
+          q(i, k) - 4.0 * q(i, k - 1) + 6.0 * q(i, k - 2) - 4.0 * q(i, k - 3) + q(i, k - 4);
       sum += d4 * d4;
       ++n;
     }
@@ -68,16 +68,22 @@ void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::st
   // spread of 2.6 px, was refused).
   const double noise = noise_from_differences(q);
   const bool finite_state = z.allFinite();
-  if (!std::isfinite(rms) || !finite_state ||
-      rms > std::max(kStateFitMaxRelativeRms * spread, kStateFitMaxNoiseMultiple * noise))
+  const double limit =
+      std::min(kStateFitNoiseCap * spread,
+               std::max(kStateFitMaxRelativeRms * spread, kStateFitMaxNoiseMultiple * noise));
+  if (!std::isfinite(rms) || !finite_state || rms > limit)
     throw Error(
         what + ": the model does not explain this window of positions: the fitted motion " +
         (finite_state && std::isfinite(rms)
              ? "misses the positions by " + number_text(rms) + " rms, more than " +
                    number_text(100.0 * kStateFitMaxRelativeRms) + "% of their spread " +
-                   number_text(spread) + " and more than " +
-                   number_text(kStateFitMaxNoiseMultiple) + " times their noise " +
-                   number_text(noise) + " (from their fourth differences)"
+                   number_text(spread) +
+                   (limit > kStateFitMaxRelativeRms * spread
+                        ? " and more than " + number_text(limit) + " (" +
+                              number_text(kStateFitMaxNoiseMultiple) + " times their noise " +
+                              number_text(noise) + " from their fourth differences, at most " +
+                              number_text(100.0 * kStateFitNoiseCap) + "% of the spread)"
+                        : std::string())
              : std::string("is not finite")) +
         "; expected a recent window of the system the model was fitted to, in the same units "
         "and sampled as the data it was fitted on (no forecast is made from such a state)");

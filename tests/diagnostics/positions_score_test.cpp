@@ -113,6 +113,35 @@ TEST(ScorePositions, NoiseAndAWrongDampingRateRaiseTheScore) {
   EXPECT_GT(off, 0.01);
 }
 
+// The valid time: the true model's forecast stays within 10% of the spread over its whole
+// span; one with twice the damping rate leaves it before the end, and the time it reports is
+// the last sample time at which the running rms was still within.
+TEST(ScorePositions, ValidTimeIsTheSpanForTheTruthAndShorterForAWrongRate) {
+  const Oscillator truth = oscillator(0.1);
+  const Vector t = regular_times(400, 0.1);
+  const Trajectory tr = positions_of(truth, t);
+  const PositionsScores good = score_positions(truth.model, truth.theta, {tr}, {10L, "p"});
+  EXPECT_DOUBLE_EQ(good.per_trajectory[0].span, t(399) - t(9));
+  EXPECT_DOUBLE_EQ(good.per_trajectory[0].valid_time, good.per_trajectory[0].span);
+  EXPECT_DOUBLE_EQ(good.valid_time_mean, good.per_trajectory[0].valid_time);
+  const Oscillator wrong = oscillator(0.3);
+  const PositionsScores bad = score_positions(wrong.model, wrong.theta, {tr}, {10L, "p"});
+  const double v = bad.per_trajectory[0].valid_time;
+  EXPECT_LT(v, bad.per_trajectory[0].span);
+  EXPECT_GT(v, 0.0);
+  // By the definition: the running rms at the reported time is within, one sample later not.
+  const Matrix& pred = bad.rollouts[0];
+  double sq = 0.0;
+  Index k = 0;
+  for (; k < 390; ++k) {
+    const double e = pred(0, k + 1) - tr.z(0, 10 + k);
+    sq += e * e;
+    if (std::sqrt(sq / static_cast<double>(k + 1)) > 0.1 * bad.per_trajectory[0].spread) break;
+  }
+  ASSERT_GT(k, 0);
+  EXPECT_DOUBLE_EQ(v, t(10 + k - 1) - t(9));
+}
+
 TEST(ScorePositions, TheWarmUpIsLeftOutOfTheScore) {
   const Oscillator o = oscillator(0.1);
   Trajectory a = positions_of(o, regular_times(100, 0.1));

@@ -67,6 +67,10 @@ struct PositionsTrajectoryScore {
   double rmse = 0.0;
   Vector rmse_per_coordinate;  // d
   double spread = 0.0;
+  // How long after t_start the running rms error of the forecast stays within
+  // kValidTimeTolerance of the scored positions' spread (observed.hpp's definition, on q).
+  double valid_time = 0.0;
+  double span = 0.0;   // t_{n−1} − t_start: the forecast's length
   bool finite = true;  // false when the forecast left the finite numbers
 };
 
@@ -79,6 +83,7 @@ struct PositionsScores {
   double spread = 0.0;
   Vector spread_per_coordinate;  // d
   double nrmse = 0.0;            // NaN when the scored positions do not move
+  double valid_time_mean = 0.0;  // over the trajectories
   bool rollout_finite = true;
   std::vector<PositionsTrajectoryScore> per_trajectory;
   std::vector<Matrix> rollouts;  // per trajectory, 2d × (n − N + 1): the fitted state, then

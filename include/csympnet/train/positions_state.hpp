@@ -21,13 +21,16 @@ inline constexpr double kStateFitMaxRelativeRms = 0.1;
 // ... or, where the motion is within a few times the noise, this many times the noise in the
 // positions (from their fourth differences: sqrt(mean (Δ⁴q)² / 70)).
 inline constexpr double kStateFitMaxNoiseMultiple = 1.5;
+// ... but never beyond this share of the spread: a fit that leaves most of a window unexplained
+// (a zigzag at the sampling rate, noise alone) explains nothing to forecast from.
+inline constexpr double kStateFitNoiseCap = 0.5;
 
 // Refuses (Error naming `what`) a window whose times are not finite and increasing or that has
 // a gap.
 void check_positions_window(const Matrix& q, const Vector& t, const std::string& what);
 // Refuses a fitted state that is not finite, or whose rms position residual is not finite or
 // beyond both kStateFitMaxRelativeRms of the window's spread and kStateFitMaxNoiseMultiple of
-// its noise.
+// its noise (and always beyond kStateFitNoiseCap of the spread).
 void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what);
 
 // check_positions_window, state_from_positions, check_state_fit.

@@ -86,6 +86,46 @@ TEST(Identify, UnitsOffsetsAndTimeScaleDoNotChangeTheAnswer) {
       }
 }
 
+// Positions alone at regular steps (a camera's frames), the same record with its clock in s
+// and in ms: one answer. The local velocities' window reaches a whole number of steps, and a
+// sample exactly that far away was inside in ms (200) and outside in s (0.2 became
+// 0.19999999999999907): the two took different paths, and the ms fit gave a wrong mode.
+TEST(Identify, PositionsInSecondsAndMillisecondsGiveOneAnswer) {
+  SystemSpec spec;
+  spec.kind = "chain";
+  spec.d = 2;
+  spec.gamma = 0.12;
+  const System sys(spec);
+  Rng rng(5, "positions-clock");
+  Trajectory t;
+  const int n = 800;
+  const double h = 0.04;
+  t.t.resize(n);
+  Matrix z(4, n);
+  z.col(0) << 1.0, -0.4, 0.0, 0.3;
+  const Matrix step = expm_propagator(sys, h);
+  for (int k = 0; k < n; ++k) {
+    t.t(k) = h * k;
+    if (k > 0) z.col(k) = step * z.col(k - 1);
+  }
+  t.z = z.topRows(2) + 2e-3 * rng.normal_matrix(2, n, 1.0);
+  Trajectory ms = t;
+  ms.t = t.t * 1000.0;
+  const IdentifyConfig c;
+  const IdentifyResult a = identify_positions({t}, c);
+  const IdentifyResult b = identify_positions({ms}, c);
+  ASSERT_TRUE(a.interval.has_value() && b.interval.has_value());
+  EXPECT_EQ(a.choices["core"].value("terms", nlohmann::json()),
+            b.choices["core"].value("terms", nlohmann::json()));
+  const double width = a.interval->high - a.interval->low;
+  EXPECT_LE(std::abs(b.gamma * 1000.0 - a.gamma), 1e-6 * width);
+  ASSERT_EQ(a.modes.size(), b.modes.size());
+  for (std::size_t k = 0; k < a.modes.size(); ++k)
+    EXPECT_NEAR(b.modes[k].frequency * 1000.0, a.modes[k].frequency, 1e-6 * a.modes[k].frequency);
+  EXPECT_LE(a.interval->low, 0.12);
+  EXPECT_GE(a.interval->high, 0.12);
+}
+
 TEST(Identify, SaysNotIdentifiedWithoutDampingOrDynamics) {
   const IdentifyConfig c = small_budget();
   // No damping, noisy: the interval must reach 0.

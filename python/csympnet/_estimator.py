@@ -12,8 +12,9 @@ import warnings
 import numpy as np
 
 from . import _checks, _core, _frames
-from ._identify import (OBSERVED, TIME_UNITS, NotIdentifiedWarning, _columns_of,
-                        _layout_warning, _padded_positions, _time_unit_report, identify)
+from ._forms import OBSERVED, padded_positions
+from ._identify import (TIME_UNITS, NotIdentifiedWarning, _columns_of, _layout_warning,
+                        _time_unit_report, identify)
 
 
 class NoTimesWarning(UserWarning):
@@ -217,7 +218,7 @@ class CSympNetID:
                 result = identify(pairs=(z0, z1, h), **options)
             steps = h
         else:
-            trajs = _trajectories(_padded_positions(x) if positions_only else x, t, t_default)
+            trajs = _trajectories(padded_positions(x) if positions_only else x, t, t_default)
             zs = [z[:, :z.shape[1] // 2] if positions_only else z for _, z in trajs]
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", NotIdentifiedWarning)

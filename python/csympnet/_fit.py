@@ -10,6 +10,7 @@ import numpy as np
 from . import _checks, _core
 from ._verbose import progress_callback
 from ._data import REFERENCES, Trajectory, _system_overrides, systems, trajectory_list
+from ._forms import as_trajectories
 from ._model import Model
 
 # The models fit_pairs() trains (experiments/fit.hpp); csympnet.run trains every model type.
@@ -208,49 +209,6 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     return m
 
 
-def _split_by_label(t, z, traj):
-    """Rows of (t, z) grouped by a label column whose runs must be contiguous (as the CSV)."""
-    labels = np.asarray(traj)
-    if labels.ndim != 1 or labels.shape[0] != z.shape[0]:
-        raise ValueError(f"traj: expected one label per row ({z.shape[0]}), got shape {labels.shape}")
-    starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
-    ends = np.r_[starts[1:], labels.shape[0]]
-    seen = set()
-    out = []
-    for s, e in zip(starts, ends):
-        key = labels[s].item()
-        if key in seen:
-            raise ValueError(
-                f"traj: the rows of trajectory {key!r} are not contiguous (it reappears at row "
-                f"{s}); expected each trajectory's rows together"
-            )
-        seen.add(key)
-        out.append((t[s:e], z[s:e]))
-    return out
-
-
-def _as_trajectories(t, z, traj):
-    """The accepted trajectory forms (see fit_trajectories) as a list of (t, z) pairs."""
-    if isinstance(t, (list, tuple)) and isinstance(z, (list, tuple)):
-        if traj is not None:
-            raise ValueError("traj: not used when t and z are lists of trajectories")
-        if len(t) != len(z):
-            raise ValueError(f"t, z: {len(t)} time arrays but {len(z)} state arrays")
-        return list(zip(t, z))
-    elif np.ndim(z) == 3:
-        if traj is not None:
-            raise ValueError("traj: not used when z holds K trajectories as (K, M, 2d)")
-        za = np.asarray(z)
-        ta = np.broadcast_to(np.asarray(t), za.shape[:2]) if np.ndim(t) == 1 else np.asarray(t)
-        if ta.shape != za.shape[:2]:
-            raise ValueError(f"t: expected shape (M,) or {za.shape[:2]} for z of shape {za.shape}")
-        return list(zip(ta, za))
-    else:
-        zs, _ = _checks.states("z", z, allow_single=False)
-        ts = _checks.vector("t", t, length=zs.shape[0])
-        return [(ts, zs)] if traj is None else _split_by_label(ts, zs, traj)
-
-
 def _dims(x):
     """ndim of an array, or of a list's first array (the trajectory forms' lists)."""
     if isinstance(x, (list, tuple)) and len(x) and not np.isscalar(x[0]):
@@ -279,7 +237,7 @@ def fit_trajectories(z, t, traj=None, model="csympnet", **options):
                       "CSympNetID.fit do; the arguments given look like (t, z) and were "
                       "swapped. Pass them as (z, t).", FutureWarning, stacklevel=2)
         z, t = t, z
-    trajs = _as_trajectories(t, z, traj)
+    trajs = as_trajectories(t, z, traj)
     checked = trajectory_list(trajs, "trajectories")
     if sum(len(tr.t) - 1 for tr in checked) < 1:
         raise ValueError("t, z: the trajectories give no pairs; expected at least one with 2 rows")

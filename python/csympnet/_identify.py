@@ -7,7 +7,8 @@ import warnings
 import numpy as np
 
 from . import _checks, _core, _frames
-from ._fit import _as_trajectories, _core_spec
+from ._fit import _core_spec
+from ._forms import OBSERVED, as_trajectories, padded_positions
 from ._verbose import progress_callback
 from ._data import trajectory_list
 from ._model import Model
@@ -129,23 +130,6 @@ class Identification:
                 f"[{low:.6g}, {high:.6g}])")
 
 
-OBSERVED = ("states", "positions")
-
-
-def _padded_positions(z):
-    """Positions (M, d), (M,), (K, M, d) or a list of them, each with d columns of zeros
-    appended: the state arrays the trajectory checks read (the zeros are never used)."""
-    def pad(a):
-        a = np.asarray(a)
-        if a.ndim == 1:
-            a = a.reshape(-1, 1)
-        return np.concatenate([a, np.zeros_like(a, dtype=float)], axis=-1)
-    if isinstance(z, (list, tuple)):
-        return [pad(a) for a in z]
-    return pad(z) if np.ndim(z) != 3 else np.concatenate(
-        [np.asarray(z), np.zeros(np.shape(z))], axis=-1)
-
-
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
@@ -243,7 +227,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         if t is None:
             raise ValueError("t: the sample times are needed with trajectories (identify(z, t))")
         _checks.same_dimension("z", z, positions_only)
-        trajs = _as_trajectories(t, _padded_positions(z) if positions_only else z, traj)
+        trajs = as_trajectories(t, padded_positions(z) if positions_only else z, traj)
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")
     for k, tr in enumerate(checked):

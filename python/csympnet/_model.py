@@ -6,6 +6,7 @@ import numpy as np
 
 from . import _checks, _core
 from ._data import System, Trajectory, systems, trajectory_list
+from ._forms import OBSERVED, as_trajectories, padded_positions
 
 # Test sets generated when diagnostics() gets no trajectories: the presets' common values
 # (docs/protocol.md, "Test trajectories": 10 trajectories on [0, 10] with h_test = 0.2, data
@@ -216,9 +217,6 @@ class Model:
         (arrays (n − warmup + 1, 2d): the fitted state at t_start, then the forecast at each
         scored sample). Definitions: include/csympnet/diagnostics/positions_score.hpp.
         """
-        from ._fit import _as_trajectories  # _fit imports this module
-        from ._identify import OBSERVED, _padded_positions
-
         if observed is None:
             first = z[0] if isinstance(z, (list, tuple)) and len(z) else z
             width = 1 if np.ndim(first) == 1 else np.shape(first)[-1] if np.ndim(first) else None
@@ -230,12 +228,12 @@ class Model:
                 raise ValueError('warmup: the warm-up window of positions alone; with states the '
                                  'rollout starts from the first observed state (expected '
                                  'observed="positions" with warmup=)')
-            data = trajectory_list(_as_trajectories(t, z, traj), "data", dim=2 * self.d)
+            data = trajectory_list(as_trajectories(t, z, traj), "data", dim=2 * self.d)
             scores, rollouts = self._m.score(data)
         else:
             if warmup is not None:
                 warmup = _checks.integer("warmup", warmup)
-            padded = trajectory_list(_as_trajectories(t, _padded_positions(z), traj), "data",
+            padded = trajectory_list(as_trajectories(t, padded_positions(z), traj), "data",
                                      dim=2 * self.d)
             data = [(tr.t, np.ascontiguousarray(tr.z[:, :self.d])) for tr in padded]
             scores, rollouts = self._m.score_positions(data, warmup)

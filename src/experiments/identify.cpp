@@ -341,7 +341,8 @@ void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
 }
 
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
-                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
+                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
+                 const FloorTest& floor_test) {
   check_inputs(trajs, config);
   r.config = config;
   const Communicator& comm =
@@ -402,7 +403,10 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
     if (hooks.stage) hooks.stage("library core");
     LibraryFit lib = fit_library(fit, library_given ? c.core : nlohmann::json::object(), f.facts.d,
                                  beta_init, r.normalization, c.balanced, comm);
-    if (at_noise_floor(lib.cand, f.split, c.balanced, floor_reason) && choosing) cores.clear();
+    const bool at_floor = floor_test && choosing
+                              ? floor_test(lib.cand, f.split, floor_reason)
+                              : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason);
+    if (at_floor && choosing) cores.clear();
     lib.record["floor"] = floor_reason;
     r.choices["library"] = lib.record;
     library = std::move(lib.cand);

@@ -476,6 +476,84 @@ Index free_parameters(const OneStepMap& map, Index d) {
   return dynamic_cast<const DofScaledMap*>(&map) != nullptr ? p - (d - 1) : p;
 }
 
+// The lag-one correlation of the residuals within the segments, pooled over segments and
+// coordinates, and how many neighbouring pairs it pools.
+struct LagOne {
+  double rho = 0.0;
+  Index pairs = 0;
+};
+LagOne residual_lag_one(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                        const ShootingSegments& segs) {
+  const Vector r = shooting_residuals(map, theta, z0, segs);
+  const Index d = segs.d;
+  double num = 0.0, den = 0.0;
+  LagOne out;
+  Index at = 0;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const Index len = segs.q[static_cast<std::size_t>(s)].cols();
+    for (Index k = 0; k < len; ++k)
+      for (Index i = 0; i < d; ++i) {
+        const double v = r(at + k * d + i);
+        den += v * v;
+        if (k + 1 < len) {
+          num += v * r(at + (k + 1) * d + i);
+          ++out.pairs;
+        }
+      }
+    at += len * d;
+  }
+  out.rho = den > 0.0 ? num / den : 0.0;
+  return out;
+}
+
+// The floor test of the positions route (detail::FloorTest): the library core, with its rest
+// position terms, fitted to segments of up to two periods (80 positions at most) of the
+// positions; when the lag-one correlation of its held-out residuals is within three standard
+// errors (1/√pairs each) of what measurement noise leaves, nothing smooth is left for a neural
+// core to explain, and those are not trained. Noise leaves −2/(L − 2) over segments of L
+// positions: each coordinate's fitted start (a position and a momentum) takes the residuals'
+// slowest part. A misfit of the force shows as a positive excess, the larger the longer the
+// segments (over 10 positions the fitted starts absorb it). The velocity start's own test
+// judges velocities from local fits, whose errors are smooth: there a linear two-cart record
+// at 0.2% noise "left structure", and two neural cores were trained and fitted on the
+// positions to lose (30 of a fit's 35 CPU s).
+bool positions_floor(const detail::Candidate& library, const detail::BlockSplit& split, Index d,
+                     double spp, std::string& why) {
+  std::optional<detail::Candidate> rest = detail::with_rest_position_terms(library, d);
+  const detail::Candidate& x = rest ? *rest : library;
+  const OneStepMap& map = *x.inner.map;
+  const Index len = std::clamp<Index>(static_cast<Index>(std::lround(2.0 * spp)), 10, 80);
+  const Cut train = cut_segments(split.train_blocks, d, len);
+  const Cut val = cut_segments(split.val_blocks, d, len);
+  if (train.segs.size() == 0 || val.segs.size() == 0) {
+    why = "no training or held-out segment of " + std::to_string(len) +
+          " positions to judge the library core on: the neural cores were trained too";
+    return false;
+  }
+  ShootingOptions opt;
+  opt.iterations = kPositionsLmIterations;
+  opt.patience = 20;
+  opt.max_abs_state = kMaxAbsState;
+  opt.should_stop = [] { return stop_requested(); };
+  opt.converged_chi2 = 1e-3;
+  opt.converged_se = detail::kDampingConvergedSe;
+  opt.n_free = free_parameters(map, d);
+  const SegmentFit fit = fit_segments(map, x.theta, train, val, opt);
+  throw_if_stop_requested("the library core's test on the positions");
+  const LagOne lag = residual_lag_one(map, fit.theta, fit.val.z0, fit.val.segs);
+  const double noise = -2.0 / static_cast<double>(len - 2);
+  const double bound = noise + 3.0 / std::sqrt(static_cast<double>(std::max<Index>(lag.pairs, 1)));
+  const bool white = std::isfinite(fit.rep.val_loss) && lag.rho <= bound;
+  why = std::string(white ? "the library core's held-out position residuals are noise"
+                          : "the library core leaves smooth structure in the held-out "
+                            "positions") +
+        " (lag-one correlation " + detail::significant(lag.rho, 3) + " within segments of " +
+        std::to_string(len) + " positions, where noise leaves " + detail::significant(noise, 3) +
+        ", three standard errors " + detail::significant(bound - noise, 2) +
+        "): the neural cores were " + (white ? "not trained" : "trained too");
+  return white;
+}
+
 // The cores compared on what was observed: every trained candidate's segment fit on the
 // positions, and the held-out loss of the positions decides. The velocity start's choice was
 // made on velocities from local fits, whose noise hides the force law at many samples per
@@ -853,7 +931,13 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
   for (const Trajectory& t : positions) states.push_back(with_local_velocities(t, half));
   check_velocity_start(states, h_median);
   IdentifyResult r;
-  detail::CoreFit f = detail::fit_core(states, false, config, hooks, r);
+  const double spp = samples_per_period(positions);
+  const Index d = positions.front().z.rows();
+  detail::CoreFit f = detail::fit_core(
+      states, false, config, hooks, r,
+      [spp, d](const detail::Candidate& lib, const detail::BlockSplit& split, std::string& why) {
+        return positions_floor(lib, split, d, spp, why);
+      });
   r.observed = "positions";
   r.choices["velocity_start"] = {
       {"method", "local quadratic least squares"},

@@ -208,8 +208,14 @@ struct CoreFit {
   std::size_t best = 0;  // the chosen candidate
   bool lm_fits = true;   // at most 6,000 parameters: LM and an interval
 };
+// Whether the library core explains the data to the noise, so that the neural cores are not
+// trained; `why` says what was measured. The default judges the held-out one-step residuals
+// (at_noise_floor); the positions route judges the positions (identify_positions.cpp).
+using FloorTest =
+    std::function<bool(const Candidate& library, const BlockSplit& split, std::string& why)>;
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
-                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r);
+                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
+                 const FloorTest& floor_test = {});
 
 // The model in the user's units: the inner map wrapped in the normalisation (unless an init
 // file without one fixed the units).

@@ -13,6 +13,8 @@ import time
 
 from .common import GEN_OMEGA_DT, METHODS, REPO, STOP, Interrupted
 from .generate import plan, plan_violations
+from .observed import OBSERVED_METHODS, OBSERVED_STRATA, plan_observed, run_observed_case
+from .observed_tables import write_observed_outputs
 from .peers.csympnet import CHILDREN, CHILDREN_LOCK, kill_group
 from .peers.oracle import ORACLE_OMEGA_DT
 from .peers.sindy import LIBRARY_CAP, SG_DEGREE, SG_WINDOW, STLSQ_RIDGE, STLSQ_THRESHOLD
@@ -51,6 +53,23 @@ def progress(i, n, c):
     print(f"[{i}/{n}] {c['id']} d={c['d']} {c['strata']['ratio']} {c['strata']['units']} "
           f"{c['strata']['shape']} {c['strata']['steps']} sigma={c['strata']['sigma']:g}: "
           + ", ".join(parts), file=sys.stderr, flush=True)
+
+
+def progress_observed(i, n, c):
+    parts = []
+    for m in OBSERVED_METHODS:
+        r = c["methods"].get(m)
+        if r is None or r.get("status") == "skipped":
+            continue
+        cpu = r.get("cpu_seconds")
+        cpu = "" if cpu is None else f" {cpu:.1f} CPU s"
+        if r.get("status") == "ok":
+            cov = {True: ", covers", False: ", misses"}.get(r.get("covers"), "")
+            parts.append(f"{m} {r['rel_err']:.1e}{cov}{cpu}")
+        else:
+            parts.append(f"{m} {r.get('status')}{cpu}")
+    print(f"[{i}/{n}] {c['id']} d={c['d']} samples={c['samples']}: " + ", ".join(parts),
+          file=sys.stderr, flush=True)
 
 
 def parse_args():
@@ -92,6 +111,15 @@ def parse_args():
     ap.add_argument("--skip-peers", action="store_true",
                     help="skip the SINDy-style peer and the oracle (csympnet alone; "
                          "csympnet_library still runs with --library)")
+    ap.add_argument("--observed-plan", action="store_true",
+                    help="run the observed-records plan instead (linear records in pixels, "
+                         "oversampled, 10^5 samples, encoder counts, decays into the noise; "
+                         "csympnet beside the oracle, the textbook fits and sindy, with CPU "
+                         "seconds): --cases in all (default 10, 5 with --quick), the strata "
+                         "taken in turn")
+    ap.add_argument("--observed-strata", default=",".join(OBSERVED_STRATA),
+                    help="with --observed-plan: a comma-separated subset of "
+                         + ",".join(OBSERVED_STRATA))
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     return ap, ap.parse_args()
@@ -103,7 +131,15 @@ def main():
         ap.error("--seed must be >= 0")
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
-    if args.violations:
+    if args.observed_plan:
+        n = args.cases if args.cases is not None else (5 if args.quick else 10)
+        strata = [x.strip() for x in args.observed_strata.split(",") if x.strip()]
+        bad = [x for x in strata if x not in OBSERVED_STRATA]
+        if bad or not strata:
+            ap.error(f"unknown observed strata {bad}; choose from {','.join(OBSERVED_STRATA)}")
+        if args.violations:
+            ap.error("--observed-plan and --violations are two plans: give one")
+    elif args.violations:
         n = args.cases if args.cases is not None else (10 if args.quick else 60)
     else:
         n = args.cases if args.cases is not None else (8 if args.quick else 120)
@@ -144,7 +180,12 @@ def main():
                          "sg_window": SG_WINDOW, "sg_degree": SG_DEGREE,
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,
                          "library_cap": LIBRARY_CAP}}
-    if args.violations:
+    run, write = None, write_outputs
+    if args.observed_plan:
+        meta.update(observed_plan=True, observed_strata=strata)
+        cases = plan_observed(n, args.seed, strata)
+        run, write = run_observed_case, write_observed_outputs
+    elif args.violations:
         try:
             cases = plan_violations(n, args.seed, systems)
         except ValueError as e:
@@ -153,8 +194,8 @@ def main():
         cases = plan(n, args.seed, systems)
     first = {}
     for c in cases:  # the integrator check: first case of each system (violation kind)
-        first.setdefault(c["strata"]["violation"] if args.violations else c["system"],
-                         c["index"])
+        first.setdefault(c["strata"]["violation"] if args.violations
+                         else c.get("system", c.get("stratum")), c["index"])
     checked = set(first.values())
 
     got = {"signal": signal.SIGINT}
@@ -166,7 +207,11 @@ def main():
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     pool = cf.ThreadPoolExecutor(max_workers=args.jobs)
-    futures = {pool.submit(run_case, c, args, c["index"] in checked, exe, extra): c for c in cases}
+    if run is None:
+        futures = {pool.submit(run_case, c, args, c["index"] in checked, exe, extra): c
+                   for c in cases}
+    else:
+        futures = {pool.submit(run, c, args, exe, extra): c for c in cases}
     pending = set(futures)
     done_count = 0
     try:
@@ -183,7 +228,7 @@ def main():
                     print(f"{c['id']}: {c['error']}", file=sys.stderr, flush=True)
                     continue
                 done_count += 1
-                progress(done_count, len(cases), c)
+                (progress if run is None else progress_observed)(done_count, len(cases), c)
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
@@ -200,12 +245,12 @@ def main():
                 kill_group(p, signal.SIGKILL)
         pool.shutdown(wait=False, cancel_futures=True)
         try:
-            write_outputs(args, meta, cases, interrupted=True)
+            write(args, meta, cases, interrupted=True)
             print(f"interrupted; partial results in {args.out}", file=sys.stderr, flush=True)
         finally:
             os._exit(128 + int(got["signal"]))
     pool.shutdown()
-    md, notes, body = write_outputs(args, meta, cases)
+    md, notes, body = write(args, meta, cases)
     print(notes + "\n")
     print(body)
     print(f"wrote {os.path.join(args.out, 'results.json')} and "

@@ -4,6 +4,7 @@ import math
 import os
 import signal
 import subprocess
+import tempfile
 import threading
 import time
 
@@ -42,6 +43,36 @@ def run_child(cmd, timeout):
             CHILDREN.discard(p)
     check_stop()
     return p.returncode, out, err, timed_out
+
+
+def run_child_cpu(cmd, timeout):
+    """run_child, and the child's own CPU seconds (user + system, from wait4: exact whatever
+    else runs beside it). Output through temporary files; the wait polls every 20 ms."""
+    check_stop()
+    with tempfile.TemporaryFile("w+") as fo, tempfile.TemporaryFile("w+") as fe:
+        p = subprocess.Popen(cmd, stdout=fo, stderr=fe, text=True, start_new_session=True)
+        with CHILDREN_LOCK:
+            CHILDREN.add(p)
+        timed_out = False
+        deadline = time.monotonic() + timeout
+        try:
+            while True:
+                pid, status, usage = os.wait4(p.pid, os.WNOHANG)
+                if pid == p.pid:
+                    p.returncode = os.waitstatus_to_exitcode(status)
+                    break
+                if time.monotonic() > deadline and not timed_out:
+                    timed_out = True
+                    kill_group(p, signal.SIGKILL)
+                time.sleep(0.02)
+        finally:
+            with CHILDREN_LOCK:
+                CHILDREN.discard(p)
+        fo.seek(0)
+        fe.seek(0)
+        out, err = fo.read(), fe.read()
+    check_stop()
+    return p.returncode, out, err, timed_out, usage.ru_utime + usage.ru_stime
 
 
 def num(v):
@@ -86,12 +117,18 @@ def core_type(rep):
     return None
 
 
-def run_csympnet(exe, data, outdir, extra, timeout):
+def run_csympnet(exe, data, outdir, extra, timeout, cpu=False):
+    """`csympnet fit` on data; cpu: also the child's CPU seconds (cpu_seconds)."""
     cmd = [exe, "fit", data, "--out", outdir, "-q", "--no-figures", *extra]
     t0 = time.monotonic()
-    rc, out, err, timed_out = run_child(cmd, timeout)
+    if cpu:
+        rc, out, err, timed_out, cpu_s = run_child_cpu(cmd, timeout)
+    else:
+        rc, out, err, timed_out = run_child(cmd, timeout)
     res = {"seconds": time.monotonic() - t0, "returncode": rc, "command": cmd,
            "stdout_tail": out.strip().splitlines()[-1] if out.strip() else ""}
+    if cpu:
+        res["cpu_seconds"] = cpu_s
     last_err = err.strip().splitlines()[-1] if err.strip() else ""
     if timed_out:
         res.update(status="failed", reason=f"timeout after {timeout} s")

@@ -18,7 +18,6 @@ the Gauss-Newton covariance scaled by the residual variance.
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..common import check_stop
 from ..linear import chain_stiffness, modal_basis
@@ -39,6 +38,7 @@ def _interval(res, npar_gamma_index):
 def _two_passes(resid, x0, d):
     """resid(x, w) -> (n, d) residuals divided by w (d,); least squares unweighted, then
     weighted by each coordinate's residual spread."""
+    from scipy.optimize import least_squares  # the main plans need NumPy alone
     w = np.ones(d)
     res = least_squares(lambda x: resid(x, w).ravel(), x0, method="lm", x_scale="jac",
                         xtol=1e-13, ftol=1e-13)
@@ -141,6 +141,7 @@ def nonlinear(t, q, s, gamma_start, p=None):
         return (y - obs.ravel()) / wr, J / wr[:, None]
 
     def run(x, w):
+        from scipy.optimize import least_squares
         return least_squares(lambda x: fun_and_jac(x, w)[0], x, jac=lambda x: fun_and_jac(x, w)[1],
                              method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12)
     res = run(x0, np.ones(nout))

@@ -31,7 +31,9 @@ numpy.gradient or a Savitzky-Golay derivative, as a user without a momentum sens
 momenta, side by side: methods csympnet_positions and csympnet_differenced), --library
 (every case also fitted with the Hamiltonian-library core forced: method csympnet_library; off
 by default), --skip-peers (csympnet alone: no SINDy-style peer, no oracle; csympnet_library
-still runs with --library).
+still runs with --library), --observed-plan (the observed-records plan instead: --cases in all,
+default 10, 5 with --quick; strata taken in turn) with --observed-strata a,b,... (a subset of
+its strata; see idbench/observed.py for the strata, the peers and the CPU seconds).
 
 Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p, unit masses, unless stated):
 

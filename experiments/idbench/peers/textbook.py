@@ -14,15 +14,23 @@
                       slope. The rate of the energy is gamma, that of the amplitude gamma / 2.
 """
 import math
+import os
+import sys
 
 import numpy as np
+
+from ..common import REPO
 
 
 def damped_sinusoids(t, q, start_gamma, start_omegas, level=0.95):
     """t (n,), q (n, d) in the file's units; start_omegas: the undamped frequencies of the modes
     (the user's best case: known), start_gamma: gamma's start. Returns gamma_hat, ci_low,
     ci_high and extras."""
-    from linked_positions_study import textbook
+    try:
+        from linked_positions_study import textbook
+    except ImportError:  # the package imported from elsewhere: the study lives beside it
+        sys.path.insert(0, os.path.join(REPO, "experiments"))
+        from linked_positions_study import textbook
     q = np.asarray(q, dtype=float)
     case = {"t": np.asarray(t, dtype=float), "q": q, "d": q.shape[1],
             "omegas": np.asarray(start_omegas, dtype=float), "gamma": float(start_gamma)}

@@ -120,6 +120,9 @@ def parse_args():
     ap.add_argument("--observed-strata", default=",".join(OBSERVED_STRATA),
                     help="with --observed-plan: a comma-separated subset of "
                          + ",".join(OBSERVED_STRATA))
+    ap.add_argument("--with-momenta", action="store_true",
+                    help="with --observed-plan: also fit each linear record with measured "
+                         "momenta (csympnet_with_p), for the CPU cost of positions only")
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     return ap, ap.parse_args()
@@ -139,6 +142,8 @@ def main():
             ap.error(f"unknown observed strata {bad}; choose from {','.join(OBSERVED_STRATA)}")
         if args.violations:
             ap.error("--observed-plan and --violations are two plans: give one")
+    elif args.with_momenta:
+        ap.error("--with-momenta: needs --observed-plan")
     elif args.violations:
         n = args.cases if args.cases is not None else (10 if args.quick else 60)
     else:

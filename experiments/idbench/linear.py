@@ -49,10 +49,17 @@ def positions(K, gamma, q0, v0, t):
     return (c * a0[None, :] + s * b0[None, :]) @ U.T
 
 
-def velocities(K, gamma, q0, v0, t, eps=None):
-    """q'(t) by the same closed form (central difference of positions() in t at a step far
-    below the shortest period; used only to draw the momenta a sensor would give)."""
-    w_max = math.sqrt(max(np.linalg.eigvalsh(K).max(), 1e-300))
-    eps = 1e-6 / w_max if eps is None else eps
-    t = np.asarray(t, dtype=float)
-    return (positions(K, gamma, q0, v0, t + eps) - positions(K, gamma, q0, v0, t - eps)) / (2 * eps)
+def velocities(K, gamma, q0, v0, t):
+    """q'(t) of shape (len(t), d), in closed form: for each mode c' = -w^2 s and
+    s' = exp(-gamma t / 2) (cos wd t - (gamma / 2) sin(wd t) / wd)."""
+    w2, U = np.linalg.eigh(K)
+    _, c, s = modal_basis(K, gamma, t)
+    wd = np.sqrt((w2 - 0.25 * gamma * gamma).astype(complex))
+    wd = np.where(np.abs(wd) < 1e-300, 1e-300, wd)
+    tt = np.asarray(t, dtype=float)[:, None]
+    ds = (np.exp(-0.5 * gamma * tt) * (np.cos(wd[None, :] * tt)
+                                       - 0.5 * gamma * np.sin(wd[None, :] * tt) / wd[None, :])).real
+    dc = -w2[None, :] * s
+    a0 = U.T @ np.asarray(q0, dtype=float)
+    b0 = U.T @ np.asarray(v0, dtype=float)
+    return (dc * a0[None, :] + ds * b0[None, :]) @ U.T

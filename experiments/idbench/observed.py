@@ -40,6 +40,9 @@ Strata (the plan takes them in turn; a case's draws come from its own seed):
     log_decrement  one-mode records: the decrement of the extremes (peers/textbook.py)
     sindy          the SINDy-style peer; on positions-only records its momenta are the
                    Savitzky-Golay derivative of the positions (window 11, cubic)
+    csympnet_with_p  (--with-momenta; linear strata) `csympnet fit` on the same record with
+                   measured momenta (p = q' in pixels per time unit, noise of the same share
+                   of their spread): the cost of positions only as a CPU ratio, side by side
 
 CPU seconds of the Python peers are process_time (exact with --jobs 1).
 """
@@ -63,7 +66,8 @@ from .systems import make_system
 
 OBSERVED_STRATA = ["linear-px", "oversampled", "long-1e5", "encoder", "decay-into-noise"]
 LINEAR_STRATA = ["linear-px", "oversampled", "long-1e5"]
-OBSERVED_METHODS = ["csympnet", "oracle", "textbook", "log_decrement", "sindy", "oracle_one_step"]
+OBSERVED_METHODS = ["csympnet", "oracle", "textbook", "log_decrement", "sindy", "oracle_one_step",
+                    "csympnet_with_p"]
 LINEAR_PX_DOFS = [2, 4, 6, 3, 5]
 ENCODER_COUNTS = 2048
 
@@ -120,7 +124,13 @@ def _linear_record(case, rng, quick):
     px, scale, offset = _pixels(rng, q, sigma)
     qnat = (px - offset[None, :]) / scale[None, :]
     w = np.sqrt(np.linalg.eigvalsh(K))
-    return {"t": t, "q": px, "p": None, "q_natural": qnat, "gamma": gamma, "d": d,
+    # the same record with measured momenta (unit masses: p = q'), in pixels per time unit,
+    # with noise of sigma times their spread (own generator: the positions are unchanged)
+    v = linear.velocities(K, gamma, q0, np.zeros(d), t)
+    vrng = np.random.default_rng(case["seed"] + [2])
+    p_px = (v + sigma * v.std(axis=0)[None, :] * vrng.normal(size=v.shape)) * scale[None, :]
+    return {"t": t, "q": px, "p": None, "p_measured": p_px, "q_natural": qnat, "gamma": gamma,
+            "d": d,
             "springs": k.tolist(), "omegas": w.tolist(), "sigma": sigma,
             "samples_per_fastest_period": spp,
             "units": {"q_scale": scale.tolist(), "q_offset": offset.tolist(), "time_scale": 1.0}}
@@ -264,6 +274,20 @@ def run_observed_case(case, args, exe, extra):
         case["paths"]["csympnet_out"] = os.path.relpath(outdir, args.out)
         methods["csympnet"] = _terms(run_csympnet(exe, data, outdir, extra, args.timeout,
                                                   cpu=True))
+        if getattr(args, "with_momenta", False) and rec.get("p_measured") is not None:
+            # the same record with measured momenta: the cost of positions only, side by side
+            path = os.path.join(cdir, "data_with_p.csv")
+            write_csv(path, [(t, np.concatenate([rec["q"], rec["p_measured"]], axis=1))], d)
+            case["paths"]["data_with_p"] = os.path.relpath(path, args.out)
+            outdir = os.path.join(cdir, "csympnet_with_p")
+            if os.path.isdir(outdir):
+                shutil.rmtree(outdir)
+            methods["csympnet_with_p"] = _terms(run_csympnet(exe, path, outdir, extra,
+                                                             args.timeout, cpu=True))
+            cp, cq = methods["csympnet_with_p"].get("cpu_seconds"), \
+                methods["csympnet"].get("cpu_seconds")
+            if cp and cq is not None:
+                methods["csympnet"]["cpu_over_with_p"] = cq / cp
     for m, r in methods.items():
         score(r, gamma)
     o = methods["oracle"]

@@ -33,7 +33,8 @@ def method_stats(cases, m):
             "confident_wrong": sum(1 for r in rs if r.get("confident_wrong")),
             "median_width_over_oracle": _med([r.get("width_over_oracle") for r in ok]),
             "median_cpu_seconds": _med([r.get("cpu_seconds") for r in rs]),
-            "median_cpu_over_oracle": _med([r.get("cpu_over_oracle") for r in rs])}
+            "median_cpu_over_oracle": _med([r.get("cpu_over_oracle") for r in rs]),
+            "median_cpu_over_with_p": _med([r.get("cpu_over_with_p") for r in rs])}
 
 
 def summarize_observed(cases):
@@ -73,8 +74,9 @@ def observed_tables(summary):
                          f"{fmt(s['median_cpu_over_oracle'], 's')} |")
     lines += ["", "### per stratum: the goals' numbers\n",
               "| stratum | csympnet: median rel. error | coverage | width / oracle | textbook "
-              "width / oracle | CPU csympnet / oracle | linear records with sin/cos/exp terms |",
-              "|" + "---|" * 7]
+              "width / oracle | CPU csympnet / oracle | CPU positions only / with p | "
+              "linear records with sin/cos/exp terms |",
+              "|" + "---|" * 8]
     for st, per in summary.items():
         c, tb = per.get("csympnet"), per.get("textbook")
         terms = per["csympnet_terms"]
@@ -85,7 +87,8 @@ def observed_tables(summary):
             f"| {st} | {fmt(c and c['median_rel_err'])} | {_cov(c)} | "
             f"{fmt(c and c['median_width_over_oracle'], 's')} | "
             f"{fmt(tb and tb['median_width_over_oracle'], 's')} | "
-            f"{fmt(c and c['median_cpu_over_oracle'], 's')} | {tcell} |")
+            f"{fmt(c and c['median_cpu_over_oracle'], 's')} | "
+            f"{fmt(c and c['median_cpu_over_with_p'], 's')} | {tcell} |")
     return "\n".join(lines) + "\n"
 
 

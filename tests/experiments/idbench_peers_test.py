@@ -35,7 +35,7 @@ def pendulum_record(gamma, amp, n, h, p=False):
     return h * np.arange(n), Q[:, 0, 0], P[:, 0, 0], s
 
 
-def test_chain_positions_match_the_matrix_exponential():
+def test_chain_positions_and_velocities_match_the_matrix_exponential():
     from scipy.linalg import expm
     rng = np.random.default_rng(4)
     d, gamma = 3, 0.3
@@ -45,6 +45,8 @@ def test_chain_positions_match_the_matrix_exponential():
     A = np.block([[np.zeros((d, d)), np.eye(d)], [-K, -gamma * np.eye(d)]])
     ref = np.stack([(expm(A * s) @ np.concatenate([q0, v0]))[:d] for s in t])
     assert np.abs(linear.positions(K, gamma, q0, v0, t) - ref).max() < 1e-12
+    ref_v = np.stack([(expm(A * s) @ np.concatenate([q0, v0]))[d:] for s in t])
+    assert np.abs(linear.velocities(K, gamma, q0, v0, t) - ref_v).max() < 1e-11
 
 
 def test_textbook_damped_sinusoids_recover_gamma_on_a_clean_record_in_pixels():

@@ -1,0 +1,1 @@
+"""The methods run beside `csympnet fit` on each case."""

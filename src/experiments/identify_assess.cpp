@@ -74,9 +74,10 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
                    {&ne, train.size() * train.dim(), scale, data_scale(nt),
                     std::sqrt(std::max(1.0, ratio)), stop},
                    r);
-    r.hamiltonian = hamiltonian_report(
-        map, r.theta, r.normalization,
-        {&ne, train.size() * train.dim(), scale, std::sqrt(std::max(1.0, ratio)), r.config.level});
+    const HamiltonianIntervalInput shared = {&ne, train.size() * train.dim(), scale,
+                                             std::sqrt(std::max(1.0, ratio)), r.config.level};
+    r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, shared);
+    r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, shared);
   }
   r.interval_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }

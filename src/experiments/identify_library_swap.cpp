@@ -104,6 +104,9 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     c.theta = Vector::Zero(c.inner.n_params());
     c.theta.head(nm->mass_size()) = lib.theta.head(map->mass_size());
     c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+    // The core (copied) keeps the dissipation terms in their order: their rates carry over.
+    for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
+      c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
     const auto index_of = [&](const LibraryTerm& t) {
       return static_cast<Index>(std::find(next.begin(), next.end(), t) - next.begin());
     };
@@ -170,6 +173,8 @@ std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d)
       c.theta(nm->wavenumber_index(k)) = lib.theta(map->wavenumber_index(k));
   }
   c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+  for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
+    c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
   return c;
 }
 

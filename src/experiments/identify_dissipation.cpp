@@ -103,7 +103,8 @@ double user_value(const HamiltonianLibraryMap& map, const Vector& theta, const N
 
 nlohmann::json dissipation_terms_report(const OneStepMap& any_map, const Vector& theta,
                                         const Normalization& units,
-                                        const HamiltonianIntervalInput& in) {
+                                        const HamiltonianIntervalInput& in,
+                                        const std::vector<double>& integrator) {
   nlohmann::json out = nlohmann::json::array();
   const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(&any_map);
   if (map == nullptr) return out;
@@ -125,6 +126,8 @@ nlohmann::json dissipation_terms_report(const OneStepMap& any_map, const Vector&
           sandwich_interval_of(in.ne->a, in.ne->g, in.ne->scores, grad, value, in.n_residuals,
                                in.ne->cost, in.residual_scale, 0.0, in.level);
       inflate_interval(iv, in.inflation);
+      if (static_cast<std::size_t>(k) < integrator.size())
+        add_integrator(iv, integrator[static_cast<std::size_t>(k)] * std::abs(value));
       low = iv.low;
       high = iv.high;
     }

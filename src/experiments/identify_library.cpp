@@ -594,6 +594,24 @@ class LibrarySelection {
       const double g0 = *x.inner.map->damping_rate(x.theta);
       const double g1 = *finer.inner.map->damping_rate(finer.theta);
       rec_["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
+      // The same for each dissipation term, relative (its value in the user's units is a fixed
+      // multiple of W_ii μ or c / W_ii): the reversals' first-order error is the integrator's
+      // share of its interval (docs/derivations.md, "Dry friction and drag").
+      nlohmann::json changes = nlohmann::json::array();
+      const HamiltonianLibraryMap& a = library_of(x);
+      const HamiltonianLibraryMap& b = library_of(finer);
+      for (Index k = 0; k < static_cast<Index>(a.dissipation().size()); ++k) {
+        const auto value = [k](const HamiltonianLibraryMap& m, const Vector& th) {
+          const DissipationTerm& t = m.dissipation()[static_cast<std::size_t>(k)];
+          const double w = th(m.full_mass() ? t.i * (t.i + 1) / 2 + t.i : t.i);
+          const double r = std::abs(th(m.dissipation_index(k)));
+          return t.kind == DissipationKind::kCoulomb ? w * r : r / w;
+        };
+        const double v0 = value(a, x.theta), v1 = value(b, finer.theta);
+        const double rel = std::abs(v1 - v0) / std::max(std::abs(v0), 1e-300);
+        changes.push_back(std::isfinite(rel) ? rel : 0.0);
+      }
+      rec_["dissipation_change_at_twice_the_substeps"] = changes;
     }
     rec_["terms"] = x.core["terms"];
     rec_["substeps"] = library_of(x).substeps();

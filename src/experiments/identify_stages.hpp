@@ -194,9 +194,12 @@ nlohmann::json hamiltonian_report(const OneStepMap& map, const Vector& theta,
 // A library map's dissipation terms beside γ in the user's units, with their intervals (null
 // ne: none): the report's "dissipation" terms after the viscous one (identify_dissipation.cpp);
 // an empty list for any other map.
+// `integrator`: per term, the relative change of its value at twice the substeps, added in
+// quadrature to its standard error (as gamma's integrator share); empty: none.
 nlohmann::json dissipation_terms_report(const OneStepMap& map, const Vector& theta,
                                         const Normalization& units,
-                                        const HamiltonianIntervalInput& in);
+                                        const HamiltonianIntervalInput& in,
+                                        const std::vector<double>& integrator = {});
 
 // r.modes: the fitted map linearised at its fixed point nearest the training windows' mean
 // state, each oscillating mode's natural frequency and damping ratio, with intervals when

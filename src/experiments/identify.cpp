@@ -182,6 +182,17 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   if (given("dissipation", text, "a string (one of auto, viscous, viscous+coulomb, viscous+drag)"))
     c.dissipation = settings.at("dissipation").get<std::string>();
   c.validate();
+  // Refused here, before any data are read, as well as in identify() for a config built by
+  // hand: friction and drag are terms of the library core.
+  const bool forced = c.dissipation != "auto" && c.dissipation != "viscous";
+  const bool library_core =
+      c.core.is_null() || (c.core.is_object() && c.core.value("type", "") == "library");
+  const bool with_init = settings.contains("init") && !settings.at("init").is_null();
+  if (forced && (!library_core || with_init))
+    throw OptionError("dissipation", "'" + c.dissipation +
+                                         "' is a term of the library core; expected core "
+                                         "library (or none given) and no init file, or "
+                                         "dissipation auto or viscous");
   if (settings.contains("init") && !settings.at("init").is_null()) {
     if (!settings.at("init").is_string() || settings.at("init").get<std::string>().empty())
       throw OptionError("init", "expected the path of a model file");

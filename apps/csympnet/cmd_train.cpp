@@ -51,6 +51,7 @@ struct FitArgs {
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;
   std::string loss = "balanced", dof_scales = "auto", derived_momenta = "set-aside";
+  std::string dissipation = "auto";
   std::string init;       // --init FILE: a model file to start from (IdentifyConfig::init)
   std::string time_unit;  // --time-unit: the clock's unit, for the report only (time_unit.hpp)
   bool no_normalize = false;
@@ -310,6 +311,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
                              {"normalize", !a.no_normalize},
                              {"dof_scales", a.dof_scales},
                              {"derived_momenta", a.derived_momenta == "use" ? "use" : "set_aside"},
+                             {"dissipation", a.dissipation},
                              {"lm_iterations", a.lm_iterations},
                              {"blocks", a.blocks},
                              {"level", a.level},
@@ -435,6 +437,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   }
   if (r.identified) {
     print_gamma(r, unit);
+    print_dissipation(r);
     print_modes(r, unit);
   } else {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
@@ -508,8 +511,8 @@ void group_fit_options(CLI::App& cmd) {
       {"Your data", {"--data", "--columns", "--time-unit"}},
       {"Identification (the default recipe)",
        {"--core", "--window", "--loss", "--no-normalize", "--dof-scales", "--derived-momenta",
-        "--lm-iterations", "--level", "--blocks", "--init", "--epochs", "--lr", "--seed",
-        "--val-fraction", "--threads"}},
+        "--dissipation", "--lm-iterations", "--level", "--blocks", "--init", "--epochs", "--lr",
+        "--seed", "--val-fraction", "--threads"}},
       {"Only with --recipe classic (training a map: one-step loss, second stage, bootstrap)",
        {"--recipe", "--model", "--val", "--lr-schedule", "--val-every", "--beta-init",
         "--no-beta-decay", "--warm-start", "--no-warm-start", "--refine", "--refine-iterations",
@@ -551,6 +554,11 @@ void add_fit(CLI::App& app) {
                   "set-aside (default: fit the positions alone, momenta as hidden states) or "
                   "use (as given, with a warning: the interval does not cover the filter's bias)")
       ->check(CLI::IsMember({"set-aside", "use"}));
+  cmd->add_option("--dissipation", a->dissipation,
+                  "Dissipation beside the viscous rate gamma (library core): auto (default: "
+                  "Coulomb friction or quadratic drag when the held-out loss and the amplitude "
+                  "check both call for them), viscous, viscous+coulomb or viscous+drag")
+      ->check(one_of(dissipation_choices()));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
       ->check(kWholeNumber)

@@ -48,10 +48,18 @@ void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
                 s.low / 2.0, s.high / 2.0, per(unit).c_str());
 }
 
+void print_dissipation(const IdentifyResult& r) {
+  if (r.dissipation.empty()) return;
+  std::printf("dissipation: %s\n", dissipation_sentence(r).c_str());
+}
+
 void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
   for (const ModelCheck& k : checks) {
-    if (k.passed && quiet) continue;
-    const char* mark = !k.applicable ? "untestable" : k.passed ? "ok" : "FAILED";
+    if (k.passed && !k.warning && quiet) continue;
+    const char* mark = !k.applicable ? "untestable"
+                       : !k.passed   ? "FAILED"
+                       : k.warning   ? "warning"
+                                     : "ok";
     std::printf("check %-16s %-10s %s\n", k.name.c_str(), mark, k.sentence.c_str());
   }
 }

@@ -18,6 +18,10 @@ namespace csympnet::cli {
 void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit);
 // The checks of the model's assumptions: a failed one always, in words; the others unless
 // quiet.
+// The dissipation found, when the model has friction or drag beside gamma: "dissipation:
+// viscous gamma = ... plus dry friction mu = ...".
+void print_dissipation(const IdentifyResult& r);
+
 void print_checks(const std::vector<ModelCheck>& checks, bool quiet);
 // The modes of an identified fit, one line each (report.json "modes" has them in every case).
 void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit);

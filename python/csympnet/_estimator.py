@@ -85,6 +85,8 @@ class CSympNetID:
             model_.state_from_positions(q, t) gives the state at the end of a window of
             positions, to predict or roll out from;
         derived_momenta: "set_aside" (default) or "use", as in `csympnet.identify`.
+        dissipation: "auto" (default), "viscous", "viscous+coulomb" or "viscous+drag", as in
+            `csympnet.identify`.
 
     After fit:
         gamma_           γ̂ in the data's time units, or None when the data do not identify γ
@@ -102,6 +104,8 @@ class CSympNetID:
                          report_["modes"] has both with intervals
         hamiltonian_     the library core's Hamiltonian in the data's units (dict, as
                          `Identification.hamiltonian`), or None when a neural core was chosen
+        dissipation_     list of dict, the dissipation found, viscous first (as
+                         `Identification.dissipation`: kind, dof, value, low, high, unit)
         model_           the learned csympnet.Model (predict, rollout, save, ...)
         report_          the full report (dict), as `csympnet fit` writes it
         n_features_in_   2d, the state's length
@@ -111,7 +115,8 @@ class CSympNetID:
     def __init__(self, *, core=None, seed=42, window=0, loss="balanced", normalize=True,
                  epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
                  dof_scales="auto", threads=1, init=None, t_default=None, verbose=False,
-                 observed=None, derived_momenta="set_aside", time_unit=None):
+                 observed=None, derived_momenta="set_aside", time_unit=None,
+                 dissipation="auto"):
         self.core = core
         self.seed = seed
         self.window = window
@@ -131,6 +136,7 @@ class CSympNetID:
         self.observed = observed
         self.derived_momenta = derived_momenta
         self.time_unit = time_unit
+        self.dissipation = dissipation
 
     # --- scikit-learn's parameter protocol ------------------------------------------------
     @classmethod
@@ -175,7 +181,7 @@ class CSympNetID:
         options = {name: getattr(self, name) for name in (
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
             "val_fraction", "blocks", "level", "dof_scales", "threads", "init",
-            "derived_momenta")}
+            "derived_momenta", "dissipation")}
         options["verbose"] = self.verbose
         t_default = 1.0 if self.t_default is None else self.t_default
         observed, time_unit, unit_source = self.observed, self.time_unit, "time_unit"
@@ -240,6 +246,7 @@ class CSympNetID:
         self.frequencies_ = result.frequencies
         self.damping_ratio_ = result.damping_ratios
         self.hamiltonian_ = result.hamiltonian
+        self.dissipation_ = result.dissipation
         self.n_features_in_ = 2 * result.model.d
         self.dt_ = float(np.median(steps))
         return self

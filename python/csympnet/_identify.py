@@ -94,6 +94,11 @@ class Identification:
       hamiltonian the library core's Hamiltonian in the data's units (dict: "potential" as
                   text, "terms" with coefficient, interval and, for sin/cos/exp, wavenumber,
                   "inverse_mass", "mass"); None when an LA or G core was chosen
+      dissipation list of dict, the dissipation found, viscous first: {"kind": "viscous" |
+                  "coulomb" | "drag", "dof" (1-based, None for γ), "value", "low", "high"
+                  (None unless identified), "unit"}; Coulomb friction as the deceleration μ
+                  of its coordinate (q'' = ... − μ sign(q')), drag as c (q'' = ... − c q'|q'|)
+      dissipation_sentence  the same in words: "viscous gamma = … plus dry friction mu = …"
       estimate    the fitted γ̂ whatever the verdict (for inspection, not a measurement)
       report      the full report (dict), the same as `csympnet fit` writes
     """
@@ -116,6 +121,9 @@ class Identification:
         self.damping_ratios = (np.array([m["damping_ratio"] for m in self.modes])
                                if self.identified else None)
         self.hamiltonian = report.get("hamiltonian")
+        dissipation = report.get("dissipation") or {}
+        self.dissipation = list(dissipation.get("terms", []))
+        self.dissipation_sentence = dissipation.get("sentence")
         unit = report.get("time_unit")
         self.time_unit = unit["unit"] if unit else None
         self.gamma_per_s = unit["gamma_per_s"] if unit else None
@@ -134,7 +142,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
              init=None, progress=None, verbose=False, observed=None,
-             derived_momenta="set_aside", time_unit=None):
+             derived_momenta="set_aside", time_unit=None, dissipation="auto"):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
@@ -175,6 +183,12 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     over training loss when that exceeds 1. When the data do not identify γ this warns
     (NotIdentifiedWarning) and returns identified=False.
     Ctrl-C raises KeyboardInterrupt within about a second.
+
+    dissipation: "auto" (default: with the library core, Coulomb friction or quadratic drag
+    on every coordinate enter beside γ when the held-out loss and the amplitude check both
+    call for them), "viscous" (γ alone), "viscous+coulomb" or "viscous+drag" (that term
+    fitted as given, the library core the only candidate). `result.dissipation` lists what
+    was found with intervals; the same as `csympnet fit --dissipation`.
 
     init: the path of a CSympNet-ID model file to start from (`csympnet fit --init`; written by
     `fit`, `Model.save` or `csympnet.torch.save`): its core, parameters and units are kept (the
@@ -252,6 +266,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         "threads": _checks.integer("threads", threads, maximum=2**31 - 1),  # a C++ int
         "dof_scales": dof_scales,
         "derived_momenta": derived_momenta,
+        "dissipation": dissipation,
     }
     if core is not None:
         config["core"] = json.loads(_core_spec(core))

@@ -37,6 +37,12 @@ DofScales parse_dof_scales(const std::string& text, const char* key) {
   return static_cast<DofScales>(choice_index(key, dof_scales_names(), text));
 }
 
+const std::vector<std::string>& dissipation_choices() {
+  static const std::vector<std::string> names = {"auto", "viscous", "viscous+coulomb",
+                                                 "viscous+drag"};
+  return names;
+}
+
 const std::vector<std::string>& identify_loss_names() {
   static const std::vector<std::string> names = {"balanced", "one-step"};
   return names;
@@ -51,6 +57,7 @@ void IdentifyConfig::validate() const {
   kBlocksRange.check(target_blocks);
   kLevelRange.check(level);
   kThreadsRange.check(static_cast<long>(threads));
+  choice_index("dissipation", dissipation_choices(), dissipation);
 }
 
 void to_json(nlohmann::json& j, const IdentifyConfig& c) {
@@ -66,7 +73,8 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"target_blocks", c.target_blocks},
        {"level", c.level},
        {"dof_scales", to_string(c.dof_scales)},
-       {"derived_momenta", c.use_derived_momenta ? "use" : "set_aside"}};
+       {"derived_momenta", c.use_derived_momenta ? "use" : "set_aside"},
+       {"dissipation", c.dissipation}};
   if (c.init) j["init"] = {{"file", c.init->file}, {"checksum", c.init->checksum}};
 }
 
@@ -116,10 +124,10 @@ std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) 
 IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   require(settings.is_object(),
           [&] { return "identify settings: expected a JSON object, got " + settings.dump(); });
-  static const char* const kKeys[] = {"core",          "seed",         "window",         "balanced",
-                                      "normalize",     "dof_scales",   "epochs",         "lr",
-                                      "lm_iterations", "val_fraction", "blocks",         "level",
-                                      "threads",       "init",         "derived_momenta"};
+  static const char* const kKeys[] = {
+      "core",    "seed", "window",          "balanced",     "normalize", "dof_scales",
+      "epochs",  "lr",   "lm_iterations",   "val_fraction", "blocks",    "level",
+      "threads", "init", "derived_momenta", "dissipation"};
   for (const auto& item : settings.items()) {
     const bool known = std::any_of(std::begin(kKeys), std::end(kKeys),
                                    [&](const char* k) { return item.key() == k; });
@@ -171,7 +179,20 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   if (given("derived_momenta", text, "a string (one of set_aside, use)"))
     c.use_derived_momenta = choice_index("derived_momenta", kDerived,
                                          settings.at("derived_momenta").get<std::string>()) == 1;
+  if (given("dissipation", text, "a string (one of auto, viscous, viscous+coulomb, viscous+drag)"))
+    c.dissipation = settings.at("dissipation").get<std::string>();
   c.validate();
+  // Refused here, before any data are read, as well as in identify() for a config built by
+  // hand: friction and drag are terms of the library core.
+  const bool forced = c.dissipation != "auto" && c.dissipation != "viscous";
+  const bool library_core =
+      c.core.is_null() || (c.core.is_object() && c.core.value("type", "") == "library");
+  const bool with_init = settings.contains("init") && !settings.at("init").is_null();
+  if (forced && (!library_core || with_init))
+    throw OptionError("dissipation", "'" + c.dissipation +
+                                         "' is a term of the library core; expected core "
+                                         "library (or none given) and no init file, or "
+                                         "dissipation auto or viscous");
   if (settings.contains("init") && !settings.at("init").is_null()) {
     if (!settings.at("init").is_string() || settings.at("init").get<std::string>().empty())
       throw OptionError("init", "expected the path of a model file");
@@ -221,8 +242,8 @@ void check_given_library_core(const nlohmann::json& core, Index d) {
       return std::string("core: key '") + key +
              "' is chosen by the identification (order 6, substeps refined until the "
              "integrator's error is below the residuals, the mass matrix and the scales from "
-             "the data); expected only the keys type and terms (a model file of such a core is "
-             "refitted with init)";
+             "the data); expected only the keys type, terms and dissipation (a model file of such "
+             "a core is refitted with init)";
     });
 }
 
@@ -233,6 +254,16 @@ void check_inputs(const std::vector<Trajectory>& trajs, const IdentifyConfig& co
     trajs[k].validate("fit: trajectory " + std::to_string(k));
   const Index d = trajs.front().z.rows() / 2;
   check_given_library_core(config.core, d);
+  // Friction and drag are terms of the library core: a forced one needs that core.
+  const bool forced =
+      config.dissipation == "viscous+coulomb" || config.dissipation == "viscous+drag";
+  const bool library_core = config.core.is_null() ||
+                            (config.core.is_object() && config.core.value("type", "") == "library");
+  if (forced && (!library_core || config.init != nullptr))
+    throw OptionError("dissipation",
+                      "'" + config.dissipation +
+                          "' is a term of the library core; expected core library (or none "
+                          "given) and no init file, or dissipation auto or viscous");
   const IdentifyInit* init = config.init.get();
   if (init != nullptr && init->model.dim() != 2 * d)
     throw OptionError("init",
@@ -379,9 +410,12 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   const bool choosing = c.core.is_null();
   const bool library_given = !choosing && config.init == nullptr && c.core.is_object() &&
                              c.core.contains("type") && c.core.at("type") == "library";
-  std::vector<nlohmann::json> cores = choosing ? default_cores(f.facts.d, f.facts.varying_steps)
-                                      : library_given ? std::vector<nlohmann::json>{}
-                                                      : std::vector<nlohmann::json>{c.core};
+  // A forced friction or drag term lives in the library core alone: the only candidate.
+  const bool forced_dissipation = c.dissipation != "auto" && c.dissipation != "viscous";
+  std::vector<nlohmann::json> cores =
+      choosing && !forced_dissipation ? default_cores(f.facts.d, f.facts.varying_steps)
+      : library_given || choosing     ? std::vector<nlohmann::json>{}
+                                      : std::vector<nlohmann::json>{c.core};
   if (hooks.stage) hooks.stage("warm start");
   const double beta_init = warm_start(f.split, f.facts.d, config, r);
   CandidateFit fit(config, c, user_hooks, comm, f.split,
@@ -393,7 +427,8 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   // The library core's cost grows as d⁴ (d² terms, a Jacobian row per coordinate, a pair of
   // which grows with both; an FPU chain with d = 8 and 300 samples took 137 s): beyond
   // d = kLibraryMaxD it is left out of the choice (given with --core library, it runs at any d).
-  const bool library_tried = library_given || (choosing && f.facts.d <= kLibraryMaxD);
+  const bool library_tried =
+      library_given || (choosing && (f.facts.d <= kLibraryMaxD || forced_dissipation));
   if (choosing && !library_tried)
     r.choices["library_skipped"] = "d = " + std::to_string(f.facts.d) + " > " +
                                    std::to_string(kLibraryMaxD) +
@@ -402,7 +437,7 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   if (library_tried) {
     if (hooks.stage) hooks.stage("library core");
     LibraryFit lib = fit_library(fit, library_given ? c.core : nlohmann::json::object(), f.facts.d,
-                                 beta_init, r.normalization, c.balanced, comm);
+                                 beta_init, r.normalization, c.balanced, comm, c.dissipation);
     const bool at_floor = floor_test && choosing
                               ? floor_test(lib.cand, f.split, floor_reason)
                               : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason);
@@ -476,8 +511,37 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   verdict(f.split, f.facts.h_max, f.lm_fits, r);
   if (r.hamiltonian.is_null())
     r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
+  if (r.dissipation.empty())
+    r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, {});
   r.model = user_model(best.inner, r);
   return r;
+}
+
+// The report's "dissipation": the viscous rate first, then friction and drag; intervals as
+// claims, only for an identified γ̂.
+nlohmann::json dissipation_report(const IdentifyResult& r) {
+  nlohmann::json terms = nlohmann::json::array();
+  const bool claim = r.identified && r.interval.has_value();
+  terms.push_back({{"kind", "viscous"},
+                   {"dof", nullptr},
+                   {"value", r.gamma},
+                   {"low", claim ? nlohmann::json(r.interval->low) : nlohmann::json(nullptr)},
+                   {"high", claim ? nlohmann::json(r.interval->high) : nlohmann::json(nullptr)},
+                   {"unit", "1/time unit: p' = ... - gamma p"}});
+  for (nlohmann::json t : r.dissipation) {
+    if (!r.identified) t["low"] = t["high"] = nullptr;
+    terms.push_back(std::move(t));
+  }
+  return {{"terms", terms},
+          {"sentence", dissipation_sentence(r)},
+          {"level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
+          {"choice", r.config.dissipation},
+          {"about",
+           "the dissipation of the fitted model: the viscous rate gamma (the conformal factor), "
+           "Coulomb friction as the deceleration mu of its coordinate (q'' = ... - mu "
+           "sign(q')), quadratic drag as c (q'' = ... - c q'|q'|), in the data's units; "
+           "intervals are the sandwich intervals of gamma_hat's kind, given only when "
+           "gamma_hat is identified"}};
 }
 
 // The modes: frequencies and damping ratios always; their intervals, as γ̂'s, only when γ̂ is
@@ -503,6 +567,28 @@ nlohmann::json modes_report(const IdentifyResult& r) {
 
 }  // namespace
 
+std::string dissipation_sentence(const IdentifyResult& r) {
+  const auto range = [&](const nlohmann::json& lo, const nlohmann::json& hi) {
+    if (!r.identified || lo.is_null() || hi.is_null()) return std::string();
+    return " [" + detail::significant(lo.get<double>()) + ", " +
+           detail::significant(hi.get<double>()) + "]";
+  };
+  std::string s = "viscous gamma = " + detail::significant(r.gamma);
+  if (r.identified && r.interval)
+    s += " [" + detail::significant(r.interval->low) + ", " +
+         detail::significant(r.interval->high) + "]";
+  s += " per time unit";
+  for (const auto& t : r.dissipation) {
+    const bool coulomb = t["kind"] == "coulomb";
+    s += std::string(" plus ") + (coulomb ? "dry friction mu" : "quadratic drag c");
+    if (r.model.dim() > 2) s += "_" + std::to_string(t["dof"].get<Index>());
+    s += " = " + detail::significant(t["value"].get<double>()) + range(t["low"], t["high"]) +
+         (coulomb ? " (q unit per time unit squared)" : " (per q unit)");
+  }
+  if (r.dissipation.empty()) s += " (no friction or drag term in the model)";
+  return s;
+}
+
 nlohmann::json identify_report(const IdentifyResult& r) {
   nlohmann::json j = {
       {"model", "csympnet"},
@@ -527,6 +613,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"gamma_ci_method", r.interval ? nlohmann::json(r.interval->method) : nlohmann::json(nullptr)},
       {"interval", r.interval ? nlohmann::json(*r.interval) : nlohmann::json(nullptr)},
       {"hamiltonian", r.hamiltonian},
+      {"dissipation", dissipation_report(r)},
       {"data", r.data},
       {"normalization", r.normalization},
       {"choices", r.choices},

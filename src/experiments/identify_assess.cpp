@@ -63,9 +63,14 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
     inflate_interval(s, std::sqrt(std::max(1.0, ratio)));
     // The library core: its integrator's share, measured at twice the substeps (normalised).
     const auto& lib = r.choices.value("library", nlohmann::json::object());
-    if (r.config.core.is_object() && r.config.core.value("type", nlohmann::json()) == "library" &&
-        lib.contains("gamma_change_at_twice_the_substeps"))
+    const bool library =
+        r.config.core.is_object() && r.config.core.value("type", nlohmann::json()) == "library";
+    if (library && lib.contains("gamma_change_at_twice_the_substeps"))
       add_integrator(s, lib["gamma_change_at_twice_the_substeps"].get<double>());
+    std::vector<double> dissipation_integrator;
+    if (library && lib.contains("dissipation_change_at_twice_the_substeps"))
+      dissipation_integrator =
+          lib["dissipation_change_at_twice_the_substeps"].get<std::vector<double>>();
     for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
                       &s.optimisation, &s.rounding, &s.integrator})
       *v /= tau;
@@ -74,9 +79,11 @@ void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<
                    {&ne, train.size() * train.dim(), scale, data_scale(nt),
                     std::sqrt(std::max(1.0, ratio)), stop},
                    r);
-    r.hamiltonian = hamiltonian_report(
-        map, r.theta, r.normalization,
-        {&ne, train.size() * train.dim(), scale, std::sqrt(std::max(1.0, ratio)), r.config.level});
+    const HamiltonianIntervalInput shared = {&ne, train.size() * train.dim(), scale,
+                                             std::sqrt(std::max(1.0, ratio)), r.config.level};
+    r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, shared);
+    r.dissipation =
+        dissipation_terms_report(map, r.theta, r.normalization, shared, dissipation_integrator);
   }
   r.interval_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }

@@ -31,25 +31,38 @@ const HamiltonianLibraryMap& library_of(const Candidate& x) {
 
 // A full M⁻¹ up to d = 4 (coupled masses); diagonal beyond (d(d+1)/2 parameters would
 // dominate the count).
-nlohmann::json library_core(const std::vector<LibraryTerm>& terms, Index substeps,
+nlohmann::json library_core(const std::vector<LibraryTerm>& terms,
+                            const std::vector<DissipationTerm>& dissipation, Index substeps,
                             const Vector& scales) {
   nlohmann::json names = nlohmann::json::array();
   for (const LibraryTerm& t : terms) names.push_back(term_name(t));
-  return {{"type", "library"},
-          {"terms", names},
-          {"order", kOrder},
-          {"substeps", substeps},
-          {"mass", scales.size() <= 4 ? "full" : "diagonal"},
-          {"coordinate_scales", std::vector<double>(scales.data(), scales.data() + scales.size())}};
+  nlohmann::json core = {
+      {"type", "library"},
+      {"terms", names},
+      {"order", kOrder},
+      {"substeps", substeps},
+      {"mass", scales.size() <= 4 ? "full" : "diagonal"},
+      {"coordinate_scales", std::vector<double>(scales.data(), scales.data() + scales.size())}};
+  if (!dissipation.empty()) {
+    core["dissipation"] = nlohmann::json::array();
+    for (const DissipationTerm& t : dissipation) core["dissipation"].push_back(dissipation_name(t));
+  }
+  return core;
 }
 
-// A candidate with these terms; θ carried over from `from` (W, β, and c, κ of shared terms),
-// else the map's documented start with β = beta_init.
+// A candidate with these terms; θ carried over from `from` (W, β, and c, κ of shared terms,
+// the rates of shared dissipation terms), else the map's documented start with β = beta_init.
+// The dissipation terms are `from`'s unless given.
 Candidate make_library_candidate(const std::vector<LibraryTerm>& terms, Index substeps,
                                  const Vector& scales, Index d, double beta_init,
-                                 const Candidate* from) {
+                                 const Candidate* from,
+                                 const std::vector<DissipationTerm>* dissipation = nullptr) {
   Candidate x;
-  x.core = library_core(terms, substeps, scales);
+  const std::vector<DissipationTerm> none;
+  const std::vector<DissipationTerm>& dis = dissipation != nullptr ? *dissipation
+                                            : from != nullptr      ? library_of(*from).dissipation()
+                                                                   : none;
+  x.core = library_core(terms, dis, substeps, scales);
   x.inner =
       make_model({{"type", "csympnet"}, {"d", d}, {"core", x.core}, {"beta_init", beta_init}});
   x.theta.resize(x.inner.n_params());
@@ -69,6 +82,11 @@ Candidate make_library_candidate(const std::vector<LibraryTerm>& terms, Index su
       if (b.wavenumber_index(k) >= 0)
         x.theta(b.wavenumber_index(k)) = from->theta(a.wavenumber_index(l));
     }
+  for (Index k = 0; k < static_cast<Index>(b.dissipation().size()); ++k)
+    for (Index l = 0; l < static_cast<Index>(a.dissipation().size()); ++l)
+      if (a.dissipation()[static_cast<std::size_t>(l)] ==
+          b.dissipation()[static_cast<std::size_t>(k)])
+        x.theta(b.dissipation_index(k)) = from->theta(a.dissipation_index(l));
   x.training = from->training;
   x.lm_seconds = from->lm_seconds;
   return x;
@@ -166,8 +184,8 @@ double data_rate(const WindowSet& w) {
 bool integrator_fine_enough(const Candidate& x, const WindowSet& train, double train_loss, Index d,
                             double beta_init, const Vector& scales) {
   const HamiltonianLibraryMap& map = library_of(x);
-  const Candidate finer =
-      make_library_candidate(map.terms(), 2 * map.substeps(), scales, d, beta_init, &x);
+  const Candidate finer = make_library_candidate(map.terms(), 2 * map.substeps(), scales, d,
+                                                 beta_init, &x);  // same dissipation
   const Index n = std::min<Index>(train.size(), 400);
   Matrix z(train.dim(), n);
   Vector h(n);
@@ -356,6 +374,8 @@ class LibrarySelection {
     rec_["rounding_floor"] = floor_;
     pool_ = full_library(d);
     given_terms_ = given_core.contains("terms");
+    given_dissipation_ = given_core.contains("dissipation");
+    if (given_dissipation_) dissipation_ = read_library_spec(given_core, d, "core").dissipation;
     if (given_terms_) {
       pool_.clear();
       for (const auto& name : given_core.at("terms"))
@@ -477,6 +497,92 @@ class LibrarySelection {
     rec_["pruned"] = pruned;
   }
 
+  // The dissipation beyond γ (docs/identification.md, "Dry friction and drag"). The viscous
+  // model is the null: a group of terms (Coulomb friction on every coordinate, or drag)
+  // enters when the amplitude check of the current model finds its rate changing with the
+  // amplitude (significant, p below the check's alpha) in the direction of that term (falling
+  // with the amplitude: Coulomb; rising: drag), and the model with it lowers the held-out loss
+  // by the keep threshold. Two rounds at most, so that both kinds can enter. It runs after the
+  // start, before the potential's terms are selected (a friction misfit would otherwise be
+  // taken up by spurious potential terms), and again after them (prune_dissipation first). A
+  // choice other than "auto" fits what it names, as given.
+  void dissipation(Candidate& x, const std::string& choice, const std::string& when) {
+    nlohmann::json& rec = rec_["dissipation"];
+    rec["choice"] = given_dissipation_ ? "given in the core" : choice;
+    if (!rec.contains("rounds")) rec["rounds"] = nlohmann::json::array();
+    std::vector<DissipationKind> forced;
+    if (!given_dissipation_ && choice == "viscous+coulomb") forced = {DissipationKind::kCoulomb};
+    if (!given_dissipation_ && choice == "viscous+drag") forced = {DissipationKind::kDrag};
+    for (DissipationKind kind : forced) {
+      if (has(kind)) continue;
+      x = with_dissipation(x, kind);
+      refine_integrator(x, "after " + dissipation_kind_name(kind));
+      rec["rounds"].push_back({{"added", dissipation_kind_name(kind)}, {"given", true}});
+    }
+    for (int round = 0;
+         choice == "auto" && !given_dissipation_ && round < 2 && !fit_.stop_requested(); ++round) {
+      const ModelCheck amp = amplitude_of(x, split_, [this] { return fit_.stop_requested(); });
+      nlohmann::json step = {
+          {"when", when}, {"amplitude_check", amp}, {"val_loss_before", x.val_loss}};
+      const bool significant = amp.applicable && amp.p_value < amp.alpha;
+      if (!significant) {
+        step["decision"] = "the rate does not change significantly with amplitude: none added";
+        rec["rounds"].push_back(step);
+        break;
+      }
+      const DissipationKind kind =
+          amp.statistic < 0.0 ? DissipationKind::kCoulomb : DissipationKind::kDrag;
+      if (has(kind)) {
+        step["decision"] = "the amplitude check still calls for " + dissipation_kind_name(kind) +
+                           ", which the model has: nothing further to add";
+        rec["rounds"].push_back(step);
+        break;
+      }
+      Candidate y = with_dissipation(x, kind);
+      const bool earns = improves(x.val_loss, y.val_loss);
+      step["tried"] = dissipation_kind_name(kind);
+      step["val_loss_after"] = y.val_loss;
+      step["earns_its_place"] = earns;
+      step["decision"] = earns ? "added" : "not added: the held-out loss does not fall enough";
+      rec["rounds"].push_back(step);
+      if (!earns) {
+        dissipation_ = library_of(x).dissipation();
+        break;
+      }
+      x = std::move(y);
+      refine_integrator(x, "after " + dissipation_kind_name(kind));
+    }
+    nlohmann::json names = nlohmann::json::array();
+    for (const DissipationTerm& t : library_of(x).dissipation())
+      names.push_back(dissipation_name(t));
+    rec["terms"] = names;
+  }
+
+  // Each kind of dissipation selected ("auto" only) dropped when the held-out loss without it
+  // stays within the keep threshold: the potential's terms chosen since may explain what it
+  // took up.
+  void prune_dissipation(Candidate& x, const std::string& choice) {
+    if (choice != "auto" || given_dissipation_) return;
+    nlohmann::json& rec = rec_["dissipation"];
+    for (DissipationKind kind : {DissipationKind::kCoulomb, DissipationKind::kDrag}) {
+      if (!has(kind) || fit_.stop_requested()) continue;
+      const std::vector<DissipationTerm> kept = dissipation_;
+      std::erase_if(dissipation_, [&](const DissipationTerm& t) { return t.kind == kind; });
+      Candidate y = make(active_terms(), library_of(x).substeps(), &x);
+      train_lm(y, kRoundIterations, "library: without " + dissipation_kind_name(kind));
+      const bool drop = no_worse(x.val_loss, y.val_loss);
+      rec["rounds"].push_back({{"when", "pruning"},
+                               {"tried_without", dissipation_kind_name(kind)},
+                               {"val_loss_before", x.val_loss},
+                               {"val_loss_after", y.val_loss},
+                               {"dropped", drop}});
+      if (drop)
+        x = std::move(y);
+      else
+        dissipation_ = kept;
+    }
+  }
+
   // The chosen terms to convergence, the integrator checked once more, and how far γ̂ moves
   // at twice the substeps (the interval's integrator term, identify_assess).
   void finish(Candidate& x) {
@@ -488,6 +594,24 @@ class LibrarySelection {
       const double g0 = *x.inner.map->damping_rate(x.theta);
       const double g1 = *finer.inner.map->damping_rate(finer.theta);
       rec_["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
+      // The same for each dissipation term, relative (its value in the user's units is a fixed
+      // multiple of W_ii μ or c / W_ii): the reversals' first-order error is the integrator's
+      // share of its interval (docs/derivations.md, "Dry friction and drag").
+      nlohmann::json changes = nlohmann::json::array();
+      const HamiltonianLibraryMap& a = library_of(x);
+      const HamiltonianLibraryMap& b = library_of(finer);
+      for (Index k = 0; k < static_cast<Index>(a.dissipation().size()); ++k) {
+        const auto value = [k](const HamiltonianLibraryMap& m, const Vector& th) {
+          const DissipationTerm& t = m.dissipation()[static_cast<std::size_t>(k)];
+          const double w = th(m.full_mass() ? t.i * (t.i + 1) / 2 + t.i : t.i);
+          const double r = std::abs(th(m.dissipation_index(k)));
+          return t.kind == DissipationKind::kCoulomb ? w * r : r / w;
+        };
+        const double v0 = value(a, x.theta), v1 = value(b, finer.theta);
+        const double rel = std::abs(v1 - v0) / std::max(std::abs(v0), 1e-300);
+        changes.push_back(std::isfinite(rel) ? rel : 0.0);
+      }
+      rec_["dissipation_change_at_twice_the_substeps"] = changes;
     }
     rec_["terms"] = x.core["terms"];
     rec_["substeps"] = library_of(x).substeps();
@@ -507,8 +631,21 @@ class LibrarySelection {
       name += (name.empty() ? "" : ", ") + term_name(pool_[static_cast<std::size_t>(k)]);
     return name;
   }
+  bool has(DissipationKind kind) const {
+    return std::any_of(dissipation_.begin(), dissipation_.end(),
+                       [&](const DissipationTerm& t) { return t.kind == kind; });
+  }
   Candidate make(const std::vector<LibraryTerm>& terms, Index substeps, const Candidate* from) {
-    return make_library_candidate(terms, substeps, scales_, d_, beta_init_, from);
+    return make_library_candidate(terms, substeps, scales_, d_, beta_init_, from, &dissipation_);
+  }
+  // x with a kind of dissipation on every coordinate, started by least squares on x's
+  // residuals and trained by LM.
+  Candidate with_dissipation(const Candidate& x, DissipationKind kind) {
+    for (const DissipationTerm& t : dissipation_group(kind, d_)) dissipation_.push_back(t);
+    Candidate y = make(active_terms(), library_of(x).substeps(), &x);
+    dissipation_start(y, library_of(x).dissipation().size(), split_.train);
+    train_lm(y, 2 * kRoundIterations, "library: with " + dissipation_kind_name(kind));
+    return y;
   }
   // x with the addition's terms (coefficients 0, so LM starts from x's fit; its first step is
   // the joint Gauss–Newton step the ranking predicted), trained by LM.
@@ -692,19 +829,24 @@ class LibrarySelection {
   std::vector<LibraryTerm> pool_;
   std::vector<bool> active_;
   bool given_terms_ = false;
+  bool given_dissipation_ = false;
+  std::vector<DissipationTerm> dissipation_;  // the terms of every candidate made
 };
 
 }  // namespace
 
 LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
                        double beta_init, const Normalization& units, bool balanced,
-                       const Communicator& comm) {
+                       const Communicator& comm, const std::string& dissipation) {
   const auto t0 = std::chrono::steady_clock::now();
   LibraryFit out;
   LibrarySelection sel(fit, given_core, d, beta_init, units, balanced, comm, out.record);
   Candidate x = sel.start();
+  sel.dissipation(x, dissipation, "after the start");
   sel.forward(x);
   sel.backward(x);
+  sel.prune_dissipation(x, dissipation);
+  sel.dissipation(x, dissipation, "after the potential's terms");
   sel.finish(x);
   out.record["seconds"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -104,6 +104,9 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     c.theta = Vector::Zero(c.inner.n_params());
     c.theta.head(nm->mass_size()) = lib.theta.head(map->mass_size());
     c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+    // The core (copied) keeps the dissipation terms in their order: their rates carry over.
+    for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
+      c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
     const auto index_of = [&](const LibraryTerm& t) {
       return static_cast<Index>(std::find(next.begin(), next.end(), t) - next.begin());
     };
@@ -163,6 +166,10 @@ Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<Li
       c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(from));
   }
   c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+  // The core (copied) keeps the dissipation terms in their order: their rates carry over (a
+  // rate left at 0, where |θ| has no slope, could never move again).
+  for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
+    c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
   return c;
 }
 

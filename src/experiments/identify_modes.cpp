@@ -10,6 +10,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "csympnet/models/hamiltonian_library.hpp"
 #include "damping_profile.hpp"
 #include "identify_stages.hpp"
 
@@ -49,16 +50,23 @@ std::optional<std::vector<Complex>> mode_eigenvalues(const OneStepMap& map, cons
 }
 
 // ∂ω_k/∂θ and ∂ζ_k/∂θ by central differences, each perturbed map's modes matched to the
-// nearest of s; false when a perturbation loses a mode.
+// nearest of s; false when a perturbation loses a mode. Entries of `held` (θ indices) are not
+// perturbed: their derivatives are 0 (the dry friction the modes are taken without).
 bool mode_gradients(const OneStepMap& map, const Vector& theta, const Vector& z0, double h,
                     double tolerance, const std::vector<Complex>& s,
-                    const std::function<bool()>& stop, Matrix& d_freq, Matrix& d_ratio) {
+                    const std::function<bool()>& stop, const std::vector<Index>& held,
+                    Matrix& d_freq, Matrix& d_ratio) {
   const Index p = theta.size(), m = static_cast<Index>(s.size());
   d_freq.resize(p, m);
   d_ratio.resize(p, m);
   Vector t = theta;
   for (Index j = 0; j < p; ++j) {
     if (stop && stop()) return false;
+    if (std::find(held.begin(), held.end(), j) != held.end()) {
+      d_freq.row(j).setZero();
+      d_ratio.row(j).setZero();
+      continue;
+    }
     const double eps = 1e-6 * std::max(1.0, std::abs(theta(j)));
     std::vector<Complex> side[2];
     for (int k = 0; k < 2; ++k) {
@@ -93,21 +101,39 @@ void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeInt
   Vector z = train.z0.rowwise().mean();
   // The equilibrium to 1e-3 of the data's typical motion over a window.
   const double tolerance = 1e-3 * (train.zm - train.z0).norm() / std::sqrt(static_cast<double>(n));
-  const std::optional<std::vector<Complex>> s = mode_eigenvalues(map, r.theta, z, h, tolerance);
+  // At an equilibrium Coulomb friction holds p in its stick band, where the map's derivative
+  // in p is 0: there is nothing to linearise. The modes are those of the map without its dry
+  // friction (the potential, the mass and the viscous rate: small oscillations as they would
+  // be without the friction), and the note says so.
+  Vector theta = r.theta;
+  std::string friction_note;
+  std::vector<Index> held;
+  if (const auto* lib = dynamic_cast<const HamiltonianLibraryMap*>(&map))
+    for (Index k = 0; k < static_cast<Index>(lib->dissipation().size()); ++k)
+      if (lib->dissipation()[static_cast<std::size_t>(k)].kind == DissipationKind::kCoulomb) {
+        theta(lib->dissipation_index(k)) = 0.0;
+        held.push_back(lib->dissipation_index(k));
+        friction_note =
+            "the modes of the fitted map without its dry friction (Coulomb friction has no "
+            "linearisation at rest)";
+      }
+  if (!friction_note.empty()) r.modes_note = friction_note;
+  const std::optional<std::vector<Complex>> s = mode_eigenvalues(map, theta, z, h, tolerance);
   const Index d = train.dim() / 2;
   if (!s) {
     r.modes_note = "the fitted map has no equilibrium near the data: no modes";
     return;
   }
   if (static_cast<Index>(s->size()) < d)
-    r.modes_note = std::to_string(d - static_cast<Index>(s->size())) + " of the " +
-                   std::to_string(d) +
-                   " modes do not oscillate at the equilibrium (overdamped, or no restoring force)";
+    r.modes_note +=
+        (r.modes_note.empty() ? "" : "; ") + std::to_string(d - static_cast<Index>(s->size())) +
+        " of the " + std::to_string(d) +
+        " modes do not oscillate at the equilibrium (overdamped, or no restoring force)";
   const double tau = r.normalization.time_scale;
   for (Complex x : *s) r.modes.push_back({frequency_of(x) / tau, ratio_of(x), {}, {}});
   if (in.ne == nullptr || s->empty()) return;
   Matrix d_freq, d_ratio;
-  if (!mode_gradients(map, r.theta, z, h, tolerance, *s, in.should_stop, d_freq, d_ratio)) {
+  if (!mode_gradients(map, theta, z, h, tolerance, *s, in.should_stop, held, d_freq, d_ratio)) {
     if (in.should_stop && in.should_stop()) {
       r.stopped = true;  // interrupted: the modes without intervals
       return;

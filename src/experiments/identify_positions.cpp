@@ -450,6 +450,10 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
   const NormalEquations all = embedded(ne, p);
   detail::modal_analysis(
       map, split.train, {&all, n_res, scale, detail::data_scale(split.blocks), inflation, stop}, r);
+  // Friction and drag in the user's units are products the gauge of the hidden momenta leaves
+  // alone (W μ, c / W), so they keep their intervals from positions alone.
+  r.dissipation = detail::dissipation_terms_report(map, theta, r.normalization,
+                                                   {&all, n_res, scale, inflation, r.config.level});
 }
 
 // One candidate's segment fit on the positions: start states from three starts, then θ and the
@@ -733,6 +737,7 @@ void finish_on_positions(const OneStepMap& map, Candidate& best, Vector theta, C
   for (const auto& t : split.train_blocks) split.blocks.push_back(t);
   for (const auto& t : split.val_blocks) split.blocks.push_back(t);
 
+  r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, {});
   if (!r.stopped) positions_interval(map, train, split, n_free, hooks, r);
   measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
   rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);

@@ -25,6 +25,7 @@
 
 #include "csympnet/core/communicator.hpp"
 #include "csympnet/experiments/identify.hpp"
+#include "csympnet/models/dissipation_terms.hpp"
 #include "csympnet/models/potential_library.hpp"
 #include "csympnet/train/window_loss.hpp"
 
@@ -135,9 +136,25 @@ struct LibraryFit {
   Candidate cand;
   nlohmann::json record;
 };
+// `dissipation`: IdentifyConfig::dissipation ("auto" selects Coulomb friction and drag beside
+// γ; "viscous" none; "viscous+coulomb", "viscous+drag" fit that term as given).
 LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
                        double beta_init, const Normalization& units, bool balanced,
-                       const Communicator& comm);
+                       const Communicator& comm, const std::string& dissipation = "auto");
+
+// The dissipation terms beside γ (identify_dissipation.cpp; docs/identification.md, "Dry
+// friction and drag"):
+// one term of `kind` on every coordinate;
+std::vector<DissipationTerm> dissipation_group(DissipationKind kind, Index d);
+// the rates of the library candidate's dissipation terms from index `first` on, and a change
+// of β, started by least squares on the training windows' momentum residuals of the candidate
+// with those rates at 0 (the residual over a window of span H is about −H times the new
+// forces at the window's mean momentum);
+void dissipation_start(Candidate& y, std::size_t first, const WindowSet& train);
+// the amplitude check (model_checks.hpp, amplitude_check) of a candidate on every block;
+ModelCheck amplitude_of(const Candidate& x, const BlockSplit& split,
+                        const std::function<bool()>& should_stop);
+
 // Whether the candidate explains the held-out windows to the noise floor (white one-step
 // residuals, or a clean fit), with the sentence saying which.
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why);
@@ -175,6 +192,15 @@ struct HamiltonianIntervalInput {
 // "hamiltonian"; null for any other map.
 nlohmann::json hamiltonian_report(const OneStepMap& map, const Vector& theta,
                                   const Normalization& units, const HamiltonianIntervalInput& in);
+// A library map's dissipation terms beside γ in the user's units, with their intervals (null
+// ne: none): the report's "dissipation" terms after the viscous one (identify_dissipation.cpp);
+// an empty list for any other map.
+// `integrator`: per term, the relative change of its value at twice the substeps, added in
+// quadrature to its standard error (as gamma's integrator share); empty: none.
+nlohmann::json dissipation_terms_report(const OneStepMap& map, const Vector& theta,
+                                        const Normalization& units,
+                                        const HamiltonianIntervalInput& in,
+                                        const std::vector<double>& integrator = {});
 
 // r.modes: the fitted map linearised at its fixed point nearest the training windows' mean
 // state, each oscillating mode's natural frequency and damping ratio, with intervals when

@@ -253,11 +253,34 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
   k.details["high_energy"] = rate_at(hi);
   k.details["low_energy"] = rate_at(lo);
   k.details["level"] = in.level;
-  k.passed = !(k.p_value < k.alpha && std::abs(k.effect) > k.effect_threshold);
+  // The rate at small amplitude over the rate at large amplitude, R = y(lo)/y(hi), with its
+  // interval by the delta method (the trend's mean and slope are uncorrelated about the
+  // weighted mean of x).
+  const double y_lo = t.at(lo), y_hi = t.at(hi);
+  const double ratio = y_lo / y_hi;
+  const double d_mean = (y_hi - y_lo) / (y_hi * y_hi);
+  const double d_slope = ((lo - t.mean_x) * y_hi - (hi - t.mean_x) * y_lo) / (y_hi * y_hi);
+  const double se_ratio =
+      std::sqrt(t.sigma2 * (d_mean * d_mean / t.sw + d_slope * d_slope / t.sxx));
+  k.details["rate_ratio_small_to_large"] = {
+      {"ratio", ratio}, {"interval", {ratio - tl * se_ratio, ratio + tl * se_ratio}}};
+  const bool significant = k.p_value < k.alpha;
+  k.passed = !(significant && std::abs(k.effect) > k.effect_threshold);
+  k.warning = significant && k.passed;
   const std::string hl = "the rate is " + fmt(t.at(hi) / tau, 4) +
                          " at the largest amplitudes and " + fmt(t.at(lo) / tau, 4) +
                          " at the smallest";
-  if (k.passed) {
+  const std::string ratio_words =
+      "the rate at small amplitude is " + fmt(ratio, 3) + "x the rate at large amplitude [" +
+      fmt(ratio - tl * se_ratio, 3) + ", " + fmt(ratio + tl * se_ratio, 3) +
+      "] (p = " + fmt(k.p_value, 2) + ")";
+  if (k.warning) {
+    k.sentence = "significant but small: " + ratio_words + ", a change of " +
+                 fmt(100.0 * std::abs(k.effect), 3) + "% across the amplitudes, below the " +
+                 fmt(100.0 * k.effect_threshold, 3) + "% that fails the check" +
+                 (t.slope < 0.0 ? " (dry friction raises the rate at small amplitude)"
+                                : " (quadratic drag raises the rate at large amplitude)");
+  } else if (k.passed) {
     // The effect with its interval, in plain words: how much the rate changes from the
     // smallest amplitudes to the largest.
     const double half = tl * t.se_slope * range / std::abs(c);
@@ -268,10 +291,11 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
         fmt(std::exp(range), 2) + " apart) the rate changes by " + pct(k.effect) + " [" +
         pct(k.effect - half) + ", " + pct(k.effect + half) + "] (" + hl + ")";
   } else if (t.slope < 0.0) {
-    k.sentence =
-        "the damping rate rises as the amplitude falls, as dry (Coulomb) friction does: " + hl;
+    k.sentence = "the damping rate rises as the amplitude falls, as dry (Coulomb) friction does: " +
+                 ratio_words + "; " + hl;
   } else {
-    k.sentence = "the damping rate rises with the amplitude, as quadratic (fluid) drag does: " + hl;
+    k.sentence = "the damping rate rises with the amplitude, as quadratic (fluid) drag does: " +
+                 ratio_words + "; " + hl;
   }
   return k;
 }
@@ -572,6 +596,7 @@ void to_json(nlohmann::json& j, const ModelCheck& c) {
        {"assumption", c.assumption},
        {"applicable", c.applicable},
        {"passed", c.passed},
+       {"warning", c.warning},
        {"statistic_name", c.statistic_name},
        {"statistic", nullable(c.statistic)},
        {"p_value", nullable(c.p_value)},
@@ -587,6 +612,16 @@ void to_json(nlohmann::json& j, const ModelCheck& c) {
 double student_t_two_sided_p(double t, double dof) {
   require(dof >= 1.0, "student_t_two_sided_p: need at least one degree of freedom");
   return 2.0 * upper_t_p(std::abs(t), dof);
+}
+
+ModelCheck amplitude_check(const CheckInput& in, const std::function<bool()>& should_stop) {
+  require(in.map != nullptr, "amplitude_check: no map");
+  require(!in.blocks.empty(), "amplitude_check: no blocks");
+  const double c0 = in.map->damping_rate(in.theta).value_or(0.0);
+  DampingProfile prof(*in.map, in.theta, in.damping_index, windows_from_trajectories(in.blocks, 1));
+  const double c = fit_common_rate(prof, c0, should_stop);
+  const std::vector<BlockProfile> bs = prof.blocks(c, nullptr, should_stop);
+  return linear_damping_check(in, c, common_rate_se(bs), bs);
 }
 
 std::vector<ModelCheck> check_model(const CheckInput& in,
@@ -608,6 +643,7 @@ std::vector<ModelCheck> check_model(const CheckInput& in,
     // out: the trend with amplitude is then explained, not a second finding.
     linear.applicable = false;
     linear.passed = true;
+    linear.warning = false;
     linear.sentence =
         "not decided: with different rates per mode the block rates change as the "
         "faster modes die out (" +
@@ -616,6 +652,15 @@ std::vector<ModelCheck> check_model(const CheckInput& in,
   out.push_back(std::move(linear));
   out.push_back(std::move(one_rate));
   out.push_back(residuals_check(in, bs));
+  // A significant statistic is never "ok": below its size threshold it is a warning that
+  // says so (linear_damping words its own, with the effect's interval).
+  for (ModelCheck& k : out)
+    if (k.applicable && k.passed && !k.warning && k.p_value < k.alpha) {
+      k.warning = true;
+      k.sentence = "significant but small (p = " + fmt(k.p_value, 2) + "; " + k.effect_name + " " +
+                   fmt(k.effect, 3) + ", below the " + fmt(k.effect_threshold, 3) +
+                   " that fails the check): " + k.sentence;
+    }
   return out;
 }
 

@@ -60,13 +60,15 @@ double abs_derivative(double beta) {
 
 HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order,
                                              Index substeps, bool full_mass, double beta_init,
-                                             Vector scales)
+                                             Vector scales,
+                                             std::vector<DissipationTerm> dissipation)
     : d_(d),
       terms_(std::move(terms)),
       order_(order),
       substeps_(substeps),
       full_mass_(full_mass),
-      beta_init_(beta_init) {
+      beta_init_(beta_init),
+      dissipation_(std::move(dissipation)) {
   require(d >= 1, "hamiltonian library: d must be >= 1");
   require(!terms_.empty(), "hamiltonian library: at least one term is needed");
   require(order == 2 || order == 4 || order == 6, [&] {
@@ -111,6 +113,42 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     wi_.push_back(t.j < 0 ? 1.0 : scales_(t.i));
     wj_.push_back(t.j < 0 ? 0.0 : scales_(t.j));
   }
+  for (std::size_t k = 0; k < dissipation_.size(); ++k) {
+    const DissipationTerm& t = dissipation_[k];
+    require(t.i >= 0 && t.i < d, [&] {
+      return "hamiltonian library: dissipation term " + std::to_string(k) +
+             " has a coordinate out of range";
+    });
+    for (std::size_t l = 0; l < k; ++l)
+      require(!(dissipation_[l] == t), [&] {
+        return "hamiltonian library: dissipation term '" + dissipation_name(t) + "' appears twice";
+      });
+  }
+}
+
+void HamiltonianLibraryMap::dissipate(ConstParams theta, double half_tau, bool closing, double* p,
+                                      double* starts) const {
+  const Index nk = static_cast<Index>(dissipation_.size());
+  for (Index n = 0; n < nk; ++n) {
+    const Index k = closing ? nk - 1 - n : n;
+    const DissipationTerm& t = dissipation_[static_cast<std::size_t>(k)];
+    if (starts != nullptr) starts[n] = p[t.i];
+    p[t.i] = dissipation_flow(t.kind, p[t.i], std::abs(theta(dissipation_index(k))), half_tau).p;
+  }
+}
+
+void HamiltonianLibraryMap::dissipate_backward(ConstParams theta, double half_tau, bool closing,
+                                               const double* starts, double* pb,
+                                               ParamsRef grad) const {
+  const Index nk = static_cast<Index>(dissipation_.size());
+  for (Index n = nk - 1; n >= 0; --n) {
+    const Index k = closing ? nk - 1 - n : n;
+    const DissipationTerm& t = dissipation_[static_cast<std::size_t>(k)];
+    const double th = theta(dissipation_index(k));
+    const FlowStep f = dissipation_flow(t.kind, starts[n], std::abs(th), half_tau);
+    grad(dissipation_index(k)) += abs_derivative(th) * f.drate * pb[t.i];
+    pb[t.i] *= f.dp;
+  }
 }
 
 void HamiltonianLibraryMap::init_params(Rng& /*rng*/, ParamsRef theta) const {
@@ -124,6 +162,8 @@ void HamiltonianLibraryMap::init_params(Rng& /*rng*/, ParamsRef theta) const {
     if (t.has_wavenumber()) theta(wavenumber_index(ki)) = t.kappa_sign;
   }
   theta(beta_index_) = beta_init_;
+  for (Index k = 0; k < static_cast<Index>(dissipation_.size()); ++k)
+    theta(dissipation_index(k)) = kDissipationInit;
 }
 
 Matrix HamiltonianLibraryMap::inverse_mass(ConstParams theta) const {
@@ -241,13 +281,14 @@ std::optional<double> HamiltonianLibraryMap::damping_rate(ConstParams theta) con
 Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const Vector& h,
                                       ForwardCache* cache) const {
   check_forward_args(*this, theta, Z, h);
-  const Index n = Z.cols(), d = d_, stages = stages_per_step();
+  const Index n = Z.cols(), d = d_, stages = stages_per_step(), rs = record_size();
+  const Index nk = static_cast<Index>(dissipation_.size());
   const double gamma = std::abs(theta(beta_index_));
   Context* ctx = nullptr;
   if (cache != nullptr) {
     ctx = &cache->make_context<Context>();
     ctx->h = h;
-    ctx->states.resize(static_cast<std::size_t>(n * (stages + 1) * 3 * d));
+    ctx->states.resize(static_cast<std::size_t>(n * (stages + 1) * rs));
   }
   Matrix out(2 * d, n);
   std::vector<double> q(d), p(d), g(d), wp(d);
@@ -258,23 +299,28 @@ Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const 
       p[r] = Z(d + r, col);
     }
     gradient(theta, q.data(), g.data());
-    double* rec = ctx != nullptr ? ctx->states.data() + col * (stages + 1) * 3 * d : nullptr;
+    double* rec = ctx != nullptr ? ctx->states.data() + col * (stages + 1) * rs : nullptr;
     for (Index s = 0; s <= stages; ++s) {
+      const double tau = s == stages ? 0.0
+                                     : weights_[static_cast<std::size_t>(s % nw)] * h(col) /
+                                           static_cast<double>(substeps_);
+      double* starts = rec != nullptr ? rec + s * rs + 3 * d : nullptr;
+      if (nk > 0 && s < stages) dissipate(theta, 0.5 * tau, false, p.data(), starts);
       if (rec != nullptr) {
-        std::copy(q.begin(), q.end(), rec + s * 3 * d);
-        std::copy(p.begin(), p.end(), rec + s * 3 * d + d);
-        std::copy(g.begin(), g.end(), rec + s * 3 * d + 2 * d);
+        std::copy(q.begin(), q.end(), rec + s * rs);
+        std::copy(p.begin(), p.end(), rec + s * rs + d);
+        std::copy(g.begin(), g.end(), rec + s * rs + 2 * d);
       }
       if (s == stages) break;
       poll_within_step(s);
-      const double tau =
-          weights_[static_cast<std::size_t>(s % nw)] * h(col) / static_cast<double>(substeps_);
       const double a = std::exp(-0.5 * gamma * tau);
       for (Index r = 0; r < d; ++r) p[r] = a * p[r] - 0.5 * tau * g[r];
       mass_times(theta, p.data(), wp.data());
       for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
       gradient(theta, q.data(), g.data());
       for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
+      if (nk > 0)
+        dissipate(theta, 0.5 * tau, true, p.data(), starts != nullptr ? starts + nk : nullptr);
     }
     for (Index r = 0; r < d; ++r) {
       out(r, col) = q[r];
@@ -287,7 +333,8 @@ Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const 
 void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cache,
                                      const Matrix& dZout, ParamsRef grad, Matrix* dZin) const {
   const Context& ctx = cache.context<Context>("hamiltonian library backward");
-  const Index n = ctx.h.size(), d = d_, stages = stages_per_step();
+  const Index n = ctx.h.size(), d = d_, stages = stages_per_step(), rs = record_size();
+  const Index nk = static_cast<Index>(dissipation_.size());
   check_backward_args(*this, theta, n, dZout, grad);
   const double beta = theta(beta_index_), gamma = std::abs(beta);
   if (dZin != nullptr) dZin->resize(dim(), n);
@@ -299,17 +346,19 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
       qb[r] = dZout(r, col);
       pb[r] = dZout(d + r, col);
     }
-    const double* rec = ctx.states.data() + col * (stages + 1) * 3 * d;
+    const double* rec = ctx.states.data() + col * (stages + 1) * rs;
     for (Index s = stages - 1; s >= 0; --s) {
       poll_within_step(s);
-      const double* q0 = rec + s * 3 * d;
+      const double* q0 = rec + s * rs;
       const double* p0 = q0 + d;
       const double* g0 = q0 + 2 * d;
-      const double* q1 = rec + (s + 1) * 3 * d;
+      const double* starts = q0 + 3 * d;
+      const double* q1 = rec + (s + 1) * rs;
       const double* g1 = q1 + 2 * d;
       const double tau =
           weights_[static_cast<std::size_t>(s % nw)] * ctx.h(col) / static_cast<double>(substeps_);
       const double a = std::exp(-0.5 * gamma * tau);
+      if (nk > 0) dissipate_backward(theta, 0.5 * tau, true, starts + nk, pb.data(), grad);
       // p2 = a p0 − (τ/2) g0, p3 = p2 − (τ/2) g1, output p4 = a p3.
       double a_bar = 0.0;
       for (Index r = 0; r < d; ++r) {
@@ -343,6 +392,7 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
         pb[r] *= a;
       }
       gamma_bar += a_bar * a * (-0.5 * tau);
+      if (nk > 0) dissipate_backward(theta, 0.5 * tau, false, starts, pb.data(), grad);
     }
     if (dZin != nullptr)
       for (Index r = 0; r < d; ++r) {
@@ -357,8 +407,10 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
   check_theta(*this, theta, "jacobian");
   require(z.size() == dim(), "hamiltonian library jacobian: z has the wrong size");
   const Index d = d_, stages = stages_per_step(), nw = static_cast<Index>(weights_.size());
+  const Index nk = static_cast<Index>(dissipation_.size());
   const double gamma = std::abs(theta(beta_index_));
   std::vector<double> q(z.data(), z.data() + d), p(z.data() + d, z.data() + 2 * d), g(d), wp(d);
+  std::vector<double> starts(static_cast<std::size_t>(nk));
   Matrix tq = Matrix::Zero(d, 2 * d), tp = Matrix::Zero(d, 2 * d);
   tq.leftCols(d).setIdentity();
   tp.rightCols(d).setIdentity();
@@ -374,12 +426,24 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
       for (Index r = 0; r < d; ++r) tp(r, c) -= step * hv[r];
     }
   };
+  // Each flow scales its momentum's row of the tangent by ∂p_new/∂p.
+  const auto dissipate_tangent = [&](double half_tau, bool closing) {
+    dissipate(theta, half_tau, closing, p.data(), starts.data());
+    for (Index n = 0; n < nk; ++n) {
+      const Index k = closing ? nk - 1 - n : n;
+      const DissipationTerm& t = dissipation_[static_cast<std::size_t>(k)];
+      tp.row(t.i) *= dissipation_flow(t.kind, starts[static_cast<std::size_t>(n)],
+                                      std::abs(theta(dissipation_index(k))), half_tau)
+                         .dp;
+    }
+  };
   gradient(theta, q.data(), g.data());
   for (Index s = 0; s < stages; ++s) {
     poll_within_step(s);
     const double tau =
         weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
     const double a = std::exp(-0.5 * gamma * tau);
+    if (nk > 0) dissipate_tangent(0.5 * tau, false);
     tp *= a;
     kick_tangent(0.5 * tau);
     for (Index r = 0; r < d; ++r) p[r] = a * p[r] - 0.5 * tau * g[r];
@@ -390,6 +454,7 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
     kick_tangent(0.5 * tau);
     tp *= a;
     for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
+    if (nk > 0) dissipate_tangent(0.5 * tau, true);
   }
   Matrix jac(2 * d, 2 * d);
   jac.topRows(d) = tq;
@@ -400,16 +465,20 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
 nlohmann::json HamiltonianLibraryMap::hyperparams() const {
   nlohmann::json names = nlohmann::json::array();
   for (const LibraryTerm& t : terms_) names.push_back(term_name(t));
-  return {{"type", "csympnet"},
-          {"d", d_},
-          {"core",
-           {{"type", "library"},
-            {"terms", names},
-            {"order", order_},
-            {"substeps", substeps_},
-            {"mass", full_mass_ ? "full" : "diagonal"},
-            {"coordinate_scales", std::vector<double>(scales_.data(), scales_.data() + d_)}}},
-          {"beta_init", beta_init_}};
+  nlohmann::json core = {
+      {"type", "library"},
+      {"terms", names},
+      {"order", order_},
+      {"substeps", substeps_},
+      {"mass", full_mass_ ? "full" : "diagonal"},
+      {"coordinate_scales", std::vector<double>(scales_.data(), scales_.data() + d_)}};
+  // Written only when present: a model without them keeps the spec (and file) it had before.
+  if (!dissipation_.empty()) {
+    nlohmann::json dis = nlohmann::json::array();
+    for (const DissipationTerm& t : dissipation_) dis.push_back(dissipation_name(t));
+    core["dissipation"] = dis;
+  }
+  return {{"type", "csympnet"}, {"d", d_}, {"core", core}, {"beta_init", beta_init_}};
 }
 
 }  // namespace csympnet

@@ -19,6 +19,7 @@
 // "substeps": N, "mass": "full"} (the Hamiltonian-library map, hamiltonian_library.hpp) (a "d"
 // inside CORE is allowed if it equals the outer d). Unknown keys are rejected so that a misspelt
 // option fails loudly instead of silently taking its default.
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -62,7 +63,8 @@ std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double b
   LibrarySpec s = read_library_spec(spec, d, where);
   require(!s.terms.empty(), [&] { return where + ": " + kTermsExpected; });
   return std::make_unique<HamiltonianLibraryMap>(d, std::move(s.terms), s.order, s.substeps,
-                                                 s.full_mass, beta_init, std::move(s.scales));
+                                                 s.full_mass, beta_init, std::move(s.scales),
+                                                 std::move(s.dissipation));
 }
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.
@@ -97,8 +99,9 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
 
 LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where) {
   require_object(spec, where);
-  reject_unknown_keys(spec, where,
-                      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales"});
+  reject_unknown_keys(
+      spec, where,
+      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales", "dissipation"});
   if (spec.contains("d"))
     require(spec.at("d") == d, [&] {
       return where + ": key 'd' disagrees with the model's d = " + std::to_string(d);
@@ -145,6 +148,23 @@ LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::st
                ", expected a positive finite number";
       });
       out.scales(i) = x.get<double>();
+    }
+  }
+  if (spec.contains("dissipation")) {
+    const json& v = spec.at("dissipation");
+    require(v.is_array(), [&] {
+      return where + ": key 'dissipation' = " + short_dump(v) +
+             ", expected a list of terms such as [\"coulomb(p1)\", \"drag(p1)\"]";
+    });
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      const std::string at = where + ".dissipation[" + std::to_string(k) + "]";
+      require(v[k].is_string(), [&] {
+        return at + " = " + short_dump(v[k]) + ", expected a term name such as \"coulomb(p1)\"";
+      });
+      const DissipationTerm t = parse_dissipation(v[k].get<std::string>(), d, at);
+      require(std::find(out.dissipation.begin(), out.dissipation.end(), t) == out.dissipation.end(),
+              [&] { return at + ": '" + dissipation_name(t) + "' appears twice"; });
+      out.dissipation.push_back(t);
     }
   }
   return out;

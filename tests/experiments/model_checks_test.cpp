@@ -275,7 +275,7 @@ TEST(DampingProfile, TheFiniteDifferenceComparisonCatchesAPlantedError) {
 // 15 of 300 is 5%; the thresholds aim at about 1% each).
 TEST(ModelChecks, FalseAlarmsOnValidDataAreRare) {
   const int cases = 300;
-  std::map<std::string, int> failed;
+  std::map<std::string, int> failed, warned;
   int any = 0;
   for (int n = 0; n < cases; ++n) {
     Rng rng(n, "checks-valid");
@@ -291,17 +291,28 @@ TEST(ModelChecks, FalseAlarmsOnValidDataAreRare) {
     const Trajectory t = integrate(k, f, z0, 0.25, 400);
     const std::vector<ModelCheck> c = run(k, gamma, blocks_of(t, 20, sigma, rng));
     bool one = false;
-    for (const ModelCheck& x : c)
+    for (const ModelCheck& x : c) {
       if (!x.passed) {
         ++failed[x.name];
         one = true;
       }
+      if (x.warning) ++warned[x.name];  // significant but small: a warning, not a failure
+    }
     any += one ? 1 : 0;
   }
   for (const auto& [name, count] : failed) EXPECT_LE(count, cases * 3 / 100) << name;
   EXPECT_LE(any, cases * 5 / 100);
+  // linear_damping tests at 0.01 two-sided, and the friction selection of `fit` relies on
+  // that test. Measured (2026-11-29): significant on 12 of these 300 valid records (4%, so
+  // its t test is anti-conservative by about 4x); bounded here so that it cannot drift
+  // further unseen. The one_rate and residuals tests at 0.001 are significant far more often
+  // (53 and 43 of 300: their p-values are not calibrated, their size thresholds protect the
+  // verdict); they are printed, and docs/identification.md reports them.
+  EXPECT_LE(warned["linear_damping"] + failed["linear_damping"], cases * 5 / 100);
   std::printf("false alarms over %d valid data sets: any %d", cases, any);
   for (const auto& [name, count] : failed) std::printf(", %s %d", name.c_str(), count);
+  std::printf("; warnings");
+  for (const auto& [name, count] : warned) std::printf(", %s %d", name.c_str(), count);
   std::printf("\n");
 }
 

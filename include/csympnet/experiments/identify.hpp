@@ -41,6 +41,9 @@ namespace csympnet {
 enum class DofScales { kAuto, kLearned, kFixed };
 std::string to_string(DofScales s);
 const std::vector<std::string>& dof_scales_names();  // in enum order
+// The spellings of IdentifyConfig::dissipation, "auto" first.
+const std::vector<std::string>& dissipation_choices();
+
 // Refuses any other text with an OptionError for `key` naming the accepted spellings.
 DofScales parse_dof_scales(const std::string& text, const char* key = "dof_scales");
 
@@ -103,6 +106,12 @@ struct IdentifyConfig {
   // Start from this model file's architecture, θ and units instead of fresh cores; AdamW then
   // runs only when `epochs` is given (0: none, LM alone refines the file's θ).
   std::shared_ptr<const IdentifyInit> init;
+  // The dissipation beside the viscous rate γ, for the library core (docs/identification.md,
+  // "Dry friction and drag"): "auto" (Coulomb friction and quadratic drag enter when the
+  // held-out loss and the amplitude check both call for them), "viscous" (γ alone),
+  // "viscous+coulomb" or "viscous+drag" (that term on every coordinate, fitted as given, with
+  // the library core as the only candidate). The CLI's --dissipation, Python's dissipation=.
+  std::string dissipation = "auto";
   // Refuses a value out of its range with an OptionError naming it by its key.
   void validate() const;
 };
@@ -174,6 +183,10 @@ struct IdentifyResult {
   // The library core's Hamiltonian in the user's units with intervals (report key
   // "hamiltonian"); null for the LA and G cores.
   nlohmann::json hamiltonian;
+  // The dissipation beyond γ in the user's units: a list of {"kind": "coulomb" | "drag",
+  // "dof", "value", "low", "high", "unit"} (intervals null unless γ̂ is identified), empty for
+  // a purely viscous model. The report's "dissipation" puts the viscous term first.
+  nlohmann::json dissipation = nlohmann::json::array();
   std::optional<GammaWarmStart> warm_start;
   std::string warm_start_note;
   TrainSummary training;
@@ -203,6 +216,11 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 // and verdict are those of identify(). Trajectories only: a pair needs a state.
 IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
                                   const IdentifyConfig& config, const IdentifyHooks& hooks = {});
+
+// The dissipation found, in one sentence: "viscous gamma = 0.0301 [0.0292, 0.0310] plus dry
+// friction mu = 0.0412 [0.0398, 0.0427] (q unit per time unit squared)"; intervals only when
+// identified.
+std::string dissipation_sentence(const IdentifyResult& r);
 
 // The report of an identification (report.json of `csympnet fit`).
 nlohmann::json identify_report(const IdentifyResult& r);

@@ -42,6 +42,9 @@ struct ModelCheck {
   std::string assumption;  // the assumption, in words
   bool applicable = true;  // false: these data cannot test it (`sentence` says why)
   bool passed = true;      // true also when not applicable
+  // Passed, but its statistic is significant (p below alpha) with an effect below the
+  // threshold: "significant but small", never "ok"; `sentence` gives the effect's size.
+  bool warning = false;
   std::string statistic_name;
   double statistic = std::numeric_limits<double>::quiet_NaN();
   double p_value = std::numeric_limits<double>::quiet_NaN();  // of the significance test
@@ -103,6 +106,10 @@ std::vector<ModelCheck> check_model(const CheckInput& in,
 // bias the damping rate would inherit. Not applicable to pairs or short trajectories.
 ModelCheck measured_momenta_check(const std::vector<Trajectory>& trajs, bool pairs_only,
                                   const CheckThresholds& thresholds = {});
+
+// The linear-damping check alone (the second of check_model's list), for the selection of
+// dissipation terms: whether the fitted map leaves a damping rate that changes with amplitude.
+ModelCheck amplitude_check(const CheckInput& in, const std::function<bool()>& should_stop = {});
 
 // Two-sided p-value of a Student t statistic with `dof` degrees of freedom (dof ≥ 1).
 double student_t_two_sided_p(double t, double dof);

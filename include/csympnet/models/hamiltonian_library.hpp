@@ -16,18 +16,30 @@
 //
 // A difference term's argument weighs its coordinates by fixed scales (constructor).
 //
+// Dissipation terms beyond γ (models/dissipation_terms.hpp: Coulomb friction and quadratic
+// drag on one momentum each) enter every stage of length τ as their exact flows over τ/2 on
+// each side of the conformal Strang step, in term order before it and in reverse order after
+// it (a palindrome, so the stage stays symmetric):
+//
+//   F_{τ/2} = f_K ∘ … ∘ f_1 (each over τ/2),   stage = F_{τ/2}ᵀ ∘ (conformal Strang step) ∘ F_{τ/2}
+//
+// With them the map is no longer conformally symplectic (docs/derivations.md, "Dry friction
+// and drag"); without them (none given, or all rates 0) it is the map above to the bit.
+//
 // Layout of θ: W (d(d+1)/2 entries of the lower triangle, row by row, for "full"; d for
 // "diagonal"), the coefficients c_k in term order, the wavenumbers κ of the terms that have
-// one in term order (sin and cos of one argument share one, at the first of them), and β
-// last (γ̂ = |β|, as in CSympNet-ID).
+// one in term order (sin and cos of one argument share one, at the first of them), β
+// (γ̂ = |β|, as in CSympNet-ID), and after β one θ_k per dissipation term, its rate |θ_k|.
+// Without dissipation terms β is last, as in every model file written before them.
 //
 // init_params draws nothing: W = I, c = ½ on each qI^2 and 0 elsewhere, κ = its term's
-// starting sign, β = beta_init.
+// starting sign, β = beta_init, each dissipation θ_k = kDissipationInit.
 #pragma once
 
 #include <string>
 #include <vector>
 
+#include "csympnet/models/dissipation_terms.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/models/potential_library.hpp"
 
@@ -40,12 +52,19 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // `scales` (d positive values, empty: all 1) weigh the coordinates in a difference term:
   // its argument is s_i q_i − s_j q_j. The identification passes the normalisation's q scales
   // over their geometric mean, so that a difference of the user's coordinates stays one.
+  // `dissipation`: terms repeated are refused, as are coordinates out of range.
   HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order, Index substeps,
-                        bool full_mass, double beta_init, Vector scales = {});
+                        bool full_mass, double beta_init, Vector scales = {},
+                        std::vector<DissipationTerm> dissipation = {});
+
+  // A dissipation rate's start (init_params): nonzero, since |θ| has no slope at 0.
+  static constexpr double kDissipationInit = 1e-3;
 
   std::string type() const override { return "csympnet"; }
   Index dim() const override { return 2 * d_; }
-  Index n_params() const override { return beta_index_ + 1; }
+  Index n_params() const override {
+    return beta_index_ + 1 + static_cast<Index>(dissipation_.size());
+  }
   void init_params(Rng& rng, ParamsRef theta) const override;
 
   Matrix forward(ConstParams theta, const Matrix& Z, const Vector& h,
@@ -79,14 +98,20 @@ class HamiltonianLibraryMap final : public OneStepMap {
   void check_inverse_mass(ConstParams theta, const std::string& where) const;
   // V(q) and ∇V(q) at θ.
   double potential(ConstParams theta, const double* q) const;
+  const std::vector<DissipationTerm>& dissipation() const { return dissipation_; }
+  // θ's entry of dissipation term k (its rate is |θ|).
+  Index dissipation_index(Index k) const { return beta_index_ + 1 + k; }
   // The stage weights b_s of one substep (they sum to 1).
   const std::vector<double>& stage_weights() const { return weights_; }
 
   struct Context final : ForwardContext {
     const char* owner() const override { return "hamiltonian library"; }
     Vector h;
-    // Per column, the state (q, p) and ∇V(q) at the start of every stage and at the end
-    // (stages + 1 records of 3d values each), column after column.
+    // Per column, stages + 1 records of 3d + 2K values each (K dissipation terms), column
+    // after column: per stage q, p as the conformal Strang step starts (after the opening
+    // dissipation flows), ∇V(q), and the p_i each dissipation flow started from (the K opening
+    // flows in order, then the K closing ones in order of application); the last record holds
+    // the end state.
     std::vector<double> states;
   };
 
@@ -100,6 +125,14 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // W x into out.
   void mass_times(ConstParams theta, const double* x, double* out) const;
   Index stages_per_step() const { return substeps_ * static_cast<Index>(weights_.size()); }
+  Index record_size() const { return 3 * d_ + 2 * static_cast<Index>(dissipation_.size()); }
+  // The dissipation flows over τ/2 opening a stage (closing: false, the reverse order), on p;
+  // `starts` (K values, may be null) receives the p_i each flow started from.
+  void dissipate(ConstParams theta, double half_tau, bool closing, double* p, double* starts) const;
+  // Their reverse mode: pb (the adjoint of p after them) becomes the adjoint before, grad
+  // collects the rates' parameters.
+  void dissipate_backward(ConstParams theta, double half_tau, bool closing, const double* starts,
+                          double* pb, ParamsRef grad) const;
 
   Index d_;
   std::vector<LibraryTerm> terms_;
@@ -113,19 +146,22 @@ class HamiltonianLibraryMap final : public OneStepMap {
   Vector scales_;
   // Per term: ∂u/∂q_i and ∂u/∂q_j (0 for a single coordinate).
   std::vector<double> wi_, wj_;
+  std::vector<DissipationTerm> dissipation_;
 };
 
 // The core spec {"type": "library", "terms": [...], "order": 4, "substeps": n, "mass":
-// "full"|"diagonal", "coordinate_scales": [...]} read and checked for d coordinates: the one
-// reading of it, by model files (make_model) and by the identification's given core. Throws
-// Error naming `where`, the key and what was expected. "terms" may be absent (terms empty: the
-// identification selects them; a model needs them).
+// "full"|"diagonal", "coordinate_scales": [...], "dissipation": [...]} read and checked for d
+// coordinates: the one reading of it, by model files (make_model) and by the identification's given
+// core. Throws Error naming `where`, the key and what was expected. "terms" may be absent (terms
+// empty: the identification selects them; a model needs them).
 struct LibrarySpec {
   std::vector<LibraryTerm> terms;
   int order = 4;
   Index substeps = 1;
   bool full_mass = true;
   Vector scales;  // empty: all 1
+  // "dissipation": ["coulomb(p1)", "drag(p1)", ...]; absent: none.
+  std::vector<DissipationTerm> dissipation;
 };
 LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where);
 

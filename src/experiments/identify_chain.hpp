@@ -98,4 +98,16 @@ bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const Shoot
                          Matrix& val_z0, const ShootingOptions& options,
                          std::vector<Matrix>& states, nlohmann::json& rec);
 
+// The dissipation of a positions record judged on the positions (identify_prune.cpp): the
+// velocity start's choice judges velocities from local fits, whose errors grow with the
+// amplitude (on a linear viscous chain at 0.2% noise it added drag). While dropping the
+// library core's Coulomb friction or its drag (every coordinate's) lowers the information
+// criterion of the linked fit, the best such drop is made, θ and the start states refitted.
+// Every trial is recorded in rec["dissipation_on_positions"]; returns whether a group was
+// dropped; throws Error on a stop request.
+bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
+                               const ShootingSegments& val, Matrix& val_z0,
+                               const ShootingOptions& options, std::vector<Matrix>& states,
+                               nlohmann::json& rec);
+
 }  // namespace csympnet::detail

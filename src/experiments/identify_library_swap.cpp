@@ -136,7 +136,8 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
   return out;
 }
 
-Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next) {
+Candidate library_with(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next,
+                       const std::vector<DissipationTerm>& next_dissipation) {
   const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
   require(map != nullptr, "library: the candidate to change is not a library map");
   Candidate c;
@@ -149,6 +150,12 @@ Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<Li
   c.pretrained = lib.pretrained;
   c.core["terms"] = nlohmann::json::array();
   for (const LibraryTerm& t : next) c.core["terms"].push_back(term_name(t));
+  c.core.erase("dissipation");
+  if (!next_dissipation.empty()) {
+    c.core["dissipation"] = nlohmann::json::array();
+    for (const DissipationTerm& t : next_dissipation)
+      c.core["dissipation"].push_back(dissipation_name(t));
+  }
   c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
   const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
   require(nm != nullptr, "library: the changed candidate is not a library map");
@@ -166,11 +173,23 @@ Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<Li
       c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(from));
   }
   c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
-  // The core (copied) keeps the dissipation terms in their order: their rates carry over (a
-  // rate left at 0, where |θ| has no slope, could never move again).
-  for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
-    c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
+  // A dissipation term kept carries its rate over (a rate left at 0, where |θ| has no slope,
+  // could never move again); a new one starts at the map's own nonzero start.
+  const std::vector<DissipationTerm>& old_dis = map->dissipation();
+  for (std::size_t k = 0; k < next_dissipation.size(); ++k) {
+    const auto at = std::find(old_dis.begin(), old_dis.end(), next_dissipation[k]);
+    c.theta(nm->dissipation_index(static_cast<Index>(k))) =
+        at == old_dis.end()
+            ? HamiltonianLibraryMap::kDissipationInit
+            : lib.theta(map->dissipation_index(static_cast<Index>(at - old_dis.begin())));
+  }
   return c;
+}
+
+Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next) {
+  const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
+  require(map != nullptr, "library: the candidate to change is not a library map");
+  return library_with(lib, d, next, map->dissipation());
 }
 
 std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d) {

@@ -105,4 +105,71 @@ bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const Shoot
   return changed;
 }
 
+bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
+                               const ShootingSegments& val, Matrix& val_z0,
+                               const ShootingOptions& options, std::vector<Matrix>& states,
+                               nlohmann::json& rec) {
+  if (dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get()) == nullptr ||
+      linked.chain.segs.size() == 0)
+    return false;
+  const Index n = linked.chain.segs.n_residuals();
+  nlohmann::json trials = nlohmann::json::array();
+  bool changed = false;
+  for (;;) {
+    const auto& map = dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map);
+    std::optional<Trial> best;
+    for (const DissipationKind kind : {DissipationKind::kCoulomb, DissipationKind::kDrag}) {
+      throw_if_stop_requested("the dissipation terms judged on the linked positions");
+      std::vector<DissipationTerm> next;
+      Index dropped = 0;
+      for (const DissipationTerm& t : map.dissipation())
+        if (t.kind == kind)
+          ++dropped;
+        else
+          next.push_back(t);
+      if (dropped == 0) continue;
+      Trial t{dissipation_kind_name(kind),
+              library_with(lib, d, map.terms(), next),
+              linked.chain.z0,
+              val_z0,
+              {},
+              0.0};
+      ShootingOptions opt = options;
+      opt.n_free = t.candidate.inner.n_params();
+      const auto t0 = std::chrono::steady_clock::now();
+      t.report = fit_shooting(*t.candidate.inner.map, t.candidate.theta, t.z0, linked.chain.segs,
+                              t.val_z0, val, watching_damping(*t.candidate.inner.map, opt));
+      t.delta_bic =
+          bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, dropped);
+      trials.push_back(
+          {{"term", t.term},
+           {"loss_with", linked.report.final_loss},
+           {"loss_without", t.report.final_loss},
+           {"bic_change", t.delta_bic},
+           {"lm_iterations", t.report.iterations},
+           {"seconds",
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+      if (t.report.stopped) throw_if_stop_requested("the dissipation terms judged");
+      if (t.delta_bic < 0.0 && (!best || t.delta_bic < best->delta_bic)) best = std::move(t);
+    }
+    if (!best) break;
+    trials.push_back({{"dropped", best->term}, {"bic_change", best->delta_bic}});
+    lib = std::move(best->candidate);
+    linked.chain.z0 = std::move(best->z0);
+    val_z0 = std::move(best->val_z0);
+    linked.report = best->report;
+    changed = true;
+  }
+  if (!trials.empty())
+    rec["dissipation_on_positions"] = {
+        {"rule",
+         "Coulomb friction or drag selected on the velocity start is dropped when the linked "
+         "positions fit without it has the lower Bayesian information criterion, n log(loss) + "
+         "parameters x log n"},
+        {"residuals", n},
+        {"trials", trials}};
+  if (changed) write_chain_states(*lib.inner.map, lib.theta, linked.chain, states);
+  return changed;
+}
+
 }  // namespace csympnet::detail

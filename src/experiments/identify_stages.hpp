@@ -268,6 +268,10 @@ std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d)
 // (and wavenumber) carried over from `lib`, a new term at 0. Throws for a candidate that is no
 // library core.
 Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next);
+// The same with the dissipation terms `next_dissipation` (a kept one's rate carried over, a new
+// one at HamiltonianLibraryMap::kDissipationInit).
+Candidate library_with(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next,
+                       const std::vector<DissipationTerm>& next_dissipation);
 
 // identify_positions() after the core is trained on the positions with velocities from a
 // local polynomial: the momenta as hidden states (identify_positions.cpp).

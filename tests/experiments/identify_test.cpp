@@ -160,6 +160,8 @@ TEST(Identify, PositionsTrainNeuralCoresOnlyWhereTheLibraryLeavesStructure) {
   const std::string lin_floor = lin.choices["library"]["floor"];
   EXPECT_NE(lin_floor.find("not trained"), std::string::npos) << lin_floor;
   EXPECT_EQ(lin.choices["core"].value("type", ""), "library");
+  // The velocity start's drag on this viscous record is judged on the positions and dropped.
+  EXPECT_FALSE(lin.choices["core"].contains("dissipation")) << lin.choices["core"].dump();
   // The decision comes before any neural training: small budgets for what follows it.
   IdentifyConfig quick;
   quick.epochs = 200;

@@ -7,9 +7,11 @@
 // over whole stretches of the record is where the positions judge them. On a linear record of
 // two carts in pixels (0.2% noise) the velocity stage kept (q1-q2)^3 and (q1-q2)^4; over the
 // linked chain they lowered the loss by 0.1%, n log(L₁/L₀) = 4.9 against log n = 8.5.
+// Friction and drag selected on the velocity start are judged the same way, a kind at a time.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -23,23 +25,76 @@ namespace csympnet::detail {
 
 namespace {
 
-// The library terms that may be dropped: powers of degree 3 and 4 (the quadratics are the
-// springs, the linear terms the rest position; a sin/cos or exp group was judged against the
-// powers of its argument already).
-std::vector<std::size_t> higher_powers(const std::vector<LibraryTerm>& terms) {
-  std::vector<std::size_t> out;
-  for (std::size_t k = 0; k < terms.size(); ++k)
-    if (terms[k].shape == TermShape::kPower && terms[k].power >= 3) out.push_back(k);
-  return out;
+const HamiltonianLibraryMap& library_map(const Candidate& c) {
+  return dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
 }
 
+// One way to make the library core smaller: what goes, the candidate without it, and how many
+// parameters that removes.
+struct Drop {
+  std::string name;
+  Candidate candidate;
+  Index parameters = 0;
+};
+
 struct Trial {
-  std::string term;
+  std::string name;
   Candidate candidate;
   Matrix z0, val_z0;
   ShootingReport report;
   double delta_bic = std::numeric_limits<double>::infinity();
 };
+
+// Backward selection over the linked chain: every drop `drops` offers is refitted (θ and the
+// start states, from the current fit), and the one that lowers the information criterion most
+// is made; then again, until none lowers it. `lib`, `linked`'s start states and report, `val_z0`
+// and `states` follow; each trial goes into `trials`. Returns whether anything was dropped.
+bool drop_while_the_criterion_falls(Candidate& lib, LinkedFit& linked, const ShootingSegments& val,
+                                    Matrix& val_z0, const ShootingOptions& options,
+                                    std::vector<Matrix>& states,
+                                    const std::function<std::vector<Drop>(const Candidate&)>& drops,
+                                    nlohmann::json& trials) {
+  const Index n = linked.chain.segs.n_residuals();
+  bool changed = false;
+  for (;;) {
+    std::optional<Trial> best;
+    for (Drop& drop : drops(lib)) {
+      throw_if_stop_requested("the comparison of library terms on the linked positions");
+      Trial t{drop.name, std::move(drop.candidate), linked.chain.z0, val_z0, {}, 0.0};
+      ShootingOptions opt = options;
+      opt.n_free = t.candidate.inner.n_params();
+      const auto t0 = std::chrono::steady_clock::now();
+      t.report = fit_shooting(*t.candidate.inner.map, t.candidate.theta, t.z0, linked.chain.segs,
+                              t.val_z0, val, watching_damping(*t.candidate.inner.map, opt));
+      t.delta_bic =
+          bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, drop.parameters);
+      trials.push_back(
+          {{"term", t.name},
+           {"loss_with", linked.report.final_loss},
+           {"loss_without", t.report.final_loss},
+           {"bic_change", t.delta_bic},
+           {"lm_iterations", t.report.iterations},
+           {"seconds",
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+      if (t.report.stopped) throw_if_stop_requested("the comparison of library terms");
+      if (t.delta_bic < 0.0 && (!best || t.delta_bic < best->delta_bic)) best = std::move(t);
+    }
+    if (!best) break;
+    trials.push_back({{"dropped", best->name}, {"bic_change", best->delta_bic}});
+    lib = std::move(best->candidate);
+    linked.chain.z0 = std::move(best->z0);
+    val_z0 = std::move(best->val_z0);
+    linked.report = best->report;
+    changed = true;
+  }
+  if (changed) write_chain_states(*lib.inner.map, lib.theta, linked.chain, states);
+  return changed;
+}
+
+bool applies(const Candidate& lib, const LinkedFit& linked) {
+  return dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get()) != nullptr &&
+         linked.chain.segs.size() > 0;
+}
 
 }  // namespace
 
@@ -54,54 +109,31 @@ double bic_change_of_dropping(double loss_with, double loss_without, Index n_res
 bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const ShootingSegments& val,
                          Matrix& val_z0, const ShootingOptions& options,
                          std::vector<Matrix>& states, nlohmann::json& rec) {
-  if (dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get()) == nullptr ||
-      linked.chain.segs.size() == 0)
-    return false;
-  const Index n = linked.chain.segs.n_residuals();
-  nlohmann::json trials = nlohmann::json::array();
-  bool changed = false;
-  for (;;) {
-    const auto& terms = dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map).terms();
-    std::optional<Trial> best;
-    for (std::size_t k : higher_powers(terms)) {
-      throw_if_stop_requested("the comparison of library terms on the linked positions");
+  if (!applies(lib, linked)) return false;
+  // The powers of degree 3 and 4, one at a time (the quadratics are the springs, the linear
+  // terms the rest position; a sin/cos or exp group was judged against the powers of its
+  // argument already).
+  const auto drops = [d](const Candidate& c) {
+    std::vector<Drop> out;
+    const std::vector<LibraryTerm>& terms = library_map(c).terms();
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+      if (terms[k].shape != TermShape::kPower || terms[k].power < 3) continue;
       std::vector<LibraryTerm> next = terms;
       next.erase(next.begin() + static_cast<long>(k));
-      Trial t{
-          term_name(terms[k]), library_with_terms(lib, d, next), linked.chain.z0, val_z0, {}, 0.0};
-      ShootingOptions opt = options;
-      opt.n_free = t.candidate.inner.n_params();
-      const auto t0 = std::chrono::steady_clock::now();
-      t.report = fit_shooting(*t.candidate.inner.map, t.candidate.theta, t.z0, linked.chain.segs,
-                              t.val_z0, val, watching_damping(*t.candidate.inner.map, opt));
-      t.delta_bic = bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, 1);
-      trials.push_back(
-          {{"term", t.term},
-           {"loss_with", linked.report.final_loss},
-           {"loss_without", t.report.final_loss},
-           {"bic_change", t.delta_bic},
-           {"lm_iterations", t.report.iterations},
-           {"seconds",
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
-      if (t.report.stopped) throw_if_stop_requested("the comparison of library terms");
-      if (t.delta_bic < 0.0 && (!best || t.delta_bic < best->delta_bic)) best = std::move(t);
+      out.push_back({term_name(terms[k]), library_with_terms(c, d, next), 1});
     }
-    if (!best) break;
-    trials.push_back({{"dropped", best->term}, {"bic_change", best->delta_bic}});
-    lib = std::move(best->candidate);
-    linked.chain.z0 = std::move(best->z0);
-    val_z0 = std::move(best->val_z0);
-    linked.report = best->report;
-    changed = true;
-  }
+    return out;
+  };
+  nlohmann::json trials = nlohmann::json::array();
+  const bool changed =
+      drop_while_the_criterion_falls(lib, linked, val, val_z0, options, states, drops, trials);
   if (!trials.empty())
     rec["terms_pruned"] = {
         {"rule",
          "a power of degree 3 or 4 is dropped when the linked positions fit without it has the "
          "lower Bayesian information criterion, n log(loss) + parameters x log n"},
-        {"residuals", n},
+        {"residuals", linked.chain.segs.n_residuals()},
         {"trials", trials}};
-  if (changed) write_chain_states(*lib.inner.map, lib.theta, linked.chain, states);
   return changed;
 }
 
@@ -109,17 +141,12 @@ bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
                                const ShootingSegments& val, Matrix& val_z0,
                                const ShootingOptions& options, std::vector<Matrix>& states,
                                nlohmann::json& rec) {
-  if (dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get()) == nullptr ||
-      linked.chain.segs.size() == 0)
-    return false;
-  const Index n = linked.chain.segs.n_residuals();
-  nlohmann::json trials = nlohmann::json::array();
-  bool changed = false;
-  for (;;) {
-    const auto& map = dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map);
-    std::optional<Trial> best;
+  if (!applies(lib, linked)) return false;
+  // Coulomb friction, or drag, on every coordinate at once (as they were selected).
+  const auto drops = [d](const Candidate& c) {
+    std::vector<Drop> out;
+    const HamiltonianLibraryMap& map = library_map(c);
     for (const DissipationKind kind : {DissipationKind::kCoulomb, DissipationKind::kDrag}) {
-      throw_if_stop_requested("the dissipation terms judged on the linked positions");
       std::vector<DissipationTerm> next;
       Index dropped = 0;
       for (const DissipationTerm& t : map.dissipation())
@@ -127,48 +154,23 @@ bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
           ++dropped;
         else
           next.push_back(t);
-      if (dropped == 0) continue;
-      Trial t{dissipation_kind_name(kind),
-              library_with(lib, d, map.terms(), next),
-              linked.chain.z0,
-              val_z0,
-              {},
-              0.0};
-      ShootingOptions opt = options;
-      opt.n_free = t.candidate.inner.n_params();
-      const auto t0 = std::chrono::steady_clock::now();
-      t.report = fit_shooting(*t.candidate.inner.map, t.candidate.theta, t.z0, linked.chain.segs,
-                              t.val_z0, val, watching_damping(*t.candidate.inner.map, opt));
-      t.delta_bic =
-          bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, dropped);
-      trials.push_back(
-          {{"term", t.term},
-           {"loss_with", linked.report.final_loss},
-           {"loss_without", t.report.final_loss},
-           {"bic_change", t.delta_bic},
-           {"lm_iterations", t.report.iterations},
-           {"seconds",
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
-      if (t.report.stopped) throw_if_stop_requested("the dissipation terms judged");
-      if (t.delta_bic < 0.0 && (!best || t.delta_bic < best->delta_bic)) best = std::move(t);
+      if (dropped > 0)
+        out.push_back(
+            {dissipation_kind_name(kind), library_with(c, d, map.terms(), next), dropped});
     }
-    if (!best) break;
-    trials.push_back({{"dropped", best->term}, {"bic_change", best->delta_bic}});
-    lib = std::move(best->candidate);
-    linked.chain.z0 = std::move(best->z0);
-    val_z0 = std::move(best->val_z0);
-    linked.report = best->report;
-    changed = true;
-  }
+    return out;
+  };
+  nlohmann::json trials = nlohmann::json::array();
+  const bool changed =
+      drop_while_the_criterion_falls(lib, linked, val, val_z0, options, states, drops, trials);
   if (!trials.empty())
     rec["dissipation_on_positions"] = {
         {"rule",
          "Coulomb friction or drag selected on the velocity start is dropped when the linked "
          "positions fit without it has the lower Bayesian information criterion, n log(loss) + "
          "parameters x log n"},
-        {"residuals", n},
+        {"residuals", linked.chain.segs.n_residuals()},
         {"trials", trials}};
-  if (changed) write_chain_states(*lib.inner.map, lib.theta, linked.chain, states);
   return changed;
 }
 

@@ -40,17 +40,9 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.optimize import least_squares
 
+from idbench import linear  # the chains of the benchmark's observed plan: one definition
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def chain_stiffness(d, rng):
-    k = rng.uniform(0.6, 1.4, size=d + 1) * (2 * math.pi) ** 2
-    K = np.zeros((d, d))
-    for i in range(d):
-        K[i, i] = k[i] + k[i + 1]
-        if i + 1 < d:
-            K[i, i + 1] = K[i + 1, i] = -k[i + 1]
-    return K
 
 
 def simulate(K, gamma, z0, t):
@@ -64,7 +56,7 @@ def simulate(K, gamma, z0, t):
 
 def make_case(i, d, sigma, seed, fps=25.0, duration=58.0, drop=0.03):
     rng = np.random.default_rng([seed, i, d, int(sigma * 1e6)])
-    K = chain_stiffness(d, rng)
+    K = linear.chain_stiffness(linear.draw_springs(rng, d))
     gamma = float(rng.uniform(0.06, 0.2))
     t = np.arange(0.0, duration, 1.0 / fps)
     keep = rng.uniform(size=t.size) >= drop

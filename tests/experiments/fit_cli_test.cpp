@@ -19,23 +19,15 @@
 #include "csympnet/data/generate.hpp"
 #include "csympnet/io/files.hpp"
 #include "data/temp_dir.hpp"
+#include "support/shell_and_files.hpp"
 
 namespace csympnet {
 namespace {
 
 namespace fs = std::filesystem;
 
-int shell(const std::string& cmd) {
-  const int status = std::system(cmd.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::shell;
+using testing::slurp;
 
 // Six trajectories of the s1 oscillator (γ = 0.05) by expm at irregular steps.
 std::vector<Trajectory> oscillator_trajectories() {

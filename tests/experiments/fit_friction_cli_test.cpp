@@ -16,23 +16,15 @@
 #include "csympnet/data/csv.hpp"
 #include "data/temp_dir.hpp"
 #include "support/friction_oscillator.hpp"
+#include "support/shell_and_files.hpp"
 
 namespace csympnet {
 namespace {
 
 namespace fs = std::filesystem;
 
-int shell(const std::string& cmd) {
-  const int status = std::system(cmd.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::shell;
+using testing::slurp;
 
 TEST(FitFrictionCli, PrintsReportsAndSavesTheFriction) {
   testing::TempDir dir;

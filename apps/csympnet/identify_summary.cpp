@@ -119,6 +119,21 @@ void print_identify_details(const IdentifyResult& r, const std::string& out, boo
   std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
               static_cast<long long>(r.model.dim() / 2), static_cast<long long>(r.model.n_params()),
               r.config.window, r.config.core.dump().c_str());
+  // How close each choice between models was (report.json "model_selection").
+  for (const nlohmann::json& x : model_selection(r)) {
+    const nlohmann::json& m = x["margin"];
+    const std::string unit = x.value("margin_unit", std::string());
+    char margin[64] = "margin not available";
+    if (m.is_number()) {
+      if (unit == "relative")
+        std::snprintf(margin, sizeof margin, "runner-up's loss %+.3g%%", 100.0 * m.get<double>());
+      else
+        std::snprintf(margin, sizeof margin, "margin %.3g %s", m.get<double>(), unit.c_str());
+    }
+    std::printf("model choice (%s): %s, runner-up %s: %s\n",
+                x.value("decision", std::string()).c_str(), x.value("chosen", std::string()).c_str(),
+                x.value("runner_up", std::string()).c_str(), margin);
+  }
   // The library core is fitted by Levenberg-Marquardt alone: its AdamW summary ("trained 0
   // epochs ... best validation loss 0") would read as a perfect fit.
   if (r.training.epochs_run == 0 && r.config.core.is_object() &&

@@ -106,6 +106,8 @@ class CSympNetID:
                          `Identification.hamiltonian`), or None when a neural core was chosen
         dissipation_     list of dict, the dissipation found, viscous first (as
                          `Identification.dissipation`: kind, dof, value, low, high, unit)
+        model_selection_ list of dict, each decision between models with its runner-up and
+                         margin (as `Identification.model_selection`)
         model_           the learned csympnet.Model (predict, rollout, save, ...)
         report_          the full report (dict), as `csympnet fit` writes it
         n_features_in_   2d, the state's length
@@ -247,6 +249,7 @@ class CSympNetID:
         self.damping_ratio_ = result.damping_ratios
         self.hamiltonian_ = result.hamiltonian
         self.dissipation_ = result.dissipation
+        self.model_selection_ = result.model_selection
         self.n_features_in_ = 2 * result.model.d
         self.dt_ = float(np.median(steps))
         return self

@@ -99,6 +99,10 @@ class Identification:
                   (None unless identified), "unit"}; Coulomb friction as the deceleration μ
                   of its coordinate (q'' = ... − μ sign(q')), drag as c (q'' = ... − c q'|q'|)
       dissipation_sentence  the same in words: "viscous gamma = … plus dry friction mu = …"
+      model_selection  list of dict, one per decision between models: "decision", "chosen",
+                  "runner_up", "criterion", the losses it used ("chosen_value",
+                  "runner_up_value") and "margin" in "margin_unit" (BIC, standard errors or
+                  relative): how close each call was
       estimate    the fitted γ̂ whatever the verdict (for inspection, not a measurement)
       report      the full report (dict), the same as `csympnet fit` writes
     """
@@ -124,6 +128,7 @@ class Identification:
         dissipation = report.get("dissipation") or {}
         self.dissipation = list(dissipation.get("terms", []))
         self.dissipation_sentence = dissipation.get("sentence")
+        self.model_selection = list(report.get("model_selection") or [])
         unit = report.get("time_unit")
         self.time_unit = unit["unit"] if unit else None
         self.gamma_per_s = unit["gamma_per_s"] if unit else None

@@ -64,6 +64,10 @@ def test_identify_and_the_estimator_report_friction_as_the_cli_does(tmp_path, cl
 
     est = csympnet.CSympNetID(observed="states").fit(trajs, [t] * len(trajs))
     assert est.dissipation_ == r.dissipation
+    # The same selection table on both paths, with the report's rows.
+    assert est.model_selection_ == r.model_selection == r.report["model_selection"]
+    assert r.model_selection and all(row["chosen"] != row["runner_up"]
+                                     for row in r.model_selection)
     assert est.get_params()["dissipation"] == "auto"
 
     # The CLI on the same records: the same terms to the bit.

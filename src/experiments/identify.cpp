@@ -617,6 +617,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"data", r.data},
       {"normalization", r.normalization},
       {"choices", r.choices},
+      {"model_selection", model_selection(r)},
       {"config", r.config},
       {"params", r.model.n_params()},
       {"warm_start", r.warm_start ? nlohmann::json({{"gamma_normalised", r.warm_start->gamma},

@@ -163,6 +163,7 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
   std::string why = "one segment spans each stretch of the record";
   write_chain_states(map, theta, out.chain, states);
   out.linked_fully = first_length >= out.chain.longest_stretch;
+  out.per_piece = first_length;
   for (Index per = 4 * first_length; !out.linked_fully; per *= 4) {
     Chain c = cut_chain(nt, layout, per, states);
     if (c.segs.size() >= out.chain.segs.size()) {
@@ -205,6 +206,7 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     theta = th;
     val_z0 = vz;
     out.chain = std::move(c);
+    out.per_piece = per;
     out.report = rep;
     kept = corrected;
     write_chain_states(map, theta, out.chain, states);

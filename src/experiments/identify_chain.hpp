@@ -16,6 +16,7 @@
 // its cluster for the sandwich interval.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -69,6 +70,7 @@ struct LinkedFit {
   Chain chain;                // the segments of the last accepted stage
   ShootingReport report;      // its fit
   bool linked_fully = false;  // one segment per stretch
+  Index per_piece = 0;        // the training positions per segment of the last accepted stage
   nlohmann::json record;      // what was tried and why it stopped
 };
 
@@ -82,6 +84,42 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
                         const RecordLayout& layout, Index first_length, std::vector<Matrix>& states,
                         const ShootingSegments& val, Matrix& val_z0, const ShootingOptions& options,
                         const ShootingReport& segment_fit);
+
+// A richer force law where the chain breaks (identify_force_law.cpp): when the linking
+// stopped because the library core does not follow the positions over the next stage's longer
+// segments, each coordinate's missing powers (q^3, q^4) and its sin/cos pair are offered as
+// additions, fitted over that longer stage's chain, and the best is made while it lowers the
+// information criterion there; then the linking goes on from that stage with the richer core.
+// The velocity start's selection judges one-step residuals, which at many samples per period
+// hardly see a force's anharmonic part; the longer segments do. `q`: the training positions
+// (d x n, for the wavenumbers' start). Every trial is recorded in rec["force_law_on_chain"];
+// returns whether a group was added (then `linked` is the new linking, from that stage on);
+// throws Error on a stop request. identify_positions.cpp calls it again at the next break, a
+// few rounds at most.
+bool richer_force_law_on_chain(Candidate& lib, Index d, const Matrix& q,
+                               const std::vector<Trajectory>& nt, const RecordLayout& layout,
+                               LinkedFit& linked, const ShootingSegments& val, Matrix& val_z0,
+                               const ShootingOptions& options, std::vector<Matrix>& states,
+                               nlohmann::json& rec);
+
+// One way to change the library core on a chain: its name, the candidate, how many parameters
+// it removes (negative: adds), and for a swap the new terms.
+struct ChainChange {
+  std::string name;
+  Candidate candidate;
+  Index parameters = 0;
+  std::string replaced_by;
+};
+// Greedy selection over a chain (identify_prune.cpp): every change `changes` offers is refitted
+// (θ and the start states, from the current fit), and the one that lowers the information
+// criterion most is made; then again, until none lowers it. `lib`, `linked`'s start states and
+// report, `val_z0` and `states` follow; each trial goes into `trials`. Returns whether anything
+// changed.
+bool change_while_the_criterion_falls(
+    Candidate& lib, LinkedFit& linked, const ShootingSegments& val, Matrix& val_z0,
+    const ShootingOptions& options, std::vector<Matrix>& states,
+    const std::function<std::vector<ChainChange>(const Candidate&)>& changes,
+    nlohmann::json& trials);
 
 // The change of the Bayesian information criterion, n log(loss) + k log n, when `dropped`
 // parameters are removed and the mean squared residual goes from loss_with to loss_without
@@ -97,6 +135,19 @@ double bic_change_of_dropping(double loss_with, double loss_without, Index n_res
 bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const ShootingSegments& val,
                          Matrix& val_z0, const ShootingOptions& options,
                          std::vector<Matrix>& states, nlohmann::json& rec);
+
+// Parsimony between families over the linked chain (identify_prune.cpp): while replacing a
+// sin/cos or exp group of the library core by the powers of its argument (their start fitted
+// to the group's potential over `q`, the training positions, d x n) lowers the information
+// criterion of the linked positions fit, the best such swap is made, θ and the start states
+// refitted. Judged on short segments, a cosine and a quartic differ by less than the noise
+// even at 1.5 rad of swing; over the linked record the force law shows. Every trial is
+// recorded in rec["polynomial_preferred"]; returns whether a group was replaced; throws Error
+// on a stop request.
+bool prefer_polynomials_on_chain(Candidate& lib, Index d, const Matrix& q, LinkedFit& linked,
+                                 const ShootingSegments& val, Matrix& val_z0,
+                                 const ShootingOptions& options, std::vector<Matrix>& states,
+                                 nlohmann::json& rec);
 
 // The dissipation of a positions record judged on the positions (identify_prune.cpp): the
 // velocity start's choice judges velocities from local fits, whose errors grow with the

@@ -425,8 +425,8 @@ class LibrarySelection {
       // loss is kept: the linearised gain ranks them, the fit decides. No margin for the
       // simpler family here: on measured momenta a pendulum's cos group beats its polynomial
       // by less than the keep threshold, and the polynomial biased γ̂ by 12% (identification
-      // benchmark, coupled pendulums at 1% noise); on positions, prefer_polynomials judges the
-      // families on what was observed.
+      // benchmark, coupled pendulums at 1% noise); on positions, prefer_polynomials_on_chain
+      // judges the families on what was observed.
       std::optional<Candidate> best;
       std::vector<Index> best_terms;
       int best_family = 0;

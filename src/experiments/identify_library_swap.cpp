@@ -1,5 +1,5 @@
 // Parsimony on what was observed: a sin/cos or exp group of the library core replaced by the
-// powers of the same argument (identify_positions.cpp compares the two on the positions).
+// powers of the same argument (identify_prune.cpp compares the two on the linked positions).
 #include <algorithm>
 #include <optional>
 

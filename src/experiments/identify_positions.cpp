@@ -584,6 +584,7 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
                                 nlohmann::json& rec) {
   std::vector<std::optional<SegmentFit>> fits(f.cand.size());
   nlohmann::json tried = nlohmann::json::array();
+  std::vector<std::size_t> tried_index;  // tried[k] is candidate tried_index[k]
   const auto is_library = [&](std::size_t i) {
     return f.cand[i].core.is_object() && f.cand[i].core.value("type", "") == "library";
   };
@@ -598,8 +599,10 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
     // wins ties anyway, and a neural core chosen is fitted further by the linking.
     if (!is_library(i)) opt.iterations = std::min(opt.iterations, kNeuralComparisonIterations);
     fits[i] = fit_segments(*x.inner.map, x.theta, train, val, opt);
+    tried_index.push_back(i);
     tried.push_back(
         {{"core", detail::core_name(x.core)},
+         {"model", x.core},
          {"held_out_position_loss", fits[i]->rep.val_loss},
          {"training_position_loss", fits[i]->rep.final_loss},
          {"lm_iterations", fits[i]->rep.iterations},
@@ -635,68 +638,25 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
     why = "the only candidate fitted on the positions";
   }
   if (!fits[pick]) pick = f.best;
-  rec["core_choice"] = {{"candidates", tried}, {"reason", why}};
+  for (std::size_t k = 0; k < tried.size(); ++k) tried[k]["chosen"] = tried_index[k] == pick;
+  rec["core_choice"] = {
+      {"candidates", tried}, {"reason", why}, {"validation_residuals", n_val}};
   chosen = std::move(*fits[pick]);
   return pick;
 }
 
-// Parsimony judged on the positions: each sin/cos or exp group of the chosen library core is
-// replaced by the powers of the same argument (started from their fit to the group's
-// potential), both are fitted on the positions, and the polynomial is kept unless the group's
-// held-out position loss is lower by more than the information criterion's price of one
-// parameter, n log(L_polynomial / L_group) > log n (BIC's, n the held-out residuals). On
-// velocities from local fits a sinusoid at a small fitted wavenumber mimics a quadratic at
-// about the same loss; the positions decide. The two fits share the data, so their losses
-// differ by far less than either's own standard error: a margin of three of those (√(2/n)
-// each) let an encoder-read pendulum's polynomial replace its true cos at 2.5% more held-out
-// loss, and the interval grew 180-fold (identification benchmark, observed plan). On the
-// training loss instead, two encoder pendulums lost their cos to a quartic that fits the
-// quantised training positions better, and one interval missed. Repeated until no group is
-// replaced; every trial recorded.
-void prefer_polynomials(detail::CoreFit& f, const Cut& train, const Cut& val, Index d,
-                        const ShootingOptions& base, SegmentFit& seg, nlohmann::json& rec) {
+// How often the linking may stop, get a richer force law, and go on (identify_force_law.cpp).
+constexpr int kForceLawRounds = 3;
+
+// The training blocks' positions side by side (d x n): where a group's potential is matched
+// by powers of its argument.
+Matrix training_positions(const detail::BlockSplit& split, Index d) {
   Matrix q(d, 0);
-  for (const Trajectory& t : f.split.train_blocks) {
+  for (const Trajectory& t : split.train_blocks) {
     q.conservativeResize(d, q.cols() + t.z.cols());
     q.rightCols(t.z.cols()) = t.z.topRows(d);
   }
-  const Index n = val.segs.n_residuals();
-  nlohmann::json trials = nlohmann::json::array();
-  for (bool swapped = true; swapped;) {
-    swapped = false;
-    for (detail::PolynomialAlternative& alt :
-         detail::polynomial_alternatives(f.cand[f.best], d, q)) {
-      throw_if_stop_requested("the comparison of library terms on the positions");
-      ShootingOptions opt = base;
-      opt.n_free = free_parameters(*alt.candidate.inner.map, d);
-      SegmentFit a = fit_segments(*alt.candidate.inner.map, alt.candidate.theta, train, val, opt);
-      // The criterion's change from the group to the polynomial, at one parameter's price.
-      const double bic = detail::bic_change_of_dropping(seg.rep.val_loss, a.rep.val_loss, n, 1);
-      const bool keep_group = bic > 0.0;
-      trials.push_back({{"group", alt.replaced},
-                        {"polynomial", alt.by},
-                        {"training_position_loss_group", seg.rep.final_loss},
-                        {"training_position_loss_polynomial", a.rep.final_loss},
-                        {"held_out_position_loss_group", seg.rep.val_loss},
-                        {"held_out_position_loss_polynomial", a.rep.val_loss},
-                        {"criterion", bic},
-                        {"kept", keep_group ? "group" : "polynomial"}});
-      if (keep_group || !std::isfinite(a.rep.val_loss) || a.rep.stopped) continue;
-      alt.candidate.theta = a.theta;
-      f.cand[f.best] = std::move(alt.candidate);
-      seg = std::move(a);
-      swapped = true;
-      break;
-    }
-  }
-  if (!trials.empty())
-    rec["polynomial_preferred"] = {
-        {"rule",
-         "a sin/cos or exp group stays only when its held-out position loss is lower than "
-         "that of the powers of its argument by more than one parameter's price in the "
-         "Bayesian information criterion: n log(L_polynomial / L_group) > log n, n the held-out "
-         "residuals"},
-        {"trials", trials}};
+  return q;
 }
 
 }  // namespace
@@ -864,13 +824,6 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
     opt.n_free = free_parameters(start_map, d);
     seg = fit_segments(start_map, r.theta, train, val, opt);
   }
-  // Whenever the library core was selected here (also when it was the only candidate trained).
-  if (r.config.init == nullptr && !terms_given && !r.stopped &&
-      f.cand[f.best].core.value("type", "") == "library") {
-    prefer_polynomials(f, train, val, d, opt, seg, rec);
-    r.choices["core"] = f.cand[f.best].core;
-    r.config.core = f.cand[f.best].core;
-  }
   Candidate& best = f.cand[f.best];
   const OneStepMap& map = *best.inner.map;
   const Index n_free = free_parameters(map, d);
@@ -903,10 +856,30 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
     LinkedFit linked =
         link_segments(map, theta, f.nt, layout, len, states, val.segs, val.z0, opt, rep);
     rec["linking"] = linked.record;
-    // The velocity stage's higher powers judged on the linked positions (replaces `best`, so
-    // `map` is not used below: the fitted map is read from `best` again).
+    // The velocity stage's families and higher powers judged on the linked positions
+    // (replaces `best`, so `map` is not used below: the fitted map is read from `best` again).
     if (r.config.init == nullptr && !terms_given && !linked.report.stopped) {
       best.theta = theta;
+      const Matrix q_train = training_positions(split, d);
+      // Again at the next break, a few times at most: each addition links further.
+      for (int round = 0; round < kForceLawRounds && !linked.linked_fully; ++round) {
+        nlohmann::json tried_here;
+        const bool added = richer_force_law_on_chain(best, d, q_train, f.nt, layout, linked,
+                                                     val.segs, val.z0, opt, states, tried_here);
+        if (tried_here.contains("force_law_on_chain"))
+          rec["force_law_on_chain"].push_back(tried_here["force_law_on_chain"]);
+        if (!added) break;
+        theta = best.theta;
+        r.choices["core"] = best.core;
+        r.config.core = best.core;
+        rec["linking"] = linked.record;
+      }
+      if (prefer_polynomials_on_chain(best, d, q_train, linked, val.segs, val.z0, opt, states,
+                                      rec)) {
+        theta = best.theta;
+        r.choices["core"] = best.core;
+        r.config.core = best.core;
+      }
       if (prune_library_terms(best, d, linked, val.segs, val.z0, opt, states, rec)) {
         theta = best.theta;
         r.choices["core"] = best.core;

@@ -29,38 +29,29 @@ const HamiltonianLibraryMap& library_map(const Candidate& c) {
   return dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
 }
 
-// One way to make the library core smaller: what goes, the candidate without it, and how many
-// parameters that removes.
-struct Drop {
-  std::string name;
-  Candidate candidate;
-  Index parameters = 0;
-};
-
 struct Trial {
-  std::string name;
+  std::string name, replaced_by;
   Candidate candidate;
   Matrix z0, val_z0;
   ShootingReport report;
   double delta_bic = std::numeric_limits<double>::infinity();
 };
 
-// Backward selection over the linked chain: every drop `drops` offers is refitted (θ and the
-// start states, from the current fit), and the one that lowers the information criterion most
-// is made; then again, until none lowers it. `lib`, `linked`'s start states and report, `val_z0`
-// and `states` follow; each trial goes into `trials`. Returns whether anything was dropped.
-bool drop_while_the_criterion_falls(Candidate& lib, LinkedFit& linked, const ShootingSegments& val,
-                                    Matrix& val_z0, const ShootingOptions& options,
-                                    std::vector<Matrix>& states,
-                                    const std::function<std::vector<Drop>(const Candidate&)>& drops,
-                                    nlohmann::json& trials) {
+}  // namespace
+
+bool change_while_the_criterion_falls(
+    Candidate& lib, LinkedFit& linked, const ShootingSegments& val, Matrix& val_z0,
+    const ShootingOptions& options, std::vector<Matrix>& states,
+    const std::function<std::vector<ChainChange>(const Candidate&)>& drops,
+    nlohmann::json& trials) {
   const Index n = linked.chain.segs.n_residuals();
   bool changed = false;
   for (;;) {
     std::optional<Trial> best;
-    for (Drop& drop : drops(lib)) {
+    for (ChainChange& drop : drops(lib)) {
       throw_if_stop_requested("the comparison of library terms on the linked positions");
-      Trial t{drop.name, std::move(drop.candidate), linked.chain.z0, val_z0, {}, 0.0};
+      Trial t{drop.name, drop.replaced_by, std::move(drop.candidate), linked.chain.z0, val_z0,
+              {}, 0.0};
       ShootingOptions opt = options;
       opt.n_free = t.candidate.inner.n_params();
       const auto t0 = std::chrono::steady_clock::now();
@@ -70,12 +61,14 @@ bool drop_while_the_criterion_falls(Candidate& lib, LinkedFit& linked, const Sho
           bic_change_of_dropping(linked.report.final_loss, t.report.final_loss, n, drop.parameters);
       trials.push_back(
           {{"term", t.name},
-           {"loss_with", linked.report.final_loss},
-           {"loss_without", t.report.final_loss},
+           {"parameters_removed", drop.parameters},
+           {"loss_before", linked.report.final_loss},
+           {"loss_after", t.report.final_loss},
            {"bic_change", t.delta_bic},
            {"lm_iterations", t.report.iterations},
            {"seconds",
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+      if (!t.replaced_by.empty()) trials.back()["replaced_by"] = t.replaced_by;
       if (t.report.stopped) throw_if_stop_requested("the comparison of library terms");
       if (t.delta_bic < 0.0 && (!best || t.delta_bic < best->delta_bic)) best = std::move(t);
     }
@@ -90,6 +83,8 @@ bool drop_while_the_criterion_falls(Candidate& lib, LinkedFit& linked, const Sho
   if (changed) write_chain_states(*lib.inner.map, lib.theta, linked.chain, states);
   return changed;
 }
+
+namespace {
 
 bool applies(const Candidate& lib, const LinkedFit& linked) {
   return dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get()) != nullptr &&
@@ -114,7 +109,7 @@ bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const Shoot
   // terms the rest position; a sin/cos or exp group was judged against the powers of its
   // argument already).
   const auto drops = [d](const Candidate& c) {
-    std::vector<Drop> out;
+    std::vector<ChainChange> out;
     const std::vector<LibraryTerm>& terms = library_map(c).terms();
     for (std::size_t k = 0; k < terms.size(); ++k) {
       if (terms[k].shape != TermShape::kPower || terms[k].power < 3) continue;
@@ -126,12 +121,42 @@ bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const Shoot
   };
   nlohmann::json trials = nlohmann::json::array();
   const bool changed =
-      drop_while_the_criterion_falls(lib, linked, val, val_z0, options, states, drops, trials);
+      change_while_the_criterion_falls(lib, linked, val, val_z0, options, states, drops, trials);
   if (!trials.empty())
     rec["terms_pruned"] = {
         {"rule",
          "a power of degree 3 or 4 is dropped when the linked positions fit without it has the "
          "lower Bayesian information criterion, n log(loss) + parameters x log n"},
+        {"residuals", linked.chain.segs.n_residuals()},
+        {"trials", trials}};
+  return changed;
+}
+
+bool prefer_polynomials_on_chain(Candidate& lib, Index d, const Matrix& q, LinkedFit& linked,
+                                 const ShootingSegments& val, Matrix& val_z0,
+                                 const ShootingOptions& options, std::vector<Matrix>& states,
+                                 nlohmann::json& rec) {
+  if (!applies(lib, linked)) return false;
+  // Each sin/cos or exp group against the powers of its argument, started from their fit to
+  // the group's potential; the swap's parameter count is what the two models differ by.
+  const auto swaps = [d, &q](const Candidate& c) {
+    std::vector<ChainChange> out;
+    for (PolynomialAlternative& alt : polynomial_alternatives(c, d, q)) {
+      const Index fewer = c.inner.n_params() - alt.candidate.inner.n_params();
+      out.push_back({alt.replaced, std::move(alt.candidate), fewer, alt.by});
+    }
+    return out;
+  };
+  nlohmann::json trials = nlohmann::json::array();
+  const bool changed =
+      change_while_the_criterion_falls(lib, linked, val, val_z0, options, states, swaps, trials);
+  if (!trials.empty())
+    rec["polynomial_preferred"] = {
+        {"rule",
+         "a sin/cos or exp group is replaced by the powers of its argument when the linked "
+         "positions fit with the powers has the lower Bayesian information criterion, n "
+         "log(loss) + parameters x log n: the group stays only when it earns its extra "
+         "parameters over whole stretches of the record"},
         {"residuals", linked.chain.segs.n_residuals()},
         {"trials", trials}};
   return changed;
@@ -144,7 +169,7 @@ bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
   if (!applies(lib, linked)) return false;
   // Coulomb friction, or drag, on every coordinate at once (as they were selected).
   const auto drops = [d](const Candidate& c) {
-    std::vector<Drop> out;
+    std::vector<ChainChange> out;
     const HamiltonianLibraryMap& map = library_map(c);
     for (const DissipationKind kind : {DissipationKind::kCoulomb, DissipationKind::kDrag}) {
       std::vector<DissipationTerm> next;
@@ -162,7 +187,7 @@ bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
   };
   nlohmann::json trials = nlohmann::json::array();
   const bool changed =
-      drop_while_the_criterion_falls(lib, linked, val, val_z0, options, states, drops, trials);
+      change_while_the_criterion_falls(lib, linked, val, val_z0, options, states, drops, trials);
   if (!trials.empty())
     rec["dissipation_on_positions"] = {
         {"rule",

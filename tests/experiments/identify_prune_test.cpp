@@ -10,6 +10,7 @@
 
 #include "../../src/experiments/identify_chain.hpp"
 #include "csympnet/core/rng.hpp"
+#include "csympnet/experiments/identify.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 
 namespace csympnet::detail {
@@ -109,6 +110,29 @@ TEST(IdentifyPrune, DropsThePowersThePositionsDoNotNeedAndKeepsTheOnesTheyDo) {
     const std::vector<std::string> want =
         c4 > 0.0 ? std::vector<std::string>{"q1^2", "q1^4"} : std::vector<std::string>{"q1^2"};
     EXPECT_EQ(kept, want) << rec.dump(1);
+    // The selection table reads one row per power tried, the side kept as "chosen", and the
+    // criterion favouring it.
+    IdentifyResult r;
+    r.observed = "positions";
+    r.choices["positions"] = rec;
+    const nlohmann::json rows = model_selection(r);
+    ASSERT_EQ(rows.size(), 2u) << rows.dump(1);
+    for (const auto& row : rows) {
+      const std::string term = row.at("chosen").get<std::string>().substr(
+          row.at("chosen").get<std::string>().find(' ') + 1);
+      const bool in = std::find(kept.begin(), kept.end(), term) != kept.end();
+      EXPECT_EQ(row.at("chosen"), (in ? "with " : "without ") + term) << row.dump();
+      EXPECT_GT(row.at("margin").get<double>(), 0.0) << row.dump();
+      EXPECT_EQ(row.at("margin_unit"), "BIC");
+      // The chosen side's loss is what the criterion prices: without a term, a loss that rose
+      // by less than the term's price; with it, one that fell by more.
+      const double a = row.at("chosen_value"), b = row.at("runner_up_value");
+      const double n = rec["terms_pruned"]["residuals"].get<double>();
+      EXPECT_NEAR(row.at("margin").get<double>(),
+                  in ? n * std::log(b / a) - std::log(n) : std::log(n) - n * std::log(a / b),
+                  1e-9 * n)
+          << row.dump();
+    }
     EXPECT_NEAR(fitted.inner.map->damping_rate(fitted.theta).value_or(0.0), 0.1, 2e-3);
     // The states follow the pruned map's rollout of the chain.
     EXPECT_LE((states[0] - shooting_states(*fitted.inner.map, fitted.theta, linked.chain.z0,
@@ -116,6 +140,58 @@ TEST(IdentifyPrune, DropsThePowersThePositionsDoNotNeedAndKeepsTheOnesTheyDo) {
                   .cwiseAbs()
                   .maxCoeff(),
               1e-12);
+  }
+}
+
+// The family over the linked chain: a pendulum swinging to 1.4 rad keeps its cosine (the
+// powers up to q^4 cannot follow it over 400 positions), while on a linear oscillator a
+// sin/cos group that adds nothing gives way to the powers, which explain the same with one
+// parameter fewer (the wavenumber).
+TEST(IdentifyPrune, TheChainKeepsACosineItNeedsAndSwapsOneItDoesNot) {
+  for (const bool pendulum : {true, false}) {
+    Rng rng(11, "family-fit");
+    Candidate truth = library(1, {"q1", "q1^2", "sin(q1)", "cos(q1)"});
+    const auto& m = lib_map(truth);
+    truth.theta(0) = 1.0;  // W
+    const double k = 4.0 * M_PI * M_PI;
+    if (pendulum) {
+      truth.theta(m.coefficient_index(3)) = -k;  // V = -k cos q
+    } else {
+      truth.theta(m.coefficient_index(1)) = 0.5 * k;  // V = k q²/2, the group at 0
+    }
+    truth.theta(m.wavenumber_index(2)) = 1.0;
+    truth.theta(*m.damping_param_index()) = 0.1;
+    Vector z0(2);
+    z0 << 1.4, 0.0;
+    LinkedFit linked;
+    linked.chain.segs = positions_of(truth, z0, 400, 0.02, 1e-3, rng);
+    linked.chain.z0 = z0;
+    linked.chain.span = {{0, 0}};
+    Vector z1(2);
+    z1 << -1.0, 1.0;
+    const ShootingSegments val = positions_of(truth, z1, 120, 0.02, 1e-3, rng);
+    Matrix val_z0 = z1;
+    Candidate fitted = library(1, {"q1", "q1^2", "sin(q1)", "cos(q1)"});
+    fitted.theta = truth.theta;
+    ShootingOptions opt;
+    linked.report = fit_shooting(*fitted.inner.map, fitted.theta, linked.chain.z0,
+                                 linked.chain.segs, val_z0, val, opt);
+    std::vector<Matrix> states = {Matrix::Zero(2, 400)};
+    nlohmann::json rec;
+    const Matrix q = linked.chain.segs.q[0];
+    const bool swapped =
+        prefer_polynomials_on_chain(fitted, 1, q, linked, val, val_z0, opt, states, rec);
+    EXPECT_EQ(swapped, !pendulum) << rec.dump(1);
+    const std::vector<std::string> terms = fitted.core.at("terms");
+    const bool has_cos = std::find(terms.begin(), terms.end(), "cos(q1)") != terms.end();
+    EXPECT_EQ(has_cos, pendulum) << rec.dump(1);
+    const auto& trial = rec.at("polynomial_preferred").at("trials").at(0);
+    EXPECT_EQ(trial.at("term"), "sin(q1), cos(q1)");
+    EXPECT_EQ(trial.at("parameters_removed"), 1);
+    // The pendulum's powers miss its force by far more than the noise: the criterion's change
+    // is in the thousands, not a close call.
+    if (pendulum) EXPECT_GT(trial.at("bic_change").get<double>(), 100.0) << trial.dump();
+    EXPECT_NEAR(fitted.inner.map->damping_rate(fitted.theta).value_or(0.0), 0.1, 2e-3);
   }
 }
 

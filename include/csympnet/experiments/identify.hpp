@@ -222,6 +222,13 @@ IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
 // identified.
 std::string dissipation_sentence(const IdentifyResult& r);
 
+// Every decision between models the identification took, one row each: {"decision",
+// "criterion", "chosen", "chosen_value", "runner_up", "runner_up_value", "margin",
+// "margin_unit" ("BIC", "standard errors" or "relative"), "margin_means"}. The values are the
+// losses the criterion is computed from (mean squared residuals, normalised units; null where
+// none was recorded). Report key "model_selection"; read from the stages' records in r.choices.
+nlohmann::json model_selection(const IdentifyResult& r);
+
 // The report of an identification (report.json of `csympnet fit`).
 nlohmann::json identify_report(const IdentifyResult& r);
 

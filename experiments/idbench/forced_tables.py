@@ -1,6 +1,7 @@
 """Tables and output files of the forced plan.
 
-Per stratum (test record x system) and method: n, the median free-run RMS (per case the root
+Per stratum (test record x system) and method, over the well-posed records (the ill-posed ones,
+forced.py's sensitivity check, are counted and left out): n, the median free-run RMS (per case the root
 mean square over the outputs of the per-output RMS, in the data's units; a diverged or missing
 run counts as infinite), the median of the per-case ratios to the oracle's and to NARX's, the
 share of the test records' noise floor, the diverged count. Per system and method: gamma_hat's
@@ -44,13 +45,19 @@ def _ratio(a, b):
 
 
 def rms_stats(cases, m, test):
-    vals = [(c, case_rms(c, m, test)) for c in cases]
+    """over the well-posed records (forced.py: the sensitivity check); ill_posed counts the
+    others"""
+    ill = sum(1 for c in cases if (c.get("ill_posed") or {}).get(test)
+              and case_rms(c, m, test) is not None)
+    vals = [(c, case_rms(c, m, test)) for c in cases if not (c.get("ill_posed") or {}).get(test)]
     vals = [(c, v) for c, v in vals if v is not None]
     if not vals:
-        return None
+        return {"n": 0, "ill_posed": ill, "median_rms": None, "diverged": 0,
+                "median_over_oracle": None, "median_over_narx": None,
+                "median_over_noise": None} if ill else None
     noise = [c["sigma"] * math.sqrt(float(np.mean(np.square(c["q_rms"][test]))))
              for c, _ in vals]
-    return {"n": len(vals), "median_rms": _med([v for _, v in vals]),
+    return {"n": len(vals), "ill_posed": ill, "median_rms": _med([v for _, v in vals]),
             "diverged": sum(1 for _, v in vals if not math.isfinite(v)),
             "median_over_oracle": _med([_ratio(v, case_rms(c, "oracle", test))
                                         for c, v in vals]),
@@ -99,14 +106,14 @@ def summarize_forced(cases):
 
 def forced_tables(summary):
     lines = ["### Free-run simulation RMS on the test records (after a 100-sample warm-up)\n",
-             "| stratum | method | n | median RMS | median RMS / oracle's | median RMS / NARX's | "
-             "median RMS / noise | diverged |", "|" + "---|" * 8]
+             "| stratum | method | n | ill-posed, left out | median RMS | median RMS / oracle's | "
+             "median RMS / NARX's | median RMS / noise | diverged |", "|" + "---|" * 9]
     for st, per in summary["rms"].items():
         for m in FORCED_METHODS:
             s = per.get(m)
             if s is None:
                 continue
-            lines.append(f"| {st} | {m} | {s['n']} | {fmt(s['median_rms'])} | "
+            lines.append(f"| {st} | {m} | {s['n']} | {s['ill_posed']} | {fmt(s['median_rms'])} | "
                          f"{fmt(s['median_over_oracle'], 's')} | "
                          f"{fmt(s['median_over_narx'], 's')} | "
                          f"{fmt(s['median_over_noise'], 's')} | {s['diverged']} |")
@@ -132,8 +139,9 @@ def forced_tables(summary):
 def case_table(cases):
     lines = ["### every case\n",
              "| case | d | sigma | gamma | oracle gamma [95%] | RMS multisine: oracle, NARX, ARX, "
-             "csympnet | RMS rising: oracle, NARX, ARX, csympnet | rising beyond train | "
-             "NARX terms/output, degree | csympnet status |", "|" + "---|" * 10]
+             "csympnet | RMS rising: oracle, NARX, ARX, csympnet | sensitivity: multisine, "
+             "rising | rising beyond train | NARX terms/output, degree | csympnet status |",
+             "|" + "---|" * 11]
     for c in cases:
         o = c["methods"].get("oracle", {})
         og = (f"{o['gamma_hat']:.5g} [{o['ci_low']:.5g}, {o['ci_high']:.5g}]"
@@ -147,8 +155,10 @@ def case_table(cases):
             return ", ".join(out)
         nx = c["methods"].get("narx", {}).get("extra") or {}
         cs = c["methods"].get("csympnet", {})
+        sens = ", ".join(f"{(c.get('sensitivity') or {}).get(k, math.nan):.2g}"
+                         for k in ("test-multisine", "test-rising"))
         lines.append(f"| {c['id']} | {c['d']} | {c['sigma']:.1e} | {c['gamma_true']:.4g} | {og} | "
-                     f"{cells('test-multisine')} | {cells('test-rising')} | "
+                     f"{cells('test-multisine')} | {cells('test-rising')} | {sens} | "
                      f"{c['rising_share_beyond_train']:.3f} | "
                      f"{nx.get('terms_per_output', '-')}, {nx.get('degree', '-')} | "
                      f"{cs.get('status', '-')} |")
@@ -160,7 +170,9 @@ def write_forced_outputs(args, meta, cases, interrupted=False):
     summary = summarize_forced(done)
     notes = ("Notes: one run, every method on the same records. RMS in the data's units (rad for "
              "the pendulum), against the noisy test positions; 'noise' is the test record's noise "
-             "standard deviation (RMS over outputs). Ratios are per case, then the median. The "
+             "standard deviation (RMS over outputs). Ratios are per case, then the median, over "
+             "the well-posed records: 'sensitivity' is the change of the free run when gamma "
+             "changes by 1e-4 of itself, over the noise; above 1 the record is ill-posed. The "
              "oracle is started at the true potential parameters and B, gamma at the truth times "
              "exp(0.2 z). ARX and NARX have no gamma. CPU seconds: process_time of the Python "
              "peers (exact with --jobs 1), wait4 of csympnet's fit and evaluations.")

@@ -18,8 +18,9 @@ import math
 import numpy as np
 
 from ..common import check_stop
+from ..forced import WARMUP_SAMPLES
 
-WARMUP = 100          # samples of every test record used for the start, not scored
+WARMUP = WARMUP_SAMPLES  # samples of every test record used for the start, not scored (100)
 ORDERS = range(1, 7)  # na, nb tried by AIC
 DIVERGED = 1e3        # a free run is stopped (diverged) beyond this many times the training range
 

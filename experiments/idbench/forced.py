@@ -63,6 +63,7 @@ TARGET_AMPLITUDE = {"duffing": (0.3, 0.5), "pendulum": (0.2, 0.35), "duffing-cha
 SIZES = {False: {"period": 1024, "train_periods": 4, "test_periods": 2, "rising": 4096},
          True: {"period": 512, "train_periods": 3, "test_periods": 2, "rising": 2048}}
 OMEGA_SUBSTEP = 0.02     # omega * RK4 substep when generating
+GAMMA_RATIO = {"duffing": (0.03, 0.1), "pendulum": (0.03, 0.1), "duffing-chain": (0.03, 0.1)}
 SENSITIVITY_STEP = 1e-4  # the relative change of gamma of the sensitivity check
 WARMUP_SAMPLES = 100     # the warm-up of the free-run score (peers/arx.py WARMUP)
 RISING_PEAK = {"duffing": 2.0, "pendulum": 1.5, "duffing-chain": 2.0}
@@ -200,7 +201,8 @@ def generate_forced(case, quick):
     s = forced_system(case["system"])
     sz = SIZES[bool(quick)]
     N = sz["period"]
-    gamma = float(s["omega_max"] * math.exp(rng.uniform(math.log(0.03), math.log(0.1))))
+    r_lo, r_hi = GAMMA_RATIO[s["name"]]
+    gamma = float(s["omega_max"] * math.exp(rng.uniform(math.log(r_lo), math.log(r_hi))))
     spp = float(rng.uniform(20.0, 40.0))
     h = 2 * math.pi / s["omega_max"] / spp
     lo, hi = band(s)

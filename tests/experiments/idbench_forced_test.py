@@ -119,6 +119,31 @@ def test_records_and_peers_are_deterministic_given_the_seed():
     assert r1["tests"] == r2["tests"] and r1["extra"] == r2["extra"]
 
 
+def test_forced_plan_runs_from_the_command_line_and_tabulates_the_peers(tmp_path=None):
+    import json
+    import subprocess
+    import tempfile
+    out = os.path.join(str(tmp_path) if tmp_path else tempfile.mkdtemp(), "out")
+    script = os.path.join(HERE, "..", "..", "experiments", "identification_benchmark.py")
+    r = subprocess.run([sys.executable, script, "--forced-plan", "--quick", "--cases", "1",
+                        "--forced-systems", "pendulum", "--only-peers", "--out", out],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    with open(os.path.join(out, "results.json")) as f:
+        res = json.load(f)
+    (case,) = res["cases"]
+    assert case["methods"]["csympnet"]["status"] == "skipped"
+    for m in ("oracle", "narx", "arx"):
+        t = case["methods"][m]["tests"]
+        assert set(t) == {"test-multisine", "test-rising"} and t["test-rising"]["rms"], (m, t)
+    assert case["methods"]["oracle"]["covers"] is not None
+    with open(os.path.join(out, "cases", case["id"], "train.csv")) as f:
+        assert f.readline().strip() == "t,q1,u1"
+    with open(os.path.join(out, "summary.md")) as f:
+        md = f.read()
+    assert "| multisine/pendulum | narx | 1 | 0 |" in md, md
+
+
 FAKE = """#!/bin/sh
 # a stand-in for csympnet: $FAKE_MODE refuse | fit
 if [ "$FAKE_MODE" = refuse ]; then

@@ -1,12 +1,12 @@
 """Tables and output files of the forced plan.
 
-Per stratum (test record x system) and method, over the well-posed records (the ill-posed ones,
-forced.py's sensitivity check, are counted and left out): n, the median free-run RMS (per case the root
-mean square over the outputs of the per-output RMS, in the data's units; a diverged or missing
-run counts as infinite), the median of the per-case ratios to the oracle's and to NARX's, the
-share of the test records' noise floor, the diverged count. Per system and method: gamma_hat's
-median relative error, coverage of the 95% interval, median width / gamma, median width over
-the oracle's, median CPU seconds.
+Per stratum (test record x system) and method, over the well-posed records (the ill-posed
+ones, forced.py's sensitivity check, are counted and left out): n, the median free-run RMS
+(per case the root mean square over the outputs of the per-output RMS, in the data's units; a
+diverged or failed run counts as infinite), the medians of the per-case ratios to the
+oracle's, to NARX's and to the test record's noise standard deviation, the diverged count.
+Per system and method: gamma_hat's median relative error, coverage of the 95% interval,
+median width / gamma, median width over the oracle's, median CPU seconds.
 """
 import json
 import math

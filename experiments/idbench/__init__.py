@@ -5,7 +5,10 @@ The package's modules, one job each: systems (the systems), simulation (RK4), vi
 (data that break an assumption), generate (plans and data), peers/ (csympnet, sindy, oracle,
 and the peers of the observed plan), runner (one case), tables (statistics and outputs), cli
 (the options); observed (the observed-records plan: linear records in pixels, oversampled,
-long, encoder counts, decays into the noise) with its own tables in observed_tables.
+long, encoder counts, decays into the noise) with its own tables in observed_tables; forced
+(the forced plan's driven systems, inputs, first-order-hold RK4 and records), forced_plan (one
+forced case: linear ARX, polynomial NARX, the shooting oracle and csympnet, in peers/arx.py,
+peers/narx.py, peers/forced_oracle.py, peers/csympnet.py) and forced_tables.
 
 Command (from the repository root; needs only /usr/bin/python3 with NumPy):
 
@@ -15,6 +18,8 @@ Command (from the repository root; needs only /usr/bin/python3 with NumPy):
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idv --violations  # 60
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idl --library \
         --systems all      # + csympnet_library; every system, the double pendulum included
+    /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idf --forced-plan \
+        --cases 9 --jobs 1 # driven systems: ARX, NARX, the oracle and csympnet side by side
 
 Options: --cases N (default 120, 8 with --quick; with --violations 60, 10 with --quick),
 --quick (a few cases of small size), --violations (only violation cases, below), --seed S
@@ -33,7 +38,15 @@ momenta, side by side: methods csympnet_positions and csympnet_differenced), --l
 by default), --skip-peers (csympnet alone: no SINDy-style peer, no oracle; csympnet_library
 still runs with --library), --observed-plan (the observed-records plan instead: --cases in all,
 default 10, 5 with --quick; strata taken in turn) with --observed-strata a,b,... (a subset of
-its strata; see idbench/observed.py for the strata, the peers and the CPU seconds).
+its strata; see idbench/observed.py for the strata, the peers and the CPU seconds),
+--forced-plan (the forced-records plan instead: --cases in all, default 6, 3 with --quick; the
+systems duffing, pendulum, duffing-chain taken in turn, each case a training multisine and two
+test records, a multisine and a rising-amplitude filtered noise, positions only, with the input
+columns u1..um; --forced-systems a,b,... a subset; see idbench/forced.py for the systems and
+inputs and idbench/forced_plan.py for the methods and the free-run score). With --forced-plan,
+csympnet is `csympnet fit` on the training file then `csympnet evaluate --warmup 100` on each
+test file; a binary that refuses the input columns is recorded "unsupported" and the peers'
+tables are written all the same.
 
 Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p, unit masses, unless stated):
 

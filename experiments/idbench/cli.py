@@ -12,6 +12,9 @@ import sys
 import time
 
 from .common import GEN_OMEGA_DT, METHODS, REPO, STOP, Interrupted
+from .forced import FORCED_SYSTEMS, plan_forced
+from .forced_plan import FORCED_METHODS, run_forced_case
+from .forced_tables import case_rms, write_forced_outputs
 from .generate import plan, plan_violations
 from .observed import OBSERVED_METHODS, OBSERVED_STRATA, plan_observed, run_observed_case
 from .observed_tables import write_observed_outputs
@@ -72,6 +75,21 @@ def progress_observed(i, n, c):
           file=sys.stderr, flush=True)
 
 
+def progress_forced(i, n, c):
+    parts = []
+    for m in FORCED_METHODS:
+        r = c["methods"].get(m)
+        if r is None or r.get("status") == "skipped":
+            continue
+        ms, ri = case_rms(c, m, "test-multisine"), case_rms(c, m, "test-rising")
+        g = f" gamma {r['gamma_hat']:.4g}" if r.get("gamma_hat") is not None else ""
+        cov = {True: " covers", False: " misses"}.get(r.get("covers"), "")
+        rms = "" if ms is None else f" rms {ms:.2e}/{ri:.2e}"
+        parts.append(f"{m} {r.get('status')}{g}{cov}{rms}")
+    print(f"[{i}/{n}] {c['id']} d={c['d']} sigma={c['sigma']:.1e}: " + ", ".join(parts),
+          file=sys.stderr, flush=True)
+
+
 def parse_args():
     """The parser (main reports its own checks through it) and the parsed options."""
     ap = argparse.ArgumentParser(
@@ -123,6 +141,14 @@ def parse_args():
     ap.add_argument("--with-momenta", action="store_true",
                     help="with --observed-plan: also fit each linear record with measured "
                          "momenta (csympnet_with_p), for the CPU cost of positions only")
+    ap.add_argument("--forced-plan", action="store_true",
+                    help="run the forced-records plan instead (driven Duffing, pendulum and "
+                         "2-dof Duffing chain; multisine and rising-amplitude tests; linear ARX, "
+                         "polynomial NARX and the oracle beside csympnet): --cases in all "
+                         "(default 6, 3 with --quick), the systems taken in turn")
+    ap.add_argument("--forced-systems", default=",".join(FORCED_SYSTEMS),
+                    help="with --forced-plan: a comma-separated subset of "
+                         + ",".join(FORCED_SYSTEMS))
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     return ap, ap.parse_args()
@@ -134,7 +160,15 @@ def main():
         ap.error("--seed must be >= 0")
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
-    if args.observed_plan:
+    if args.forced_plan:
+        n = args.cases if args.cases is not None else (3 if args.quick else 6)
+        fsys = [x.strip() for x in args.forced_systems.split(",") if x.strip()]
+        bad = [x for x in fsys if x not in FORCED_SYSTEMS]
+        if bad or not fsys:
+            ap.error(f"unknown forced systems {bad}; choose from {','.join(FORCED_SYSTEMS)}")
+        if args.violations or args.observed_plan:
+            ap.error("--forced-plan is a plan of its own: give one of the plans")
+    elif args.observed_plan:
         n = args.cases if args.cases is not None else (5 if args.quick else 10)
         strata = [x.strip() for x in args.observed_strata.split(",") if x.strip()]
         bad = [x for x in strata if x not in OBSERVED_STRATA]
@@ -186,7 +220,11 @@ def main():
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,
                          "library_cap": LIBRARY_CAP}}
     run, write = None, write_outputs
-    if args.observed_plan:
+    if args.forced_plan:
+        meta.update(forced_plan=True, forced_systems=fsys)
+        cases = plan_forced(n, args.seed, fsys)
+        run, write = run_forced_case, write_forced_outputs
+    elif args.observed_plan:
         meta.update(observed_plan=True, observed_strata=strata)
         cases = plan_observed(n, args.seed, strata)
         run, write = run_observed_case, write_observed_outputs
@@ -233,7 +271,8 @@ def main():
                     print(f"{c['id']}: {c['error']}", file=sys.stderr, flush=True)
                     continue
                 done_count += 1
-                (progress if run is None else progress_observed)(done_count, len(cases), c)
+                (progress if run is None else progress_forced if args.forced_plan
+                 else progress_observed)(done_count, len(cases), c)
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)

@@ -174,3 +174,45 @@ def run_csympnet(exe, data, outdir, extra, timeout, cpu=False):
     else:
         res["status"] = "ok"
     return res
+
+
+def run_csympnet_forced(exe, train, tests, outdir, extra, timeout, warmup):
+    """`csympnet fit` on a forced record (t,q..,u.. columns), then `csympnet evaluate` of the
+    fitted model on each test record (name -> path): the free-run RMS per output from the
+    evaluation's report.json "simulation" "rmse". A fit that refuses the input columns (exit
+    not 0/4/5, no report.json, its last error line naming the header or a column) is
+    "unsupported" with that line as the reason. cpu_seconds: the fit's and the evaluations'."""
+    res = run_csympnet(exe, train, outdir, extra, timeout, cpu=True)
+    if res["status"] == "failed" and res.get("returncode") not in (0, 4, 5) \
+            and not os.path.exists(os.path.join(outdir, "report.json")) \
+            and any(w in res.get("reason", "") for w in ("header", "column")):
+        res["status"] = "unsupported"
+    model = os.path.join(outdir, "model.json")
+    res["tests"] = {}
+    if res["status"] in ("unsupported", "failed") or not os.path.exists(model):
+        return res
+    for name, path in tests.items():
+        edir = os.path.join(outdir, f"evaluate-{name}")
+        cmd = [exe, "evaluate", "--model", model, "--data", path, "--warmup", str(warmup),
+               "--out", edir, "--force"]
+        rc, out, err, timed_out, cpu_s = run_child_cpu(cmd, timeout)
+        res["cpu_seconds"] = res.get("cpu_seconds", 0.0) + cpu_s
+        r = {"command": cmd, "returncode": rc}
+        rep = None
+        try:
+            with open(os.path.join(edir, "report.json")) as f:
+                rep = json.load(f)
+        except (OSError, ValueError):
+            pass
+        sim = (rep or {}).get("simulation") if isinstance(rep, dict) else None
+        rmse = sim.get("rmse") if isinstance(sim, dict) else None
+        if timed_out or rc != 0 or not isinstance(rmse, list):
+            r.update(rms=None, diverged=None, status="failed",
+                     reason=f"timeout after {timeout} s" if timed_out else
+                     (err.strip().splitlines()[-1] if err.strip() else
+                      f"exit {rc}, no simulation.rmse in report.json"))
+        else:
+            vals = [num(v) for v in rmse]
+            r.update(status="ok", rms=None if None in vals else vals, diverged=None in vals)
+        res["tests"][name] = r
+    return res

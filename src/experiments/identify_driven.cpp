@@ -23,6 +23,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/experiments/identify.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
@@ -195,6 +196,7 @@ Vector driven_start(const HamiltonianLibraryMap& map, const std::vector<Trajecto
   Vector g(d);
   for (const Trajectory& t : nt)
     for (Index k = 1; k + 1 < t.t.size(); ++k) {
+      if (k % 65536 == 0) throw_if_stop_requested("the equation-error start of a driven fit");
       const double h1 = t.t(k) - t.t(k - 1), h2 = t.t(k + 1) - t.t(k);
       const Vector dq1 = t.z.col(k) - t.z.col(k - 1), dq2 = t.z.col(k + 1) - t.z.col(k);
       const Vector acc = 2.0 * (dq2 / h2 - dq1 / h1) / (h1 + h2);

@@ -347,6 +347,18 @@ void driven_verdict(const ShootingReport& rep, IdentifyResult& r) {
   }
   if (!held.passed) r.reasons.push_back("check held_out failed: " + held.sentence);
   if (!r.interval) r.reasons.push_back("no interval for gamma_hat: " + rep.message);
+  // As for free records (identification_reasons): an interval that reaches 0, or that the
+  // regularisation of the Gauss-Newton matrix moves, does not identify the damping.
+  if (r.interval && std::isfinite(r.interval->low) && r.interval->low <= 0.0)
+    r.reasons.push_back("the " + detail::significant(100.0 * r.interval->level) + "% interval [" +
+                        detail::significant(r.interval->low) + ", " +
+                        detail::significant(r.interval->high) +
+                        "] reaches 0: these data do not tell the damping rate from no damping");
+  if (r.interval && !r.interval->stable)
+    r.reasons.push_back("the interval changes " +
+                        detail::significant(r.interval->regularisation_ratio) +
+                        "-fold with the regularisation of the Gauss-Newton matrix: the data do "
+                        "not separate the damping from the other parameters");
   r.rejected = !held.passed;
   r.identified = r.reasons.empty() && r.interval && std::isfinite(r.interval->low) &&
                  std::isfinite(r.interval->high);

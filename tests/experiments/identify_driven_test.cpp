@@ -6,6 +6,7 @@
 //     interval;
 //   - what the route does not support is refused by option: a neural core, friction.
 #include <cmath>
+#include <iostream>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -63,6 +64,23 @@ TEST(IdentifyDriven, ARecordWithMomentaGoesThePositionsRoute) {
   EXPECT_LE(r.interval->low, kGamma);
   EXPECT_GE(r.interval->high, kGamma);
   EXPECT_TRUE(r.choices.contains("momenta_set_aside"));
+}
+
+// Undamped motion driven by the input: the interval reaches 0, and the verdict says the data do
+// not tell the damping from none (the rule of free records).
+TEST(IdentifyDriven, AnIntervalThatReachesZeroIsNotIdentified) {
+  Trajectory pos = driven_record(1000, 0.05, 0.005, 6, 0.0);
+  pos.z = Matrix(pos.z.topRows(1));
+  const IdentifyResult r =
+      identify_driven({pos}, true, make_identify_config(nlohmann::json::object()));
+  ASSERT_TRUE(r.interval.has_value());
+  std::cout << "  gamma_hat " << r.gamma << " [" << r.interval->low << ", " << r.interval->high
+            << "]\n";
+  EXPECT_LE(r.interval->low, 0.0);
+  EXPECT_EQ(r.verdict, "not identified");
+  ASSERT_FALSE(r.reasons.empty());
+  EXPECT_NE(r.reasons.front().find("reaches 0"), std::string::npos) << r.reasons.front();
+  EXPECT_TRUE(identify_report(r)["gamma_ci_low"].is_null());  // no claim without a verdict
 }
 
 TEST(IdentifyDriven, RefusesWhatItDoesNotSupportByOption) {

@@ -24,7 +24,9 @@ struct Multisine {
 
 // The oscillator by classic RK4, 20 steps per sample, u evaluated where RK4 asks; positions
 // with noise of `noise` times their spread; momenta p = q' exactly.
-inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed) {
+// `gamma`: the damping rate of the record (kDrivenGamma unless given).
+inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed,
+                                double gamma = kDrivenGamma) {
   Rng rng(seed, "driven-record");
   Multisine u;
   for (int k = 0; k < 8; ++k) {
@@ -33,7 +35,7 @@ inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t s
   }
   const auto field = [&](double q, double v, double t, double& dq, double& dv) {
     dq = v;
-    dv = -kDrivenOmega * kDrivenOmega * q - kDrivenGamma * v + kDrivenGain * u(t);
+    dv = -kDrivenOmega * kDrivenOmega * q - gamma * v + kDrivenGain * u(t);
   };
   Trajectory tr;
   tr.t.resize(n);

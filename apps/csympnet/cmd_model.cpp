@@ -144,13 +144,23 @@ void add_evaluate(CLI::App& app) {
     std::vector<Trajectory> positions;  // a positions file: d × n per trajectory
     std::optional<CsvInput> input;
     if (!a->data.empty()) input = read_csv_input(a->data, parse_column_map(a->columns));
-    const bool positions_data = input && input->kind == CsvKind::kPositions;
+    // A record with inputs is scored as positions (its momenta, if any, set aside): a free run
+    // driven by its inputs from a state fitted to the warm-up.
+    const bool driven_data = input && input->inputs > 0;
+    const bool positions_data = input && (input->kind == CsvKind::kPositions || driven_data);
     require(!a->warmup || positions_data, [&] {
       return "--warmup is the warm-up window of a positions file, and " + a->data +
              " holds states (their rollouts start from the first observed state); expected "
              "--warmup only with a positions file '[traj,]t,q1..qd'";
     });
-    if (positions_data) {
+    if (driven_data) {
+      const bool states = input->kind != CsvKind::kPositions;
+      positions =
+          states ? parse_trajectories_csv(std::move(input->text), input->name, InputColumns::kRead)
+                 : parse_positions_csv(std::move(input->text), input->name, InputColumns::kRead);
+      if (states)
+        for (Trajectory& t : positions) t.z = Matrix(t.z.topRows(t.z.rows() / 2));
+    } else if (positions_data) {
       positions = parse_positions_csv(std::move(input->text), input->name);
       // A known system is diagnosed on its own test set (the preset's) when there is one.
       if (!a->preset.empty()) {
@@ -211,6 +221,21 @@ void add_evaluate(CLI::App& app) {
       rep["gamma_hat"] = map.gamma_hat ? nlohmann::json(*map.gamma_hat) : nlohmann::json(nullptr);
       rep["gamma_true"] = sys ? nlohmann::json(sys->gamma()) : nlohmann::json(nullptr);
       rep["system"] = sys ? nlohmann::json(c->preset.system) : nlohmann::json(nullptr);
+    }
+    if (driven_data) {
+      // The free-run simulation driven by the record's inputs, in the data's units.
+      rep["simulation"] = {{"rmse", positions_score["rmse_per_coordinate"]},
+                           {"rmse_all", positions_score["rmse"]},
+                           {"nrmse", positions_score["nrmse"]},
+                           {"warmup", a->warmup ? nlohmann::json(*a->warmup)
+                                                : positions_score["per_trajectory"][0]["warmup"]},
+                           {"samples_scored", positions_score["samples_scored"]},
+                           {"inputs", positions.front().u.rows()},
+                           {"rollout_finite", positions_score["rollout_finite"]},
+                           {"about",
+                            "free run of the model driven by the record's inputs u from a state "
+                            "fitted to the first warmup samples of each trajectory (left out of "
+                            "the score); rmse per q column in the data's units"}};
     }
     if (positions_data) {
       rep["positions"] = std::move(positions_score);

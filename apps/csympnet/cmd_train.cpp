@@ -340,10 +340,16 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     if (canonical == "t" && !unit) unit = time_unit_of_column(own);
   const CsvInput input = read_csv_input(a.data, columns);  // once: a pipe works
   const bool positions_only = input.kind == CsvKind::kPositions;
-  const PairSet checked = positions_only ? PairSet{} : parse_any_as_pairs(input.text, input.name);
+  // Known inputs (u1..um): the driven route, on the positions with the inputs.
+  const bool driven = input.inputs > 0;
+  const PairSet checked =
+      positions_only || driven ? PairSet{} : parse_any_as_pairs(input.text, input.name);
   const bool pairs_only = input.kind == CsvKind::kPairs;
   std::vector<Trajectory> trajs;
-  if (positions_only) {
+  if (driven) {
+    trajs = positions_only ? parse_positions_csv(input.text, input.name, InputColumns::kRead)
+                           : parse_trajectories_csv(input.text, input.name, InputColumns::kRead);
+  } else if (positions_only) {
     trajs = parse_positions_csv(input.text, input.name);
   } else if (pairs_only) {
     for (Index j = 0; j < checked.size(); ++j) {
@@ -394,8 +400,9 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       };
 
     try {
-      r = positions_only ? identify_positions(trajs, c, hooks)
-                         : identify(trajs, pairs_only, c, hooks);
+      r = driven           ? identify_driven(trajs, positions_only, c, hooks)
+          : positions_only ? identify_positions(trajs, c, hooks)
+                           : identify(trajs, pairs_only, c, hooks);
     } catch (const OptionError& e) {  // an option the data cannot take (--window on pairs)
       // --init names its own file: the data are not to blame.
       if (e.message(cli_spelling()).rfind("--init", 0) == 0) throw;
@@ -438,13 +445,16 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (r.identified) {
     print_gamma(r, unit);
     print_dissipation(r);
+    print_input(r);
     print_modes(r, unit);
   } else {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }
   print_checks(r.checks, a.quiet);
   bool figure = false;
-  if (!a.no_figures && !r.stopped && !interrupted()) {
+  if (!a.no_figures && driven)
+    std::fprintf(stderr, "fit: figure not drawn: no figure for a record with inputs yet\n");
+  if (!a.no_figures && !driven && !r.stopped && !interrupted()) {
     std::fflush(stdout);  // the answer first, while the figure is drawn
     const FigureOutcome f = figure_of(a, pairs_only);
     figure = f.drawn;

@@ -7,9 +7,24 @@
 namespace csympnet::cli {
 
 // "la:L:m", "la:L:m:h2" (LA with step polynomials), "g:L:w", or "library" (the
-// Hamiltonian-library core with its terms selected from the data: `fit` only).
+// Hamiltonian-library core with its terms selected from the data: `fit` only), or a library
+// core as JSON ({"type": "library", "terms": [...]}, with "inputs" for a driven record), which
+// the identification checks.
 nlohmann::json parse_core(const std::string& s) {
   if (s == "library") return {{"type", "library"}};
+  if (!s.empty() && s.front() == '{') {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(s);
+    } catch (const nlohmann::json::exception&) {
+      throw Error("--core '" + s +
+                  "': not valid JSON; expected an object such as "
+                  "{\"type\": \"library\", \"terms\": [\"q1^2\", \"q1^4\"]}");
+    }
+    if (!j.is_object() || j.value("type", "") != "library")
+      throw Error("--core '" + s + "': a JSON core must be {\"type\": \"library\", ...}");
+    return j;
+  }
   const std::string expected =
       "expected la:LAYERS:SUBLAYERS[:h2], g:LAYERS:WIDTH or library, e.g. la:5:20 or la:5:20:h2";
   const auto c1 = s.find(':');

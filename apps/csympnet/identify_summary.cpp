@@ -53,6 +53,17 @@ void print_dissipation(const IdentifyResult& r) {
   std::printf("dissipation: %s\n", dissipation_sentence(r).c_str());
 }
 
+void print_input(const IdentifyResult& r) {
+  if (r.input.is_null() || r.input["B"].is_null()) return;
+  const nlohmann::json& b = r.input["B"];
+  for (std::size_t i = 0; i < b.size(); ++i)
+    for (std::size_t j = 0; j < b[i].size(); ++j)
+      std::printf("input gain B[q%zu,u%zu]: %.6g [%.6g, %.6g] (q'' = ... + B u, %s hold)\n", i + 1,
+                  j + 1, b[i][j].get<double>(), r.input["B_ci_low"][i][j].get<double>(),
+                  r.input["B_ci_high"][i][j].get<double>(),
+                  r.input["hold"].get<std::string>().c_str());
+}
+
 void print_checks(const std::vector<ModelCheck>& checks, bool quiet) {
   for (const ModelCheck& k : checks) {
     if (k.passed && !k.warning && quiet) continue;

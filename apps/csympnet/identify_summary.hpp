@@ -22,6 +22,9 @@ void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit);
 // viscous gamma = ... plus dry friction mu = ...".
 void print_dissipation(const IdentifyResult& r);
 
+// A driven record's input gain B (q'' = ... + B u) with its interval, one line per entry.
+void print_input(const IdentifyResult& r);
+
 void print_checks(const std::vector<ModelCheck>& checks, bool quiet);
 // The modes of an identified fit, one line each (report.json "modes" has them in every case).
 void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit);

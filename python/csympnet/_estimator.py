@@ -167,7 +167,7 @@ class CSympNetID:
         return "CSympNetID(" + ", ".join(f"{k}={v!r}" for k, v in changed.items()) + ")"
 
     # --- fitting ------------------------------------------------------------------------
-    def fit(self, x, t=None, *, x_next=None):
+    def fit(self, x, t=None, *, x_next=None, u=None):
         """Fits to trajectories (PySINDy's order: states first, then times) or to pairs.
 
         Trajectories:
@@ -176,6 +176,10 @@ class CSympNetID:
           - x a list of arrays (M_k, 2d), with t a list of time arrays, a step or None.
         Pairs: x (N, 2d) the states z0, x_next (N, 2d) the states one step later, t the
         steps h, one (N,) or one for all.
+
+        u: known inputs of a driven record, sampled at the times t: (M,) or (M, m) for one
+        trajectory x, or a list of such arrays for a list x (identify's u=; the library core
+        with the input gain B, report_["input"]).
 
         Returns self. When the data do not identify γ, this warns (NotIdentifiedWarning),
         sets identified_ = False and gamma_ = None; the model is still fitted.
@@ -215,6 +219,8 @@ class CSympNetID:
         if positions_only and x_next is not None:
             raise ValueError('x_next: pairs need whole states; observed="positions" takes '
                              "trajectories of positions")
+        if x_next is not None and u is not None:
+            raise ValueError("u: known inputs go with trajectories; pairs (x_next) take none")
         if x_next is not None:
             z0, _ = _checks.states("x", x, allow_single=False)
             z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
@@ -230,8 +236,13 @@ class CSympNetID:
             zs = [z[:, :z.shape[1] // 2] if positions_only else z for _, z in trajs]
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", NotIdentifiedWarning)
-                result = identify(zs, [tt for tt, _ in trajs], observed=observed,
-                                  **options)
+                us = None if u is None else (list(u) if isinstance(u, (list, tuple)) else u)
+                if us is not None and not isinstance(us, list) and len(trajs) != 1:
+                    raise ValueError(f"u: expected a list of {len(trajs)} input arrays, one per "
+                                     "trajectory of x")
+                result = identify(zs if us is None or isinstance(us, list) else zs[0],
+                                  [tt for tt, _ in trajs] if us is None or isinstance(us, list)
+                                  else trajs[0][0], observed=observed, u=us, **options)
             steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
         for w in caught:  # re-raised here, so that it points at the caller's fit()
             warnings.warn(str(w.message), w.category, stacklevel=2)

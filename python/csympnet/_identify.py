@@ -143,11 +143,35 @@ class Identification:
                 f"[{low:.6g}, {high:.6g}])")
 
 
+def _input_arrays(u, z, traj, pairs, checked):
+    """The inputs u as one (M_k, m) array per trajectory of `checked`, or a ValueError."""
+    if pairs is not None or traj is not None:
+        raise ValueError("u: known inputs go with trajectories given as arrays (z, t) or lists "
+                         "of them; pairs and traj labels are not supported with inputs")
+    arrays = list(u) if isinstance(u, (list, tuple)) else [u]
+    if isinstance(z, (list, tuple)) != isinstance(u, (list, tuple)) or len(arrays) != len(checked):
+        raise ValueError(f"u: expected one array of inputs per trajectory ({len(checked)}), "
+                         f"as z is given")
+    out = []
+    for k, (a, tr) in enumerate(zip(arrays, checked)):
+        a = np.asarray(a, dtype=float)
+        if a.ndim == 1:
+            a = a[:, None]
+        if a.ndim != 2 or a.shape[0] != len(tr.t):
+            raise ValueError(f"u[{k}]: expected shape ({len(tr.t)},) or ({len(tr.t)}, m), one row "
+                             f"per sample time; got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            row = int(np.argwhere(~np.isfinite(a))[0][0])
+            raise ValueError(f"u[{k}]: row {row} is not finite; expected finite inputs")
+        out.append(np.ascontiguousarray(a))
+    return out
+
+
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
              init=None, progress=None, verbose=False, observed=None,
-             derived_momenta="set_aside", time_unit=None, dissipation="auto"):
+             derived_momenta="set_aside", time_unit=None, dissipation="auto", u=None):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
@@ -206,6 +230,13 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     gamma, seconds); returning False ends that stage with its best parameters.
     verbose: True draws a progress bar per stage on stderr (tqdm where it is installed).
 
+    u: known inputs of a driven record, sampled at the times t: (M,) or (M, m) for one
+    trajectory, or a list of such arrays, one per trajectory of a list z (no traj labels, no
+    pairs). The driven model H = H0 - q^T B u(t) is then fitted with the library core on the
+    positions (momenta given are set aside), and report["input"] holds B, the gain on the
+    acceleration (q'' = ... + B u), with its interval (docs/identification.md, "Driven
+    records"); `csympnet fit` on a file with columns u1..um runs the same path.
+
     Returns an Identification.
     """
     if time_unit is not None:
@@ -249,6 +280,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         trajs = as_trajectories(t, padded_positions(z) if positions_only else z, traj)
         pairs_only = False
     checked = trajectory_list(trajs, "trajectories")
+    inputs = None if u is None else _input_arrays(u, z, traj, pairs, checked)
     for k, tr in enumerate(checked):
         _checks.trainable(f"trajectory {k} z", tr.z)
     _checks.choice("loss", loss, LOSSES)
@@ -281,7 +313,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         config["init"] = _checks.path("init", init)
     with progress_callback(progress, verbose) as callback:
         core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
-                                                 callback, positions_only)
+                                                 callback, positions_only, inputs)
     report = _time_unit_report(json.loads(report_text), time_unit, unit_source)
     result = Identification(Model(core_model), report)
     if not result.identified:

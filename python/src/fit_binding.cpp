@@ -197,10 +197,25 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
 // identify() (what `csympnet fit` runs): returns the model and the report as JSON text.
 py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
                                 const std::string& config_json, const py::object& progress,
-                                bool positions_only) {
+                                bool positions_only, const py::object& inputs) {
   // Every option checked first, before any work.
   const IdentifyConfig c = make_identify_config(parse_json(config_json, "config"));
-  const std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
+  std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
+  // Known inputs, one (M, m) array per trajectory: the driven route (identify_driven).
+  const bool driven = !inputs.is_none();
+  if (driven) {
+    const auto seq = inputs.cast<py::sequence>();
+    require(seq.size() == data.size(), "u: expected one array of inputs per trajectory");
+    for (std::size_t k = 0; k < data.size(); ++k) {
+      const std::string where = "u[" + std::to_string(k) + "]";
+      data[k].u = states_from(seq[k].cast<DArray>(), where);
+      require(data[k].u.cols() == data[k].t.size(), [&] {
+        return where + ": " + std::to_string(data[k].u.cols()) + " rows of inputs for " +
+               std::to_string(data[k].t.size()) + " sample times; expected one row per time";
+      });
+      data[k].validate("trajectories[" + std::to_string(k) + "]");
+    }
+  }
   PythonProgress watch(progress);
   IdentifyHooks hooks;
   hooks.progress = watch.callback();  // AdamW and LM
@@ -209,10 +224,16 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   IdentifyResult r;
   {
     py::gil_scoped_release nogil;
-    if (positions_only) {
+    if (driven && positions_only) {
+      std::vector<Trajectory> positions;
+      for (const Trajectory& t : data) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), t.u});
+      r = identify_driven(positions, true, c, hooks);
+    } else if (driven) {
+      r = identify_driven(data, false, c, hooks);
+    } else if (positions_only) {
       // The p rows are the caller's placeholders: the positions alone are fitted.
       std::vector<Trajectory> positions;
-      for (const Trajectory& t : data) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2)});
+      for (const Trajectory& t : data) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), {}});
       r = identify_positions(positions, c, hooks);
     } else {
       r = identify(data, pairs_only, c, hooks);
@@ -244,6 +265,7 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
 void bind_fit(py::module_& m) {
   m.def("identify", &identify_trajectories, py::arg("trajectories"), py::arg("pairs_only"),
         py::arg("config_json"), py::arg("progress"), py::arg("positions_only") = false,
+        py::arg("inputs") = py::none(),
         "identify() of experiments/identify.hpp (wrapped by csympnet.identify).");
   // The spellings of the second stage's methods and LM's solvers (train/refine.hpp).
   m.def("refine_methods", &refine_method_names);

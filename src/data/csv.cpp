@@ -34,6 +34,7 @@ struct Header {
   CsvKind kind = CsvKind::kPairs;
   bool has_traj = false;
   Index d = 0;
+  Index m = 0;  // known inputs u1..um (trajectories and positions only)
   std::vector<std::string> names;
 };
 
@@ -43,7 +44,7 @@ std::vector<std::string> numbered(const std::string& prefix, Index d) {
   return v;
 }
 
-std::vector<std::string> header_names(CsvKind kind, Index d, bool has_traj) {
+std::vector<std::string> header_names(CsvKind kind, Index d, bool has_traj, Index m = 0) {
   std::vector<std::string> names;
   auto add = [&](const std::vector<std::string>& v) {
     names.insert(names.end(), v.begin(), v.end());
@@ -56,6 +57,7 @@ std::vector<std::string> header_names(CsvKind kind, Index d, bool has_traj) {
     names.push_back("t");
     add(numbered("q", d));
     if (kind == CsvKind::kTrajectories) add(numbered("p", d));
+    add(numbered("u", m));
   }
   return names;
 }
@@ -67,14 +69,16 @@ std::string_view group_of(std::string_view name) {
       name.find_first_not_of("0123456789", digits) != std::string_view::npos)
     return {};
   const std::string_view g = name.substr(0, digits);
-  return g == "q" || g == "p" || g == "next_q" || g == "next_p" ? g : std::string_view();
+  return g == "q" || g == "p" || g == "next_q" || g == "next_p" || g == "u" ? g
+                                                                            : std::string_view();
 }
 
 // How many columns of each group the header has, wherever they are; used to explain a
 // header whose shape is wrong rather than just its first bad name.
 std::unordered_map<std::string_view, Index> group_counts(
     const std::vector<std::string_view>& fields) {
-  std::unordered_map<std::string_view, Index> n{{"q", 0}, {"p", 0}, {"next_q", 0}, {"next_p", 0}};
+  std::unordered_map<std::string_view, Index> n{
+      {"q", 0}, {"p", 0}, {"next_q", 0}, {"next_p", 0}, {"u", 0}};
   for (std::string_view s : fields)
     if (const std::string_view g = group_of(s); !g.empty()) ++n[g];
   return n;
@@ -109,14 +113,21 @@ Header parse_header(const CsvText& f) {
   auto n = group_counts(fields);
   const Index fixed = h.kind == CsvKind::kPairs ? 1 : (h.has_traj ? 2 : 1);
   const Index cols = static_cast<Index>(fields.size());
+  if (h.kind == CsvKind::kPairs && n["u"] > 0)
+    throw Error(where + "pairs header " + quote(f.lines[0].text) + " has " +
+                std::to_string(n["u"]) +
+                " input columns (u...); a pair carries no inputs: expected '" + kPairsForm +
+                "', or a driven record as a trajectories file '" + kTrajForm +
+                ",u1..um' or positions '" + kPositionsForm + ",u1..um'");
+  h.m = n["u"];
   // Positions alone: '[traj,]t,q1..qd' (the momenta are then hidden states of the fit).
   if (h.kind == CsvKind::kTrajectories && n["q"] >= 1 && n["p"] == 0 && n["next_q"] == 0 &&
-      n["next_p"] == 0 && cols == fixed + n["q"])
+      n["next_p"] == 0 && cols == fixed + n["q"] + h.m)
     h.kind = CsvKind::kPositions;
   const Index groups = h.kind == CsvKind::kPairs ? 4 : (h.kind == CsvKind::kPositions ? 1 : 2);
   h.d = n["q"];
-  bool shape_ok =
-      h.d >= 1 && cols == fixed + groups * h.d && (h.kind == CsvKind::kPositions || n["p"] == h.d);
+  bool shape_ok = h.d >= 1 && cols == fixed + groups * h.d + h.m &&
+                  (h.kind == CsvKind::kPositions || n["p"] == h.d);
   if (h.kind == CsvKind::kPairs) shape_ok = shape_ok && n["next_q"] == h.d && n["next_p"] == h.d;
   if (!shape_ok) {
     // Columns of no group beside a header that is right without them (a 'temp' column, a
@@ -132,7 +143,8 @@ Header parse_header(const CsvText& f) {
     }
     auto kn = group_counts(known);
     const auto known_cols = static_cast<Index>(known.size());
-    bool known_ok = kn["q"] >= 1 && kn["p"] == kn["q"] && known_cols == fixed + groups * kn["q"];
+    bool known_ok =
+        kn["q"] >= 1 && kn["p"] == kn["q"] && known_cols == fixed + groups * kn["q"] + kn["u"];
     if (h.kind == CsvKind::kPairs)
       known_ok = known_ok && kn["next_q"] == kn["q"] && kn["next_p"] == kn["q"];
     if (known_ok && first_unknown < fields.size()) {
@@ -169,7 +181,7 @@ Header parse_header(const CsvText& f) {
                            "', or --columns naming your columns, e.g. " + columns_example(fields)
                      : std::string()));
   }
-  h.names = header_names(h.kind, h.d, h.has_traj);
+  h.names = header_names(h.kind, h.d, h.has_traj, h.m);
   const char* form = h.kind == CsvKind::kPairs       ? kPairsForm
                      : h.kind == CsvKind::kPositions ? kPositionsForm
                                                      : kTrajForm;
@@ -275,15 +287,24 @@ PairSet read_pairs(const CsvText& f, bool for_training = false) {
 }
 
 std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = false,
-                                          CsvKind kind = CsvKind::kTrajectories) {
+                                          CsvKind kind = CsvKind::kTrajectories,
+                                          InputColumns inputs = InputColumns::kRefuse) {
   const Header h = require_kind(f, kind);
+  if (h.m > 0 && inputs == InputColumns::kRefuse)
+    throw Error(at(f.path, 1) + "the header " + quote(f.lines[0].text) + " has " +
+                std::to_string(h.m) +
+                " input columns (u1..um), which this command does not read; expected a "
+                "record without inputs, '" +
+                (kind == CsvKind::kPositions ? "[traj,]t,q1..qd" : "[traj,]t,q1..qd,p1..pd") +
+                "' (records with known inputs are read by csympnet fit and evaluate, Python's "
+                "identify and CSympNetID, with the library core)");
   const Index dim = kind == CsvKind::kPositions ? h.d : 2 * h.d;
   const std::size_t tcol = h.has_traj ? 1 : 0;
 
   struct Pending {
     long long id = 0;
     std::size_t first_line = 0, last_line = 0;
-    std::vector<double> t, z;
+    std::vector<double> t, z, u;
   };
   std::vector<Pending> done;
   Pending cur;
@@ -318,7 +339,7 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
                     std::to_string(old.first_line) + "-" + std::to_string(old.last_line) +
                     "; expected the rows of each trajectory to be contiguous");
       }
-      cur = Pending{id, line.number, line.number, {}, {}};
+      cur = Pending{id, line.number, line.number, {}, {}, {}};
       started = true;
     }
     const double t = field_value(f, line, h, tcol, fields[tcol]);
@@ -346,6 +367,10 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
       const auto c = tcol + 1 + static_cast<std::size_t>(i);
       cur.z.push_back(state_value(f, line, h, c, fields[c], for_training));
     }
+    for (Index j = 0; j < h.m; ++j) {
+      const auto c = tcol + 1 + static_cast<std::size_t>(dim + j);
+      cur.u.push_back(state_value(f, line, h, c, fields[c], for_training));
+    }
   });
   done.push_back(std::move(cur));
 
@@ -356,6 +381,7 @@ std::vector<Trajectory> read_trajectories(const CsvText& f, bool for_training = 
     Trajectory tr;
     tr.t = Eigen::Map<const Vector>(p.t.data(), n);
     tr.z = Eigen::Map<const Matrix>(p.z.data(), dim, n);
+    if (h.m > 0) tr.u = Eigen::Map<const Matrix>(p.u.data(), h.m, n);
     out.push_back(std::move(tr));
   }
   return out;
@@ -395,7 +421,9 @@ CsvInput read_csv_input(const std::string& path) {
   CsvInput in;
   in.name = path == "-" ? std::string("standard input") : path;
   in.text = read_text_file(path);
-  in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;
+  const Header h = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text));
+  in.kind = h.kind;
+  in.inputs = h.m;
   return in;
 }
 
@@ -408,7 +436,9 @@ CsvInput read_csv_input(const std::string& path, const ColumnMap& map) {
       original.substr(0, std::min(original.find('\n'), std::size_t{200}));
   in.text = apply_column_map(std::move(original), in.name, map);
   try {
-    in.kind = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text)).kind;
+    const Header h = parse_header(csv_detail::csv_text_from_bytes(in.name, in.text));
+    in.kind = h.kind;
+    in.inputs = h.m;
   } catch (const Error& e) {
     if (map.empty()) throw;
     // The parser quotes the header as --columns rewrote it, which the user never wrote.
@@ -438,13 +468,16 @@ PairSet parse_pairs_csv(std::string text, const std::string& name) {
   return read_pairs(csv_detail::csv_text_from_bytes(name, std::move(text)));
 }
 
-std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name) {
-  return read_trajectories(csv_detail::csv_text_from_bytes(name, std::move(text)));
+std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name,
+                                               InputColumns inputs) {
+  return read_trajectories(csv_detail::csv_text_from_bytes(name, std::move(text)), false,
+                           CsvKind::kTrajectories, inputs);
 }
 
-std::vector<Trajectory> parse_positions_csv(std::string text, const std::string& name) {
+std::vector<Trajectory> parse_positions_csv(std::string text, const std::string& name,
+                                            InputColumns inputs) {
   return read_trajectories(csv_detail::csv_text_from_bytes(name, std::move(text)), true,
-                           CsvKind::kPositions);
+                           CsvKind::kPositions, inputs);
 }
 
 PairSet read_any_as_pairs(const std::string& path) {
@@ -474,16 +507,17 @@ std::string pairs_csv_text(const PairSet& pairs) {
 std::string trajectories_csv_text(const std::vector<Trajectory>& trajs) {
   const std::string where = "trajectories_csv_text";
   require(!trajs.empty(), [&] { return where + ": no trajectories; expected at least one"; });
-  const Index dim = trajs.front().z.rows();
+  const Index dim = trajs.front().z.rows(), m = trajs.front().u.rows();
   for (std::size_t k = 0; k < trajs.size(); ++k) {
     trajs[k].validate(where + ": trajectory " + std::to_string(k));
-    require(trajs[k].z.rows() == dim, [&] {
+    require(trajs[k].z.rows() == dim && trajs[k].u.rows() == m, [&] {
       return where + ": trajectory " + std::to_string(k) + " has dimension " +
-             std::to_string(trajs[k].z.rows()) + "; expected " + std::to_string(dim);
+             std::to_string(trajs[k].z.rows()) + " and " + std::to_string(trajs[k].u.rows()) +
+             " inputs; expected " + std::to_string(dim) + " and " + std::to_string(m);
     });
   }
   std::string out;
-  append_header(out, header_names(CsvKind::kTrajectories, dim / 2, true));
+  append_header(out, header_names(CsvKind::kTrajectories, dim / 2, true, m));
   for (std::size_t k = 0; k < trajs.size(); ++k) {
     const Trajectory& tr = trajs[k];
     for (Index n = 0; n < tr.t.size(); ++n) {
@@ -493,6 +527,10 @@ std::string trajectories_csv_text(const std::vector<Trajectory>& trajs) {
       for (Index i = 0; i < dim; ++i) {
         out += ',';
         append_double(out, tr.z(i, n));
+      }
+      for (Index j = 0; j < m; ++j) {
+        out += ',';
+        append_double(out, tr.u(j, n));
       }
       out += '\n';
     }

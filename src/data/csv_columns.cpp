@@ -15,13 +15,13 @@ namespace {
 using csv_detail::quote;
 
 // Where a canonical name sits in the canonical order: (group, index). Groups: traj, t, h, q, p,
-// next_q, next_p. Returns false for any other name.
+// next_q, next_p, u (the known inputs, last). Returns false for any other name.
 bool canonical_rank(const std::string& name, std::pair<int, long>& rank) {
   if (name == "traj") return rank = {0, 0}, true;
   if (name == "t") return rank = {1, 0}, true;
   if (name == "h") return rank = {2, 0}, true;
   static const std::pair<const char*, int> prefixes[] = {
-      {"next_q", 5}, {"next_p", 6}, {"q", 3}, {"p", 4}};
+      {"next_q", 5}, {"next_p", 6}, {"q", 3}, {"p", 4}, {"u", 7}};
   for (const auto& [prefix, group] : prefixes) {
     const std::string pre = prefix;
     if (name.rfind(pre, 0) != 0) continue;
@@ -63,7 +63,7 @@ ColumnMap parse_column_map(const std::string& spec, const std::string& option) {
     require(canonical_rank(key, rank), [&] {
       return option + ": " + quote(key) +
              " is not a column csympnet reads; expected traj, t, h, q1..qd, p1..pd, "
-             "next_q1..next_qd or next_p1..next_pd before each '='";
+             "next_q1..next_qd, next_p1..next_pd or the inputs u1..um before each '='";
     });
     // Plain pairs, not structured bindings: clang 14 (the fuzzing build) cannot capture
     // those in a lambda.

@@ -122,6 +122,13 @@ void Trajectory::validate(const std::string& where) const {
            std::to_string(t.size()) + " entries; expected one state per time";
   });
   require_finite(z, where, "z");
+  if (u.size() > 0) {
+    require(u.cols() == t.size(), [&] {
+      return where + ": u has " + std::to_string(u.cols()) + " columns but t has " +
+             std::to_string(t.size()) + " entries; expected the inputs at every time";
+    });
+    require_finite(u, where, "u");
+  }
   for (Index n = 0; n < t.size(); ++n) {
     require(std::isfinite(t(n)), [&] {
       return where + ": t[" + std::to_string(n) + "] = " + num(t(n)) + "; expected a finite value";
@@ -146,6 +153,12 @@ PairSet pairs_from_trajectories(const std::vector<Trajectory>& trajs) {
       return where + ": trajectory " + std::to_string(k) + " has dimension " +
              std::to_string(trajs[k].z.rows()) + "; expected " + std::to_string(dim) +
              " like trajectory 0";
+    });
+    // A pair carries no inputs: dropping them would fit a driven record as a free one.
+    require(trajs[k].u.size() == 0, [&] {
+      return where + ": trajectory " + std::to_string(k) + " has " +
+             std::to_string(trajs[k].u.rows()) +
+             " inputs; pairs carry none (a driven record is fitted as trajectories)";
     });
     total += trajs[k].steps();
   }

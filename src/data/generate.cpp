@@ -190,7 +190,7 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
     }
     for (Index c = 0; c < need; ++c) {
       if (alive[c])
-        out.trajectories.push_back(Trajectory{t, std::move(hist[c])});
+        out.trajectories.push_back(Trajectory{t, std::move(hist[c]), {}});
       else
         ++out.redraws;
     }

@@ -87,6 +87,30 @@ double valid_time(const Matrix& err, const Vector& t, double t_start, double spr
   return err.cols() > 0 ? t(err.cols() - 1) - t_start : 0.0;
 }
 
+// Per step k of samples first … first + steps − 1 of a record's inputs u (m × n): the input at
+// its start, then at its end (2m × steps; empty when u is).
+Matrix step_inputs(const Matrix& u, Index first, Index steps) {
+  if (u.rows() == 0) return Matrix();
+  Matrix out(2 * u.rows(), steps);
+  out.topRows(u.rows()) = u.middleCols(first, steps);
+  out.bottomRows(u.rows()) = u.middleCols(first + 1, steps);
+  return out;
+}
+
+// The model's free run from z over `steps`, driven by the step inputs `u`: 2d × (steps + 1).
+Matrix driven_rollout(const OneStepMap& map, ConstParams theta, const Vector& z,
+                      const Vector& steps, const Matrix& u) {
+  Matrix out(z.size(), steps.size() + 1);
+  out.col(0) = z;
+  Vector h(1);
+  for (Index k = 0; k < steps.size(); ++k) {
+    if (k % 4096 == 4095) throw_if_stop_requested("the driven rollout");
+    h(0) = steps(k);
+    out.col(k + 1) = map.forward_driven(theta, out.col(k), h, u.col(k), nullptr);
+  }
+  return out;
+}
+
 }  // namespace
 
 long default_warmup(long samples) {
@@ -137,7 +161,13 @@ PositionsScores score_positions(const Model& model, const Vector& theta,
   require(!data.empty(), [&] { return where + ": no trajectories; expected at least one"; });
   if (options.warmup) kWarmupRange.check(*options.warmup);
   const Index d = model.dim() / 2;
+  const Index m = model.map->n_inputs();
   for (std::size_t k = 0; k < data.size(); ++k) {
+    require(data[k].u.rows() == m, [&] {
+      return where + ": trajectory " + std::to_string(k + 1) + " has " +
+             std::to_string(data[k].u.rows()) + " input columns (u1..um); the model is driven by " +
+             std::to_string(m) + (m == 0 ? " (a free model: expected no u columns)" : "");
+    });
     const long n = static_cast<long>(data[k].t.size());
     check_trajectory(data[k], d, k, data.size(), options.warmup.value_or(default_warmup(n)),
                      options.warmup.has_value(), where);
@@ -160,10 +190,13 @@ PositionsScores score_positions(const Model& model, const Vector& theta,
     ts.t_start = tr.t(warm - 1);
     const std::string what = where + ": trajectory " + std::to_string(k + 1) +
                              ", its warm-up (the first " + std::to_string(warm) + " samples)";
-    const Vector z = checked_state_from_positions(*model.map, theta, tr.z.leftCols(warm),
-                                                  tr.t.head(warm), &ts.state_fit_rms, what);
+    const Vector z =
+        checked_state_from_positions(*model.map, theta, tr.z.leftCols(warm), tr.t.head(warm),
+                                     &ts.state_fit_rms, what, step_inputs(tr.u, 0, warm - 1));
     const Vector steps = tr.t.tail(ts.scored) - tr.t.segment(warm - 1, ts.scored);
-    Matrix pred = rollout(map, z, steps);
+    Matrix pred = m == 0 ? rollout(map, z, steps)
+                         : driven_rollout(*model.map, theta, z, steps,
+                                          step_inputs(tr.u, warm - 1, ts.scored));
     const Matrix observed = tr.z.rightCols(ts.scored);
     const Matrix err = pred.bottomRightCorner(2 * d, ts.scored).topRows(d) - observed;
     const Vector t_err = err.rowwise().squaredNorm();

@@ -237,6 +237,11 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
 void check_given_library_core(const nlohmann::json& core, Index d) {
   if (!core.is_object() || !core.contains("type") || core.at("type") != "library") return;
   read_library_spec(core, d, "core");
+  require(!core.contains("inputs"), [] {
+    return std::string(
+        "core: key 'inputs' is for a record with known inputs (columns u1..um, Python's u=); "
+        "this record has none");
+  });
   for (const char* key : {"order", "substeps", "mass", "coordinate_scales"})
     require(!core.contains(key), [&] {
       return std::string("core: key '") + key +
@@ -299,7 +304,7 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     ModelCheck derived = measured_momenta_check(trajs, false);
     if (derived.applicable && !derived.passed && !config.use_derived_momenta) {
       std::vector<Trajectory> positions;
-      for (const Trajectory& t : trajs) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2)});
+      for (const Trajectory& t : trajs) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), {}});
       IdentifyResult r = identify_positions(positions, config, hooks);
       derived.passed = true;
       derived.sentence = derived.sentence.substr(0, derived.sentence.find(": they carry")) +
@@ -639,6 +644,7 @@ nlohmann::json identify_report(const IdentifyResult& r) {
       {"stopped", r.stopped},
       {"architecture", r.model.hyperparams()}};
   j["modes"] = modes_report(r);
+  if (!r.input.is_null()) j["input"] = r.input;
   if (r.config.init)
     j["init"] = {{"file", r.config.init->file}, {"checksum", r.config.init->checksum}};
   // As a run's configuration records it (run.cpp): only when not the default.

@@ -61,14 +61,16 @@ double abs_derivative(double beta) {
 HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order,
                                              Index substeps, bool full_mass, double beta_init,
                                              Vector scales,
-                                             std::vector<DissipationTerm> dissipation)
+                                             std::vector<DissipationTerm> dissipation,
+                                             InputSpec inputs)
     : d_(d),
       terms_(std::move(terms)),
       order_(order),
       substeps_(substeps),
       full_mass_(full_mass),
       beta_init_(beta_init),
-      dissipation_(std::move(dissipation)) {
+      dissipation_(std::move(dissipation)),
+      inputs_(inputs) {
   require(d >= 1, "hamiltonian library: d must be >= 1");
   require(!terms_.empty(), "hamiltonian library: at least one term is needed");
   require(order == 2 || order == 4 || order == 6, [&] {
@@ -113,6 +115,16 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     wi_.push_back(t.j < 0 ? 1.0 : scales_(t.i));
     wj_.push_back(t.j < 0 ? 0.0 : scales_(t.j));
   }
+  require(inputs_.m >= 0, "hamiltonian library: the number of inputs must be >= 0");
+  sigma_.assign(1, 0.0);
+  for (Index i = 0; i < substeps_; ++i) {
+    double within = 0.0;
+    for (double w : weights_) {
+      within += w;
+      sigma_.push_back((static_cast<double>(i) + within) / static_cast<double>(substeps_));
+    }
+  }
+  sigma_.back() = 1.0;
   for (std::size_t k = 0; k < dissipation_.size(); ++k) {
     const DissipationTerm& t = dissipation_[k];
     require(t.i >= 0 && t.i < d, [&] {
@@ -164,6 +176,46 @@ void HamiltonianLibraryMap::init_params(Rng& /*rng*/, ParamsRef theta) const {
   theta(beta_index_) = beta_init_;
   for (Index k = 0; k < static_cast<Index>(dissipation_.size()); ++k)
     theta(dissipation_index(k)) = kDissipationInit;
+}
+
+Matrix HamiltonianLibraryMap::input_matrix(ConstParams theta) const {
+  Matrix b(d_, inputs_.m);
+  for (Index r = 0; r < d_; ++r)
+    for (Index j = 0; j < inputs_.m; ++j) b(r, j) = theta(input_index(r, j));
+  return b;
+}
+
+void HamiltonianLibraryMap::add_force(ConstParams theta, const double* u, double sigma, double* g,
+                                      double* work) const {
+  input_at(inputs_.hold, inputs_.m, u, sigma, work);
+  for (Index r = 0; r < d_; ++r) {
+    double f = 0.0;
+    for (Index j = 0; j < inputs_.m; ++j) f += theta(input_index(r, j)) * work[j];
+    g[r] -= f;
+  }
+}
+
+void HamiltonianLibraryMap::add_input_gradient(const double* u, double sigma, const double* v,
+                                               double s, double* work, ParamsRef grad) const {
+  input_at(inputs_.hold, inputs_.m, u, sigma, work);
+  for (Index r = 0; r < d_; ++r)
+    for (Index j = 0; j < inputs_.m; ++j) grad(input_index(r, j)) += s * v[r] * work[j];
+}
+
+void HamiltonianLibraryMap::check_inputs(const Matrix& U, Index n) const {
+  if (U.rows() == 0) return;
+  require(inputs_.m > 0, [&] {
+    return "hamiltonian library forward: this map takes no inputs (U has " +
+           std::to_string(U.rows()) +
+           " rows); expected a core with \"inputs\": {\"m\": ...} for a driven record";
+  });
+  require(U.rows() == 2 * inputs_.m && U.cols() == n, [&] {
+    return "hamiltonian library: inputs of " + std::to_string(U.rows()) + " x " +
+           std::to_string(U.cols()) + " for a map of " + std::to_string(inputs_.m) +
+           " inputs and " + std::to_string(n) + " steps; expected " +
+           std::to_string(2 * inputs_.m) + " x " + std::to_string(n) +
+           " (per step the input at its start, then at its end)";
+  });
 }
 
 Matrix HamiltonianLibraryMap::inverse_mass(ConstParams theta) const {
@@ -280,7 +332,14 @@ std::optional<double> HamiltonianLibraryMap::damping_rate(ConstParams theta) con
 
 Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const Vector& h,
                                       ForwardCache* cache) const {
+  return forward_driven(theta, Z, h, Matrix(), cache);
+}
+
+Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z, const Vector& h,
+                                             const Matrix& U, ForwardCache* cache) const {
   check_forward_args(*this, theta, Z, h);
+  check_inputs(U, Z.cols());
+  const bool driven = U.rows() > 0;
   const Index n = Z.cols(), d = d_, stages = stages_per_step(), rs = record_size();
   const Index nk = static_cast<Index>(dissipation_.size());
   const double gamma = std::abs(theta(beta_index_));
@@ -288,17 +347,20 @@ Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const 
   if (cache != nullptr) {
     ctx = &cache->make_context<Context>();
     ctx->h = h;
+    ctx->u = U;
     ctx->states.resize(static_cast<std::size_t>(n * (stages + 1) * rs));
   }
   Matrix out(2 * d, n);
-  std::vector<double> q(d), p(d), g(d), wp(d);
+  std::vector<double> q(d), p(d), g(d), wp(d), work(static_cast<std::size_t>(inputs_.m));
   const Index nw = static_cast<Index>(weights_.size());
   for (Index col = 0; col < n; ++col) {
     for (Index r = 0; r < d; ++r) {
       q[r] = Z(r, col);
       p[r] = Z(d + r, col);
     }
+    const double* ucol = driven ? U.col(col).data() : nullptr;
     gradient(theta, q.data(), g.data());
+    if (driven) add_force(theta, ucol, sigma_[0], g.data(), work.data());
     double* rec = ctx != nullptr ? ctx->states.data() + col * (stages + 1) * rs : nullptr;
     for (Index s = 0; s <= stages; ++s) {
       const double tau = s == stages ? 0.0
@@ -318,6 +380,8 @@ Matrix HamiltonianLibraryMap::forward(ConstParams theta, const Matrix& Z, const 
       mass_times(theta, p.data(), wp.data());
       for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
       gradient(theta, q.data(), g.data());
+      if (driven)
+        add_force(theta, ucol, sigma_[static_cast<std::size_t>(s + 1)], g.data(), work.data());
       for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
       if (nk > 0)
         dissipate(theta, 0.5 * tau, true, p.data(), starts != nullptr ? starts + nk : nullptr);
@@ -338,10 +402,12 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
   check_backward_args(*this, theta, n, dZout, grad);
   const double beta = theta(beta_index_), gamma = std::abs(beta);
   if (dZin != nullptr) dZin->resize(dim(), n);
-  std::vector<double> qb(d), pb(d), p2(d), wq(d), tmp(d);
+  std::vector<double> qb(d), pb(d), p2(d), wq(d), tmp(d), work(static_cast<std::size_t>(inputs_.m));
   const Index nw = static_cast<Index>(weights_.size());
+  const bool driven = ctx.u.rows() > 0;
   double gamma_bar = 0.0;
   for (Index col = 0; col < n; ++col) {
+    const double* ucol = driven ? ctx.u.col(col).data() : nullptr;
     for (Index r = 0; r < d; ++r) {
       qb[r] = dZout(r, col);
       pb[r] = dZout(d + r, col);
@@ -366,6 +432,10 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
         a_bar += pb[r] * (p2[r] - 0.5 * tau * g1[r]);
         pb[r] *= a;  // now p̄3 = p̄2
       }
+      // The force B u at the stage's end enters p3 with weight τ/2.
+      if (driven)
+        add_input_gradient(ucol, sigma_[static_cast<std::size_t>(s + 1)], pb.data(), 0.5 * tau,
+                           work.data(), grad);
       // p3 = p2 − (τ/2)∇V(q1).
       add_gradient_params(theta, q1, pb.data(), -0.5 * tau, grad);
       for (Index r = 0; r < d; ++r) tmp[r] = 0.0;
@@ -382,7 +452,10 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
       } else {
         for (Index r = 0; r < d; ++r) grad(r) += tau * qb[r] * p2[r];
       }
-      // p2 = a p0 − (τ/2)∇V(q0).
+      // p2 = a p0 − (τ/2)(∇V(q0) − B u(σ_s)).
+      if (driven)
+        add_input_gradient(ucol, sigma_[static_cast<std::size_t>(s)], pb.data(), 0.5 * tau,
+                           work.data(), grad);
       add_gradient_params(theta, q0, pb.data(), -0.5 * tau, grad);
       for (Index r = 0; r < d; ++r) tmp[r] = 0.0;
       hessian_times(theta, q0, pb.data(), tmp.data());
@@ -404,8 +477,20 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
 }
 
 Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, double h) const {
+  return jacobian_driven(theta, z, h, Vector());
+}
+
+Matrix HamiltonianLibraryMap::jacobian_driven(ConstParams theta, const Vector& z, double h,
+                                              const Vector& u) const {
   check_theta(*this, theta, "jacobian");
   require(z.size() == dim(), "hamiltonian library jacobian: z has the wrong size");
+  require(u.size() == 0 || (inputs_.m > 0 && u.size() == 2 * inputs_.m), [&] {
+    return "hamiltonian library jacobian: " + std::to_string(u.size()) +
+           " input values for a map of " + std::to_string(inputs_.m) + " inputs; expected " +
+           std::to_string(2 * inputs_.m) + " (the input at the step's start, then at its end)";
+  });
+  const bool driven = u.size() > 0;
+  std::vector<double> work(static_cast<std::size_t>(inputs_.m));
   const Index d = d_, stages = stages_per_step(), nw = static_cast<Index>(weights_.size());
   const Index nk = static_cast<Index>(dissipation_.size());
   const double gamma = std::abs(theta(beta_index_));
@@ -438,6 +523,7 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
     }
   };
   gradient(theta, q.data(), g.data());
+  if (driven) add_force(theta, u.data(), sigma_[0], g.data(), work.data());
   for (Index s = 0; s < stages; ++s) {
     poll_within_step(s);
     const double tau =
@@ -451,6 +537,8 @@ Matrix HamiltonianLibraryMap::jacobian(ConstParams theta, const Vector& z, doubl
     mass_times(theta, p.data(), wp.data());
     for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
     gradient(theta, q.data(), g.data());
+    if (driven)
+      add_force(theta, u.data(), sigma_[static_cast<std::size_t>(s + 1)], g.data(), work.data());
     kick_tangent(0.5 * tau);
     tp *= a;
     for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
@@ -478,6 +566,7 @@ nlohmann::json HamiltonianLibraryMap::hyperparams() const {
     for (const DissipationTerm& t : dissipation_) dis.push_back(dissipation_name(t));
     core["dissipation"] = dis;
   }
+  if (inputs_.m > 0) core["inputs"] = input_spec_json(inputs_);
   return {{"type", "csympnet"}, {"d", d_}, {"core", core}, {"beta_init", beta_init_}};
 }
 

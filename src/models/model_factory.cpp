@@ -64,7 +64,7 @@ std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double b
   require(!s.terms.empty(), [&] { return where + ": " + kTermsExpected; });
   return std::make_unique<HamiltonianLibraryMap>(d, std::move(s.terms), s.order, s.substeps,
                                                  s.full_mass, beta_init, std::move(s.scales),
-                                                 std::move(s.dissipation));
+                                                 std::move(s.dissipation), s.inputs);
 }
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.
@@ -99,9 +99,9 @@ std::unique_ptr<SymplecticCore> make_core(const json& spec, Index d, const std::
 
 LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where) {
   require_object(spec, where);
-  reject_unknown_keys(
-      spec, where,
-      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales", "dissipation"});
+  reject_unknown_keys(spec, where,
+                      {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales",
+                       "dissipation", "inputs"});
   if (spec.contains("d"))
     require(spec.at("d") == d, [&] {
       return where + ": key 'd' disagrees with the model's d = " + std::to_string(d);
@@ -167,6 +167,7 @@ LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::st
       out.dissipation.push_back(t);
     }
   }
+  if (spec.contains("inputs")) out.inputs = read_input_spec(spec.at("inputs"), where);
   return out;
 }
 

@@ -22,6 +22,22 @@ Matrix NormalizedMap::forward(ConstParams theta, const Matrix& Z, const Vector& 
   return norm_.from_normal(inner_->forward(theta, norm_.to_normal(Z), hn, cache));
 }
 
+Matrix NormalizedMap::forward_driven(ConstParams theta, const Matrix& Z, const Vector& h,
+                                     const Matrix& U, ForwardCache* cache) const {
+  if (U.rows() == 0) return forward(theta, Z, h, cache);
+  require(h.size() == Z.cols(), "normalized map: need one step per column");
+  const Vector hn = h / norm_.time_scale;
+  return norm_.from_normal(inner_->forward_driven(theta, norm_.to_normal(Z), hn, U, cache));
+}
+
+Matrix NormalizedMap::jacobian_driven(ConstParams theta, const Vector& z, double h,
+                                      const Vector& u) const {
+  if (u.size() == 0) return jacobian(theta, z, h);
+  const Matrix zn = norm_.to_normal(z);
+  const Matrix jn = inner_->jacobian_driven(theta, zn.col(0), h / norm_.time_scale, u);
+  return unit_.asDiagonal() * jn * unit_.cwiseInverse().asDiagonal();
+}
+
 void NormalizedMap::backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout,
                              ParamsRef grad, Matrix* dZin) const {
   // out = N⁻¹ out̂ (+ shift): dL/dout̂ = diag(unit) dL/dout; ẑ = N z: dL/dz = dL/dẑ / unit.

@@ -90,10 +90,11 @@ void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::st
 }
 
 Vector checked_state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
-                                    const Vector& t, double* rms, const std::string& what) {
+                                    const Vector& t, double* rms, const std::string& what,
+                                    const Matrix& u) {
   check_positions_window(q, t, what);
   double r = 0.0;
-  const Vector z = state_from_positions(map, theta, q, t, &r);
+  const Vector z = state_from_positions(map, theta, q, t, &r, u);
   check_state_fit(q, z, r, what);
   if (rms != nullptr) *rms = r;
   return z;

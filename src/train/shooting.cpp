@@ -14,6 +14,11 @@
 
 namespace csympnet {
 
+const Matrix& ShootingSegments::inputs(Index s) const {
+  static const Matrix kNone;
+  return u.empty() ? kNone : u[static_cast<std::size_t>(s)];
+}
+
 Index ShootingSegments::n_rows() const {
   Index n = 0;
   for (const Matrix& x : q) n += x.size();
@@ -53,16 +58,28 @@ void ShootingSegments::validate(const std::string& where) const {
           [&] { return where + ": need weights for every segment or none"; });
   require(column_block.empty() || column_block.size() == q.size(),
           [&] { return where + ": need position blocks for every segment or none"; });
+  require(u.empty() || u.size() == q.size(),
+          [&] { return where + ": need inputs for every segment or none"; });
+  for (std::size_t s = 0; s < u.size(); ++s)
+    require(u[s].rows() > 0 && u[s].rows() % 2 == 0 && u[s].rows() == u.front().rows() &&
+                u[s].cols() == q[s].cols() - 1 && u[s].allFinite(),
+            [&] {
+              return where + ": segment " + std::to_string(s) +
+                     ": expected 2m x (L - 1) finite inputs, the same m in every segment";
+            });
 }
 
-Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0,
-                       const Vector& h) {
+Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0, const Vector& h,
+                       const Matrix& u) {
   Matrix z(z0.size(), h.size() + 1);
   z.col(0) = z0;
   Vector step(1);
   for (Index k = 0; k < h.size(); ++k) {
     step(0) = h(k);
-    z.col(k + 1) = map.apply(theta, z.col(k), step);
+    if (u.rows() == 0)
+      z.col(k + 1) = map.apply(theta, z.col(k), step);
+    else
+      z.col(k + 1) = map.forward_driven(theta, z.col(k), step, u.col(k), nullptr);
   }
   return z;
 }
@@ -82,18 +99,48 @@ const Vector& weights_of(const ShootingSegments& segs, std::size_t s) {
   return segs.observed.empty() ? kNone : segs.observed[s];
 }
 
+// DΦ̂ at step k of a segment, driven by its inputs u (empty: none).
+Matrix step_jacobian(const OneStepMap& map, ConstParams theta, const Matrix& z, const Vector& h,
+                     const Matrix& u, Index k) {
+  if (u.rows() == 0) return map.jacobian(theta, z.col(k), h(k));
+  return map.jacobian_driven(theta, z.col(k), h(k), u.col(k));
+}
+
+// ∂Φ̂/∂θ at each of the first L − 1 states z of a driven segment into g ((L − 1)·2d × P, row
+// k·2d + i the i-th component of step k): one reverse pass per component.
+void driven_step_rows(const OneStepMap& map, ConstParams theta, const Matrix& z, const Vector& h,
+                      const Matrix& u, RowMajorMatrix& g) {
+  const Index dim = z.rows(), steps = h.size(), p = map.n_params();
+  g.setZero(steps * dim, p);
+  ForwardCache cache;
+  Vector step(1), grad(p);
+  Matrix bar(dim, 1);
+  for (Index k = 0; k < steps; ++k) {
+    step(0) = h(k);
+    map.forward_driven(theta, z.col(k), step, u.col(k), &cache);
+    for (Index i = 0; i < dim; ++i) {
+      bar.setZero();
+      bar(i, 0) = 1.0;
+      grad.setZero();
+      map.backward(theta, cache, bar, grad, nullptr);
+      g.row(k * dim + i) = grad.transpose();
+    }
+  }
+}
+
 // B = ∂r/∂z0 along one segment (the T recursion alone), with its residuals.
 void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
-                          const Matrix& q, const Vector& h, const Vector& w, Matrix& b, Vector& r) {
+                          const Matrix& q, const Vector& h, const Vector& w, Matrix& b, Vector& r,
+                          const Matrix& u = Matrix()) {
   const Index d = q.rows(), len = q.cols(), dim = 2 * d;
-  const Matrix z = shooting_states(map, theta, z0, h);
+  const Matrix z = shooting_states(map, theta, z0, h, u);
   r = position_residuals(z, q, w);
   b.resize(len * d, dim);
   Matrix t = Matrix::Identity(dim, dim);
   for (Index k = 0; k < len; ++k) {
     b.middleRows(k * d, d) = t.topRows(d);
     if (w.size() > 0) b.middleRows(k * d, d) *= w(k);
-    if (k + 1 < len) t = map.jacobian(theta, z.col(k), h(k)) * t;
+    if (k + 1 < len) t = step_jacobian(map, theta, z, h, u, k) * t;
   }
 }
 
@@ -116,7 +163,8 @@ Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix
   Index at = 0;
   for (Index s = 0; s < segs.size(); ++s) {
     const auto& q = segs.q[static_cast<std::size_t>(s)];
-    const Matrix z = shooting_states(map, theta, z0.col(s), segs.h[static_cast<std::size_t>(s)]);
+    const Matrix z =
+        shooting_states(map, theta, z0.col(s), segs.h[static_cast<std::size_t>(s)], segs.inputs(s));
     out.segment(at, q.size()) =
         position_residuals(z, q, weights_of(segs, static_cast<std::size_t>(s)));
     at += q.size();
@@ -133,17 +181,19 @@ double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
 
 void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
                                const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
-                               Matrix& b, Vector& r, const Vector& w) {
+                               Matrix& b, Vector& r, const Vector& w, const Matrix& u) {
   const Index d = q.rows(), len = q.cols(), dim = 2 * d, p = map.n_params();
   require(n_free >= 0 && n_free <= p, "shooting: n_free out of range");
   require(w.size() == 0 || w.size() == len, "shooting: expected one weight per position");
-  const Matrix z = shooting_states(map, theta, z0, h);
+  const Matrix z = shooting_states(map, theta, z0, h, u);
   r = position_residuals(z, q, w);
   a.setZero(len * d, n_free);
   b.resize(len * d, dim);
   // ∂Φ̂/∂θ at each state of the segment but the last: one-step windows (their residuals unused).
   RowMajorMatrix g;
-  if (len > 1) {
+  if (len > 1 && u.rows() > 0) {
+    driven_step_rows(map, theta, z.leftCols(len - 1), h, u, g);
+  } else if (len > 1) {
     WindowSet steps;
     steps.m = 1;
     steps.z0 = z.leftCols(len - 1);
@@ -160,7 +210,7 @@ void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const V
     a.middleRows(k * d, d) = wk * sens.topRows(d);
     b.middleRows(k * d, d) = wk * t.topRows(d);
     if (k + 1 == len) break;
-    const Matrix jac = map.jacobian(theta, z.col(k), h(k));
+    const Matrix jac = step_jacobian(map, theta, z, h, u, k);
     sens = jac * sens;
     sens += g.block(k * dim, 0, dim, n_free);
     t = jac * t;
@@ -217,7 +267,7 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
     }
     const auto i = static_cast<std::size_t>(s);
     shooting_segment_jacobian(map, theta, z0.col(s), segs.q[i], segs.h[i], n_free, a, b, r,
-                              weights_of(segs, i));
+                              weights_of(segs, i), segs.inputs(s));
     a *= scale;
     b *= scale;
     r *= scale;
@@ -305,11 +355,12 @@ namespace {
 // One segment's start state by Levenberg–Marquardt on its 2d unknowns, θ fixed, from z (updated
 // in place). Returns ‖r‖² after (infinite when no start gives a finite rollout).
 double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
-                     const Vector& w, Eigen::Ref<Vector> z, long iterations, double max_abs) {
+                     const Vector& w, Eigen::Ref<Vector> z, long iterations, double max_abs,
+                     const Matrix& inputs) {
   Matrix b;
   Vector r, r_try;
   double lambda = 1e-3;
-  start_state_jacobian(map, theta, z, q, h, w, b, r);
+  start_state_jacobian(map, theta, z, q, h, w, b, r, inputs);
   double cost = r.allFinite() && b.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs
                     ? r.squaredNorm()
                     : std::numeric_limits<double>::infinity();
@@ -323,13 +374,13 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
     // A start state beyond the bound is a run along a direction the positions do not fix.
     const double c_try =
         trial.cwiseAbs().maxCoeff() <= max_abs
-            ? position_residuals(shooting_states(map, theta, trial, h), q, w).squaredNorm()
+            ? position_residuals(shooting_states(map, theta, trial, h, inputs), q, w).squaredNorm()
             : std::numeric_limits<double>::infinity();
     if (std::isfinite(c_try) && c_try < cost) {
       z = trial;
       const bool done = cost - c_try <= 1e-14 * cost;
       lambda = std::max(lambda / 3.0, 1e-12);
-      start_state_jacobian(map, theta, z, q, h, w, b, r);
+      start_state_jacobian(map, theta, z, q, h, w, b, r, inputs);
       cost = r.squaredNorm();
       if (done) break;
     } else {
@@ -343,18 +394,23 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
 // p with P_q Φ̂_h(q0, p) = q1: Newton from p = 0 on the d equations, halving steps that do not
 // lower the mismatch.
 Vector one_step_momentum(const OneStepMap& map, ConstParams theta, const Vector& q0,
-                         const Vector& q1, double h) {
+                         const Vector& q1, double h, const Matrix& u) {
   const Index d = q0.size();
   Vector z(2 * d);
   z << q0, Vector::Zero(d);
   Vector step(1);
   step(0) = h;
+  const Vector u0 = u.rows() > 0 ? Vector(u.col(0)) : Vector();
   const auto mismatch = [&](const Vector& s) {
+    if (u0.size() > 0)
+      return Vector(map.forward_driven(theta, s, step, u0, nullptr).col(0).head(d) - q1);
     return Vector(map.apply(theta, s, step).col(0).head(d) - q1);
   };
   Vector f = mismatch(z);
   for (int it = 0; it < 30 && f.allFinite() && f.norm() > 0.0; ++it) {
-    const Matrix jac = map.jacobian(theta, z, h).block(0, d, d, d);
+    const Matrix jac =
+        (u0.size() > 0 ? map.jacobian_driven(theta, z, h, u0) : map.jacobian(theta, z, h))
+            .block(0, d, d, d);
     const Vector dp = jac.colPivHouseholderQr().solve(-f);
     if (!dp.allFinite()) break;
     double scale = 1.0;
@@ -386,8 +442,9 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
     const Matrix& q = segs.q[i];
     const Vector& h = segs.h[i];
     const Vector& w = weights_of(segs, i);
+    const Matrix& u = segs.inputs(s);
     Vector best = z0.col(s);
-    double best_cost = fit_one_start(map, theta, q, h, w, best, iterations, max_abs);
+    double best_cost = fit_one_start(map, theta, q, h, w, best, iterations, max_abs, u);
     if (!several_starts) {
       z0.col(s) = best;
       continue;
@@ -398,8 +455,8 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
       Vector z(2 * d);
       z.head(d) = q.col(0);
       z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
-                         : one_step_momentum(map, theta, q.col(0), q.col(1), h(0));
-      const double c = fit_one_start(map, theta, q, h, w, z, iterations, max_abs);
+                         : one_step_momentum(map, theta, q.col(0), q.col(1), h(0), u);
+      const double c = fit_one_start(map, theta, q, h, w, z, iterations, max_abs, u);
       if (c < best_cost) {
         best_cost = c;
         best = z;
@@ -596,7 +653,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
 namespace csympnet {
 
 Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
-                            const Vector& t, double* rms) {
+                            const Vector& t, double* rms, const Matrix& u) {
   const Index d = q.rows(), len = q.cols();
   require(2 * d == map.dim(), [&] {
     return "positions: " + std::to_string(d) +
@@ -609,6 +666,7 @@ Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matr
   segs.q = {q};
   segs.h = {t.tail(len - 1) - t.head(len - 1)};
   segs.block = {0};
+  if (u.rows() > 0) segs.u = {u};
   segs.validate("positions");
   Matrix best(2 * d, 1);
   best.col(0).head(d) = q.col(0);
@@ -616,7 +674,7 @@ Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matr
   const double best_loss = fit_start_states(map, theta, segs, best, 100, true);
   require(std::isfinite(best_loss), "positions: no start state gives a finite rollout");
   if (rms != nullptr) *rms = std::sqrt(best_loss);
-  return shooting_states(map, theta, best.col(0), segs.h[0]).col(len - 1);
+  return shooting_states(map, theta, best.col(0), segs.h[0], u).col(len - 1);
 }
 
 }  // namespace csympnet

@@ -1,9 +1,12 @@
 // CSV input and output of snapshot data.
 //
 //   pairs:        h,q1..qd,p1..pd,next_q1..next_qd,next_p1..next_pd
-//   trajectories: [traj,]t,q1..qd,p1..pd   (traj optional: absent means one trajectory)
-//   positions:    [traj,]t,q1..qd          (no momenta: for csympnet fit, whose fit treats
-//                                           them as hidden states)
+//   trajectories: [traj,]t,q1..qd,p1..pd[,u1..um]   (traj optional: absent means one
+//                                                    trajectory)
+//   positions:    [traj,]t,q1..qd[,u1..um]          (no momenta: for csympnet fit, whose fit
+//                                                    treats them as hidden states)
+//
+// u1..um are known inputs (models/inputs.hpp), sampled at the rows' times; a pairs file has none.
 //
 // Readers reject bad input with csympnet::Error naming the file, the line (and column where
 // it applies), and what was expected. They never crash and never return partial data.
@@ -31,9 +34,15 @@ PairSet read_any_as_pairs(const std::string& path);
 // The same readers on text already in memory (the fuzz targets use these); `name` stands for
 // the path in messages.
 PairSet parse_pairs_csv(std::string text, const std::string& name);
-std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name);
+// Whether a trajectories or positions reader takes known inputs (columns u1..um): kRefuse, the
+// default, refuses them at the header, naming the file and what reads them, since its consumer
+// would drop them; kRead reads them into Trajectory::u (each value finite, at its line).
+enum class InputColumns { kRefuse, kRead };
+std::vector<Trajectory> parse_trajectories_csv(std::string text, const std::string& name,
+                                               InputColumns inputs = InputColumns::kRefuse);
 // A positions file: trajectories whose z holds the d position rows alone (d × n).
-std::vector<Trajectory> parse_positions_csv(std::string text, const std::string& name);
+std::vector<Trajectory> parse_positions_csv(std::string text, const std::string& name,
+                                            InputColumns inputs = InputColumns::kRefuse);
 PairSet parse_any_as_pairs(std::string text, const std::string& name);
 
 // An input read once, so that a pipe, a FIFO or "-" (standard input) works: its name for
@@ -42,12 +51,13 @@ struct CsvInput {
   std::string name;
   std::string text;
   CsvKind kind = CsvKind::kPairs;
+  Index inputs = 0;  // its input columns u1..um (from the header line)
 };
 CsvInput read_csv_input(const std::string& path);
 
 // A file's own column names for the columns csympnet reads: pairs of (canonical name, the
 // file's name), e.g. {"t", "time_s"}, {"q1", "angle_deg"}, {"p1", "velocity"}. The canonical
-// names are traj, t, h, q1..qd, p1..pd, next_q1..next_qd and next_p1..next_pd.
+// names are traj, t, h, q1..qd, p1..pd, next_q1..next_qd, next_p1..next_pd and u1..um.
 struct ColumnMap {
   std::vector<std::pair<std::string, std::string>> columns;
   bool empty() const { return columns.empty(); }

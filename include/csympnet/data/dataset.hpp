@@ -27,13 +27,16 @@ PairSet select_pairs(const PairSet& pairs, const std::vector<Index>& idx);
 // Concatenates pair sets of the same dimension.
 PairSet concat_pairs(const std::vector<PairSet>& parts);
 
-// One trajectory: states z (2d x (n+1)) at strictly increasing times t (length n+1).
+// One trajectory: states z (2d x (n+1)) at strictly increasing times t (length n+1), and the
+// known inputs u (m x (n+1), sampled at the same times; empty: a free record).
 struct Trajectory {
   Vector t;
   Matrix z;
+  Matrix u;
   Index steps() const { return t.size() - 1; }
   // Throws Error (prefixed by `where`) unless t has n+1 >= 1 entries, z is 2d x (n+1) with
-  // d >= 1, all values are finite and t strictly increases.
+  // d >= 1, all values are finite and t strictly increases, and u is empty or has n+1 finite
+  // columns.
   void validate(const std::string& where = "trajectory") const;
 };
 

@@ -199,6 +199,9 @@ struct IdentifyResult {
   bool stopped = false;    // a stage was interrupted
   // What the record holds: "positions and momenta" or "positions" (identify_positions).
   std::string observed = "positions and momenta";
+  // A driven record's inputs (identify_driven): {"m", "hold", "B", "B_ci_low", "B_ci_high", …};
+  // null for a free record (the report then has no "input").
+  nlohmann::json input;
   // Wall times (not in the report, which stays the same run to run), over every candidate.
   double adamw_seconds = 0.0;
   double lm_seconds = 0.0;
@@ -216,6 +219,15 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
 // and verdict are those of identify(). Trajectories only: a pair needs a state.
 IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
                                   const IdentifyConfig& config, const IdentifyHooks& hooks = {});
+
+// A record driven by known inputs u(t) (each trajectory's u, m rows, sampled with its positions;
+// z holds the d positions, or 2d states whose momenta are set aside): the Hamiltonian-library
+// core with the input's gain B, H = H₀ − qᵀB u(t), fitted by multiple shooting on the positions
+// with the inputs (docs/identification.md, "Driven records"); `positions_only`: z holds the d
+// positions (else 2d states). Refuses, as an OptionError naming the option, what this route does
+// not support: a neural core, an init file, friction or drag.
+IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positions_only,
+                               const IdentifyConfig& config, const IdentifyHooks& hooks = {});
 
 // The dissipation found, in one sentence: "viscous gamma = 0.0301 [0.0292, 0.0310] plus dry
 // friction mu = 0.0412 [0.0398, 0.0427] (q unit per time unit squared)"; intervals only when

@@ -26,20 +26,36 @@
 // With them the map is no longer conformally symplectic (docs/derivations.md, "Dry friction
 // and drag"); without them (none given, or all rates 0) it is the map above to the bit.
 //
+// Known inputs (models/inputs.hpp; docs/derivations.md, "Known inputs"): H = H₀ − qᵀB u(t), B
+// d × m. The input enters each kick as a force beside −∇V, evaluated at the kick's time in the
+// step (σ_s h, σ_s the stage's start as a share of h: the kicks of the Strang step are at the
+// stage's two ends):
+//
+//   p ← p − (τ/2)(∇V(q) − B u(t₀ + σ_s h));  q ← q + τ W p;
+//   p ← p − (τ/2)(∇V(q) − B u(t₀ + σ_{s+1} h))
+//
+// within the momentum scalings. A kick is an exact symplectic flow for every u, so the map stays
+// conformally symplectic with factor e^{−γh}; the step is the Strang splitting of the extended
+// phase space (t advancing with the drift), symmetric, so the composition keeps its order for the
+// forced flow with the held or interpolated input. Without inputs (m = 0), or with U absent, the
+// map is the free map to the bit.
+//
 // Layout of θ: W (d(d+1)/2 entries of the lower triangle, row by row, for "full"; d for
 // "diagonal"), the coefficients c_k in term order, the wavenumbers κ of the terms that have
 // one in term order (sin and cos of one argument share one, at the first of them), β
 // (γ̂ = |β|, as in CSympNet-ID), and after β one θ_k per dissipation term, its rate |θ_k|.
-// Without dissipation terms β is last, as in every model file written before them.
+// Without dissipation terms β is last, as in every model file written before them. After those,
+// B (d × m, row by row) when the map has inputs; without inputs θ is as before them.
 //
 // init_params draws nothing: W = I, c = ½ on each qI^2 and 0 elsewhere, κ = its term's
-// starting sign, β = beta_init, each dissipation θ_k = kDissipationInit.
+// starting sign, β = beta_init, each dissipation θ_k = kDissipationInit, B = 0.
 #pragma once
 
 #include <string>
 #include <vector>
 
 #include "csympnet/models/dissipation_terms.hpp"
+#include "csympnet/models/inputs.hpp"
 #include "csympnet/models/one_step_map.hpp"
 #include "csympnet/models/potential_library.hpp"
 
@@ -55,7 +71,7 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // `dissipation`: terms repeated are refused, as are coordinates out of range.
   HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order, Index substeps,
                         bool full_mass, double beta_init, Vector scales = {},
-                        std::vector<DissipationTerm> dissipation = {});
+                        std::vector<DissipationTerm> dissipation = {}, InputSpec inputs = {});
 
   // A dissipation rate's start (init_params): nonzero, since |θ| has no slope at 0.
   static constexpr double kDissipationInit = 1e-3;
@@ -63,7 +79,7 @@ class HamiltonianLibraryMap final : public OneStepMap {
   std::string type() const override { return "csympnet"; }
   Index dim() const override { return 2 * d_; }
   Index n_params() const override {
-    return beta_index_ + 1 + static_cast<Index>(dissipation_.size());
+    return beta_index_ + 1 + static_cast<Index>(dissipation_.size()) + d_ * inputs_.m;
   }
   void init_params(Rng& rng, ParamsRef theta) const override;
 
@@ -72,6 +88,11 @@ class HamiltonianLibraryMap final : public OneStepMap {
   void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,
                 Matrix* dZin) const override;
   Matrix jacobian(ConstParams theta, const Vector& z, double h) const override;
+  Index n_inputs() const override { return inputs_.m; }
+  Matrix forward_driven(ConstParams theta, const Matrix& Z, const Vector& h, const Matrix& U,
+                        ForwardCache* cache) const override;
+  Matrix jacobian_driven(ConstParams theta, const Vector& z, double h,
+                         const Vector& u) const override;
   std::optional<double> damping_rate(ConstParams theta) const override;
   std::optional<Index> damping_param_index() const override { return beta_index_; }
   nlohmann::json hyperparams() const override;
@@ -98,9 +119,18 @@ class HamiltonianLibraryMap final : public OneStepMap {
   void check_inverse_mass(ConstParams theta, const std::string& where) const;
   // V(q) and ∇V(q) at θ.
   double potential(ConstParams theta, const double* q) const;
+  // ∇V(q) at θ into g (d values).
+  void gradient(ConstParams theta, const double* q, double* g) const;
   const std::vector<DissipationTerm>& dissipation() const { return dissipation_; }
   // θ's entry of dissipation term k (its rate is |θ|).
   Index dissipation_index(Index k) const { return beta_index_ + 1 + k; }
+  const InputSpec& inputs() const { return inputs_; }
+  // θ's entry of B(r, j) (r < d, j < m).
+  Index input_index(Index r, Index j) const {
+    return beta_index_ + 1 + static_cast<Index>(dissipation_.size()) + r * inputs_.m + j;
+  }
+  // B (d × m) from θ.
+  Matrix input_matrix(ConstParams theta) const;
   // The stage weights b_s of one substep (they sum to 1).
   const std::vector<double>& stage_weights() const { return weights_; }
 
@@ -113,10 +143,10 @@ class HamiltonianLibraryMap final : public OneStepMap {
     // flows in order, then the K closing ones in order of application); the last record holds
     // the end state.
     std::vector<double> states;
+    Matrix u;  // the inputs driving the pass (2m × N), or empty (no inputs: a free pass)
   };
 
  private:
-  void gradient(ConstParams theta, const double* q, double* g) const;
   // out += H(q) v, H = ∇²V.
   void hessian_times(ConstParams theta, const double* q, const double* v, double* out) const;
   // grad(θ_V) += s · ∂(∇V(q)·v)/∂θ_V.
@@ -134,6 +164,13 @@ class HamiltonianLibraryMap final : public OneStepMap {
   void dissipate_backward(ConstParams theta, double half_tau, bool closing, const double* starts,
                           double* pb, ParamsRef grad) const;
 
+  // g −= B u(t₀ + σh) for one step's input column `u` (2m values); `work` holds m values.
+  void add_force(ConstParams theta, const double* u, double sigma, double* g, double* work) const;
+  // grad(B) += s · v u(t₀ + σh)ᵀ.
+  void add_input_gradient(const double* u, double sigma, const double* v, double s, double* work,
+                          ParamsRef grad) const;
+  void check_inputs(const Matrix& U, Index n) const;
+
   Index d_;
   std::vector<LibraryTerm> terms_;
   int order_;
@@ -147,6 +184,10 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // Per term: ∂u/∂q_i and ∂u/∂q_j (0 for a single coordinate).
   std::vector<double> wi_, wj_;
   std::vector<DissipationTerm> dissipation_;
+  InputSpec inputs_;
+  // Per stage boundary s = 0 … stages of one step: its time as a share σ_s of h (σ_0 = 0,
+  // σ_stages = 1); a stage of weight b runs from σ_s to σ_{s+1} = σ_s + b/n.
+  std::vector<double> sigma_;
 };
 
 // The core spec {"type": "library", "terms": [...], "order": 4, "substeps": n, "mass":
@@ -162,6 +203,8 @@ struct LibrarySpec {
   Vector scales;  // empty: all 1
   // "dissipation": ["coulomb(p1)", "drag(p1)", ...]; absent: none.
   std::vector<DissipationTerm> dissipation;
+  // "inputs": {"m": m, "hold": "foh"|"zoh", "B": "row-major"}; absent: none (m = 0).
+  InputSpec inputs;
 };
 LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where);
 

@@ -24,6 +24,13 @@ class NormalizedMap final : public OneStepMap {
   void backward(ConstParams theta, const ForwardCache& cache, const Matrix& dZout, ParamsRef grad,
                 Matrix* dZin) const override;
   Matrix jacobian(ConstParams theta, const Vector& z, double h) const override;
+  // Inputs pass through unchanged: they are in the user's units, which the inner map's B
+  // absorbs (B_user = diag(β) B̂ / τ).
+  Index n_inputs() const override { return inner_->n_inputs(); }
+  Matrix forward_driven(ConstParams theta, const Matrix& Z, const Vector& h, const Matrix& U,
+                        ForwardCache* cache) const override;
+  Matrix jacobian_driven(ConstParams theta, const Vector& z, double h,
+                         const Vector& u) const override;
   std::optional<double> damping_rate(ConstParams theta) const override;
   std::optional<Index> damping_param_index() const override {
     return inner_->damping_param_index();

@@ -106,6 +106,19 @@ class OneStepMap {
   // Exact DΦ̂_h(z), 2d x 2d.
   virtual Matrix jacobian(ConstParams theta, const Vector& z, double h) const = 0;
 
+  // Known inputs (models/inputs.hpp): the number m of input channels the map reads (0: a free
+  // map, the default). A map with inputs takes them per step through forward_driven() and
+  // jacobian_driven(); its forward() and jacobian() are those with every input 0.
+  virtual Index n_inputs() const { return 0; }
+  // Φ̂_h driven by U (2m × N: per column the input at the step's start, rows 0 … m−1, and at its
+  // end, rows m … 2m−1); the cache keeps U for backward(). U with 0 rows is forward(). The
+  // default (a free map) refuses any other U with an Error naming the map's type.
+  virtual Matrix forward_driven(ConstParams theta, const Matrix& Z, const Vector& h,
+                                const Matrix& U, ForwardCache* cache) const;
+  // Exact DΦ̂_h(z) driven by u (2m values, as a column of U; empty: jacobian()).
+  virtual Matrix jacobian_driven(ConstParams theta, const Vector& z, double h,
+                                 const Vector& u) const;
+
   // The identified damping rate γ̂, for models that carry one.
   virtual std::optional<double> damping_rate(ConstParams /*theta*/) const { return std::nullopt; }
   // Index of the damping parameter β in θ (so an optimiser can exclude it from decay).

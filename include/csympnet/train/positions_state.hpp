@@ -33,8 +33,10 @@ void check_positions_window(const Matrix& q, const Vector& t, const std::string&
 // its noise (and always beyond kStateFitNoiseCap of the spread).
 void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what);
 
-// check_positions_window, state_from_positions, check_state_fit.
+// check_positions_window, state_from_positions, check_state_fit; u: the window's inputs per
+// step (2m × (L − 1), start then end; empty: none).
 Vector checked_state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
-                                    const Vector& t, double* rms, const std::string& what);
+                                    const Vector& t, double* rms, const std::string& what,
+                                    const Matrix& u = Matrix());
 
 }  // namespace csympnet

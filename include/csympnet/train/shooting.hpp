@@ -47,6 +47,11 @@ struct ShootingSegments {
   // Optional (empty: the segment's `block`): per segment, each position's resampling block, for
   // a segment that spans several blocks (a chain of the whole record).
   std::vector<std::vector<Index>> column_block;
+  // Optional (empty: a free map): per segment, the known inputs of each step, 2m × (L − 1) (per
+  // step the input at its start, then at its end: models/inputs.hpp), for a driven map.
+  std::vector<Matrix> u;
+  // Segment s's inputs, or an empty matrix (no inputs).
+  const Matrix& inputs(Index s) const;
   Index size() const { return static_cast<Index>(q.size()); }
   Index n_residuals() const;  // d × the observed positions: the residuals the loss averages
   Index n_rows() const;       // Σ_s L_s d: the residual vector's length, unobserved rows included
@@ -63,8 +68,10 @@ struct ShootingSegments {
   void validate(const std::string& where = "segments") const;
 };
 
-// The states along segment s from start state z0: 2d × L.
-Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0, const Vector& h);
+// The states along segment s from start state z0: 2d × L, driven by u (2m × (L − 1); empty: the
+// free map).
+Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z0, const Vector& h,
+                       const Matrix& u = Matrix());
 
 // The residuals of every segment (sample-major: segment by segment, d per position), unscaled;
 // an unobserved position's are 0 (length n_rows()).
@@ -80,7 +87,8 @@ double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
 // weight w (L; empty: all 1), so an unobserved position's rows are 0.
 void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
                                const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
-                               Matrix& b, Vector& r, const Vector& w = Vector());
+                               Matrix& b, Vector& r, const Vector& w = Vector(),
+                               const Matrix& u = Matrix());
 
 // The normal equations with the start states eliminated, at (θ, z0), over θ's first n_free
 // parameters, all scaled by `scale` (as window_normal_equations): a = the reduced JᵀJ (lower
@@ -154,8 +162,9 @@ namespace csympnet {
 // window's start state fitted with θ fixed (as a held-out segment's), rolled out to t[L−1].
 // For a prediction or a rollout from positions alone (fit_start_states with several starts
 // from p = 0). `rms` receives the
-// root-mean-square position residual of that fit.
+// root-mean-square position residual of that fit. u: the window's inputs (2m × (L − 1), per
+// step start and end; empty: none).
 Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
-                            const Vector& t, double* rms = nullptr);
+                            const Vector& t, double* rms = nullptr, const Matrix& u = Matrix());
 
 }  // namespace csympnet

@@ -1,0 +1,26 @@
+// OneStepMap's defaults for known inputs: a free map takes none (models/one_step_map.hpp).
+#include "csympnet/core/error.hpp"
+#include "csympnet/models/one_step_map.hpp"
+
+namespace csympnet {
+
+Matrix OneStepMap::forward_driven(ConstParams theta, const Matrix& Z, const Vector& h,
+                                  const Matrix& U, ForwardCache* cache) const {
+  require(U.rows() == 0, [&] {
+    return type() + " forward: this map takes no inputs (U has " + std::to_string(U.rows()) +
+           " rows); inputs are supported by the library core ({\"type\": \"library\", "
+           "\"inputs\": {\"m\": ...}})";
+  });
+  return forward(theta, Z, h, cache);
+}
+
+Matrix OneStepMap::jacobian_driven(ConstParams theta, const Vector& z, double h,
+                                   const Vector& u) const {
+  require(u.size() == 0, [&] {
+    return type() + " jacobian: this map takes no inputs (u has " + std::to_string(u.size()) +
+           " values)";
+  });
+  return jacobian(theta, z, h);
+}
+
+}  // namespace csympnet

@@ -1,0 +1,69 @@
+// A linear oscillator driven by a random-phase multisine, q'' + γq' + ω²q = b u(t), sampled
+// with its input: the driven-record fixture of the identification and CLI tests.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "csympnet/core/rng.hpp"
+#include "csympnet/data/dataset.hpp"
+
+namespace csympnet::testing {
+
+inline constexpr double kDrivenGamma = 0.1, kDrivenOmega = 2.0, kDrivenGain = 1.5;
+
+struct Multisine {
+  std::vector<double> freq, phase;
+  double operator()(double t) const {
+    double u = 0.0;
+    for (std::size_t k = 0; k < freq.size(); ++k) u += std::sin(freq[k] * t + phase[k]);
+    return u / std::sqrt(static_cast<double>(freq.size()));
+  }
+};
+
+// The oscillator by classic RK4, 20 steps per sample, u evaluated where RK4 asks; positions
+// with noise of `noise` times their spread; momenta p = q' exactly.
+// `gamma`: the damping rate of the record (kDrivenGamma unless given).
+inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed,
+                                double gamma = kDrivenGamma) {
+  Rng rng(seed, "driven-record");
+  Multisine u;
+  for (int k = 0; k < 8; ++k) {
+    u.freq.push_back(0.3 + 0.45 * k);  // 0.3 … 3.45 rad per time unit, around ω = 2
+    u.phase.push_back(rng.uniform(0.0, 2.0 * M_PI));
+  }
+  const auto field = [&](double q, double v, double t, double& dq, double& dv) {
+    dq = v;
+    dv = -kDrivenOmega * kDrivenOmega * q - gamma * v + kDrivenGain * u(t);
+  };
+  Trajectory tr;
+  tr.t.resize(n);
+  tr.z.resize(2, n);
+  tr.u.resize(1, n);
+  double q = 0.3, v = 0.0;
+  const int sub = 20;
+  for (Index k = 0; k < n; ++k) {
+    const double t = static_cast<double>(k) * h;
+    tr.t(k) = t;
+    tr.z(0, k) = q;
+    tr.z(1, k) = v;
+    tr.u(0, k) = u(t);
+    const double dt = h / sub;
+    for (int s = 0; s < sub; ++s) {
+      const double ts = t + s * dt;
+      double k1q, k1v, k2q, k2v, k3q, k3v, k4q, k4v;
+      field(q, v, ts, k1q, k1v);
+      field(q + 0.5 * dt * k1q, v + 0.5 * dt * k1v, ts + 0.5 * dt, k2q, k2v);
+      field(q + 0.5 * dt * k2q, v + 0.5 * dt * k2v, ts + 0.5 * dt, k3q, k3v);
+      field(q + dt * k3q, v + dt * k3v, ts + dt, k4q, k4v);
+      q += dt / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q);
+      v += dt / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
+    }
+  }
+  const double spread = std::sqrt((tr.z.row(0).array() - tr.z.row(0).mean()).square().mean());
+  for (Index k = 0; k < n; ++k) tr.z(0, k) += noise * spread * rng.normal();
+  return tr;
+}
+
+}  // namespace csympnet::testing

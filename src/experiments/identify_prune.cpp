@@ -115,7 +115,7 @@ bool prune_library_terms(Candidate& lib, Index d, LinkedFit& linked, const Shoot
       if (terms[k].shape != TermShape::kPower || terms[k].power < 3) continue;
       std::vector<LibraryTerm> next = terms;
       next.erase(next.begin() + static_cast<long>(k));
-      out.push_back({term_name(terms[k]), library_with_terms(c, d, next), 1});
+      out.push_back({term_name(terms[k]), library_with_terms(c, d, next), 1, ""});
     }
     return out;
   };
@@ -181,7 +181,7 @@ bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
           next.push_back(t);
       if (dropped > 0)
         out.push_back(
-            {dissipation_kind_name(kind), library_with(c, d, map.terms(), next), dropped});
+            {dissipation_kind_name(kind), library_with(c, d, map.terms(), next), dropped, ""});
     }
     return out;
   };

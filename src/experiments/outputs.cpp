@@ -31,7 +31,7 @@ OutputFiles run_output_files(const RunResult& r) {
   predicted.reserve(tests.size());
   std::string energy = "traj,t,energy_pred,energy_ref\n";
   for (std::size_t m = 0; m < tests.size(); ++m) {
-    predicted.push_back({tests[m].t, r.diagnostics.rollouts[m]});
+    predicted.push_back({tests[m].t, r.diagnostics.rollouts[m], {}});
     for (Index n = 0; n < tests[m].t.size(); ++n)
       energy += std::to_string(m) + "," + round_trip_text(tests[m].t(n)) + "," +
                 round_trip_text(r.diagnostics.energy_pred[m](n)) + "," +

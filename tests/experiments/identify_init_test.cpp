@@ -158,7 +158,7 @@ TEST_F(IdentifyInit, AStartThatIsNotFiniteOnTheDataNamesTheFile) {
   const IdentifyConfig c = make_identify_config({{"init", path}, {"lm_iterations", 1}});
   const std::vector<Trajectory> states = oscillator(6, 1);
   std::vector<Trajectory> positions;
-  for (const Trajectory& t : states) positions.push_back({t.t, t.z.topRows(1)});
+  for (const Trajectory& t : states) positions.push_back({t.t, t.z.topRows(1), {}});
   for (bool positions_only : {false, true}) {
     try {
       positions_only ? identify_positions(positions, c) : identify(states, false, c);

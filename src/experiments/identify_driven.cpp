@@ -16,6 +16,8 @@
 //      the verdict; the model in the user's units.
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,6 +38,10 @@ namespace {
 
 // Positions per shooting segment: its hidden start takes 2 of them per coordinate.
 constexpr Index kSegment = 20;
+// Additions the selection of a driven record's terms may make.
+constexpr int kDrivenAdditions = 3;
+// LM iterations of each trial fit of the selection (the chosen terms are fitted in full).
+constexpr long kSelectionIterations = 50;
 // Every kHoldOut-th segment is held out.
 constexpr Index kHoldOut = 5;
 // A bound on the hidden start states in the fit's units (the data have unit spread).
@@ -150,21 +156,26 @@ DrivenCut cut_driven(const std::vector<Trajectory>& nt, Index d) {
   return c;
 }
 
-// The library map: the given core's terms, order and substeps, or the quadratic terms (a
-// linear system); a diagonal mass; the inputs' hold as the given core says (first order by
-// default).
-HamiltonianLibraryMap driven_map(const IdentifyConfig& config, Index d, Index m,
-                                 nlohmann::json& record) {
+// The given core's spec, or the quadratic terms (a linear system) to start the selection from;
+// the inputs' count checked against the record's.
+LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann::json& record) {
   LibrarySpec s;
   if (!config.core.is_null()) s = read_library_spec(config.core, d, "core");
   if (s.terms.empty()) {
-    for (Index i = 0; i < d; ++i)
+    // A linear term per coordinate too: the rest position is not the positions' mean (without
+    // it a linear record's selection took a sin/cos pair at a small wavenumber for the offset).
+    for (Index i = 0; i < d; ++i) {
+      s.terms.push_back(parse_term("q" + std::to_string(i + 1), d, "core"));
       s.terms.push_back(parse_term("q" + std::to_string(i + 1) + "^2", d, "core"));
+    }
     for (Index i = 0; i < d; ++i)
       for (Index j = i + 1; j < d; ++j)
         s.terms.push_back(parse_term(
             "(q" + std::to_string(i + 1) + "-q" + std::to_string(j + 1) + ")^2", d, "core"));
-    record["terms"] = "the quadratic terms (a linear system); --core gives others";
+    record["terms"] =
+        "selected: the linear and quadratic terms (a linear system), then the additions that "
+        "lower the "
+        "information criterion (choices.driven.selection); --core names the terms instead";
   }
   if (s.inputs.m != 0 && s.inputs.m != m)
     throw OptionError("core", "the core's inputs.m = " + std::to_string(s.inputs.m) +
@@ -173,7 +184,14 @@ HamiltonianLibraryMap driven_map(const IdentifyConfig& config, Index d, Index m,
   require(s.dissipation.empty(), [] {
     return std::string("core: friction and drag terms are not supported with inputs yet");
   });
-  return HamiltonianLibraryMap(d, s.terms, s.order, s.substeps, false, 0.1, {}, {},
+  return s;
+}
+
+// The library map of `terms` with the spec's order, substeps and hold (first order by default);
+// a diagonal mass.
+HamiltonianLibraryMap driven_map(const LibrarySpec& s, const std::vector<LibraryTerm>& terms,
+                                 Index d, Index m) {
+  return HamiltonianLibraryMap(d, terms, s.order, s.substeps, false, 0.1, {}, {},
                                InputSpec{m, s.inputs.m != 0 ? s.inputs.hold : InputHold::kFirst});
 }
 
@@ -365,6 +383,165 @@ void driven_verdict(const ShootingReport& rep, IdentifyResult& r) {
   r.verdict = r.identified ? "identified" : r.rejected ? "model rejected" : "not identified";
 }
 
+// One driven fit: the equation-error start, the segments' start states, LM on the positions.
+struct DrivenFit {
+  HamiltonianLibraryMap map;
+  Vector theta;
+  Matrix z0, vz0;
+  ShootingReport rep;
+};
+
+DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& nt,
+                     const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
+                     long max_iterations = 200) {
+  const Index d = map.d();
+  Vector theta = driven_start(map, nt);
+  Matrix z0(2 * d, cut.train.size()), vz0(2 * d, cut.val.size());
+  const auto first_positions = [&](const ShootingSegments& s, Matrix& z) {
+    for (Index k = 0; k < s.size(); ++k) {
+      z.col(k).head(d) = s.q[static_cast<std::size_t>(k)].col(0);
+      z.col(k).tail(d).setZero();
+    }
+  };
+  first_positions(cut.train, z0);
+  first_positions(cut.val, vz0);
+  fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
+  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState);
+  ShootingOptions opt;
+  opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
+                                            : max_iterations;
+  opt.max_abs_state = kMaxAbsState;
+  opt.should_stop = hooks.should_stop;
+  opt.converged_chi2 = 1e-3;
+  ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
+  return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep};
+}
+
+// The Bayesian information criterion of a fit over the training segments (the same segments,
+// hence the same hidden start states, for every candidate): n log(loss) + parameters x log n.
+double driven_bic(const DrivenFit& f, Index n) {
+  const double nn = static_cast<double>(n);
+  return f.rep.final_loss > 0.0 && std::isfinite(f.rep.final_loss)
+             ? nn * std::log(f.rep.final_loss) + static_cast<double>(f.map.n_params()) * std::log(nn)
+             : std::numeric_limits<double>::infinity();
+}
+
+// The additions offered to `terms`: per coordinate its missing powers 3 and 4, and its sin/cos
+// pair when it has no sinusoid yet; per pair of coordinates (up to d = 4, neighbours beyond)
+// the missing powers 3 and 4 of their difference.
+std::vector<std::pair<std::string, std::vector<LibraryTerm>>> driven_additions(
+    const std::vector<LibraryTerm>& terms, Index d) {
+  std::vector<std::pair<std::string, std::vector<LibraryTerm>>> out;
+  const auto has = [&terms](const LibraryTerm& t) {
+    return std::find(terms.begin(), terms.end(), t) != terms.end();
+  };
+  const auto offer = [&](const std::vector<std::string>& names) {
+    std::vector<LibraryTerm> next = terms;
+    std::string added;
+    for (const std::string& n : names)
+      if (const LibraryTerm t = parse_term(n, d, "core"); !has(t)) {
+        next.push_back(t);
+        added += (added.empty() ? "" : ", ") + n;
+      }
+    if (!added.empty()) out.emplace_back(added, std::move(next));
+  };
+  for (Index i = 0; i < d; ++i) {
+    const std::string q = "q" + std::to_string(i + 1);
+    offer({q + "^3", q + "^4"});
+    const bool periodic = std::any_of(terms.begin(), terms.end(), [i](const LibraryTerm& t) {
+      return t.i == i && t.j < 0 && t.has_wavenumber();
+    });
+    if (!periodic) offer({"sin(" + q + ")", "cos(" + q + ")"});
+  }
+  for (Index i = 0; i < d; ++i)
+    for (Index j = i + 1; j < d; ++j) {
+      if (d > 4 && j != i + 1) continue;
+      const std::string x = "(q" + std::to_string(i + 1) + "-q" + std::to_string(j + 1) + ")";
+      offer({x + "^3", x + "^4"});
+    }
+  return out;
+}
+
+// Forward selection by BIC over the training segments, a few additions at most, then each
+// power of degree 3 or 4 or sin/cos pair dropped while that lowers the criterion. The velocity-free analogue
+// of the free route's selection: the input excites the record's whole range of amplitudes,
+// and the positions judge the force law. Every trial in record["selection"].
+DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
+                              const std::vector<Trajectory>& nt, const DrivenCut& cut,
+                              const IdentifyConfig& config, const IdentifyHooks& hooks,
+                              nlohmann::json& record) {
+  const Index d = fit.map.d();
+  const Index n = cut.train.n_residuals();
+  nlohmann::json trials = nlohmann::json::array();
+  const auto names = [](const std::vector<LibraryTerm>& ts) {
+    std::string out;
+    for (const LibraryTerm& t : ts) out += (out.empty() ? "" : ", ") + term_name(t);
+    return out;
+  };
+  const auto try_terms = [&](const std::string& what, const std::vector<LibraryTerm>& terms) {
+    throw_if_stop_requested("the selection of a driven record's terms");
+    DrivenFit x =
+        fit_driven(driven_map(spec, terms, d, m), nt, cut, config, hooks, kSelectionIterations);
+    const double change = driven_bic(x, n) - driven_bic(fit, n);
+    trials.push_back({{"change", what},
+                      {"terms", names(terms)},
+                      {"loss", x.rep.final_loss},
+                      {"bic_change", change}});
+    return std::make_pair(change, std::move(x));
+  };
+  for (int round = 0; round < kDrivenAdditions; ++round) {
+    std::optional<std::pair<double, DrivenFit>> best;
+    for (const auto& [what, terms] : driven_additions(fit.map.terms(), d)) {
+      auto t = try_terms("add " + what, terms);
+      if (t.first < 0.0 && (!best || t.first < best->first)) best = std::move(t);
+    }
+    if (!best) break;
+    fit = std::move(best->second);
+    trials.push_back({{"made", names(fit.map.terms())}});
+  }
+  for (bool dropped = true; dropped;) {
+    dropped = false;
+    const std::vector<LibraryTerm> terms = fit.map.terms();
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+      // A power of degree 3 or 4, or a coordinate's sin/cos pair (at its sin): a sinusoid
+      // taken first can mimic the powers added after it.
+      const bool power = terms[k].shape == TermShape::kPower && terms[k].power >= 3;
+      if (!power && terms[k].shape != TermShape::kSin) continue;
+      std::vector<LibraryTerm> next;
+      std::string what;
+      for (const LibraryTerm& t : terms) {
+        const bool goes = power ? t == terms[k]
+                                : t.i == terms[k].i && t.j == terms[k].j &&
+                                      (t.shape == TermShape::kSin || t.shape == TermShape::kCos);
+        if (goes)
+          what += (what.empty() ? "" : ", ") + term_name(t);
+        else
+          next.push_back(t);
+      }
+      auto t = try_terms("drop " + what, next);
+      if (t.first >= 0.0) continue;
+      fit = std::move(t.second);
+      trials.push_back({{"made", names(fit.map.terms())}});
+      dropped = true;
+      break;
+    }
+  }
+  // The terms chosen, fitted in full from their equation-error start.
+  fit = fit_driven(driven_map(spec, fit.map.terms(), d, m), nt, cut, config, hooks);
+  record["selection"] = {
+      {"rule",
+       "from the quadratic terms, the addition (a coordinate's or a difference's powers 3 and 4, "
+       "or a coordinate's sin/cos pair) that lowers the Bayesian information criterion of the "
+       "training segments most, n log(loss) + parameters x log n, while one does (at most " +
+           std::to_string(kDrivenAdditions) +
+           "); then each power of degree 3 or 4, or sin/cos pair, dropped while that lowers it; "
+       "trial fits take at most " + std::to_string(kSelectionIterations) +
+           " LM iterations, the terms chosen are fitted again in full"},
+      {"residuals", n},
+      {"trials", trials}};
+  return fit;
+}
+
 }  // namespace
 
 IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positions_only,
@@ -398,30 +575,24 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   for (const Trajectory& t : q) samples += t.t.size();
   r.data = {{"d", data.d}, {"inputs", data.m}, {"trajectories", q.size()}, {"samples", samples}};
   nlohmann::json record;
-  const HamiltonianLibraryMap map = driven_map(config, data.d, data.m, record);
+  const LibrarySpec spec = driven_spec(config, data.d, data.m, record);
+  const bool terms_given = !config.core.is_null() && config.core.contains("terms");
   DrivenCut cut = cut_driven(nt, data.d);
   record["segment_length"] = kSegment;
   record["segments"] = {{"train", cut.train.size()}, {"held_out", cut.val.size()}};
-  if (hooks.stage) hooks.stage("start (equation error)");
-  Vector theta = driven_start(map, nt);
-  Matrix z0(2 * data.d, cut.train.size()), vz0(2 * data.d, cut.val.size());
-  const auto first_positions = [&](const ShootingSegments& s, Matrix& z) {
-    for (Index k = 0; k < s.size(); ++k) {
-      z.col(k).head(data.d) = s.q[static_cast<std::size_t>(k)].col(0);
-      z.col(k).tail(data.d).setZero();
-    }
-  };
-  first_positions(cut.train, z0);
-  first_positions(cut.val, vz0);
-  fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
-  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState);
   if (hooks.stage) hooks.stage("LM on the positions with the inputs");
-  ShootingOptions opt;
-  opt.iterations = config.lm_iterations > 0 ? config.lm_iterations : 200;
-  opt.max_abs_state = kMaxAbsState;
-  opt.should_stop = hooks.should_stop;
-  opt.converged_chi2 = 1e-3;
-  const ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
+  DrivenFit fit =
+      fit_driven(driven_map(spec, spec.terms, data.d, data.m), nt, cut, config, hooks);
+  if (!terms_given && !fit.rep.stopped) {
+    if (hooks.stage) hooks.stage("terms: selected on the positions with the inputs");
+    fit = select_driven_terms(std::move(fit), spec, data.m, nt, cut, config, hooks, record);
+  }
+  record["terms_fitted"] = nlohmann::json::array();
+  for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
+  const HamiltonianLibraryMap& map = fit.map;
+  Vector theta = fit.theta;
+  const Matrix& z0 = fit.z0;
+  const ShootingReport rep = fit.rep;
   r.stopped = rep.stopped;
   r.theta = theta;
   r.lm.iterations = rep.iterations;
@@ -456,9 +627,9 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   driven_verdict(rep, r);
   if (r.hamiltonian.is_null())
     r.hamiltonian = detail::hamiltonian_report(map, r.theta, r.normalization, {});
-  nlohmann::json spec = map.hyperparams();
-  spec["normalization"] = r.normalization;
-  r.model = make_model(spec);
+  nlohmann::json model_spec = map.hyperparams();
+  model_spec["normalization"] = r.normalization;
+  r.model = make_model(model_spec);
   return r;
 }
 

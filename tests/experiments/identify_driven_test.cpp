@@ -5,8 +5,10 @@
 //   - the same record with its momenta: the same route (momenta set aside), γ within its
 //     interval;
 //   - what the route does not support is refused by option: a neural core, friction.
+#include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -81,6 +83,25 @@ TEST(IdentifyDriven, AnIntervalThatReachesZeroIsNotIdentified) {
   ASSERT_FALSE(r.reasons.empty());
   EXPECT_NE(r.reasons.front().find("reaches 0"), std::string::npos) << r.reasons.front();
   EXPECT_TRUE(identify_report(r)["gamma_ci_low"].is_null());  // no claim without a verdict
+}
+
+// The terms are selected on the positions with the inputs: a hardening Duffing record gets its
+// quartic (and γ is covered), the linear record keeps its spring alone.
+TEST(IdentifyDriven, SelectsTheQuarticOfADuffingRecordAndNoneForALinearOne) {
+  for (const double cubic : {4.0, 0.0}) {
+    Trajectory t = testing::driven_record(3000, 0.1, 0.005, 11, testing::kDrivenGamma, cubic);
+    t.z.conservativeResize(1, Eigen::NoChange);
+    const IdentifyResult r = identify_driven({t}, true, IdentifyConfig{});
+    const std::vector<std::string> terms = r.choices["driven"].at("terms_fitted");
+    const bool quartic = std::find(terms.begin(), terms.end(), "q1^4") != terms.end();
+    EXPECT_EQ(quartic, cubic > 0.0) << r.choices["driven"].dump(1);
+    if (cubic == 0.0) {
+      EXPECT_EQ(terms, (std::vector<std::string>{"q1", "q1^2"})) << r.choices["driven"].dump(1);
+    }
+    ASSERT_TRUE(r.interval.has_value());
+    EXPECT_LE(r.interval->low, kGamma) << identify_report(r).dump(1);
+    EXPECT_GE(r.interval->high, kGamma);
+  }
 }
 
 TEST(IdentifyDriven, RefusesWhatItDoesNotSupportByOption) {

@@ -24,9 +24,10 @@ struct Multisine {
 
 // The oscillator by classic RK4, 20 steps per sample, u evaluated where RK4 asks; positions
 // with noise of `noise` times their spread; momenta p = q' exactly.
-// `gamma`: the damping rate of the record (kDrivenGamma unless given).
+// `gamma`: the damping rate of the record (kDrivenGamma unless given); `cubic`: a hardening
+// force −cubic·q³ beside the spring (a Duffing oscillator, V = ω²q²/2 + cubic·q⁴/4).
 inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed,
-                                double gamma = kDrivenGamma) {
+                                double gamma = kDrivenGamma, double cubic = 0.0) {
   Rng rng(seed, "driven-record");
   Multisine u;
   for (int k = 0; k < 8; ++k) {
@@ -35,7 +36,7 @@ inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t s
   }
   const auto field = [&](double q, double v, double t, double& dq, double& dv) {
     dq = v;
-    dv = -kDrivenOmega * kDrivenOmega * q - gamma * v + kDrivenGain * u(t);
+    dv = -kDrivenOmega * kDrivenOmega * q - cubic * q * q * q - gamma * v + kDrivenGain * u(t);
   };
   Trajectory tr;
   tr.t.resize(n);

@@ -142,7 +142,8 @@ void print_identify_details(const IdentifyResult& r, const std::string& out, boo
         std::snprintf(margin, sizeof margin, "margin %.3g %s", m.get<double>(), unit.c_str());
     }
     std::printf("model choice (%s): %s, runner-up %s: %s\n",
-                x.value("decision", std::string()).c_str(), x.value("chosen", std::string()).c_str(),
+                x.value("decision", std::string()).c_str(),
+                x.value("chosen", std::string()).c_str(),
                 x.value("runner_up", std::string()).c_str(), margin);
   }
   // The library core is fitted by Levenberg-Marquardt alone: its AdamW summary ("trained 0

@@ -422,7 +422,8 @@ DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& n
 double driven_bic(const DrivenFit& f, Index n) {
   const double nn = static_cast<double>(n);
   return f.rep.final_loss > 0.0 && std::isfinite(f.rep.final_loss)
-             ? nn * std::log(f.rep.final_loss) + static_cast<double>(f.map.n_params()) * std::log(nn)
+             ? nn * std::log(f.rep.final_loss) +
+                   static_cast<double>(f.map.n_params()) * std::log(nn)
              : std::numeric_limits<double>::infinity();
 }
 
@@ -463,8 +464,8 @@ std::vector<std::pair<std::string, std::vector<LibraryTerm>>> driven_additions(
 }
 
 // Forward selection by BIC over the training segments, a few additions at most, then each
-// power of degree 3 or 4 or sin/cos pair dropped while that lowers the criterion. The velocity-free analogue
-// of the free route's selection: the input excites the record's whole range of amplitudes,
+// power of degree 3 or 4 or sin/cos pair dropped while that lowers the criterion. The velocity-free
+// analogue of the free route's selection: the input excites the record's whole range of amplitudes,
 // and the positions judge the force law. Every trial in record["selection"].
 DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
                               const std::vector<Trajectory>& nt, const DrivenCut& cut,
@@ -535,7 +536,8 @@ DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
        "training segments most, n log(loss) + parameters x log n, while one does (at most " +
            std::to_string(kDrivenAdditions) +
            "); then each power of degree 3 or 4, or sin/cos pair, dropped while that lowers it; "
-       "trial fits take at most " + std::to_string(kSelectionIterations) +
+           "trial fits take at most " +
+           std::to_string(kSelectionIterations) +
            " LM iterations, the terms chosen are fitted again in full"},
       {"residuals", n},
       {"trials", trials}};
@@ -581,8 +583,7 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   record["segment_length"] = kSegment;
   record["segments"] = {{"train", cut.train.size()}, {"held_out", cut.val.size()}};
   if (hooks.stage) hooks.stage("LM on the positions with the inputs");
-  DrivenFit fit =
-      fit_driven(driven_map(spec, spec.terms, data.d, data.m), nt, cut, config, hooks);
+  DrivenFit fit = fit_driven(driven_map(spec, spec.terms, data.d, data.m), nt, cut, config, hooks);
   if (!terms_given && !fit.rep.stopped) {
     if (hooks.stage) hooks.stage("terms: selected on the positions with the inputs");
     fit = select_driven_terms(std::move(fit), spec, data.m, nt, cut, config, hooks, record);

@@ -639,8 +639,7 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
   }
   if (!fits[pick]) pick = f.best;
   for (std::size_t k = 0; k < tried.size(); ++k) tried[k]["chosen"] = tried_index[k] == pick;
-  rec["core_choice"] = {
-      {"candidates", tried}, {"reason", why}, {"validation_residuals", n_val}};
+  rec["core_choice"] = {{"candidates", tried}, {"reason", why}, {"validation_residuals", n_val}};
   chosen = std::move(*fits[pick]);
   return pick;
 }
@@ -657,6 +656,36 @@ Matrix training_positions(const detail::BlockSplit& split, Index d) {
     q.rightCols(t.z.cols()) = t.z.topRows(d);
   }
   return q;
+}
+
+// The velocity stage's terms judged on the linked positions, in turn: a richer force law where
+// the linking stops (a few rounds, each linking further), the sin/cos or exp groups against
+// the powers of their arguments, the powers of degree 3 and 4, and (`auto_dissipation`) the
+// friction and drag. `best` (its θ the linked fit's), `linked`, `val.z0` and `states` follow.
+// Returns whether the core changed.
+bool judge_terms_on_chain(detail::Candidate& best, Index d, const Matrix& q_train,
+                          const std::vector<Trajectory>& nt, const detail::RecordLayout& layout,
+                          detail::LinkedFit& linked, Cut& val, const ShootingOptions& opt,
+                          std::vector<Matrix>& states, bool auto_dissipation, nlohmann::json& rec) {
+  bool changed = false;
+  for (int round = 0; round < kForceLawRounds && !linked.linked_fully; ++round) {
+    nlohmann::json tried_here;
+    const bool added = detail::richer_force_law_on_chain(best, d, q_train, nt, layout, linked,
+                                                         val.segs, val.z0, opt, states, tried_here);
+    if (tried_here.contains("force_law_on_chain"))
+      rec["force_law_on_chain"].push_back(tried_here["force_law_on_chain"]);
+    if (!added) break;
+    changed = true;
+    rec["linking"] = linked.record;
+  }
+  changed |= detail::prefer_polynomials_on_chain(best, d, q_train, linked, val.segs, val.z0, opt,
+                                                 states, rec);
+  changed |= detail::prune_library_terms(best, d, linked, val.segs, val.z0, opt, states, rec);
+  // Friction and drag chosen on the velocity start, confirmed on the positions.
+  if (auto_dissipation)
+    changed |=
+        detail::drop_dissipation_on_chain(best, d, linked, val.segs, val.z0, opt, states, rec);
+  return changed;
 }
 
 }  // namespace
@@ -860,34 +889,8 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
     // (replaces `best`, so `map` is not used below: the fitted map is read from `best` again).
     if (r.config.init == nullptr && !terms_given && !linked.report.stopped) {
       best.theta = theta;
-      const Matrix q_train = training_positions(split, d);
-      // Again at the next break, a few times at most: each addition links further.
-      for (int round = 0; round < kForceLawRounds && !linked.linked_fully; ++round) {
-        nlohmann::json tried_here;
-        const bool added = richer_force_law_on_chain(best, d, q_train, f.nt, layout, linked,
-                                                     val.segs, val.z0, opt, states, tried_here);
-        if (tried_here.contains("force_law_on_chain"))
-          rec["force_law_on_chain"].push_back(tried_here["force_law_on_chain"]);
-        if (!added) break;
-        theta = best.theta;
-        r.choices["core"] = best.core;
-        r.config.core = best.core;
-        rec["linking"] = linked.record;
-      }
-      if (prefer_polynomials_on_chain(best, d, q_train, linked, val.segs, val.z0, opt, states,
-                                      rec)) {
-        theta = best.theta;
-        r.choices["core"] = best.core;
-        r.config.core = best.core;
-      }
-      if (prune_library_terms(best, d, linked, val.segs, val.z0, opt, states, rec)) {
-        theta = best.theta;
-        r.choices["core"] = best.core;
-        r.config.core = best.core;
-      }
-      // Friction and drag chosen on the velocity start, confirmed on the positions.
-      if (given.dissipation == "auto" &&
-          drop_dissipation_on_chain(best, d, linked, val.segs, val.z0, opt, states, rec)) {
+      if (judge_terms_on_chain(best, d, training_positions(split, d), f.nt, layout, linked, val,
+                               opt, states, given.dissipation == "auto", rec)) {
         theta = best.theta;
         r.choices["core"] = best.core;
         r.config.core = best.core;

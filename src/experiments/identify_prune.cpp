@@ -50,8 +50,8 @@ bool change_while_the_criterion_falls(
     std::optional<Trial> best;
     for (ChainChange& drop : drops(lib)) {
       throw_if_stop_requested("the comparison of library terms on the linked positions");
-      Trial t{drop.name, drop.replaced_by, std::move(drop.candidate), linked.chain.z0, val_z0,
-              {}, 0.0};
+      Trial t{drop.name, drop.replaced_by, std::move(drop.candidate), linked.chain.z0, val_z0, {},
+              0.0};
       ShootingOptions opt = options;
       opt.n_free = t.candidate.inner.n_params();
       const auto t0 = std::chrono::steady_clock::now();

@@ -98,9 +98,9 @@ std::string readable(const std::string& term) {
 void elimination(const nlohmann::json& rec, const std::string& decision, nlohmann::json& rows,
                  bool additions = false) {
   if (!rec.is_object() || !rec.contains("trials")) return;
-  std::map<std::string, double> last;  // term → its last ΔBIC of dropping
+  std::map<std::string, double> last;                       // term → its last ΔBIC of dropping
   std::map<std::string, std::pair<double, double>> losses;  // term → loss with, without
-  std::map<std::string, std::string> by;  // a swap's new terms
+  std::map<std::string, std::string> by;                    // a swap's new terms
   std::map<std::string, bool> dropped;
   std::vector<std::string> order;
   for (const auto& t : rec["trials"]) {
@@ -116,7 +116,8 @@ void elimination(const nlohmann::json& rec, const std::string& decision, nlohman
   }
   const std::string criterion =
       "Bayesian information criterion of the linked positions fit, n log(loss) + parameters x "
-      "log n (n = " + std::to_string(rec.value("residuals", 0)) + ")";
+      "log n (n = " +
+      std::to_string(rec.value("residuals", 0)) + ")";
   for (const std::string& term : order) {
     // A trial's change is BIC(after it) − BIC(before): for a drop, BIC(without) − BIC(with);
     // for an addition, BIC(with) − BIC(without). A change made is a drop done or a group added.
@@ -130,8 +131,7 @@ void elimination(const nlohmann::json& rec, const std::string& decision, nlohman
     const std::string gone =
         by[term].empty() ? "without " + term : by[term] + " instead of " + term;
     rows.push_back(row(decision, criterion, out ? gone : kept, out ? without : with,
-                       out ? kept : gone,
-                       out ? with : without, out ? -change : change, "BIC",
+                       out ? kept : gone, out ? with : without, out ? -change : change, "BIC",
                        "BIC(runner-up) - BIC(chosen); positive: the data favour the chosen"));
   }
 }
@@ -199,9 +199,9 @@ nlohmann::json model_selection(const IdentifyResult& r) {
       if (!ru) return;
       const double before = number(tried[*ru], "val_loss_before");
       const double after = number(tried[*ru], "val_loss_after");
-      rows.push_back(row("library group added", group_criterion, "none",
-                         before, text(tried[*ru], "terms"), after, after / before - 1.0,
-                         "relative", relative_means));
+      rows.push_back(row("library group added", group_criterion, "none", before,
+                         text(tried[*ru], "terms"), after, after / before - 1.0, "relative",
+                         relative_means));
     };
     for (const auto& s : lib["forward"]) {
       if (!s.contains("kept")) {
@@ -215,9 +215,8 @@ nlohmann::json model_selection(const IdentifyResult& r) {
             (!ru || number(round[i], "val_loss_after") < number(round[*ru], "val_loss_after")))
           ru = i;
       if (ru)
-        rows.push_back(row("library group added", group_criterion,
-                           kept, number(s, "val_loss"), text(round[*ru], "terms"),
-                           number(round[*ru], "val_loss_after"),
+        rows.push_back(row("library group added", group_criterion, kept, number(s, "val_loss"),
+                           text(round[*ru], "terms"), number(round[*ru], "val_loss_after"),
                            number(round[*ru], "val_loss_after") / number(s, "val_loss") - 1.0,
                            "relative", relative_means));
       round = nlohmann::json::array();

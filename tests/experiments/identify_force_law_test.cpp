@@ -19,15 +19,14 @@ namespace {
 TEST(IdentifyForceLaw, AnOversampledPendulumGetsItsAnharmonicForceFromTheChain) {
   // V = -cos q, unit mass, γ = 0.02, amplitude 0.6 rad, by the library map at 8 substeps of
   // order 6 (far below the noise).
-  const nlohmann::json core = {{"type", "library"},
-                               {"terms", {"cos(q1)"}},
-                               {"order", 6},
-                               {"substeps", 8}};
-  const Model truth = make_model({{"type", "csympnet"}, {"d", 1}, {"core", core}, {"beta_init", 0.1}});
+  const nlohmann::json core = {
+      {"type", "library"}, {"terms", {"cos(q1)"}}, {"order", 6}, {"substeps", 8}};
+  const Model truth =
+      make_model({{"type", "csympnet"}, {"d", 1}, {"core", core}, {"beta_init", 0.1}});
   Vector theta = Vector::Zero(truth.n_params());
-  theta(0) = 1.0;    // W
-  theta(1) = -1.0;   // the cosine's coefficient
-  theta(2) = 1.0;    // its wavenumber
+  theta(0) = 1.0;   // W
+  theta(1) = -1.0;  // the cosine's coefficient
+  theta(2) = 1.0;   // its wavenumber
   const double gamma = 0.02;
   theta(3) = gamma;  // β
   const int n = 4000;

@@ -17,33 +17,31 @@ TEST(IdentifySelection, RowsFollowTheRecordsSides) {
   r.observed = "positions";
   const nlohmann::json lib = {{"type", "library"}, {"terms", {"q1^2", "cos(q1)"}}};
   nlohmann::json& p = r.choices["positions"];
-  p["core_choice"] = {
-      {"validation_residuals", 200.0},
-      {"candidates",
-       {{{"model", {{"type", "la"}, {"layers", 3}, {"sublayers", 8}}},
-         {"held_out_position_loss", 1.3},
-         {"chosen", false}},
-        {{"model", lib}, {"held_out_position_loss", 1.2}, {"chosen", true}}}}};
+  p["core_choice"] = {{"validation_residuals", 200.0},
+                      {"candidates",
+                       {{{"model", {{"type", "la"}, {"layers", 3}, {"sublayers", 8}}},
+                         {"held_out_position_loss", 1.3},
+                         {"chosen", false}},
+                        {{"model", lib}, {"held_out_position_loss", 1.2}, {"chosen", true}}}}};
   // Two swaps tried on the linked chain: the exp group's made, the sin/cos group's not.
-  p["polynomial_preferred"] = {
-      {"residuals", 500},
-      {"trials",
-       {{{"term", "sin(q1), cos(q1)"},
-         {"replaced_by", "q1^4"},
-         {"loss_before", 1.0},
-         {"loss_after", 1.1},
-         {"bic_change", 7.5}},
-        {{"term", "exp(q1)"},
-         {"replaced_by", "q1^3"},
-         {"loss_before", 1.0},
-         {"loss_after", 1.001},
-         {"bic_change", -4.0}},
-        {{"dropped", "exp(q1)"}, {"bic_change", -4.0}},
-        {{"term", "sin(q1), cos(q1)"},
-         {"replaced_by", "q1^4"},
-         {"loss_before", 1.001},
-         {"loss_after", 1.2},
-         {"bic_change", 9.0}}}}};
+  p["polynomial_preferred"] = {{"residuals", 500},
+                               {"trials",
+                                {{{"term", "sin(q1), cos(q1)"},
+                                  {"replaced_by", "q1^4"},
+                                  {"loss_before", 1.0},
+                                  {"loss_after", 1.1},
+                                  {"bic_change", 7.5}},
+                                 {{"term", "exp(q1)"},
+                                  {"replaced_by", "q1^3"},
+                                  {"loss_before", 1.0},
+                                  {"loss_after", 1.001},
+                                  {"bic_change", -4.0}},
+                                 {{"dropped", "exp(q1)"}, {"bic_change", -4.0}},
+                                 {{"term", "sin(q1), cos(q1)"},
+                                  {"replaced_by", "q1^4"},
+                                  {"loss_before", 1.001},
+                                  {"loss_after", 1.2},
+                                  {"bic_change", 9.0}}}}};
   const nlohmann::json rows = model_selection(r);
   ASSERT_EQ(rows.size(), 3u) << rows.dump(1);
   EXPECT_EQ(rows[0]["chosen"], "library (q1^2, cos(q1))");

@@ -56,7 +56,8 @@ TEST(PositionsState, AWindowNearTheNoiseIsExplainedByAFitAtTheNoise) {
   Rng rng(3, "state-noise");
   const Index n = 200;
   Matrix q(1, n);
-  for (Index k = 0; k < n; ++k) q(0, k) = std::cos(0.25 * static_cast<double>(k)) + 0.3 * rng.normal();
+  for (Index k = 0; k < n; ++k)
+    q(0, k) = std::cos(0.25 * static_cast<double>(k)) + 0.3 * rng.normal();
   const Vector z = Vector::Zero(2);
   EXPECT_EQ(refusal([&] { check_state_fit(q, z, 0.3, "w"); }), "");
   const std::string why = refusal([&] { check_state_fit(q, z, 0.6, "w"); });

@@ -8,15 +8,13 @@ oracle's, to NARX's and to the test record's noise standard deviation, the diver
 Per system and method: gamma_hat's median relative error, coverage of the 95% interval,
 median width / gamma, median width over the oracle's, median CPU seconds.
 """
-import json
 import math
-import os
 
 import numpy as np
 
 from .forced import FORCED_STRATA, FORCED_SYSTEMS
 from .forced_plan import FORCED_METHODS
-from .tables import clean_json, fmt
+from .tables import fmt, write_plan_outputs
 
 TESTS = {"multisine": "test-multisine", "rising": "test-rising"}
 
@@ -177,16 +175,6 @@ def write_forced_outputs(args, meta, cases, interrupted=False):
              "exp(0.2 z). ARX and NARX have no gamma. CPU seconds: process_time of the Python "
              "peers (exact with --jobs 1), wait4 of csympnet's fit and evaluations.")
     body = "\n".join([forced_tables(summary), case_table(done)])
-    md = "\n".join([
-        "# Identification benchmark, forced records" + (" (interrupted, partial)"
-                                                        if interrupted else ""), "",
-        f"- command: `{meta['command']}`", f"- date: {meta['date']}",
-        f"- uname -a: `{meta['uname']}`", f"- csympnet --version: {meta['csympnet_version']}",
-        f"- cases: {len(done)} of {len(cases)} planned, seed {args.seed}", "", notes, "", body])
-    res = dict(meta, interrupted=interrupted, summary=summary,
-               cases=[dict(c) for c in cases if "methods" in c or "error" in c])
-    with open(os.path.join(args.out, "results.json"), "w") as f:
-        json.dump(clean_json(res), f, indent=1)
-    with open(os.path.join(args.out, "summary.md"), "w") as f:
-        f.write(md)
+    md = write_plan_outputs(args, meta, cases, "# Identification benchmark, forced records",
+                            summary, notes, body, interrupted)
     return md, notes, body

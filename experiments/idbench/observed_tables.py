@@ -1,11 +1,9 @@
 """Tables and output files of the observed-records plan."""
-import json
-import os
 
 import numpy as np
 
 from .observed import LINEAR_STRATA, OBSERVED_METHODS, OBSERVED_STRATA
-from .tables import clean_json, fmt
+from .tables import fmt, write_plan_outputs
 
 
 def _med(xs):
@@ -135,16 +133,6 @@ def write_observed_outputs(args, meta, cases, interrupted=False):
              "interval. 'sin/cos/exp': csympnet library fits of linear records whose terms "
              "include a sin, cos or exp.")
     body = "\n".join([observed_tables(summary), case_table(done)])
-    md = "\n".join([
-        "# Identification benchmark, observed records" + (" (interrupted, partial)"
-                                                          if interrupted else ""), "",
-        f"- command: `{meta['command']}`", f"- date: {meta['date']}",
-        f"- uname -a: `{meta['uname']}`", f"- csympnet --version: {meta['csympnet_version']}",
-        f"- cases: {len(done)} of {len(cases)} planned, seed {args.seed}", "", notes, "", body])
-    res = dict(meta, interrupted=interrupted, summary=summary,
-               cases=[dict(c) for c in cases if "methods" in c or "error" in c])
-    with open(os.path.join(args.out, "results.json"), "w") as f:
-        json.dump(clean_json(res), f, indent=1)
-    with open(os.path.join(args.out, "summary.md"), "w") as f:
-        f.write(md)
+    md = write_plan_outputs(args, meta, cases, "# Identification benchmark, observed records",
+                            summary, notes, body, interrupted)
     return md, notes, body

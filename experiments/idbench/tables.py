@@ -316,6 +316,24 @@ def clean_json(x):
     return x
 
 
+def write_plan_outputs(args, meta, cases, title, summary, notes, body, interrupted=False):
+    """A plan's summary.md (title, command, machine, notes, tables) and results.json (meta,
+    the summary and every finished or failed case) in args.out; returns the markdown."""
+    done = [c for c in cases if "methods" in c]
+    md = "\n".join([
+        title + (" (interrupted, partial)" if interrupted else ""), "",
+        f"- command: `{meta['command']}`", f"- date: {meta['date']}",
+        f"- uname -a: `{meta['uname']}`", f"- csympnet --version: {meta['csympnet_version']}",
+        f"- cases: {len(done)} of {len(cases)} planned, seed {args.seed}", "", notes, "", body])
+    res = dict(meta, interrupted=interrupted, summary=summary,
+               cases=[dict(c) for c in cases if "methods" in c or "error" in c])
+    with open(os.path.join(args.out, "results.json"), "w") as f:
+        json.dump(clean_json(res), f, indent=1)
+    with open(os.path.join(args.out, "summary.md"), "w") as f:
+        f.write(md)
+    return md
+
+
 def write_outputs(args, meta, cases, interrupted=False):
     done = [c for c in cases if "methods" in c]
     summary = summarize(done)

@@ -52,6 +52,7 @@ struct FitArgs {
   long window = 0, lm_iterations = 0, blocks = 20;
   std::string loss = "balanced", dof_scales = "auto", derived_momenta = "set-aside";
   std::string dissipation = "auto";
+  std::string record_fit = "auto";
   std::string init;       // --init FILE: a model file to start from (IdentifyConfig::init)
   std::string time_unit;  // --time-unit: the clock's unit, for the report only (time_unit.hpp)
   bool no_normalize = false;
@@ -312,6 +313,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
                              {"dof_scales", a.dof_scales},
                              {"derived_momenta", a.derived_momenta == "use" ? "use" : "set_aside"},
                              {"dissipation", a.dissipation},
+                             {"record_fit", a.record_fit},
                              {"lm_iterations", a.lm_iterations},
                              {"blocks", a.blocks},
                              {"level", a.level},
@@ -521,8 +523,8 @@ void group_fit_options(CLI::App& cmd) {
       {"Your data", {"--data", "--columns", "--time-unit"}},
       {"Identification (the default recipe)",
        {"--core", "--window", "--loss", "--no-normalize", "--dof-scales", "--derived-momenta",
-        "--dissipation", "--lm-iterations", "--level", "--blocks", "--init", "--epochs", "--lr",
-        "--seed", "--val-fraction", "--threads"}},
+        "--dissipation", "--record-fit", "--lm-iterations", "--level", "--blocks", "--init",
+        "--epochs", "--lr", "--seed", "--val-fraction", "--threads"}},
       {"Only with --recipe classic (training a map: one-step loss, second stage, bootstrap)",
        {"--recipe", "--model", "--val", "--lr-schedule", "--val-every", "--beta-init",
         "--no-beta-decay", "--warm-start", "--no-warm-start", "--refine", "--refine-iterations",
@@ -569,6 +571,11 @@ void add_fit(CLI::App& app) {
                   "Coulomb friction or quadratic drag when the held-out loss and the amplitude "
                   "check both call for them), viscous, viscous+coulomb or viscous+drag")
       ->check(one_of(dissipation_choices()));
+  cmd->add_option("--record-fit", a->record_fit,
+                  "Trajectories with momenta: auto (default), windows (balanced windows of a "
+                  "few steps) or whole (then the whole record by multiple shooting, q and p "
+                  "observed with their own noise)")
+      ->check(one_of(record_fit_choices()));
   cmd->add_option("--lm-iterations", a->lm_iterations,
                   "Levenberg-Marquardt budget (default 0: scaled to the problem)")
       ->check(kWholeNumber)

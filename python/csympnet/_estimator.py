@@ -87,6 +87,7 @@ class CSympNetID:
         derived_momenta: "set_aside" (default) or "use", as in `csympnet.identify`.
         dissipation: "auto" (default), "viscous", "viscous+coulomb" or "viscous+drag", as in
             `csympnet.identify`.
+        record_fit: "auto" (default), "windows" or "whole", as in `csympnet.identify`.
 
     After fit:
         gamma_           γ̂ in the data's time units, or None when the data do not identify γ
@@ -118,7 +119,7 @@ class CSympNetID:
                  epochs=0, lr=1e-3, lm_iterations=0, val_fraction=0.2, blocks=20, level=0.95,
                  dof_scales="auto", threads=1, init=None, t_default=None, verbose=False,
                  observed=None, derived_momenta="set_aside", time_unit=None,
-                 dissipation="auto"):
+                 dissipation="auto", record_fit="auto"):
         self.core = core
         self.seed = seed
         self.window = window
@@ -139,6 +140,7 @@ class CSympNetID:
         self.derived_momenta = derived_momenta
         self.time_unit = time_unit
         self.dissipation = dissipation
+        self.record_fit = record_fit
 
     # --- scikit-learn's parameter protocol ------------------------------------------------
     @classmethod
@@ -187,7 +189,7 @@ class CSympNetID:
         options = {name: getattr(self, name) for name in (
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
             "val_fraction", "blocks", "level", "dof_scales", "threads", "init",
-            "derived_momenta", "dissipation")}
+            "derived_momenta", "dissipation", "record_fit")}
         options["verbose"] = self.verbose
         t_default = 1.0 if self.t_default is None else self.t_default
         observed, time_unit, unit_source = self.observed, self.time_unit, "time_unit"

@@ -171,7 +171,8 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
              init=None, progress=None, verbose=False, observed=None,
-             derived_momenta="set_aside", time_unit=None, dissipation="auto", u=None):
+             derived_momenta="set_aside", time_unit=None, dissipation="auto", u=None,
+             record_fit="auto"):
     """Identifies γ from trajectories (or pairs) in any units: `csympnet fit` from Python.
 
     Arguments follow PySINDy's order, states first: `identify(z, t)` for one trajectory
@@ -218,6 +219,11 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
     call for them), "viscous" (γ alone), "viscous+coulomb" or "viscous+drag" (that term
     fitted as given, the library core the only candidate). `result.dissipation` lists what
     was found with intervals; the same as `csympnet fit --dissipation`.
+
+    record_fit: how trajectories with momenta are fitted: "auto" (default), "windows" (the
+    balanced windows of a few steps) or "whole" (then the whole record by multiple shooting,
+    q and p observed each with its own noise, and its interval); the same as
+    `csympnet fit --record-fit`.
 
     init: the path of a CSympNet-ID model file to start from (`csympnet fit --init`; written by
     `fit`, `Model.save` or `csympnet.torch.save`): its core, parameters and units are kept (the
@@ -304,6 +310,7 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         "dof_scales": dof_scales,
         "derived_momenta": derived_momenta,
         "dissipation": dissipation,
+        "record_fit": record_fit,
     }
     if core is not None:
         config["core"] = json.loads(_core_spec(core))

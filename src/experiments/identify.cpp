@@ -43,6 +43,11 @@ const std::vector<std::string>& dissipation_choices() {
   return names;
 }
 
+const std::vector<std::string>& record_fit_choices() {
+  static const std::vector<std::string> names = {"auto", "windows", "whole"};
+  return names;
+}
+
 const std::vector<std::string>& identify_loss_names() {
   static const std::vector<std::string> names = {"balanced", "one-step"};
   return names;
@@ -58,6 +63,7 @@ void IdentifyConfig::validate() const {
   kLevelRange.check(level);
   kThreadsRange.check(static_cast<long>(threads));
   choice_index("dissipation", dissipation_choices(), dissipation);
+  choice_index("record_fit", record_fit_choices(), record_fit);
 }
 
 void to_json(nlohmann::json& j, const IdentifyConfig& c) {
@@ -74,7 +80,8 @@ void to_json(nlohmann::json& j, const IdentifyConfig& c) {
        {"level", c.level},
        {"dof_scales", to_string(c.dof_scales)},
        {"derived_momenta", c.use_derived_momenta ? "use" : "set_aside"},
-       {"dissipation", c.dissipation}};
+       {"dissipation", c.dissipation},
+       {"record_fit", c.record_fit}};
   if (c.init) j["init"] = {{"file", c.init->file}, {"checksum", c.init->checksum}};
 }
 
@@ -127,7 +134,7 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
   static const char* const kKeys[] = {
       "core",    "seed", "window",          "balanced",     "normalize", "dof_scales",
       "epochs",  "lr",   "lm_iterations",   "val_fraction", "blocks",    "level",
-      "threads", "init", "derived_momenta", "dissipation"};
+      "threads", "init", "derived_momenta", "dissipation",  "record_fit"};
   for (const auto& item : settings.items()) {
     const bool known = std::any_of(std::begin(kKeys), std::end(kKeys),
                                    [&](const char* k) { return item.key() == k; });
@@ -181,6 +188,8 @@ IdentifyConfig make_identify_config(const nlohmann::json& settings) {
                                          settings.at("derived_momenta").get<std::string>()) == 1;
   if (given("dissipation", text, "a string (one of auto, viscous, viscous+coulomb, viscous+drag)"))
     c.dissipation = settings.at("dissipation").get<std::string>();
+  if (given("record_fit", text, "a string (one of auto, windows, whole)"))
+    c.record_fit = settings.at("record_fit").get<std::string>();
   c.validate();
   // Refused here, before any data are read, as well as in identify() for a config built by
   // hand: friction and drag are terms of the library core.
@@ -496,14 +505,19 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
                              bool confirm_growth_in_reversed_time) {
   using namespace detail;
   IdentifyResult r;
-  const CoreFit f = fit_core(trajs, pairs_only, config, hooks, r);
+  CoreFit f = fit_core(trajs, pairs_only, config, hooks, r);
   const Communicator& comm =
       hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
-  const Candidate& best = f.cand[f.best];
-  const OneStepMap& map = *best.inner.map;
   // γ̂'s interval and the model's quality, in the user's time units.
   const bool assess = !r.stopped && f.lm_fits && r.training.stop_reason != StopReason::kDiverged;
-  if (assess) interval(map, f.split, f.nt, hooks, comm, r);
+  // Trajectories with momenta: the whole record fitted with q and p observed, its interval
+  // (identify_states.cpp); else, or where it gives none, the windows' interval.
+  bool whole = false;
+  if (assess && !pairs_only && whole_record_wanted(f, r.config))
+    whole = fit_whole_record(f, config, hooks, r);
+  const Candidate& best = f.cand[f.best];
+  const OneStepMap& map = *best.inner.map;
+  if (assess && !whole && !r.stopped) interval(map, f.split, f.nt, hooks, comm, r);
   measure_quality(map, f.split, f.facts.d, r);
   if (assess && !r.stopped) run_checks(map, f.split, hooks, r);
   if (confirm_growth_in_reversed_time)

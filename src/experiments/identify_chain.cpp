@@ -53,8 +53,9 @@ namespace {
 void add_piece(const Trajectory& t, const RecordLayout& layout, std::size_t j, Index first,
                Index end, const std::vector<Matrix>& states, Chain& c,
                std::vector<Vector>& starts) {
-  const Index d = c.segs.d, len = end - first;
-  c.segs.q.push_back(t.z.block(0, first, d, len));
+  const Index len = end - first;
+  const Index rows = layout.observed_rows > 0 ? layout.observed_rows : c.segs.d;
+  c.segs.q.push_back(t.z.block(0, first, rows, len));
   c.segs.h.push_back(t.t.segment(first + 1, len - 1) - t.t.segment(first, len - 1));
   const Vector w = layout.observed[j].segment(first, len);
   const auto& blocks = layout.block[j];
@@ -78,6 +79,7 @@ Chain cut_chain(const std::vector<Trajectory>& nt, const RecordLayout& layout, I
                 const std::vector<Matrix>& states) {
   Chain c;
   c.segs.d = nt.front().z.rows() / 2;
+  c.segs.row_weight = layout.row_weight;
   std::vector<Vector> starts;
   for (std::size_t j = 0; j < nt.size(); ++j) {
     const Trajectory& t = nt[j];

@@ -47,6 +47,10 @@ struct RecordLayout {
   std::vector<Vector> observed;           // per trajectory: 1 at a training position, else 0
   std::vector<std::vector<Index>> block;  // per trajectory: each position's training block
   double gap = 0.0;  // a step above this breaks a chain (kWindowGapFactor × the median)
+  // The rows observed per sample: d (positions; 0 means d) or 2d (the whole state, its
+  // momenta observed), and their weights (ShootingSegments::row_weight; empty: 1).
+  Index observed_rows = 0;
+  Vector row_weight;
 };
 RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& split);
 
@@ -112,9 +116,10 @@ struct ChainChange {
 };
 // Greedy selection over a chain (identify_prune.cpp): every change `changes` offers is refitted
 // (θ and the start states, from the current fit), and the one that lowers the information
-// criterion most is made; then again, until none lowers it. `lib`, `linked`'s start states and
-// report, `val_z0` and `states` follow; each trial goes into `trials`. Returns whether anything
-// changed.
+// criterion most is made; then again, until none lowers it (a change that raised it by more
+// than 10 in a round is not tried again: a lazy greedy search). `lib`, `linked`'s start states
+// and report, `val_z0` and `states` follow; each trial goes into `trials`. Returns whether
+// anything changed.
 bool change_while_the_criterion_falls(
     Candidate& lib, LinkedFit& linked, const ShootingSegments& val, Matrix& val_z0,
     const ShootingOptions& options, std::vector<Matrix>& states,

@@ -29,6 +29,7 @@
 #include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "identify_chain.hpp"
+#include "identify_segments.hpp"
 #include "identify_stages.hpp"
 
 namespace csympnet {
@@ -67,25 +68,6 @@ void check_positions(const std::vector<Trajectory>& positions) {
              number_text(lo) + "); expected every coordinate to vary";
     });
   }
-}
-
-// Samples per period of the fastest-crossing coordinate, from crossings of its mean (the whole
-// record when it never crosses): the scale of the local fits and of the segments.
-double samples_per_period(const std::vector<Trajectory>& positions) {
-  double crossings = 0.0, samples = 0.0;
-  for (const Trajectory& t : positions) {
-    samples += static_cast<double>(t.t.size());
-    double most = 0.0;
-    for (Index i = 0; i < t.z.rows(); ++i) {
-      const double mean = t.z.row(i).mean();
-      double c = 0.0;
-      for (Index j = 1; j < t.z.cols(); ++j)
-        if ((t.z(i, j - 1) - mean) * (t.z(i, j) - mean) < 0.0) c += 1.0;
-      most = std::max(most, c);
-    }
-    crossings += most;
-  }
-  return crossings >= 2.0 ? 2.0 * samples / crossings : samples;
 }
 
 // The lag, in samples, at which the positions' autocorrelation first falls below 1/2: the
@@ -177,24 +159,32 @@ void check_velocity_start(const std::vector<Trajectory>& states, double h_median
   }
 }
 
-// The segments of blocks (normalised): consecutive runs of `len` positions, the last run of a
-// stretch joined to the one before when shorter than len / 2. A segment never spans a gap (a
-// step over kWindowGapFactor times the median step, as a rollout window's): a stretch between gaps
-// is cut on its own, and a lone position between two gaps is left out. Returns, per segment, its
-// block and the first column in that block.
-struct Cut {
-  ShootingSegments segs;
-  Index set_aside = 0;                      // positions in stretches under kMinSegmentPositions
-  std::vector<std::pair<Index, Index>> at;  // (block, first column)
-  Matrix z0;                                // starts from the blocks' states
-};
-// The fewest positions a segment may have: 2 fix its hidden start (a position and a momentum
-// per coordinate) and leave no residual; a third per coordinate is the first that tests the
-// dynamics. Shorter stretches are set aside (300 trajectories of 2 positions once ended in a
-// Gauss-Newton matrix that could not be factored).
-inline constexpr Index kMinSegmentPositions = 3;
+}  // namespace
 
-Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len) {
+// Shared with the whole-record fit of records with momenta (identify_states.cpp).
+namespace detail {
+
+// Samples per period of the fastest-crossing coordinate, from crossings of its mean (the whole
+// record when it never crosses): the scale of the local fits and of the segments.
+double samples_per_period(const std::vector<Trajectory>& positions) {
+  double crossings = 0.0, samples = 0.0;
+  for (const Trajectory& t : positions) {
+    samples += static_cast<double>(t.t.size());
+    double most = 0.0;
+    for (Index i = 0; i < t.z.rows(); ++i) {
+      const double mean = t.z.row(i).mean();
+      double c = 0.0;
+      for (Index j = 1; j < t.z.cols(); ++j)
+        if ((t.z(i, j - 1) - mean) * (t.z(i, j) - mean) < 0.0) c += 1.0;
+      most = std::max(most, c);
+    }
+    crossings += most;
+  }
+  return crossings >= 2.0 ? 2.0 * samples / crossings : samples;
+}
+
+Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len, Index rows) {
+  if (rows <= 0) rows = d;
   std::vector<double> steps;
   for (const Trajectory& t : blocks)
     for (Index k = 1; k < t.t.size(); ++k) steps.push_back(t.t(k) - t.t(k - 1));
@@ -208,7 +198,7 @@ Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len) {
   c.segs.d = d;
   std::vector<Vector> starts;
   const auto add = [&](const Trajectory& t, Index b, Index first, Index count) {
-    c.segs.q.push_back(t.z.block(0, first, d, count));
+    c.segs.q.push_back(t.z.block(0, first, rows, count));
     c.segs.h.push_back(t.t.segment(first + 1, count - 1) - t.t.segment(first, count - 1));
     c.segs.block.push_back(b);
     c.at.emplace_back(b, first);
@@ -259,16 +249,9 @@ double largest_sensitivity(const OneStepMap& map, ConstParams theta, const Cut& 
 
 inline constexpr double kMaxSensitivity = 1e6;
 
-// A bound on the hidden start states in the fit's units, where the data have unit spread (the
-// normalisation): a momentum a thousand times the data's is no motion they show.
-inline constexpr double kMaxAbsState = 1e3;
 // The positions fit of a neural candidate core, for the comparison of cores: at most this many
 // Levenberg–Marquardt steps (a G core on a 3-cart record ran its 100, 32 s, to lose).
 inline constexpr long kNeuralComparisonIterations = 40;
-// Each positions fit's Levenberg–Marquardt budget unless the user gives --lm-iterations (the
-// fits end earlier on their convergence rules).
-inline constexpr long kPositionsLmIterations = 100;
-
 // The segment length: the longest of 10, 20, 40, 80 (up to two periods) over which the
 // velocity-start model still follows the training positions, its start states fitted: the
 // loss per residual, corrected for the 2d unknowns a segment fits (× L / (L − 2)), within 25%
@@ -276,12 +259,12 @@ inline constexpr long kPositionsLmIterations = 100;
 // the motion over a long segment (chaotic or poorly started) fits it only in local minima.
 Index segment_length(const OneStepMap& map, ConstParams theta,
                      const std::vector<Trajectory>& blocks, Index d, double spp,
-                     nlohmann::json& tried) {
+                     nlohmann::json& tried, Index rows) {
   const Index longest = std::clamp<Index>(static_cast<Index>(std::lround(2.0 * spp)), 10, 80);
   std::vector<std::pair<Index, double>> losses;
   for (Index len = 10; len <= longest;
        len = len * 2 > longest && len < longest ? longest : 2 * len) {
-    Cut c = cut_segments(blocks, d, len);
+    Cut c = cut_segments(blocks, d, len, rows);
     const double loss = fit_start_states(map, theta, c.segs, c.z0, 30, true, kMaxAbsState);
     const double corrected = loss * static_cast<double>(len) / static_cast<double>(len - 2);
     const double growth = largest_sensitivity(map, theta, c);
@@ -399,11 +382,9 @@ NormalEquations embedded(const NormalEquations& ne, Index p) {
   return out;
 }
 
-// γ̂'s interval (and the modes') from the training segments' normal equations with the start
-// states eliminated: the sandwich of interval(), with the degrees-of-freedom correction for the
-// hidden unknowns and the held-out inflation; r.stopped on an interrupt.
-void positions_interval(const OneStepMap& map, const Cut& train, const detail::BlockSplit& split,
-                        Index n_free, const IdentifyHooks& hooks, IdentifyResult& r) {
+void segments_interval(const OneStepMap& map, const Cut& train, const detail::BlockSplit& split,
+                       Index n_free, bool momenta_observed, const IdentifyHooks& hooks,
+                       IdentifyResult& r) {
   if (hooks.stage) hooks.stage("interval");
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   const Index d = train.segs.d, p = map.n_params();
@@ -432,9 +413,10 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
   } catch (const Error&) {
     // A property of the data (too few positions per hidden start), not an internal failure.
     r.reasons.push_back(
-        "the positions do not fix the parameters: the Gauss-Newton matrix, with each segment's "
-        "start state eliminated, could not be factored even regularised, so no interval can be "
-        "formed (too few positions per segment for its hidden start and the dynamics)");
+        std::string(momenta_observed ? "the states" : "the positions") +
+        " do not fix the parameters: the Gauss-Newton matrix, with each segment's start state "
+        "eliminated, could not be factored even regularised, so no interval can be formed (too "
+        "few samples per segment for its start state and the dynamics)");
     return;
   }
   const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
@@ -442,28 +424,31 @@ void positions_interval(const OneStepMap& map, const Cut& train, const detail::B
                            : 1.0;
   const double inflation = std::sqrt(std::max(1.0, ratio));
   inflate_interval(s, inflation);
+  // With the momenta observed the library core's integrator share is added, as interval() does.
+  const auto& lib = r.choices.value("library", nlohmann::json::object());
+  const bool library =
+      r.config.core.is_object() && r.config.core.value("type", nlohmann::json()) == "library";
+  if (momenta_observed && library && lib.contains("gamma_change_at_twice_the_substeps"))
+    add_integrator(s, lib["gamma_change_at_twice_the_substeps"].get<double>());
   for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
-                    &s.optimisation, &s.rounding})
+                    &s.optimisation, &s.rounding, &s.integrator})
     *v /= tau;
-  s.method += " over hidden start states (positions only)";
+  s.method += momenta_observed ? " of the whole-record fit (q and p observed)"
+                               : " over hidden start states (positions only)";
   r.interval = s;
-  r.choices["positions"]["degrees_of_freedom_factor"] = dof_factor;
+  r.choices[momenta_observed ? "whole_record" : "positions"]["degrees_of_freedom_factor"] =
+      dof_factor;
   const NormalEquations all = embedded(ne, p);
   detail::modal_analysis(
       map, split.train, {&all, n_res, scale, detail::data_scale(split.blocks), inflation, stop}, r);
   // Friction and drag in the user's units are products the gauge of the hidden momenta leaves
-  // alone (W μ, c / W), so they keep their intervals from positions alone.
-  r.dissipation = detail::dissipation_terms_report(map, theta, r.normalization,
-                                                   {&all, n_res, scale, inflation, r.config.level});
+  // alone (W μ, c / W), so they keep their intervals from positions alone; with the momenta
+  // observed the Hamiltonian's terms get theirs too.
+  const HamiltonianIntervalInput shared = {&all, n_res, scale, inflation, r.config.level};
+  if (momenta_observed) r.hamiltonian = hamiltonian_report(map, theta, r.normalization, shared);
+  r.dissipation = detail::dissipation_terms_report(map, theta, r.normalization, shared);
 }
 
-// One candidate's segment fit on the positions: start states from three starts, then θ and the
-// starts jointly (fit_shooting).
-struct SegmentFit {
-  Vector theta;
-  Cut train, val;
-  ShootingReport rep;
-};
 SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& train,
                         const Cut& val, const ShootingOptions& opt) {
   SegmentFit out{theta, train, val, {}};
@@ -474,12 +459,27 @@ SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& t
   return out;
 }
 
-// The gauge: each dof's momentum scale is not in the positions; the learned dof scales are
-// held where the velocity start put them (θ's first n_free parameters are fitted).
 Index free_parameters(const OneStepMap& map, Index d) {
   const Index p = map.n_params();
   return dynamic_cast<const DofScaledMap*>(&map) != nullptr ? p - (d - 1) : p;
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::Cut;
+using detail::cut_segments;
+using detail::fit_segments;
+using detail::free_parameters;
+using detail::kMaxAbsState;
+using detail::kMaxSensitivity;
+using detail::kMinSegmentPositions;
+using detail::kNeuralComparisonIterations;
+using detail::kPositionsLmIterations;
+using detail::samples_per_period;
+using detail::SegmentFit;
+using detail::segments_interval;
 
 // The lag-one correlation of the residuals within the segments, pooled over segments and
 // coordinates, and how many neighbouring pairs it pools.
@@ -644,6 +644,10 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
   return pick;
 }
 
+}  // namespace
+
+namespace detail {
+
 // How often the linking may stop, get a richer force law, and go on (identify_force_law.cpp).
 constexpr int kForceLawRounds = 3;
 
@@ -688,7 +692,7 @@ bool judge_terms_on_chain(detail::Candidate& best, Index d, const Matrix& q_trai
   return changed;
 }
 
-}  // namespace
+}  // namespace detail
 
 namespace detail {
 
@@ -743,7 +747,7 @@ void finish_on_positions(const OneStepMap& map, Candidate& best, Vector theta, C
   for (const auto& t : split.val_blocks) split.blocks.push_back(t);
 
   r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, {});
-  if (!r.stopped) positions_interval(map, train, split, n_free, hooks, r);
+  if (!r.stopped) segments_interval(map, train, split, n_free, false, hooks, r);
   measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
   rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
 

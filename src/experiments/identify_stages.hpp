@@ -243,6 +243,16 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                  const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
                  const FloorTest& floor_test = {});
 
+// Whether a record with momenta is fitted as a whole (config.record_fit: "whole", "windows",
+// or "auto": identify_states.cpp says when).
+bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config);
+// The whole-record fit of a record with momenta (identify_states.cpp): from the windows' fit,
+// θ and every segment's start state fitted to the observed q and p, the segments linked over
+// the record; r's θ, γ̂, losses and interval (with the modes', the Hamiltonian's and the
+// friction's) replaced. Returns whether it gave the interval (or was stopped: r.stopped).
+bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHooks& hooks,
+                      IdentifyResult& r);
+
 // The model in the user's units: the inner map wrapped in the normalisation (unless an init
 // file without one fixed the units).
 Model user_model(const Model& inner, const IdentifyResult& r);

@@ -25,10 +25,15 @@ Index ShootingSegments::n_rows() const {
   return n;
 }
 
+Index ShootingSegments::observed_rows() const {
+  return q.empty() ? d : q.front().rows();
+}
+
 Index ShootingSegments::n_residuals() const {
   if (observed.empty()) return n_rows();
   double n = 0.0;
-  for (std::size_t s = 0; s < q.size(); ++s) n += static_cast<double>(d) * observed[s].sum();
+  const auto o = static_cast<double>(observed_rows());
+  for (std::size_t s = 0; s < q.size(); ++s) n += o * observed[s].sum();
   return static_cast<Index>(std::llround(n));
 }
 
@@ -38,8 +43,13 @@ void ShootingSegments::validate(const std::string& where) const {
           [&] { return where + ": need steps and a block for every segment"; });
   for (std::size_t s = 0; s < q.size(); ++s) {
     const std::string at = where + ": segment " + std::to_string(s);
-    require(q[s].rows() == d && q[s].cols() >= 2,
-            [&] { return at + ": expected d x L positions with L >= 2"; });
+    require((q[s].rows() == d || q[s].rows() == 2 * d) && q[s].rows() == q.front().rows() &&
+                q[s].cols() >= 2,
+            [&] {
+              return at +
+                     ": expected d x L positions (or 2d x L states, the same in every segment) "
+                     "with L >= 2";
+            });
     require(h[s].size() == q[s].cols() - 1, [&] { return at + ": expected L - 1 steps"; });
     require(q[s].allFinite() && h[s].allFinite(), [&] { return at + ": non-finite value"; });
     require((h[s].array() > 0.0).all(), [&] { return at + ": every step must be > 0"; });
@@ -54,6 +64,9 @@ void ShootingSegments::validate(const std::string& where) const {
                               [](Index b) { return b >= 0; }),
               [&] { return at + ": expected one block index >= 0 per position"; });
   }
+  require(row_weight.size() == 0 || (row_weight.size() == observed_rows() &&
+                                     row_weight.allFinite() && (row_weight.array() > 0.0).all()),
+          [&] { return where + ": expected one positive weight per observed row, or none"; });
   require(observed.empty() || observed.size() == q.size(),
           [&] { return where + ": need weights for every segment or none"; });
   require(column_block.empty() || column_block.size() == q.size(),
@@ -86,11 +99,14 @@ Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z
 
 namespace {
 
-// r = P_q z − q, as one column per position flattened position-major; each column times its
-// weight w (empty: all 1).
-Vector position_residuals(const Matrix& z, const Matrix& q, const Vector& w = Vector()) {
+// r = P z − q (P: the observed rows of the state, the positions or all of it), as one column
+// per position flattened position-major; each column times its weight w, each row times its
+// row weight rw (empty: all 1).
+Vector position_residuals(const Matrix& z, const Matrix& q, const Vector& w = Vector(),
+                          const Vector& rw = Vector()) {
   Matrix r = z.topRows(q.rows()) - q;
   if (w.size() > 0) r *= w.asDiagonal();
+  if (rw.size() > 0) r = rw.asDiagonal() * r;
   return Eigen::Map<const Vector>(r.data(), r.size());
 }
 
@@ -130,16 +146,17 @@ void driven_step_rows(const OneStepMap& map, ConstParams theta, const Matrix& z,
 
 // B = ∂r/∂z0 along one segment (the T recursion alone), with its residuals.
 void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
-                          const Matrix& q, const Vector& h, const Vector& w, Matrix& b, Vector& r,
-                          const Matrix& u = Matrix()) {
-  const Index d = q.rows(), len = q.cols(), dim = 2 * d;
+                          const Matrix& q, const Vector& h, const Vector& w, const Vector& rw,
+                          Matrix& b, Vector& r, const Matrix& u = Matrix()) {
+  const Index o = q.rows(), len = q.cols(), dim = z0.size();
   const Matrix z = shooting_states(map, theta, z0, h, u);
-  r = position_residuals(z, q, w);
-  b.resize(len * d, dim);
+  r = position_residuals(z, q, w, rw);
+  b.resize(len * o, dim);
   Matrix t = Matrix::Identity(dim, dim);
   for (Index k = 0; k < len; ++k) {
-    b.middleRows(k * d, d) = t.topRows(d);
-    if (w.size() > 0) b.middleRows(k * d, d) *= w(k);
+    b.middleRows(k * o, o) = t.topRows(o);
+    if (rw.size() > 0) b.middleRows(k * o, o) = rw.asDiagonal() * b.middleRows(k * o, o);
+    if (w.size() > 0) b.middleRows(k * o, o) *= w(k);
     if (k + 1 < len) t = step_jacobian(map, theta, z, h, u, k) * t;
   }
 }
@@ -166,7 +183,7 @@ Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix
     const Matrix z =
         shooting_states(map, theta, z0.col(s), segs.h[static_cast<std::size_t>(s)], segs.inputs(s));
     out.segment(at, q.size()) =
-        position_residuals(z, q, weights_of(segs, static_cast<std::size_t>(s)));
+        position_residuals(z, q, weights_of(segs, static_cast<std::size_t>(s)), segs.row_weight);
     at += q.size();
   }
   return out;
@@ -181,14 +198,18 @@ double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
 
 void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
                                const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
-                               Matrix& b, Vector& r, const Vector& w, const Matrix& u) {
-  const Index d = q.rows(), len = q.cols(), dim = 2 * d, p = map.n_params();
+                               Matrix& b, Vector& r, const Vector& w, const Matrix& u,
+                               const Vector& rw) {
+  const Index o = q.rows(), len = q.cols(), dim = map.dim(), p = map.n_params();
   require(n_free >= 0 && n_free <= p, "shooting: n_free out of range");
   require(w.size() == 0 || w.size() == len, "shooting: expected one weight per position");
+  require(z0.size() == dim && (2 * o == dim || o == dim),
+          "shooting: expected the positions or the whole state observed");
+  require(rw.size() == 0 || rw.size() == o, "shooting: expected one weight per observed row");
   const Matrix z = shooting_states(map, theta, z0, h, u);
-  r = position_residuals(z, q, w);
-  a.setZero(len * d, n_free);
-  b.resize(len * d, dim);
+  r = position_residuals(z, q, w, rw);
+  a.setZero(len * o, n_free);
+  b.resize(len * o, dim);
   // ∂Φ̂/∂θ at each state of the segment but the last: one-step windows (their residuals unused).
   RowMajorMatrix g;
   if (len > 1 && u.rows() > 0) {
@@ -207,8 +228,12 @@ void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const V
   Matrix t = Matrix::Identity(dim, dim);
   for (Index k = 0; k < len; ++k) {
     const double wk = w.size() > 0 ? w(k) : 1.0;
-    a.middleRows(k * d, d) = wk * sens.topRows(d);
-    b.middleRows(k * d, d) = wk * t.topRows(d);
+    a.middleRows(k * o, o) = wk * sens.topRows(o);
+    b.middleRows(k * o, o) = wk * t.topRows(o);
+    if (rw.size() > 0) {
+      a.middleRows(k * o, o) = rw.asDiagonal() * a.middleRows(k * o, o);
+      b.middleRows(k * o, o) = rw.asDiagonal() * b.middleRows(k * o, o);
+    }
     if (k + 1 == len) break;
     const Matrix jac = step_jacobian(map, theta, z, h, u, k);
     sens = jac * sens;
@@ -267,7 +292,7 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
     }
     const auto i = static_cast<std::size_t>(s);
     shooting_segment_jacobian(map, theta, z0.col(s), segs.q[i], segs.h[i], n_free, a, b, r,
-                              weights_of(segs, i), segs.inputs(s));
+                              weights_of(segs, i), segs.inputs(s), segs.row_weight);
     a *= scale;
     b *= scale;
     r *= scale;
@@ -283,13 +308,13 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
     if (with_scores && segs.column_block.empty()) {
       ne.scores.col(segs.block[i]) += ar;
     } else if (with_scores) {
-      const Index d = segs.d, len = segs.q[i].cols();
+      const Index o = segs.observed_rows(), len = segs.q[i].cols();
       for_each_block_run(segs, s, len, [&](Index blk, Index k0, Index k1) {
-        const Index rows = (k1 - k0) * d;
+        const Index rows = (k1 - k0) * o;
         ne.scores.col(blk).noalias() +=
-            a.middleRows(k0 * d, rows).transpose() * r.segment(k0 * d, rows);
+            a.middleRows(k0 * o, rows).transpose() * r.segment(k0 * o, rows);
         x.gb_by_block.emplace_back(
-            blk, b.middleRows(k0 * d, rows).transpose() * r.segment(k0 * d, rows));
+            blk, b.middleRows(k0 * o, rows).transpose() * r.segment(k0 * o, rows));
       });
     }
   }
@@ -355,12 +380,12 @@ namespace {
 // One segment's start state by Levenberg–Marquardt on its 2d unknowns, θ fixed, from z (updated
 // in place). Returns ‖r‖² after (infinite when no start gives a finite rollout).
 double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
-                     const Vector& w, Eigen::Ref<Vector> z, long iterations, double max_abs,
-                     const Matrix& inputs) {
+                     const Vector& w, const Vector& rw, Eigen::Ref<Vector> z, long iterations,
+                     double max_abs, const Matrix& inputs) {
   Matrix b;
   Vector r, r_try;
   double lambda = 1e-3;
-  start_state_jacobian(map, theta, z, q, h, w, b, r, inputs);
+  start_state_jacobian(map, theta, z, q, h, w, rw, b, r, inputs);
   double cost = r.allFinite() && b.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs
                     ? r.squaredNorm()
                     : std::numeric_limits<double>::infinity();
@@ -374,13 +399,14 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
     // A start state beyond the bound is a run along a direction the positions do not fix.
     const double c_try =
         trial.cwiseAbs().maxCoeff() <= max_abs
-            ? position_residuals(shooting_states(map, theta, trial, h, inputs), q, w).squaredNorm()
+            ? position_residuals(shooting_states(map, theta, trial, h, inputs), q, w, rw)
+                  .squaredNorm()
             : std::numeric_limits<double>::infinity();
     if (std::isfinite(c_try) && c_try < cost) {
       z = trial;
       const bool done = cost - c_try <= 1e-14 * cost;
       lambda = std::max(lambda / 3.0, 1e-12);
-      start_state_jacobian(map, theta, z, q, h, w, b, r, inputs);
+      start_state_jacobian(map, theta, z, q, h, w, rw, b, r, inputs);
       cost = r.squaredNorm();
       if (done) break;
     } else {
@@ -444,19 +470,26 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
     const Vector& w = weights_of(segs, i);
     const Matrix& u = segs.inputs(s);
     Vector best = z0.col(s);
-    double best_cost = fit_one_start(map, theta, q, h, w, best, iterations, max_abs, u);
+    const Vector& rw = segs.row_weight;
+    double best_cost = fit_one_start(map, theta, q, h, w, rw, best, iterations, max_abs, u);
     if (!several_starts) {
       z0.col(s) = best;
       continue;
     }
     // The given start, then p = 0 and the p that carries q[0] to q[1] in one step, each from
-    // the first position: the lowest fit is kept.
-    for (int k = 0; k < 2; ++k) {
+    // the first position (with the momenta observed, the first observed state): the lowest fit
+    // is kept.
+    const bool states = q.rows() == 2 * d;
+    for (int k = 0; k < (states ? 1 : 2); ++k) {
       Vector z(2 * d);
-      z.head(d) = q.col(0);
-      z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
-                         : one_step_momentum(map, theta, q.col(0), q.col(1), h(0), u);
-      const double c = fit_one_start(map, theta, q, h, w, z, iterations, max_abs, u);
+      if (states) {
+        z = q.col(0);
+      } else {
+        z.head(d) = q.col(0);
+        z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
+                           : one_step_momentum(map, theta, q.col(0), q.col(1), h(0), u);
+      }
+      const double c = fit_one_start(map, theta, q, h, w, rw, z, iterations, max_abs, u);
       if (c < best_cost) {
         best_cost = c;
         best = z;
@@ -497,6 +530,12 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
 
   ShootingReport rep;
   rep.initial_loss = shooting_loss(map, theta, z0, train);
+  // A start whose rollout is not finite (a trial core far from the data) has no Jacobian.
+  if (!std::isfinite(rep.initial_loss)) {
+    rep.final_loss = rep.val_loss = std::numeric_limits<double>::infinity();
+    rep.message = "the rollout from the start is not finite";
+    return rep;
+  }
   // Every accepted iterate, for the choice at the end.
   struct Iterate {
     long iteration;

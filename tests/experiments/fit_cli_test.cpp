@@ -173,7 +173,10 @@ TEST(FitCli, IdentifyRecipeWritesAVerdictAndAnInterval) {
   const double g = rep["gamma_hat"].get<double>();
   EXPECT_LT(rep["gamma_ci_low"].get<double>(), g);
   EXPECT_GT(rep["gamma_ci_high"].get<double>(), g);
-  EXPECT_EQ(rep["gamma_ci_method"], "cluster-robust sandwich over blocks");
+  // The library core's fit continues over the whole record, q and p observed.
+  EXPECT_EQ(rep["gamma_ci_method"],
+            "cluster-robust sandwich over blocks of the whole-record fit (q and p observed)");
+  EXPECT_TRUE(rep["choices"]["whole_record"]["linking"].is_object());
   // The library core is fitted first; on a clean linear oscillator its q1^2 term is the exact
   // force, so it explains the held-out data to the rounding floor and the neural cores are not
   // trained. The choice, its reason and the Hamiltonian are recorded.

@@ -4,6 +4,9 @@
 // and a joint fit from perturbed parameters that returns to the positions' noise floor.
 #include "csympnet/train/shooting.hpp"
 
+#include <cmath>
+#include <limits>
+
 #include <gtest/gtest.h>
 #include <Eigen/Cholesky>
 
@@ -305,6 +308,101 @@ TEST_P(ShootingTest, StateFromPositionsIsTheStateReached) {
   EXPECT_THROW(state_from_positions(*map, theta, Matrix::Zero(d, 1), Vector::Zero(1)), Error);
   EXPECT_THROW(
       state_from_positions(*map, theta, Matrix::Zero(d + 1, 3), Vector::LinSpaced(3, 0, 1)), Error);
+}
+
+// The whole state observed (an errors-in-variables fit of a record with momenta): segments of
+// 2d rows, the momenta's rows weighted against the positions', at random parameters, weights and
+// data. The Jacobians against central differences, the eliminated system against the Schur
+// complement of the explicit JᵀJ, and from states the map made, the start states recovered.
+TEST_P(ShootingTest, ObservedStatesWithRowWeights) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2, dim = 2 * d, p = map->n_params();
+  Rng rng(35, GetParam());
+  const Vector theta = random_theta(*map, rng, 0.3, 0.5);
+  Matrix z0;
+  ShootingSegments segs = random_segments(d, 4, rng, z0);
+  for (Matrix& q : segs.q) q = rng.normal_matrix(dim, q.cols(), 1.0);
+  segs.row_weight = Vector::Ones(dim);
+  for (Index i = d; i < dim; ++i) segs.row_weight(i) = rng.uniform(0.2, 3.0);
+  segs.validate();
+  ASSERT_EQ(segs.observed_rows(), dim);
+  ASSERT_EQ(segs.n_residuals(), segs.n_rows());
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    ShootingSegments one = one_segment(segs, i);
+    one.row_weight = segs.row_weight;
+    const Vector start = z0.col(s);
+    const auto jac = [&](const Vector& th, const Vector& z, bool want_a) -> Matrix {
+      RowMajorMatrix a;
+      Matrix b;
+      Vector r;
+      shooting_segment_jacobian(*map, th, z, segs.q[i], segs.h[i], p, a, b, r, Vector(), Matrix(),
+                                segs.row_weight);
+      EXPECT_LE((r - shooting_residuals(*map, th, z, one)).norm(), 1e-12 * (1.0 + r.norm()));
+      return want_a ? Matrix(a) : b;
+    };
+    const auto c1 =
+        check_jacobian([&](const Vector& th) { return shooting_residuals(*map, th, start, one); },
+                       [&](const Vector& th) { return jac(th, start, true); }, theta);
+    EXPECT_TRUE(c1.ok()) << c1.report("observed states: dr/dtheta");
+    const auto c2 =
+        check_jacobian([&](const Vector& z) { return shooting_residuals(*map, theta, z, one); },
+                       [&](const Vector& z) { return jac(theta, z, false); }, start);
+    EXPECT_TRUE(c2.ok()) << c2.report("observed states: dr/dz0");
+  }
+  const double scale = 0.29;
+  const NormalEquations ne = shooting_normal_equations(*map, theta, z0, segs, p, scale, false);
+  const Index n = segs.n_rows(), cols = p + dim * segs.size();
+  Matrix j = Matrix::Zero(n, cols);
+  Index row = 0;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    RowMajorMatrix a;
+    Matrix b;
+    Vector rs;
+    shooting_segment_jacobian(*map, theta, z0.col(s), segs.q[i], segs.h[i], p, a, b, rs, Vector(),
+                              Matrix(), segs.row_weight);
+    j.block(row, 0, a.rows(), p) = a;
+    j.block(row, p + dim * s, b.rows(), dim) = b;
+    row += rs.size();
+  }
+  ASSERT_EQ(row, n);
+  j *= scale;
+  const Matrix full = j.transpose() * j;
+  const Matrix tz = full.topRightCorner(p, cols - p);
+  const Eigen::LDLT<Matrix> f(full.bottomRightCorner(cols - p, cols - p));
+  const Matrix schur = full.topLeftCorner(p, p) - tz * f.solve(tz.transpose());
+  const Matrix lower_ne = ne.a.triangularView<Eigen::Lower>();
+  const Matrix lower_schur = schur.triangularView<Eigen::Lower>();
+  EXPECT_LE((lower_ne - lower_schur).norm(), 1e-9 * full.norm());
+  // States the map made: every start state recovered from a far guess (θ known).
+  Matrix z_true = z0;
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    segs.q[i] = shooting_states(*map, theta, z_true.col(s), segs.h[i]);
+  }
+  Matrix guess = z_true + 0.5 * rng.normal_matrix(dim, segs.size(), 1.0);
+  EXPECT_LT(fit_start_states(*map, theta, segs, guess, 30, true), 1e-20);
+  EXPECT_LE((guess - z_true).norm(), 1e-7 * z_true.norm());
+}
+
+// A start whose rollout is not finite (a trial core far from the data) ends the fit at once,
+// with an infinite loss and θ unchanged, instead of failing on its Jacobian.
+TEST_P(ShootingTest, ANonFiniteStartEndsTheFitWithAnInfiniteLoss) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2;
+  Rng rng(36, GetParam());
+  Vector theta = random_theta(*map, rng, 0.3, 0.5);
+  Matrix z0;
+  const ShootingSegments segs = random_segments(d, 3, rng, z0);
+  z0(0, 1) = std::numeric_limits<double>::infinity();
+  const Vector before = theta;
+  Matrix val_z0;
+  const ShootingReport rep =
+      fit_shooting(*map, theta, z0, segs, val_z0, ShootingSegments(), ShootingOptions());
+  EXPECT_FALSE(std::isfinite(rep.final_loss));
+  EXPECT_EQ(rep.iterations, 0);
+  EXPECT_EQ(theta, before);
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -43,6 +43,8 @@ std::string to_string(DofScales s);
 const std::vector<std::string>& dof_scales_names();  // in enum order
 // The spellings of IdentifyConfig::dissipation, "auto" first.
 const std::vector<std::string>& dissipation_choices();
+// The names of IdentifyConfig::record_fit.
+const std::vector<std::string>& record_fit_choices();
 
 // Refuses any other text with an OptionError for `key` naming the accepted spellings.
 DofScales parse_dof_scales(const std::string& text, const char* key = "dof_scales");
@@ -112,6 +114,11 @@ struct IdentifyConfig {
   // "viscous+coulomb" or "viscous+drag" (that term on every coordinate, fitted as given, with
   // the library core as the only candidate). The CLI's --dissipation, Python's dissipation=.
   std::string dissipation = "auto";
+  // How a record of trajectories with momenta is fitted (docs/identification.md, "Records with
+  // momenta"): "windows" (the balanced windows of a few steps), "whole" (then the whole record
+  // by multiple shooting with q and p observed, each with its own noise, and its interval), or
+  // "auto". The CLI's --record-fit, Python's record_fit=.
+  std::string record_fit = "auto";
   // Refuses a value out of its range with an OptionError naming it by its key.
   void validate() const;
 };

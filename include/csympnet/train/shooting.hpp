@@ -37,7 +37,7 @@ namespace csympnet {
 
 struct ShootingSegments {
   Index d = 0;
-  std::vector<Matrix> q;     // per segment, d × L observed positions (L ≥ 2)
+  std::vector<Matrix> q;     // per segment, d × L observed positions (L ≥ 2), or 2d × L states
   std::vector<Vector> h;     // per segment, the L − 1 steps
   std::vector<Index> block;  // per segment, its resampling block (0 … B − 1)
   // Optional (empty: every position observed): per segment, L weights, 1 where the position
@@ -50,11 +50,19 @@ struct ShootingSegments {
   // Optional (empty: a free map): per segment, the known inputs of each step, 2m × (L − 1) (per
   // step the input at its start, then at its end: models/inputs.hpp), for a driven map.
   std::vector<Matrix> u;
+  // Optional (empty: all 1): one weight per observed row, multiplying its residuals. With the
+  // momenta observed (q holding 2d rows, the whole state), the momenta's rows are weighted
+  // against the positions' by the ratio of their noise levels (an errors-in-variables fit).
+  Vector row_weight;
+  // The rows observed per position: d (positions; the residuals above) or 2d (the whole state,
+  // positions and momenta: r = z − y).
+  Index observed_rows() const;
   // Segment s's inputs, or an empty matrix (no inputs).
   const Matrix& inputs(Index s) const;
   Index size() const { return static_cast<Index>(q.size()); }
-  Index n_residuals() const;  // d × the observed positions: the residuals the loss averages
-  Index n_rows() const;       // Σ_s L_s d: the residual vector's length, unobserved rows included
+  Index n_residuals() const;  // observed rows × the observed positions: what the loss averages
+  Index n_rows()
+      const;  // Σ_s L_s × observed rows: the residual vector's length, unobserved ones too
   double weight(Index s, Index k) const {
     return observed.empty() ? 1.0 : observed[static_cast<std::size_t>(s)](k);
   }
@@ -82,13 +90,14 @@ Vector shooting_residuals(const OneStepMap& map, ConstParams theta, const Matrix
 double shooting_loss(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                      const ShootingSegments& segs);
 
-// One segment's residuals r (L·d), A = ∂r/∂θ restricted to θ's first n_free parameters
-// (L·d × n_free, row-major) and B = ∂r/∂z0 (L·d × 2d); each position's rows multiplied by its
-// weight w (L; empty: all 1), so an unobserved position's rows are 0.
+// One segment's residuals r (L·o, o = q's rows: d positions or 2d states), A = ∂r/∂θ
+// restricted to θ's first n_free parameters (L·o × n_free, row-major) and B = ∂r/∂z0
+// (L·o × 2d); each position's rows multiplied by its weight w (L; empty: all 1), so an
+// unobserved position's rows are 0, and each observed row by its row weight rw (o; empty: 1).
 void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
                                const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
                                Matrix& b, Vector& r, const Vector& w = Vector(),
-                               const Matrix& u = Matrix());
+                               const Matrix& u = Matrix(), const Vector& rw = Vector());
 
 // The normal equations with the start states eliminated, at (θ, z0), over θ's first n_free
 // parameters, all scaled by `scale` (as window_normal_equations): a = the reduced JᵀJ (lower

@@ -222,3 +222,30 @@ def test_lists_of_trajectories_of_different_d_are_refused_naming_the_entry():
                                          r"\(d = 1\)"):
         csympnet.identify([np.hstack([one, one]), np.hstack([two, two])], [t, t],
                           observed="states")
+
+
+def test_record_fit_one_answer_in_python_the_estimator_and_the_cli(tmp_path, cli):
+    """A record with momenta and the library core: the whole record is fitted (q and p
+    observed) unless record_fit="windows"; the estimator and `csympnet fit --record-fit` give
+    the same bits; a misspelt value is refused by name."""
+    t, z = damped_oscillator(n=400, sigma=1e-2, seed=3)
+    core = {"type": "library", "terms": ["q1^2"]}
+    states = dict(core=core, observed="states")
+    whole = csympnet.identify(z, t, **states)
+    windows = csympnet.identify(z, t, **states, record_fit="windows")
+    assert "whole_record" in whole.report["choices"]
+    assert "whole_record" not in windows.report["choices"]
+    assert whole.report["config"]["record_fit"] == "auto"
+    assert whole.interval[0] <= 0.1 <= whole.interval[1]
+    assert whole.interval[1] - whole.interval[0] < windows.interval[1] - windows.interval[0]
+    est = csympnet.CSympNetID(**states, record_fit="windows").fit(z, t)
+    assert est.gamma_ == windows.gamma
+    data = tmp_path / "rec.csv"
+    np.savetxt(data, np.c_[t, z], delimiter=",", header="t,q1,p1", comments="")
+    out = tmp_path / "fit"
+    subprocess.run([cli, "fit", str(data), "--out", str(out), "--core", json.dumps(core),
+                    "--record-fit", "windows", "-q"], check=True, capture_output=True)
+    rep = json.loads((out / "report.json").read_text())
+    assert rep["gamma_hat"] == windows.gamma
+    with pytest.raises(ValueError, match="record_fit"):
+        csympnet.identify(z, t, **states, record_fit="segments")

@@ -96,15 +96,26 @@ bool richer_force_law_on_chain(Candidate& lib, Index d, const Matrix& q,
                              val, watching_damping(*current.inner.map, opt));
   if (next.report.stopped) throw_if_stop_requested("the richer force laws on the chain");
   nlohmann::json trials = nlohmann::json::array();
-  const bool changed = change_while_the_criterion_falls(
-      current, next, val, vz, options, states,
-      [d, &q](const Candidate& c) { return additions(c, d, q); }, trials);
+  // The additions, and each coordinate's powers of degree 3 and 4 swapped for a sin/cos pair
+  // (a quartic chosen over the short segments before may stop following a pendulum's swing
+  // over the longer ones).
+  const auto changes = [d, &q](const Candidate& c) {
+    std::vector<ChainChange> out = additions(c, d, q);
+    for (PolynomialAlternative& alt : periodic_alternatives(c, d, q)) {
+      const Index fewer = c.inner.n_params() - alt.candidate.inner.n_params();
+      out.push_back({alt.replaced, std::move(alt.candidate), fewer, alt.by});
+    }
+    return out;
+  };
+  const bool changed =
+      change_while_the_criterion_falls(current, next, val, vz, options, states, changes, trials);
   nlohmann::json record = {
       {"rule",
        "where the linking stopped, each coordinate's missing powers 3 and 4 and its sin/cos pair "
-       "are fitted over the next stage's longer segments, and the best addition is made while "
-       "it lowers the Bayesian information criterion there, n log(loss) + parameters x log n; "
-       "the linking then goes on with the richer core"},
+       "(added, or in place of its powers 3 and 4) are fitted over the next stage's longer "
+       "segments, and the best change is made while it lowers the Bayesian information "
+       "criterion there, n log(loss) + parameters x log n; the linking then goes on with the "
+       "richer core"},
       {"positions_per_segment", 4 * linked.per_piece},
       {"residuals", next.chain.segs.n_residuals()},
       {"loss_of_the_core_as_selected", next.report.final_loss},

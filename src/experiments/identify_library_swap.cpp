@@ -136,6 +136,107 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
   return out;
 }
 
+std::vector<PolynomialAlternative> periodic_alternatives(const Candidate& lib, Index d,
+                                                         const Matrix& q) {
+  std::vector<PolynomialAlternative> out;
+  const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());
+  if (map == nullptr || q.cols() < 8) return out;
+  const std::vector<LibraryTerm>& terms = map->terms();
+  for (Index i = 0; i < d; ++i) {
+    const auto on_i = [i](const LibraryTerm& t) { return t.i == i && t.j < 0; };
+    const bool has_wave = std::any_of(terms.begin(), terms.end(), [&](const LibraryTerm& t) {
+      return on_i(t) && t.has_wavenumber();
+    });
+    std::vector<std::size_t> removed;
+    for (std::size_t k = 0; k < terms.size(); ++k)
+      if (on_i(terms[k]) && terms[k].shape == TermShape::kPower && terms[k].power >= 3)
+        removed.push_back(k);
+    if (has_wave || removed.empty()) continue;
+    LibraryTerm base;
+    base.i = i;
+    base.j = -1;
+    base.shape = TermShape::kPower;
+    base.power = 1;
+    LibraryTerm sin_t = base, cos_t = base;
+    sin_t.shape = TermShape::kSin;
+    cos_t.shape = TermShape::kCos;
+    const LibraryTerm square = power_of(base, 2);
+    std::vector<LibraryTerm> next;
+    for (std::size_t k = 0; k < terms.size(); ++k)
+      if (std::find(removed.begin(), removed.end(), k) == removed.end()) next.push_back(terms[k]);
+    // The linear and square terms take what the pair adds below degree 3 (sin(κu) ≈ κu − …).
+    for (const LibraryTerm& t : {base, square})
+      if (std::find(next.begin(), next.end(), t) == next.end()) next.push_back(t);
+    next.push_back(sin_t);
+    next.push_back(cos_t);
+    // The removed powers' potential by q_i, q_i², sin(κ q_i) and cos(κ q_i) over the positions,
+    // κ such that the argument spans about ±1 (least squares, centred: the constant is no term).
+    const Index n = q.cols();
+    const double span = (q.row(i).array() - q.row(i).mean()).abs().maxCoeff();
+    const double kappa = span > 0.0 ? 1.0 / span : 1.0;
+    Matrix x(n, 4);
+    Vector y = Vector::Zero(n);
+    for (Index s = 0; s < n; ++s) {
+      const double u = q(i, s);
+      x(s, 0) = u;
+      x(s, 1) = term_values(square, u, 0.0).phi;
+      x(s, 2) = term_values(sin_t, u, kappa).phi;
+      x(s, 3) = term_values(cos_t, u, kappa).phi;
+      for (std::size_t k : removed)
+        y(s) += lib.theta(map->coefficient_index(static_cast<Index>(k))) *
+                term_values(terms[k], u, 0.0).phi;
+    }
+    const Matrix xc = x.rowwise() - x.colwise().mean();
+    const Vector fit = xc.colPivHouseholderQr().solve(y - Vector::Ones(n) * y.mean());
+    if (!fit.allFinite()) continue;
+    nlohmann::json core = lib.core;
+    core["terms"] = nlohmann::json::array();
+    for (const LibraryTerm& t : next) core["terms"].push_back(term_name(t));
+    PolynomialAlternative alt;
+    for (std::size_t k : removed)
+      alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
+    alt.by = term_name(sin_t) + ", " + term_name(cos_t);
+    Candidate& c = alt.candidate;
+    c.core = core;
+    c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", core}, {"beta_init", 0.1}});
+    const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
+    require(nm != nullptr, "library: the alternative is not a library map");
+    c.theta = Vector::Zero(c.inner.n_params());
+    c.theta.head(nm->mass_size()) = lib.theta.head(map->mass_size());
+    c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
+    for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
+      c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
+    // The new map's terms as parsed from their names (a parsed sinusoid's fields other than
+    // its shape and argument may differ from the ones built here): found by name.
+    const std::vector<LibraryTerm>& placed = nm->terms();
+    const auto index_of = [&](const LibraryTerm& t) {
+      const std::string name = term_name(t);
+      const auto at = std::find_if(placed.begin(), placed.end(),
+                                   [&](const LibraryTerm& u) { return term_name(u) == name; });
+      require(at != placed.end(), "library: a term of the alternative was not placed");
+      return static_cast<Index>(at - placed.begin());
+    };
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+      if (std::find(removed.begin(), removed.end(), k) != removed.end()) continue;
+      const Index to = index_of(terms[k]);
+      c.theta(nm->coefficient_index(to)) = lib.theta(map->coefficient_index(static_cast<Index>(k)));
+      if (nm->wavenumber_index(to) >= 0)
+        c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(static_cast<Index>(k)));
+    }
+    c.theta(nm->coefficient_index(index_of(base))) += fit(0);
+    c.theta(nm->coefficient_index(index_of(square))) += fit(1);
+    c.theta(nm->coefficient_index(index_of(sin_t))) = fit(2);
+    c.theta(nm->coefficient_index(index_of(cos_t))) = fit(3);
+    for (const LibraryTerm& t : {sin_t, cos_t})
+      if (nm->wavenumber_index(index_of(t)) >= 0)
+        c.theta(nm->wavenumber_index(index_of(t))) = kappa;
+    c.training = lib.training;
+    c.pretrained = true;
+    out.push_back(std::move(alt));
+  }
+  return out;
+}
+
 Candidate library_with(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next,
                        const std::vector<DissipationTerm>& next_dissipation) {
   const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(lib.inner.map.get());

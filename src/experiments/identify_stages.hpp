@@ -268,6 +268,12 @@ struct PolynomialAlternative {
 };
 std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib, Index d,
                                                            const Matrix& q);
+// The reverse, for a coordinate without a sinusoid: its powers of degree 3 and 4 replaced by a
+// sin/cos pair of it (its linear and square terms kept or added), the pair started from the
+// powers' potential fitted by q_i, q_i², sin(κ q_i) and cos(κ q_i) over the positions q,
+// κ = 1 / the coordinate's half range.
+std::vector<PolynomialAlternative> periodic_alternatives(const Candidate& lib, Index d,
+                                                         const Matrix& q);
 // The library candidate with a linear term qI for every coordinate that has none (coefficients
 // 0, the rest of θ as it was), or none when it has them all or is no library core. From
 // positions alone the rest position is not known: the normalisation's shift (the mean of the

@@ -12,6 +12,7 @@
 #include "csympnet/core/rng.hpp"
 #include "csympnet/experiments/identify.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/models/potential_library.hpp"
 
 namespace csympnet::detail {
 namespace {
@@ -50,6 +51,44 @@ TEST(IdentifyPrune, DroppingATermAtZeroLeavesTheMapAsItWas) {
     const Matrix after = x.inner.map->forward(x.theta, z, h, nullptr);
     EXPECT_LE((after - before).cwiseAbs().maxCoeff(), 1e-14 * (1.0 + before.norm()));
   }
+}
+
+// Property at random θ: a coordinate's powers 3 and 4 swapped for a sin/cos pair of it
+// (periodic_alternatives, offered where a chain breaks) keep every other parameter, and the
+// new potential matches the old one over the positions up to a constant, to within 2% of the
+// removed powers' own spread (a quartic over ±1 of the pair's argument is nearly a cosine).
+TEST(IdentifyPrune, APeriodicAlternativeStartsFromThePowersPotential) {
+  Rng rng(32, "periodic-swap");
+  for (int draw = 0; draw < 6; ++draw) {
+    Candidate c = library(2, {"q1^2", "q2^2", "(q1-q2)^2", "q1^3", "q1^4", "q2^4"});
+    c.inner.map->init_params(rng, c.theta);
+    c.theta += 0.2 * rng.normal_matrix(c.theta.size(), 1, 1.0);
+    const Matrix q = rng.normal_matrix(2, 300, 0.5);
+    const std::vector<PolynomialAlternative> alts = periodic_alternatives(c, 2, q);
+    ASSERT_EQ(alts.size(), 2u);  // q1's powers 3 and 4, and q2's power 4
+    EXPECT_EQ(alts[0].replaced, "q1^3, q1^4");
+    EXPECT_EQ(alts[0].by, "sin(q1), cos(q1)");
+    EXPECT_EQ(alts[1].replaced, "q2^4");
+    const Candidate& x = alts[0].candidate;
+    EXPECT_EQ(x.inner.map->damping_rate(x.theta), c.inner.map->damping_rate(c.theta));
+    const Index mass = lib_map(c).mass_size();
+    EXPECT_EQ(x.theta.head(mass), c.theta.head(mass));
+    const HamiltonianLibraryMap& m = lib_map(c);
+    Vector diff(q.cols()), removed(q.cols());
+    for (Index s = 0; s < q.cols(); ++s) {
+      diff(s) =
+          lib_map(x).potential(x.theta, q.col(s).data()) - m.potential(c.theta, q.col(s).data());
+      removed(s) = 0.0;
+      for (Index k : {3, 4})
+        removed(s) += c.theta(m.coefficient_index(k)) *
+                      term_values(m.terms()[static_cast<std::size_t>(k)], q(0, s), 0.0).phi;
+    }
+    const auto spread = [](const Vector& v) { return (v.array() - v.mean()).matrix().norm(); };
+    EXPECT_LE(spread(diff), 0.02 * spread(removed)) << "draw " << draw;
+  }
+  // A coordinate that already has a sinusoid, or no power above 2, is offered nothing.
+  const Candidate plain = library(1, {"q1^2", "sin(q1)", "cos(q1)", "q1^4"});
+  EXPECT_TRUE(periodic_alternatives(plain, 1, Matrix::Ones(1, 20)).empty());
 }
 
 TEST(IdentifyPrune, BicChangeWeighsTheLossAgainstTheParameters) {

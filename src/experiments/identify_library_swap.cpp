@@ -1,5 +1,7 @@
-// Parsimony on what was observed: a sin/cos or exp group of the library core replaced by the
-// powers of the same argument (identify_prune.cpp compares the two on the linked positions).
+// Swaps between term families of the library core, each started from the replaced terms'
+// potential: a sin/cos or exp group for the powers of the same argument (parsimony, judged on
+// the linked record by identify_prune.cpp), and a coordinate's powers 3 and 4 for a sin/cos
+// pair of it (offered where a chain breaks, identify_force_law.cpp).
 #include <algorithm>
 #include <optional>
 
@@ -24,6 +26,67 @@ LibraryTerm power_of(const LibraryTerm& arg, int n) {
   t.shape = TermShape::kPower;
   t.power = n;
   return t;
+}
+
+// A swap's candidate: the library core of `next` (lib's core otherwise), θ from lib's: the
+// mass, the damping, the dissipation rates in their order, and the coefficient and wavenumber
+// of each of lib's terms but the `replaced` ones; the new terms' start is the caller's.
+struct Swapped {
+  PolynomialAlternative alt;
+  const HamiltonianLibraryMap* map = nullptr;
+  // A term's place in the new map, found by name (a parsed term's fields other than its shape
+  // and argument may differ from one built here).
+  Index index_of(const LibraryTerm& t) const {
+    const std::string name = term_name(t);
+    const auto& placed = map->terms();
+    const auto at = std::find_if(placed.begin(), placed.end(),
+                                 [&](const LibraryTerm& u) { return term_name(u) == name; });
+    require(at != placed.end(), "library: a term of the alternative was not placed");
+    return static_cast<Index>(at - placed.begin());
+  }
+  double& coefficient(const LibraryTerm& t) {
+    return alt.candidate.theta(map->coefficient_index(index_of(t)));
+  }
+};
+Swapped swapped_candidate(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next,
+                          const std::vector<std::size_t>& replaced) {
+  const auto& old = dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map);
+  const std::vector<LibraryTerm>& terms = old.terms();
+  const auto is_replaced = [&](std::size_t k) {
+    return std::find(replaced.begin(), replaced.end(), k) != replaced.end();
+  };
+  Swapped out;
+  PolynomialAlternative& alt = out.alt;
+  for (std::size_t k : replaced)
+    alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
+  for (const LibraryTerm& t : next)
+    if (std::find(terms.begin(), terms.end(), t) == terms.end())
+      alt.by += (alt.by.empty() ? "" : ", ") + term_name(t);
+  Candidate& c = alt.candidate;
+  c.core = lib.core;
+  c.core["terms"] = nlohmann::json::array();
+  for (const LibraryTerm& t : next) c.core["terms"].push_back(term_name(t));
+  c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
+  out.map = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
+  require(out.map != nullptr, "library: the alternative is not a library map");
+  const HamiltonianLibraryMap& nm = *out.map;
+  c.theta = Vector::Zero(c.inner.n_params());
+  c.theta.head(nm.mass_size()) = lib.theta.head(old.mass_size());
+  c.theta(*nm.damping_param_index()) = lib.theta(*old.damping_param_index());
+  // The core (copied) keeps the dissipation terms in their order: their rates carry over.
+  for (Index k = 0; k < static_cast<Index>(old.dissipation().size()); ++k)
+    c.theta(nm.dissipation_index(k)) = lib.theta(old.dissipation_index(k));
+  for (std::size_t k = 0; k < terms.size(); ++k) {
+    if (is_replaced(k)) continue;
+    const Index to = out.index_of(terms[k]);
+    const auto from = static_cast<Index>(k);
+    c.theta(nm.coefficient_index(to)) = lib.theta(old.coefficient_index(from));
+    if (nm.wavenumber_index(to) >= 0)
+      c.theta(nm.wavenumber_index(to)) = lib.theta(old.wavenumber_index(from));
+  }
+  c.training = lib.training;
+  c.pretrained = true;
+  return out;
 }
 
 }  // namespace
@@ -86,52 +149,20 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     const Matrix xc = x.rowwise() - x.colwise().mean();
     const Vector poly = xc.colPivHouseholderQr().solve(y - ones * y.mean());
     if (!poly.allFinite()) continue;
-    nlohmann::json core = lib.core;
-    core["terms"] = nlohmann::json::array();
-    for (const LibraryTerm& t : next) core["terms"].push_back(term_name(t));
-    PolynomialAlternative alt;
-    alt.replaced = "";
-    for (std::size_t k : group)
-      alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
-    for (const LibraryTerm& t : next)
-      if (std::find(terms.begin(), terms.end(), t) == terms.end())
-        alt.by += (alt.by.empty() ? "" : ", ") + term_name(t);
-    Candidate& c = alt.candidate;
-    c.core = core;
-    c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", core}, {"beta_init", 0.1}});
-    const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
-    require(nm != nullptr, "library: the alternative is not a library map");
-    c.theta = Vector::Zero(c.inner.n_params());
-    c.theta.head(nm->mass_size()) = lib.theta.head(map->mass_size());
-    c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
-    // The core (copied) keeps the dissipation terms in their order: their rates carry over.
-    for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
-      c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
-    const auto index_of = [&](const LibraryTerm& t) {
-      return static_cast<Index>(std::find(next.begin(), next.end(), t) - next.begin());
-    };
-    for (std::size_t k = 0; k < terms.size(); ++k) {
-      if (std::find(group.begin(), group.end(), k) != group.end()) continue;
-      const Index to = index_of(terms[k]);
-      c.theta(nm->coefficient_index(to)) = lib.theta(map->coefficient_index(static_cast<Index>(k)));
-      if (nm->wavenumber_index(to) >= 0)
-        c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(static_cast<Index>(k)));
-    }
+    Swapped sw = swapped_candidate(lib, d, next, group);
     for (int p = 1; p <= 4; ++p) {
       if (difference && p == 1) {
         LibraryTerm a = base, b = base;
         a.j = -1;
         b.i = arg.j;
         b.j = -1;
-        c.theta(nm->coefficient_index(index_of(a))) += poly(0) * scales(arg.i);
-        c.theta(nm->coefficient_index(index_of(b))) -= poly(0) * scales(arg.j);
+        sw.coefficient(a) += poly(0) * scales(arg.i);
+        sw.coefficient(b) -= poly(0) * scales(arg.j);
         continue;
       }
-      c.theta(nm->coefficient_index(index_of(power_of(base, p)))) += poly(p - 1);
+      sw.coefficient(power_of(base, p)) += poly(p - 1);
     }
-    c.training = lib.training;
-    c.pretrained = true;
-    out.push_back(std::move(alt));
+    out.push_back(std::move(sw.alt));
   }
   return out;
 }
@@ -189,50 +220,15 @@ std::vector<PolynomialAlternative> periodic_alternatives(const Candidate& lib, I
     const Matrix xc = x.rowwise() - x.colwise().mean();
     const Vector fit = xc.colPivHouseholderQr().solve(y - Vector::Ones(n) * y.mean());
     if (!fit.allFinite()) continue;
-    nlohmann::json core = lib.core;
-    core["terms"] = nlohmann::json::array();
-    for (const LibraryTerm& t : next) core["terms"].push_back(term_name(t));
-    PolynomialAlternative alt;
-    for (std::size_t k : removed)
-      alt.replaced += (alt.replaced.empty() ? "" : ", ") + term_name(terms[k]);
-    alt.by = term_name(sin_t) + ", " + term_name(cos_t);
-    Candidate& c = alt.candidate;
-    c.core = core;
-    c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", core}, {"beta_init", 0.1}});
-    const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
-    require(nm != nullptr, "library: the alternative is not a library map");
-    c.theta = Vector::Zero(c.inner.n_params());
-    c.theta.head(nm->mass_size()) = lib.theta.head(map->mass_size());
-    c.theta(*nm->damping_param_index()) = lib.theta(*map->damping_param_index());
-    for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k)
-      c.theta(nm->dissipation_index(k)) = lib.theta(map->dissipation_index(k));
-    // The new map's terms as parsed from their names (a parsed sinusoid's fields other than
-    // its shape and argument may differ from the ones built here): found by name.
-    const std::vector<LibraryTerm>& placed = nm->terms();
-    const auto index_of = [&](const LibraryTerm& t) {
-      const std::string name = term_name(t);
-      const auto at = std::find_if(placed.begin(), placed.end(),
-                                   [&](const LibraryTerm& u) { return term_name(u) == name; });
-      require(at != placed.end(), "library: a term of the alternative was not placed");
-      return static_cast<Index>(at - placed.begin());
-    };
-    for (std::size_t k = 0; k < terms.size(); ++k) {
-      if (std::find(removed.begin(), removed.end(), k) != removed.end()) continue;
-      const Index to = index_of(terms[k]);
-      c.theta(nm->coefficient_index(to)) = lib.theta(map->coefficient_index(static_cast<Index>(k)));
-      if (nm->wavenumber_index(to) >= 0)
-        c.theta(nm->wavenumber_index(to)) = lib.theta(map->wavenumber_index(static_cast<Index>(k)));
-    }
-    c.theta(nm->coefficient_index(index_of(base))) += fit(0);
-    c.theta(nm->coefficient_index(index_of(square))) += fit(1);
-    c.theta(nm->coefficient_index(index_of(sin_t))) = fit(2);
-    c.theta(nm->coefficient_index(index_of(cos_t))) = fit(3);
+    Swapped sw = swapped_candidate(lib, d, next, removed);
+    sw.coefficient(base) += fit(0);
+    sw.coefficient(square) += fit(1);
+    sw.coefficient(sin_t) = fit(2);
+    sw.coefficient(cos_t) = fit(3);
+    Vector& theta = sw.alt.candidate.theta;
     for (const LibraryTerm& t : {sin_t, cos_t})
-      if (nm->wavenumber_index(index_of(t)) >= 0)
-        c.theta(nm->wavenumber_index(index_of(t))) = kappa;
-    c.training = lib.training;
-    c.pretrained = true;
-    out.push_back(std::move(alt));
+      if (const Index w = sw.map->wavenumber_index(sw.index_of(t)); w >= 0) theta(w) = kappa;
+    out.push_back(std::move(sw.alt));
   }
   return out;
 }

@@ -67,7 +67,7 @@ TEST(IdentifyPrune, APeriodicAlternativeStartsFromThePowersPotential) {
     const std::vector<PolynomialAlternative> alts = periodic_alternatives(c, 2, q);
     ASSERT_EQ(alts.size(), 2u);  // q1's powers 3 and 4, and q2's power 4
     EXPECT_EQ(alts[0].replaced, "q1^3, q1^4");
-    EXPECT_EQ(alts[0].by, "sin(q1), cos(q1)");
+    EXPECT_EQ(alts[0].by, "q1, sin(q1), cos(q1)");  // the candidate had no q1: added
     EXPECT_EQ(alts[1].replaced, "q2^4");
     const Candidate& x = alts[0].candidate;
     EXPECT_EQ(x.inner.map->damping_rate(x.theta), c.inner.map->damping_rate(c.theta));

@@ -511,7 +511,7 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   // γ̂'s interval and the model's quality, in the user's time units.
   const bool assess = !r.stopped && f.lm_fits && r.training.stop_reason != StopReason::kDiverged;
   // Trajectories with momenta: the whole record fitted with q and p observed, its interval
-  // (identify_states.cpp); else, or where it gives none, the windows' interval.
+  // (identify_states.cpp); else the windows' interval.
   bool whole = false;
   if (assess && !pairs_only && whole_record_wanted(f, r.config))
     whole = fit_whole_record(f, config, hooks, r);

@@ -249,7 +249,9 @@ bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config);
 // The whole-record fit of a record with momenta (identify_states.cpp): from the windows' fit,
 // θ and every segment's start state fitted to the observed q and p, the segments linked over
 // the record; r's θ, γ̂, losses and interval (with the modes', the Hamiltonian's and the
-// friction's) replaced. Returns whether it gave the interval (or was stopped: r.stopped).
+// friction's) replaced, or the reason there is no interval in r.reasons. Returns whether the
+// whole record was fitted: false when no block has segments to fit (the windows' interval
+// then stands) or on a stop request (r.stopped).
 bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHooks& hooks,
                       IdentifyResult& r);
 

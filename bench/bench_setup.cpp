@@ -6,7 +6,7 @@
 #include "../src/models/sympnet.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/generate.hpp"
-#include "csympnet/experiments/run.hpp"
+#include "csympnet/paper/run.hpp"
 
 #include <algorithm>
 #include <optional>

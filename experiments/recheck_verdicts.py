@@ -5,7 +5,7 @@ detections (violation cases) and the verdicts that follow.
 
 The checks' statistics (p-values, effects) do not depend on the thresholds, so a run made with
 one set of thresholds tells what any other set would have decided, case by case. The rules
-are those of src/experiments/model_checks.cpp and identify_assess.cpp:
+are those of src/identify/model_checks.cpp and identify_assess.cpp:
 
   - a check fails when it is applicable, its p-value is below alpha and its effect exceeds its
     threshold (dissipation: as the report says, unless the fit in reversed time found growth

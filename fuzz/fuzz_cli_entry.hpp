@@ -13,7 +13,7 @@
 
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/experiments/suite.hpp"
+#include "csympnet/paper/suite.hpp"
 #include "fuzz_entry.hpp"
 
 namespace csympnet::fuzz {

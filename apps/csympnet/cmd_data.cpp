@@ -8,7 +8,7 @@
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
-#include "csympnet/experiments/run.hpp"
+#include "csympnet/paper/run.hpp"
 #include "csympnet/io/files.hpp"
 #include "system_options.hpp"
 

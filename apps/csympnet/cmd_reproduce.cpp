@@ -21,9 +21,9 @@
 
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/experiments/outputs.hpp"
-#include "csympnet/experiments/reproduce.hpp"
-#include "csympnet/experiments/summary.hpp"
+#include "csympnet/paper/outputs.hpp"
+#include "csympnet/paper/reproduce.hpp"
+#include "csympnet/paper/summary.hpp"
 #include "csympnet/io/files.hpp"
 #include "interrupt.hpp"
 #include "system_options.hpp"

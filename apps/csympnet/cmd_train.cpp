@@ -14,10 +14,10 @@
 #include "csympnet/core/communicator.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
-#include "csympnet/experiments/fit.hpp"
-#include "csympnet/experiments/identify.hpp"
-#include "csympnet/experiments/outputs.hpp"
-#include "csympnet/experiments/time_unit.hpp"
+#include "csympnet/paper/fit.hpp"
+#include "csympnet/identify/identify.hpp"
+#include "csympnet/paper/outputs.hpp"
+#include "csympnet/identify/time_unit.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
 #include "csympnet/train/loss.hpp"
@@ -46,7 +46,7 @@ struct FitArgs {
   bool no_beta_decay = false, quiet = false, force = false;
   bool warm_start;
   int threads = 1;
-  // fit's identification recipe (experiments/identify.hpp), or "classic" (`classic` above),
+  // fit's identification recipe (identify/identify.hpp), or "classic" (`classic` above),
   // which `train` always uses.
   std::string recipe = "identify";
   long window = 0, lm_iterations = 0, blocks = 20;

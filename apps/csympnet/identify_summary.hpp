@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "csympnet/experiments/identify.hpp"
-#include "csympnet/experiments/time_unit.hpp"
+#include "csympnet/identify/identify.hpp"
+#include "csympnet/identify/time_unit.hpp"
 
 namespace csympnet::cli {
 

@@ -9,7 +9,7 @@
 #include <CLI/CLI.hpp>
 
 #include "csympnet/core/options.hpp"
-#include "csympnet/experiments/preset.hpp"
+#include "csympnet/paper/preset.hpp"
 
 namespace csympnet::cli {
 

@@ -9,8 +9,8 @@
 
 #include <csympnet/core/rng.hpp>
 #include <csympnet/core/types.hpp>
-#include <csympnet/experiments/preset.hpp>
-#include <csympnet/experiments/run.hpp>
+#include <csympnet/paper/preset.hpp>
+#include <csympnet/paper/run.hpp>
 #include <csympnet/models/model.hpp>
 #include <csympnet/train/trainer.hpp>
 

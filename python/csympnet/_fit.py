@@ -13,12 +13,12 @@ from ._data import REFERENCES, Trajectory, _system_overrides, systems, trajector
 from ._forms import as_trajectories
 from ._model import Model
 
-# The models fit_pairs() trains (experiments/fit.hpp); csympnet.run trains every model type.
+# The models fit_pairs() trains (paper/fit.hpp); csympnet.run trains every model type.
 FIT_MODELS = tuple(_core.fit_models())
 # The library's spellings (train/trainer.hpp), in the order Python's messages have named them:
 # ("cosine", "constant").
 LR_SCHEDULES = tuple(sorted(_core.lr_schedules(), reverse=True))
-# The choices of refine= ("auto", then the methods) and run's recipe= (experiments/run.hpp).
+# The choices of refine= ("auto", then the methods) and run's recipe= (paper/run.hpp).
 REFINE_CHOICES = tuple(_core.refine_choices())
 RUN_RECIPES = tuple(_core.run_recipes())
 
@@ -177,7 +177,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     val_every = _checks.integer("val_every", val_every)
     if not isinstance(warm_start, (bool, np.bool_)):
         raise TypeError(f"warm_start: expected True or False, got {type(warm_start).__name__}")
-    # The spellings are the library's (experiments/fit.hpp); "auto" leaves the choice to it.
+    # The spellings are the library's (paper/fit.hpp); "auto" leaves the choice to it.
     _checks.choice("refine", refine, REFINE_CHOICES)
     if refine_iterations is not None:
         refine_iterations = _checks.integer("refine_iterations", refine_iterations)

@@ -13,7 +13,7 @@ from ._verbose import progress_callback
 from ._data import trajectory_list
 from ._model import Model
 
-# The library's spellings (experiments/identify.hpp).
+# The library's spellings (identify/identify.hpp).
 LOSSES = tuple(_core.identify_losses())
 DOF_SCALES = tuple(_core.dof_scales())
 
@@ -52,7 +52,7 @@ TIME_UNITS = tuple(_core.time_units())
 
 
 def _time_unit_report(report, time_unit, source):
-    """The report's "time_unit" object (experiments/time_unit.hpp), added in place."""
+    """The report's "time_unit" object (identify/time_unit.hpp), added in place."""
     report["time_unit"] = json.loads(_core.time_unit_report(time_unit, source, json.dumps(report)))
     return report
 

@@ -8,7 +8,7 @@
 #include "convert.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/data/generate.hpp"
-#include "csympnet/experiments/run.hpp"
+#include "csympnet/paper/run.hpp"
 #include "csympnet/integrators/reference.hpp"
 #include "csympnet/models/model.hpp"
 #include "model_binding.hpp"

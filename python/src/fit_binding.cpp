@@ -1,5 +1,5 @@
-// Training from Python: fit_pairs (experiments/fit.hpp, what `csympnet fit` runs) and run
-// (experiments/run.hpp, what `csympnet run` runs). Training releases the GIL; the progress
+// Training from Python: fit_pairs (paper/fit.hpp, what `csympnet fit` runs) and run
+// (paper/run.hpp, what `csympnet run` runs). Training releases the GIL; the progress
 // callback takes it back only after each validation, to call the user's callback and to let
 // Ctrl-C stop the run.
 #include <limits>
@@ -10,10 +10,10 @@
 #include <pybind11/stl.h>
 
 #include "convert.hpp"
-#include "csympnet/experiments/fit.hpp"
-#include "csympnet/experiments/identify.hpp"
-#include "csympnet/experiments/run.hpp"
-#include "csympnet/experiments/time_unit.hpp"
+#include "csympnet/paper/fit.hpp"
+#include "csympnet/identify/identify.hpp"
+#include "csympnet/paper/run.hpp"
+#include "csympnet/identify/time_unit.hpp"
 #include "model_binding.hpp"
 
 namespace csympnet::py_binding {
@@ -266,7 +266,7 @@ void bind_fit(py::module_& m) {
   m.def("identify", &identify_trajectories, py::arg("trajectories"), py::arg("pairs_only"),
         py::arg("config_json"), py::arg("progress"), py::arg("positions_only") = false,
         py::arg("inputs") = py::none(),
-        "identify() of experiments/identify.hpp (wrapped by csympnet.identify).");
+        "identify() of identify/identify.hpp (wrapped by csympnet.identify).");
   // The spellings of the second stage's methods and LM's solvers (train/refine.hpp).
   m.def("refine_methods", &refine_method_names);
   m.def("refine_choices", &refine_choice_names);  // "auto", then refine_methods()
@@ -276,7 +276,7 @@ void bind_fit(py::module_& m) {
   m.def("dof_scales", &dof_scales_names);
   m.def("identify_losses", &identify_loss_names);
   m.def("run_recipes", &run_recipe_names);
-  // The clock's unit (experiments/time_unit.hpp): its names, the unit a time column's name
+  // The clock's unit (identify/time_unit.hpp): its names, the unit a time column's name
   // states, and the report's "time_unit" object for an identification's report.
   m.def("time_units", &time_unit_names);
   m.def("time_unit_of_column", [](const std::string& column) -> std::optional<std::string> {
@@ -336,7 +336,7 @@ void bind_fit(py::module_& m) {
       py::arg("warm_start"), py::arg("refine"), py::arg("refine_iterations"),
       py::arg("refine_solver"), py::arg("bootstrap"), py::arg("groups"), py::arg("threads"),
       py::arg("chunk_pairs"), py::arg("batch_size"), py::arg("progress"),
-      "fit_pairs() of experiments/fit.hpp (wrapped by csympnet.fit).");
+      "fit_pairs() of paper/fit.hpp (wrapped by csympnet.fit).");
   m.def(
       "run",
       [](const std::string& preset, const std::string& model, std::uint64_t seed,
@@ -353,7 +353,7 @@ void bind_fit(py::module_& m) {
       py::arg("lr"), py::arg("lr_schedule"), py::arg("val_every"), py::arg("sigma"),
       py::arg("beta_init"), py::arg("decay_damping"), py::arg("reference"), py::arg("system_json"),
       py::arg("threads"), py::arg("progress"),
-      "run_experiment() of experiments/run.hpp (wrapped by csympnet.run).");
+      "run_experiment() of paper/run.hpp (wrapped by csympnet.run).");
 }
 
 }  // namespace csympnet::py_binding

@@ -10,7 +10,7 @@
 #include "../src/models/g_sympnet.hpp"
 #include "../src/models/la_sympnet.hpp"
 #include "csympnet/core/error.hpp"
-#include "csympnet/experiments/run.hpp"
+#include "csympnet/paper/run.hpp"
 #include "csympnet/train/loss.hpp"
 #include "support/random_data.hpp"
 #include "support/same_bits.hpp"

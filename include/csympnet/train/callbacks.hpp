@@ -1,6 +1,6 @@
 // What every optimiser in train/ does between its iterations, written once: AdamW
 // (trainer.hpp), csympnet's Levenberg–Marquardt and Ceres' LM and L-BFGS (refine.hpp), and
-// identification's LM on windows (experiments/identify.hpp) all hand their iterates to one
+// identification's LM on windows (identify/identify.hpp) all hand their iterates to one
 // IterationMonitor, which
 //   - keeps the iterate with the lowest validation loss (the paper's checkpoint rule: strict
 //     '<', so the earliest of equal losses is kept and runs are reproducible),

@@ -20,6 +20,11 @@
 
 namespace csympnet {
 
+// The share of the data held out for validation, in every recipe (paper/fit.hpp's classic fit,
+// identify/identify.hpp's blocks): below 1% or above 99% leaves one side nearly empty on the
+// data sizes they are for.
+inline constexpr OptionRange kValFractionRange{.key = "val_fraction", .lo = 0.01, .hi = 0.99};
+
 // The learning rate over the budget: constant (the paper's recipe) or cosine, which anneals
 // it from adamw.lr to lr_final_fraction·adamw.lr (a switchable improvement: it removes the
 // late oscillation of a constant rate; docs/training.md). Spelt "constant", "cosine".

@@ -1,0 +1,669 @@
+#include "csympnet/identify/identify.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <sstream>
+
+#include "../kernels/registry.hpp"
+#include "csympnet/core/error.hpp"
+#include "csympnet/core/options.hpp"
+#include "csympnet/core/stop.hpp"
+#include "csympnet/identify/model_checks.hpp"
+#include "csympnet/io/files.hpp"
+#include "csympnet/io/json_text.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/models/model_file.hpp"
+#include "csympnet/models/normalized_map.hpp"
+#include "csympnet/train/window_loss.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet {
+
+const std::vector<std::string>& dof_scales_names() {
+  static const std::vector<std::string> names = {"auto", "learned", "fixed"};
+  return names;
+}
+
+std::string to_string(DofScales s) {
+  return dof_scales_names().at(static_cast<std::size_t>(s));
+}
+
+DofScales parse_dof_scales(const std::string& text, const char* key) {
+  return static_cast<DofScales>(choice_index(key, dof_scales_names(), text));
+}
+
+const std::vector<std::string>& dissipation_choices() {
+  static const std::vector<std::string> names = {"auto", "viscous", "viscous+coulomb",
+                                                 "viscous+drag"};
+  return names;
+}
+
+const std::vector<std::string>& record_fit_choices() {
+  static const std::vector<std::string> names = {"auto", "windows", "whole"};
+  return names;
+}
+
+const std::vector<std::string>& identify_loss_names() {
+  static const std::vector<std::string> names = {"balanced", "one-step"};
+  return names;
+}
+
+void IdentifyConfig::validate() const {
+  kWindowRange.check(window);
+  kIdentifyEpochsRange.check(epochs);
+  kLmIterationsRange.check(lm_iterations);
+  kLrRange.check(lr);
+  kValFractionRange.check(val_fraction);
+  kBlocksRange.check(target_blocks);
+  kLevelRange.check(level);
+  kThreadsRange.check(static_cast<long>(threads));
+  choice_index("dissipation", dissipation_choices(), dissipation);
+  choice_index("record_fit", record_fit_choices(), record_fit);
+}
+
+void to_json(nlohmann::json& j, const IdentifyConfig& c) {
+  j = {{"core", c.core},
+       {"seed", c.seed},
+       {"window", c.window},
+       {"balanced", c.balanced},
+       {"normalize", c.normalize},
+       {"epochs", c.epochs},
+       {"lr", c.lr},
+       {"lm_iterations", c.lm_iterations},
+       {"val_fraction", c.val_fraction},
+       {"target_blocks", c.target_blocks},
+       {"level", c.level},
+       {"dof_scales", to_string(c.dof_scales)},
+       {"derived_momenta", c.use_derived_momenta ? "use" : "set_aside"},
+       {"dissipation", c.dissipation},
+       {"record_fit", c.record_fit}};
+  if (c.init) j["init"] = {{"file", c.init->file}, {"checksum", c.init->checksum}};
+}
+
+std::shared_ptr<const IdentifyInit> load_identify_init(const std::string& file) {
+  auto out = std::make_shared<IdentifyInit>();
+  out->file = file;
+  nlohmann::json doc;
+  SavedModel saved;
+  try {
+    doc = parse_json_text(read_text_file(file), file, "a csympnet model file", model_file_limits());
+    saved = model_from_json(doc, file);
+  } catch (const OptionError&) {
+    throw;
+  } catch (const StopRequested&) {
+    throw;
+  } catch (const Error& e) {
+    throw OptionError("init", e.what());
+  }
+  // model_from_json checked the checksum against the contents: it is the file's.
+  out->checksum = doc.at("checksum").get<std::string>();
+  out->model = std::move(saved.model);
+  out->theta = std::move(saved.theta);
+  const nlohmann::json& spec = doc.at("model");
+  if (!out->model.is_map() || out->model.type() != "csympnet" ||
+      !out->model.damping_param_index().has_value())
+    throw OptionError("init", file + ": a model of type '" + out->model.type() +
+                                  "'; expected a CSympNet-ID (\"type\": \"csympnet\"), the "
+                                  "one-step map with a damping rate that fit refines");
+  // The rules --beta-init follows hold for a model file's β too (a β of 0 used to surface
+  // later as a failure blamed on the data).
+  const double beta = out->theta(*out->model.damping_param_index());
+  if (beta == 0.0)
+    throw OptionError("init", file +
+                                  ": its damping parameter beta is 0; expected a nonzero beta, "
+                                  "as --beta-init requires (a model csympnet fitted)");
+  out->inner_spec = spec;
+  if (spec.contains("normalization")) {
+    Normalization n;
+    from_json(spec.at("normalization"), n);
+    out->normalization = std::move(n);
+    out->inner_spec.erase("normalization");
+  }
+  out->dof_scales = out->inner_spec.contains("dof_scales");
+  return out;
+}
+
+IdentifyConfig make_identify_config(const nlohmann::json& settings) {
+  require(settings.is_object(),
+          [&] { return "identify settings: expected a JSON object, got " + settings.dump(); });
+  static const char* const kKeys[] = {
+      "core",    "seed", "window",          "balanced",     "normalize", "dof_scales",
+      "epochs",  "lr",   "lm_iterations",   "val_fraction", "blocks",    "level",
+      "threads", "init", "derived_momenta", "dissipation",  "record_fit"};
+  for (const auto& item : settings.items()) {
+    const bool known = std::any_of(std::begin(kKeys), std::end(kKeys),
+                                   [&](const char* k) { return item.key() == k; });
+    require(known, [&] { return "identify settings: unknown key '" + item.key() + "'"; });
+  }
+  // Each value of the JSON kind its key needs, refused by name otherwise (nlohmann's own
+  // type_error.302 named neither the key nor what was expected).
+  using J = nlohmann::json;
+  const auto given = [&](const char* key, const std::function<bool(const J&)>& is_kind,
+                         const std::string& expected) {
+    if (!settings.contains(key)) return false;
+    const J& v = settings.at(key);
+    // What was given, in words without braces (an OptionError's problem spells {key}).
+    const std::string what = v.is_null()     ? "null"
+                             : v.is_string() ? "a string"
+                             : v.is_array()  ? "a list"
+                             : v.is_object() ? "an object"
+                                             : v.dump();
+    if (!is_kind(v)) throw OptionError(key, "got " + what + "; expected " + expected);
+    return true;
+  };
+  const auto whole = [](const J& v) { return v.is_number_integer(); };
+  const auto number = [](const J& v) { return v.is_number(); };
+  const auto flag = [](const J& v) { return v.is_boolean(); };
+  const auto text = [](const J& v) { return v.is_string(); };
+  IdentifyConfig c;
+  if (settings.contains("core")) c.core = settings.at("core");
+  if (given(
+          "seed",
+          [](const J& v) {
+            return v.is_number_unsigned() || (v.is_number_integer() && v.get<std::int64_t>() >= 0);
+          },
+          "a whole number >= 0"))
+    c.seed = settings.at("seed").get<std::uint64_t>();
+  if (given("window", whole, "a whole number")) c.window = settings.at("window");
+  if (given("balanced", flag, "true or false")) c.balanced = settings.at("balanced");
+  if (given("normalize", flag, "true or false")) c.normalize = settings.at("normalize");
+  if (given("dof_scales", text, "a string (one of auto, learned, fixed)"))
+    c.dof_scales = parse_dof_scales(settings.at("dof_scales").get<std::string>());
+  if (given("epochs", whole, "a whole number")) c.epochs = settings.at("epochs");
+  if (given("lr", number, "a number")) c.lr = settings.at("lr");
+  if (given("lm_iterations", whole, "a whole number"))
+    c.lm_iterations = settings.at("lm_iterations");
+  if (given("val_fraction", number, "a number")) c.val_fraction = settings.at("val_fraction");
+  if (given("blocks", whole, "a whole number")) c.target_blocks = settings.at("blocks");
+  if (given("level", number, "a number")) c.level = settings.at("level");
+  if (given("threads", whole, "a whole number")) c.threads = settings.at("threads");
+  static const std::vector<std::string> kDerived = {"set_aside", "use"};
+  if (given("derived_momenta", text, "a string (one of set_aside, use)"))
+    c.use_derived_momenta = choice_index("derived_momenta", kDerived,
+                                         settings.at("derived_momenta").get<std::string>()) == 1;
+  if (given("dissipation", text, "a string (one of auto, viscous, viscous+coulomb, viscous+drag)"))
+    c.dissipation = settings.at("dissipation").get<std::string>();
+  if (given("record_fit", text, "a string (one of auto, windows, whole)"))
+    c.record_fit = settings.at("record_fit").get<std::string>();
+  c.validate();
+  // Refused here, before any data are read, as well as in identify() for a config built by
+  // hand: friction and drag are terms of the library core.
+  const bool forced = c.dissipation != "auto" && c.dissipation != "viscous";
+  const bool library_core =
+      c.core.is_null() || (c.core.is_object() && c.core.value("type", "") == "library");
+  const bool with_init = settings.contains("init") && !settings.at("init").is_null();
+  if (forced && (!library_core || with_init))
+    throw OptionError("dissipation", "'" + c.dissipation +
+                                         "' is a term of the library core; expected core "
+                                         "library (or none given) and no init file, or "
+                                         "dissipation auto or viscous");
+  if (settings.contains("init") && !settings.at("init").is_null()) {
+    if (!settings.at("init").is_string() || settings.at("init").get<std::string>().empty())
+      throw OptionError("init", "expected the path of a model file");
+    c.init = load_identify_init(settings.at("init").get<std::string>());
+    const IdentifyInit& init = *c.init;
+    if (!c.core.is_null())
+      throw OptionError(
+          "core", "cannot be given with {init}: the model file " + init.file + " fixes the core");
+    if (!c.normalize && init.normalization)
+      throw OptionError("normalize", "cannot be switched off with {init}: the model file " +
+                                         init.file +
+                                         " carries a normalisation, and its parameters are in "
+                                         "those units");
+    const bool learned = c.dof_scales == DofScales::kLearned;
+    if (c.dof_scales != DofScales::kAuto && learned != init.dof_scales)
+      throw OptionError("dof_scales",
+                        "'" + to_string(c.dof_scales) + "' disagrees with {init}: " + init.file +
+                            (init.dof_scales ? " learns" : " has no") + " per-dof momentum scales");
+  }
+  return c;
+}
+
+void to_json(nlohmann::json& j, const IdentifyQuality& q) {
+  j = {{"train_loss", q.train_loss},
+       {"val_loss", q.val_loss},
+       {"val_relative_residual", q.val_relative_residual},
+       {"null_ratio", q.null_ratio},
+       {"structure_residual_max", q.structure_residual_max}};
+}
+
+namespace {
+
+IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_only,
+                             const IdentifyConfig& config, const IdentifyHooks& hooks,
+                             bool confirm_growth);
+
+// A given library core is read by the model files' reader (read_library_spec), so it refuses
+// what a model file refuses, in the same words. Of its keys the identification takes only the
+// terms (none: it selects them); the integrator, the mass matrix and the scales it chooses
+// itself (identification.md, "The Hamiltonian-library core"), so a key that sets them is
+// refused rather than ignored.
+void check_given_library_core(const nlohmann::json& core, Index d) {
+  if (!core.is_object() || !core.contains("type") || core.at("type") != "library") return;
+  read_library_spec(core, d, "core");
+  require(!core.contains("inputs"), [] {
+    return std::string(
+        "core: key 'inputs' is for a record with known inputs (columns u1..um, Python's u=); "
+        "this record has none");
+  });
+  for (const char* key : {"order", "substeps", "mass", "coordinate_scales"})
+    require(!core.contains(key), [&] {
+      return std::string("core: key '") + key +
+             "' is chosen by the identification (order 6, substeps refined until the "
+             "integrator's error is below the residuals, the mass matrix and the scales from "
+             "the data); expected only the keys type, terms and dissipation (a model file of such "
+             "a core is refitted with init)";
+    });
+}
+
+void check_inputs(const std::vector<Trajectory>& trajs, const IdentifyConfig& config) {
+  config.validate();
+  require(!trajs.empty(), "fit: no data");
+  for (std::size_t k = 0; k < trajs.size(); ++k)
+    trajs[k].validate("fit: trajectory " + std::to_string(k));
+  const Index d = trajs.front().z.rows() / 2;
+  check_given_library_core(config.core, d);
+  // Friction and drag are terms of the library core: a forced one needs that core.
+  const bool forced =
+      config.dissipation == "viscous+coulomb" || config.dissipation == "viscous+drag";
+  const bool library_core = config.core.is_null() ||
+                            (config.core.is_object() && config.core.value("type", "") == "library");
+  if (forced && (!library_core || config.init != nullptr))
+    throw OptionError("dissipation",
+                      "'" + config.dissipation +
+                          "' is a term of the library core; expected core library (or none "
+                          "given) and no init file, or dissipation auto or viscous");
+  const IdentifyInit* init = config.init.get();
+  if (init != nullptr && init->model.dim() != 2 * d)
+    throw OptionError("init",
+                      init->file + " is a model of d = " + std::to_string(init->model.dim() / 2) +
+                          " degrees of freedom, but the data have d = " + std::to_string(d) +
+                          "; expected a model of the data's dimension");
+}
+
+// The init file's map at its parameters must predict finite states on these data: a
+// coefficient or wavenumber of 1e300 otherwise surfaced later as an error blamed on the data
+// ("windows: non-finite value", or a Gauss-Newton matrix that could not be factored).
+void check_init_start(const detail::Candidate& x, const detail::CandidateFit& fit,
+                      const detail::BlockSplit& split, const IdentifyInit& init) {
+  const double loss = fit.loss(x, split.train);
+  if (std::isfinite(loss)) return;
+  throw OptionError("init", init.file +
+                                ": the model's map at the file's parameters predicts non-finite "
+                                "states from these data (training loss " +
+                                number_text(loss) +
+                                " at the start); expected a model whose parameters give finite "
+                                "predictions on data like these (its coefficients or "
+                                "wavenumbers may be far too large)");
+}
+
+}  // namespace
+
+IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
+                        const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  // Momenta computed from noisy positions would hand the damping rate their differenced noise
+  // and the filter's bias: they are set aside, and the positions fitted alone.
+  if (!pairs_only) {
+    check_inputs(trajs, config);
+    ModelCheck derived = measured_momenta_check(trajs, false);
+    if (derived.applicable && !derived.passed && !config.use_derived_momenta) {
+      std::vector<Trajectory> positions;
+      for (const Trajectory& t : trajs) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), {}});
+      IdentifyResult r = identify_positions(positions, config, hooks);
+      derived.passed = true;
+      derived.sentence = derived.sentence.substr(0, derived.sentence.find(": they carry")) +
+                         "): they would hand the damping rate the positions' noise differenced "
+                         "and the filter's bias, so they were set aside and the momenta fitted "
+                         "as hidden states from the positions alone";
+      r.checks.front() = derived;
+      r.choices["momenta_set_aside"] =
+          "the given momenta are a filter of the noisy positions (check measured_momenta)";
+      return r;
+    }
+  }
+  return identify_once(trajs, pairs_only, config, hooks, true);
+}
+
+namespace detail {
+
+// The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its
+// end, t' = t_end − t. Growing motion, dp/dt = −∇V + g p (g > 0), is then decaying motion at
+// the rate g (with p' = −p, a change of sign the model's core absorbs).
+std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs) {
+  std::vector<Trajectory> out;
+  for (const Trajectory& t : trajs) {
+    Trajectory r;
+    r.t = (t.t(t.t.size() - 1) - t.t.array()).reverse().matrix();
+    r.z = t.z.rowwise().reverse();
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+// When the dissipation check finds growing motion, the same pipeline runs on the record in
+// reversed time, where growing motion decays: its γ̂ and interval are the growth rate and its
+// interval. If the reversed record seems to grow too, no process explains both directions:
+// the "growth" is a bias (noise at small damping), and the check is left undecided.
+void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
+                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
+  ModelCheck* growth = nullptr;
+  for (ModelCheck& k : r.checks)
+    if (k.name == "dissipation" && !k.passed) growth = &k;
+  if (growth == nullptr || r.stopped || config.init != nullptr) return;
+  if (hooks.stage) hooks.stage("growth rate (the same fit in reversed time)");
+  const IdentifyResult rev = refit(reversed_in_time(trajs));
+  if (rev.stopped) {
+    r.stopped = true;
+    return;
+  }
+  nlohmann::json g = {{"rate", rev.gamma}, {"verdict", rev.verdict}, {"reasons", rev.reasons}};
+  bool grows_backwards = false;
+  for (const ModelCheck& k : rev.checks)
+    grows_backwards = grows_backwards || (k.name == "dissipation" && !k.passed);
+  std::ostringstream s;
+  s.precision(4);
+  if (grows_backwards) {
+    growth->passed = true;
+    growth->applicable = false;
+    s << "not decided: the record seems to gain energy in both directions of time, which no "
+         "energy input explains (a bias of noise at weak damping); signed rate "
+      << growth->details.value("signed_rate", 0.0) << " forwards";
+    growth->sentence = s.str();
+  } else if (rev.identified) {
+    g["interval"] = {rev.interval->low, rev.interval->high};
+    s << "the motion grows: energy is being added (negative damping or forcing), at a rate "
+      << rev.gamma << " [" << rev.interval->low << ", " << rev.interval->high
+      << "] per time unit (the same fit in reversed time, where the motion decays)";
+    growth->sentence = s.str();
+    growth->effect = rev.gamma;
+  }
+  growth->details["reversed_time_fit"] = g;
+}
+
+CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
+                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
+                 const FloorTest& floor_test) {
+  check_inputs(trajs, config);
+  r.config = config;
+  const Communicator& comm =
+      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
+  CoreFit f;
+  f.facts = inspect_data(trajs, pairs_only);
+  r.data = f.facts.summary;
+  f.nt = choose_units(trajs, pairs_only, config, r);
+  // A property of the data alone, reported whatever the fit does.
+  r.checks = {measured_momenta_check(f.nt, pairs_only)};
+  if (config.use_derived_momenta && !r.checks.front().passed) {
+    ModelCheck& k = r.checks.front();
+    k.passed = true;
+    k.sentence +=
+        " (used as given, derived_momenta = use: the interval does not account for "
+        "that bias)";
+  }
+  f.split = split_blocks(f.nt, pairs_only, config, r.choices);
+  // Progress reports γ̂ in the data's time units, not the normalised ones the fit works in.
+  IdentifyHooks user_hooks = hooks;
+  if (hooks.progress) {
+    const double tau = r.normalization.time_scale;
+    user_hooks.progress = [&hooks, tau](const TrainProgress& p) {
+      TrainProgress q = p;
+      q.gamma_hat = p.gamma_hat / tau;
+      return hooks.progress(q);
+    };
+  }
+
+  // Candidate cores: the given one, the init file's, or an LA and a G core chosen between by
+  // validation loss.
+  IdentifyConfig& c = r.config;
+  if (config.init != nullptr) c.core = config.init->inner_spec.at("core");
+  const bool choosing = c.core.is_null();
+  const bool library_given = !choosing && config.init == nullptr && c.core.is_object() &&
+                             c.core.contains("type") && c.core.at("type") == "library";
+  // A forced friction or drag term lives in the library core alone: the only candidate.
+  const bool forced_dissipation = c.dissipation != "auto" && c.dissipation != "viscous";
+  std::vector<nlohmann::json> cores =
+      choosing && !forced_dissipation ? default_cores(f.facts.d, f.facts.varying_steps)
+      : library_given || choosing     ? std::vector<nlohmann::json>{}
+                                      : std::vector<nlohmann::json>{c.core};
+  if (hooks.stage) hooks.stage("warm start");
+  const double beta_init = warm_start(f.split, f.facts.d, config, r);
+  CandidateFit fit(config, c, user_hooks, comm, f.split,
+                   1.0 / static_cast<double>(std::max<std::size_t>(cores.size(), 1)));
+  // The library core first: where it explains the held-out data to the noise floor, the
+  // neural cores are not trained (their budget buys nothing the data can show).
+  std::optional<Candidate> library;
+  std::string floor_reason;
+  // The library core's cost grows as d⁴ (d² terms, a Jacobian row per coordinate, a pair of
+  // which grows with both; an FPU chain with d = 8 and 300 samples took 137 s): beyond
+  // d = kLibraryMaxD it is left out of the choice (given with --core library, it runs at any d).
+  const bool library_tried =
+      library_given || (choosing && (f.facts.d <= kLibraryMaxD || forced_dissipation));
+  if (choosing && !library_tried)
+    r.choices["library_skipped"] = "d = " + std::to_string(f.facts.d) + " > " +
+                                   std::to_string(kLibraryMaxD) +
+                                   ": the library core is not tried by default (--core library "
+                                   "runs it)";
+  if (library_tried) {
+    if (hooks.stage) hooks.stage("library core");
+    LibraryFit lib = fit_library(fit, library_given ? c.core : nlohmann::json::object(), f.facts.d,
+                                 beta_init, r.normalization, c.balanced, comm, c.dissipation);
+    const bool at_floor = floor_test && choosing
+                              ? floor_test(lib.cand, f.split, floor_reason)
+                              : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason);
+    if (at_floor && choosing) cores.clear();
+    lib.record["floor"] = floor_reason;
+    r.choices["library"] = lib.record;
+    library = std::move(lib.cand);
+  }
+  f.cand = make_candidates(cores, f.facts.d, beta_init, c, config.seed);
+  if (config.init != nullptr) check_init_start(f.cand.front(), fit, f.split, *config.init);
+  if (library) f.cand.insert(f.cand.begin(), std::move(*library));
+  f.best = choose_core(f.cand, fit, choosing, f.facts.varying_steps, config, r);
+  if (choosing && f.cand.size() == 1) r.choices["core_reason"] = floor_reason;
+  if (library_given) r.choices["core_reason"] = "given: the library core, its terms selected";
+  Candidate& best = f.cand[f.best];
+  f.lm_fits = best.inner.n_params() <= 6000;
+  if (!f.lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
+  r.choices["lm_patience"] = kLmPatience;
+  adapt_windows(best, fit, f.split, config, r);
+  r.theta = best.theta;
+  r.training = best.training;
+  r.stopped = fit.stopped();
+  r.lm = best.lm;
+  r.lm_best_iteration = best.lm_best_iteration;
+  for (const Candidate& x : f.cand) {
+    r.lm_seconds += x.lm_seconds;
+    r.adamw_seconds += x.training.seconds;
+  }
+  c.window = f.split.m;
+  r.choices["window"] = f.split.m;
+  r.gamma = best.inner.map->damping_rate(r.theta).value_or(0.0) / r.normalization.time_scale;
+  r.quality.train_loss = fit.loss(best, f.split.train);
+  r.quality.val_loss = fit.loss(best, f.split.val);
+  return f;
+}
+
+Model user_model(const Model& inner, const IdentifyResult& r) {
+  nlohmann::json user_spec = inner.hyperparams();
+  const IdentifyInit* init = r.config.init.get();
+  if (init == nullptr || init->normalization) user_spec["normalization"] = r.normalization;
+  return make_model(user_spec);
+}
+
+}  // namespace detail
+
+namespace {
+
+// The stages of identify_stages.hpp, in order; each records what it chose in r.
+IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_only,
+                             const IdentifyConfig& config, const IdentifyHooks& hooks,
+                             bool confirm_growth_in_reversed_time) {
+  using namespace detail;
+  IdentifyResult r;
+  CoreFit f = fit_core(trajs, pairs_only, config, hooks, r);
+  const Communicator& comm =
+      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
+  // γ̂'s interval and the model's quality, in the user's time units.
+  const bool assess = !r.stopped && f.lm_fits && r.training.stop_reason != StopReason::kDiverged;
+  // Trajectories with momenta: the whole record fitted with q and p observed, its interval
+  // (identify_states.cpp); else the windows' interval.
+  bool whole = false;
+  if (assess && !pairs_only && whole_record_wanted(f, r.config))
+    whole = fit_whole_record(f, config, hooks, r);
+  const Candidate& best = f.cand[f.best];
+  const OneStepMap& map = *best.inner.map;
+  if (assess && !whole && !r.stopped) interval(map, f.split, f.nt, hooks, comm, r);
+  measure_quality(map, f.split, f.facts.d, r);
+  if (assess && !r.stopped) run_checks(map, f.split, hooks, r);
+  if (confirm_growth_in_reversed_time)
+    confirm_growth(
+        trajs,
+        [&](const std::vector<Trajectory>& reversed) {
+          return identify_once(reversed, pairs_only, config, hooks, false);
+        },
+        config, hooks, r);
+  verdict(f.split, f.facts.h_max, f.lm_fits, r);
+  if (r.hamiltonian.is_null())
+    r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
+  if (r.dissipation.empty())
+    r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, {});
+  r.model = user_model(best.inner, r);
+  return r;
+}
+
+// The report's "dissipation": the viscous rate first, then friction and drag; intervals as
+// claims, only for an identified γ̂.
+nlohmann::json dissipation_report(const IdentifyResult& r) {
+  nlohmann::json terms = nlohmann::json::array();
+  const bool claim = r.identified && r.interval.has_value();
+  terms.push_back({{"kind", "viscous"},
+                   {"dof", nullptr},
+                   {"value", r.gamma},
+                   {"low", claim ? nlohmann::json(r.interval->low) : nlohmann::json(nullptr)},
+                   {"high", claim ? nlohmann::json(r.interval->high) : nlohmann::json(nullptr)},
+                   {"unit", "1/time unit: p' = ... - gamma p"}});
+  for (nlohmann::json t : r.dissipation) {
+    if (!r.identified) t["low"] = t["high"] = nullptr;
+    terms.push_back(std::move(t));
+  }
+  return {{"terms", terms},
+          {"sentence", dissipation_sentence(r)},
+          {"level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
+          {"choice", r.config.dissipation},
+          {"about",
+           "the dissipation of the fitted model: the viscous rate gamma (the conformal factor), "
+           "Coulomb friction as the deceleration mu of its coordinate (q'' = ... - mu "
+           "sign(q')), quadratic drag as c (q'' = ... - c q'|q'|), in the data's units; "
+           "intervals are the sandwich intervals of gamma_hat's kind, given only when "
+           "gamma_hat is identified"}};
+}
+
+// The modes: frequencies and damping ratios always; their intervals, as γ̂'s, only when γ̂ is
+// identified.
+nlohmann::json modes_report(const IdentifyResult& r) {
+  nlohmann::json list = nlohmann::json::array();
+  const auto claim = [&](const std::optional<SandwichInterval>& iv) {
+    return r.identified && iv ? nlohmann::json::array({iv->low, iv->high})
+                              : nlohmann::json(nullptr);
+  };
+  for (const Mode& m : r.modes)
+    list.push_back({{"angular_frequency", m.frequency},
+                    {"angular_frequency_interval", claim(m.frequency_interval)},
+                    {"damping_ratio", m.damping_ratio},
+                    {"damping_ratio_interval", claim(m.damping_ratio_interval)}});
+  return {{"list", list},
+          {"about",
+           "the fitted map linearised at its equilibrium: natural angular frequency (radians per "
+           "time unit of the data) and damping ratio of each oscillating mode, for small "
+           "oscillations; a nonlinear system's frequencies change with amplitude"},
+          {"note", r.modes_note}};
+}
+
+}  // namespace
+
+std::string dissipation_sentence(const IdentifyResult& r) {
+  const auto range = [&](const nlohmann::json& lo, const nlohmann::json& hi) {
+    if (!r.identified || lo.is_null() || hi.is_null()) return std::string();
+    return " [" + detail::significant(lo.get<double>()) + ", " +
+           detail::significant(hi.get<double>()) + "]";
+  };
+  std::string s = "viscous gamma = " + detail::significant(r.gamma);
+  if (r.identified && r.interval)
+    s += " [" + detail::significant(r.interval->low) + ", " +
+         detail::significant(r.interval->high) + "]";
+  s += " per time unit";
+  for (const auto& t : r.dissipation) {
+    const bool coulomb = t["kind"] == "coulomb";
+    s += std::string(" plus ") + (coulomb ? "dry friction mu" : "quadratic drag c");
+    if (r.model.dim() > 2) s += "_" + std::to_string(t["dof"].get<Index>());
+    s += " = " + detail::significant(t["value"].get<double>()) + range(t["low"], t["high"]) +
+         (coulomb ? " (q unit per time unit squared)" : " (per q unit)");
+  }
+  if (r.dissipation.empty()) s += " (no friction or drag term in the model)";
+  return s;
+}
+
+nlohmann::json identify_report(const IdentifyResult& r) {
+  nlohmann::json j = {
+      {"model", "csympnet"},
+      {"identified", r.identified},
+      {"not_identified_reason",
+       r.identified ? nlohmann::json(nullptr)
+                    : nlohmann::json([&] {
+                        std::string s;
+                        for (const auto& x : r.reasons) s += (s.empty() ? "" : "; ") + x;
+                        return r.stopped && s.empty() ? std::string("interrupted") : s;
+                      }())},
+      {"reasons", r.reasons},
+      {"verdict", r.verdict},
+      {"checks", r.checks},
+      {"observed", r.observed},
+      {"gamma_unit", "1/time unit of the data"},
+      {"gamma_hat", r.gamma},
+      // The interval as a claim: only for an identified γ̂ ("interval" keeps its details).
+      {"gamma_ci_low", r.identified ? nlohmann::json(r.interval->low) : nlohmann::json(nullptr)},
+      {"gamma_ci_high", r.identified ? nlohmann::json(r.interval->high) : nlohmann::json(nullptr)},
+      {"gamma_ci_level", r.interval ? nlohmann::json(r.interval->level) : nlohmann::json(nullptr)},
+      {"gamma_ci_method", r.interval ? nlohmann::json(r.interval->method) : nlohmann::json(nullptr)},
+      {"interval", r.interval ? nlohmann::json(*r.interval) : nlohmann::json(nullptr)},
+      {"hamiltonian", r.hamiltonian},
+      {"dissipation", dissipation_report(r)},
+      {"data", r.data},
+      {"normalization", r.normalization},
+      {"choices", r.choices},
+      {"model_selection", model_selection(r)},
+      {"config", r.config},
+      {"params", r.model.n_params()},
+      {"warm_start", r.warm_start ? nlohmann::json({{"gamma_normalised", r.warm_start->gamma},
+                                                    {"method", to_string(r.warm_start->method)}})
+                                  : nlohmann::json(r.warm_start_note)},
+      {"training", [&] {
+         nlohmann::json t = r.training;
+         t.erase("seconds");  // wall times go to timings.json: the report is the same run to run
+         return t;
+       }()},
+      {"lm",
+       {{"iterations", r.lm.iterations},
+        {"accepted", r.lm.accepted},
+        {"best_iteration", r.lm_best_iteration},
+        {"initial_cost", r.lm.initial_cost},
+        {"final_cost", r.lm.final_cost},
+        {"message", r.lm.message}}},
+      {"quality", r.quality},
+      {"stopped", r.stopped},
+      {"architecture", r.model.hyperparams()}};
+  j["modes"] = modes_report(r);
+  if (!r.input.is_null()) j["input"] = r.input;
+  if (r.config.init)
+    j["init"] = {{"file", r.config.init->file}, {"checksum", r.config.init->checksum}};
+  // As a run's configuration records it (run.cpp): only when not the default.
+  if (kernels::arithmetic() != kernels::kDefaultArithmetic)
+    j["arithmetic"] = kernels::to_string(kernels::arithmetic());
+  return j;
+}
+
+}  // namespace csympnet

@@ -1,0 +1,637 @@
+// identify_driven(): records driven by known inputs u(t) (docs/identification.md, "Driven
+// records"; docs/derivations.md, "Known inputs").
+//
+//   1. units: q shifted by its mean and scaled by its spread per dof, time by the median step
+//      (the inputs keep theirs: B absorbs them);
+//   2. each trajectory is cut into segments of kSegment positions; every fifth is held out;
+//   3. a start for θ by equation error: accelerations and velocities from three-point
+//      differences of the positions, regressed on the terms' forces, the velocity and the
+//      inputs (a start only);
+//   4. multiple shooting on the positions with the inputs (train/shooting.hpp): the segments'
+//      hidden start states and θ (W, the coefficients, β, B) jointly;
+//   5. γ̂'s interval and the input gain's from the sandwich over the training segments (each a
+//      block), with the degrees-of-freedom correction for the hidden start states and the
+//      held-out inflation, as for positions alone;
+//   6. checks (the held-out fit; the dissipation check is not applicable: u supplies energy) and
+//      the verdict; the model in the user's units.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/QR>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/core/options.hpp"
+#include "csympnet/core/stop.hpp"
+#include "csympnet/identify/identify.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/train/gamma_sandwich.hpp"
+#include "csympnet/train/shooting.hpp"
+#include "identify_stages.hpp"
+
+namespace csympnet {
+
+namespace {
+
+// Positions per shooting segment: its hidden start takes 2 of them per coordinate.
+constexpr Index kSegment = 20;
+// Additions the selection of a driven record's terms may make.
+constexpr int kDrivenAdditions = 3;
+// LM iterations of each trial fit of the selection (the chosen terms are fitted in full).
+constexpr long kSelectionIterations = 50;
+// Every kHoldOut-th segment is held out.
+constexpr Index kHoldOut = 5;
+// A bound on the hidden start states in the fit's units (the data have unit spread).
+constexpr double kMaxAbsState = 1e3;
+// The held-out loss over the training loss beyond which the model does not explain new
+// segments as it explains its own.
+constexpr double kHeldOutRatioMax = 2.0;
+
+struct DrivenData {
+  Index d = 0, m = 0;
+  bool had_momenta = false;
+  std::vector<Trajectory> positions;  // normalised q (d × n) and u (m × n), as given
+  Normalization units;
+};
+
+DrivenData check_driven(const std::vector<Trajectory>& trajs, bool positions_only,
+                        const IdentifyConfig& config) {
+  if (config.init != nullptr)
+    throw OptionError("init",
+                      "a record with inputs is fitted from the library core's start; "
+                      "--init is not supported with inputs yet");
+  if (config.dissipation != "auto" && config.dissipation != "viscous")
+    throw OptionError("dissipation",
+                      "a record with inputs is fitted with the viscous rate gamma alone; '" +
+                          config.dissipation + "' is not supported with inputs yet");
+  if (!config.core.is_null() &&
+      !(config.core.is_object() && config.core.value("type", "") == "library"))
+    throw OptionError("core",
+                      "a record with inputs is fitted with the library core only ({\"type\": "
+                      "\"library\", \"terms\": [...]}); the neural cores (la, g) do not take "
+                      "inputs yet");
+  require(!trajs.empty(), "driven record: no trajectories");
+  DrivenData out;
+  out.m = trajs.front().u.rows();
+  const Index rows = trajs.front().z.rows();
+  out.had_momenta = !positions_only;
+  for (std::size_t k = 0; k < trajs.size(); ++k) {
+    const Trajectory& t = trajs[k];
+    require(t.u.rows() == out.m && out.m >= 1 && t.u.cols() == t.t.size() && t.z.rows() == rows &&
+                t.z.cols() == t.t.size(),
+            [&] {
+              return "trajectory " + std::to_string(k + 1) +
+                     ": expected the same positions and inputs u1..um at every sample as the "
+                     "first trajectory";
+            });
+  }
+  require(positions_only || rows % 2 == 0, "driven record: states need 2d rows");
+  return out;
+}
+
+// q̂ = (q − mean) / spread per dof, t̂ = t / median step; β = c / α with c = the geometric mean
+// of α² / τ (the momenta are hidden: their unit is a convention).
+Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
+  Vector sum = Vector::Zero(d), sq = Vector::Zero(d);
+  double n = 0.0;
+  std::vector<double> steps;
+  for (const Trajectory& t : q) {
+    sum += t.z.rowwise().sum();
+    n += static_cast<double>(t.z.cols());
+    for (Index k = 1; k < t.t.size(); ++k) steps.push_back(t.t(k) - t.t(k - 1));
+  }
+  require(!steps.empty(), "driven record: expected a trajectory with at least two samples");
+  Normalization u;
+  u.q_shift = sum / n;
+  for (const Trajectory& t : q)
+    sq += (t.z.colwise() - u.q_shift).array().square().matrix().rowwise().sum();
+  u.q_scale = (sq / n).cwiseSqrt();
+  for (Index i = 0; i < d; ++i)
+    require(u.q_scale(i) > 0.0 && std::isfinite(u.q_scale(i)), [&] {
+      return "column 'q" + std::to_string(i + 1) +
+             "' does not vary; expected a coordinate that moves";
+    });
+  std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
+  u.time_scale = steps[steps.size() / 2];
+  const double c = std::exp(u.q_scale.array().log().mean() * 2.0) / u.time_scale;
+  u.p_scale = c * u.q_scale.cwiseInverse();
+  u.validate("driven record units");
+  return u;
+}
+
+struct DrivenCut {
+  ShootingSegments train, val;
+};
+
+// Segments of kSegment positions (the last of a trajectory joined to the one before when
+// shorter than half); per step the input at its start and at its end.
+DrivenCut cut_driven(const std::vector<Trajectory>& nt, Index d) {
+  DrivenCut c;
+  c.train.d = c.val.d = d;
+  Index count = 0;
+  for (const Trajectory& t : nt) {
+    const Index n = t.t.size();
+    for (Index first = 0; first + 3 <= n;) {
+      Index len = std::min(kSegment, n - first);
+      if (n - (first + len) < kSegment / 2) len = n - first;
+      ShootingSegments& s = (count % kHoldOut == kHoldOut - 1) ? c.val : c.train;
+      s.q.push_back(t.z.middleCols(first, len));
+      s.h.push_back(t.t.segment(first + 1, len - 1) - t.t.segment(first, len - 1));
+      Matrix u(2 * t.u.rows(), len - 1);
+      u.topRows(t.u.rows()) = t.u.middleCols(first, len - 1);
+      u.bottomRows(t.u.rows()) = t.u.middleCols(first + 1, len - 1);
+      s.u.push_back(std::move(u));
+      s.block.push_back(static_cast<Index>(s.q.size()) - 1);
+      ++count;
+      first += len;
+    }
+  }
+  require(c.train.size() >= 3, [&] {
+    return "a record with inputs needs at least 4 segments of " + std::to_string(kSegment) +
+           " samples (3 to fit, 1 held out); it gives " + std::to_string(count);
+  });
+  return c;
+}
+
+// The given core's spec, or the quadratic terms (a linear system) to start the selection from;
+// the inputs' count checked against the record's.
+LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann::json& record) {
+  LibrarySpec s;
+  if (!config.core.is_null()) s = read_library_spec(config.core, d, "core");
+  if (s.terms.empty()) {
+    // A linear term per coordinate too: the rest position is not the positions' mean (without
+    // it a linear record's selection took a sin/cos pair at a small wavenumber for the offset).
+    for (Index i = 0; i < d; ++i) {
+      s.terms.push_back(parse_term("q" + std::to_string(i + 1), d, "core"));
+      s.terms.push_back(parse_term("q" + std::to_string(i + 1) + "^2", d, "core"));
+    }
+    for (Index i = 0; i < d; ++i)
+      for (Index j = i + 1; j < d; ++j)
+        s.terms.push_back(parse_term(
+            "(q" + std::to_string(i + 1) + "-q" + std::to_string(j + 1) + ")^2", d, "core"));
+    record["terms"] =
+        "selected: the linear and quadratic terms (a linear system), then the additions that "
+        "lower the "
+        "information criterion (choices.driven.selection); --core names the terms instead";
+  }
+  if (s.inputs.m != 0 && s.inputs.m != m)
+    throw OptionError("core", "the core's inputs.m = " + std::to_string(s.inputs.m) +
+                                  " disagrees with the record's " + std::to_string(m) +
+                                  " input columns");
+  require(s.dissipation.empty(), [] {
+    return std::string("core: friction and drag terms are not supported with inputs yet");
+  });
+  return s;
+}
+
+// The library map of `terms` with the spec's order, substeps and hold (first order by default);
+// a diagonal mass.
+HamiltonianLibraryMap driven_map(const LibrarySpec& s, const std::vector<LibraryTerm>& terms,
+                                 Index d, Index m) {
+  return HamiltonianLibraryMap(d, terms, s.order, s.substeps, false, 0.1, {}, {},
+                               InputSpec{m, s.inputs.m != 0 ? s.inputs.hold : InputHold::kFirst});
+}
+
+// The equation-error start: with W = 1, per interior sample and dof i,
+//   q̈_i ≈ −Σ_k c_k ∂_iφ_k(q) − γ q̇_i + Σ_j B_ij u_j,
+// q̇ and q̈ from the three-point differences, solved by least squares for c, γ and B.
+Vector driven_start(const HamiltonianLibraryMap& map, const std::vector<Trajectory>& nt) {
+  const Index d = map.d(), m = map.n_inputs(), nt_terms = static_cast<Index>(map.terms().size());
+  const Index cols = nt_terms + 1 + d * m;
+  Vector theta(map.n_params());
+  Rng unused(1, "unused");
+  map.init_params(unused, theta);
+  std::vector<Vector> unit_thetas;
+  for (Index k = 0; k < nt_terms; ++k) {
+    Vector t = theta;
+    for (Index j = 0; j < nt_terms; ++j) t(map.coefficient_index(j)) = j == k ? 1.0 : 0.0;
+    unit_thetas.push_back(std::move(t));
+  }
+  std::vector<double> rows_a, rows_b;
+  Vector g(d);
+  for (const Trajectory& t : nt)
+    for (Index k = 1; k + 1 < t.t.size(); ++k) {
+      if (k % 65536 == 0) throw_if_stop_requested("the equation-error start of a driven fit");
+      const double h1 = t.t(k) - t.t(k - 1), h2 = t.t(k + 1) - t.t(k);
+      const Vector dq1 = t.z.col(k) - t.z.col(k - 1), dq2 = t.z.col(k + 1) - t.z.col(k);
+      const Vector acc = 2.0 * (dq2 / h2 - dq1 / h1) / (h1 + h2);
+      const Vector vel = (dq2 * (h1 / h2) + dq1 * (h2 / h1)) / (h1 + h2);
+      std::vector<Vector> forces;
+      for (Index c = 0; c < nt_terms; ++c) {
+        map.gradient(unit_thetas[static_cast<std::size_t>(c)], t.z.col(k).data(), g.data());
+        forces.push_back(g);
+      }
+      for (Index i = 0; i < d; ++i) {
+        for (Index c = 0; c < nt_terms; ++c)
+          rows_a.push_back(-forces[static_cast<std::size_t>(c)](i));
+        rows_a.push_back(-vel(i));
+        for (Index r = 0; r < d; ++r)
+          for (Index j = 0; j < m; ++j) rows_a.push_back(r == i ? t.u(j, k) : 0.0);
+        rows_b.push_back(acc(i));
+      }
+    }
+  const auto n = static_cast<Index>(rows_b.size());
+  const Matrix a = Eigen::Map<const RowMajorMatrix>(rows_a.data(), n, cols);
+  const Vector b = Eigen::Map<const Vector>(rows_b.data(), n);
+  const Vector x = a.colPivHouseholderQr().solve(b);
+  if (!x.allFinite()) return theta;
+  for (Index c = 0; c < nt_terms; ++c) theta(map.coefficient_index(c)) = x(c);
+  // β must be nonzero (γ̂ = |β| has no slope at 0); a negative start is a noisy one.
+  theta(*map.damping_param_index()) = std::max(x(nt_terms), 0.05);
+  for (Index r = 0; r < d; ++r)
+    for (Index j = 0; j < m; ++j) theta(map.input_index(r, j)) = x(nt_terms + 1 + r * m + j);
+  return theta;
+}
+
+// The interval of a function f(θ) with gradient `grad`, in the user's units (value × unit).
+SandwichInterval interval_of(const NormalEquations& ne, const Vector& grad, double value,
+                             Index n_res, double scale, double inflation, double unit,
+                             double level) {
+  SandwichInterval iv =
+      sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, n_res, ne.cost, scale, 1.0, level);
+  inflate_interval(iv, inflation);
+  for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich, &iv.model_based,
+                    &iv.optimisation, &iv.rounding})
+    *v *= unit;
+  return iv;
+}
+
+// γ̂'s interval, the input gain's and the modes', from the training segments' normal
+// equations with the start states eliminated (as positions_interval of identify_positions).
+void driven_interval(const HamiltonianLibraryMap& map, const Matrix& z0,
+                     const ShootingSegments& train, double inflation, const IdentifyHooks& hooks,
+                     IdentifyResult& r) {
+  if (hooks.stage) hooks.stage("interval");
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  const Index d = map.d(), m = map.n_inputs(), p = map.n_params();
+  const double tau = r.normalization.time_scale;
+  const Index n_res = train.n_residuals();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  NormalEquations ne = shooting_normal_equations(map, r.theta, z0, train, p, scale, true, stop);
+  if (ne.stopped) {
+    r.stopped = true;
+    return;
+  }
+  const double hidden = static_cast<double>(2 * d * train.size());
+  const double dof_factor =
+      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
+  ne.scores *= dof_factor;
+  const Index bi = *map.damping_param_index();
+  const double level = r.config.level;
+  try {
+    SandwichInterval s =
+        sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(r.theta(bi)),
+                          r.theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
+    inflate_interval(s, inflation);
+    for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
+                      &s.optimisation, &s.rounding})
+      *v /= tau;
+    s.method += " over hidden start states (positions with known inputs)";
+    r.interval = s;
+  } catch (const Error&) {
+    r.reasons.push_back(
+        "the positions and inputs do not fix the parameters: the Gauss-Newton matrix could not "
+        "be factored even regularised, so no interval can be formed");
+    return;
+  }
+  // The gain on the acceleration, q''_i = ... + G_ij u_j: G = W B, which the hidden momenta's
+  // unit leaves alone (B alone is not fixed by positions).
+  nlohmann::json gain = nlohmann::json::array(), low = gain, high = gain;
+  for (Index i = 0; i < d; ++i) {
+    nlohmann::json g_row = nlohmann::json::array(), l_row = g_row, h_row = g_row;
+    const double w = r.theta(i);
+    for (Index j = 0; j < m; ++j) {
+      Vector grad = Vector::Zero(p);
+      const double b = r.theta(map.input_index(i, j));
+      grad(i) = b;
+      grad(map.input_index(i, j)) = w;
+      const double unit = r.normalization.q_scale(i) / (tau * tau);
+      const SandwichInterval iv =
+          interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
+      g_row.push_back(iv.gamma);
+      l_row.push_back(iv.low);
+      h_row.push_back(iv.high);
+    }
+    gain.push_back(g_row);
+    low.push_back(l_row);
+    high.push_back(h_row);
+  }
+  r.input["B"] = gain;
+  r.input["B_ci_low"] = low;
+  r.input["B_ci_high"] = high;
+  r.hamiltonian = detail::hamiltonian_report(map, r.theta, r.normalization,
+                                             {&ne, n_res, scale, inflation, level});
+  WindowSet starts;
+  starts.m = 1;
+  starts.z0 = z0;
+  starts.zm.resize(2 * d, train.size());
+  starts.h.resize(1, train.size());
+  for (Index s = 0; s < train.size(); ++s) {
+    const Matrix z = shooting_states(map, r.theta, z0.col(s), train.h[static_cast<std::size_t>(s)],
+                                     train.inputs(s));
+    starts.zm.col(s) = z.col(1);
+    starts.h(0, s) = train.h[static_cast<std::size_t>(s)](0);
+  }
+  detail::modal_analysis(map, starts, {&ne, n_res, scale, 1.0, inflation, stop}, r);
+}
+
+// The checks a driven record can take, and the verdict.
+void driven_verdict(const ShootingReport& rep, IdentifyResult& r) {
+  ModelCheck held;
+  held.name = "held_out";
+  held.assumption = "the model explains held-out segments as it explains its training segments";
+  held.effect_name = "held-out over training loss of the positions";
+  held.effect = r.quality.train_loss > 0.0 ? r.quality.val_loss / r.quality.train_loss : 1.0;
+  held.effect_threshold = kHeldOutRatioMax;
+  held.passed = std::isfinite(held.effect) && held.effect <= kHeldOutRatioMax;
+  held.sentence = "held-out loss " + detail::significant(held.effect) +
+                  " times the training loss (at most " + detail::significant(kHeldOutRatioMax) +
+                  ")";
+  ModelCheck energy;
+  energy.name = "dissipation";
+  energy.assumption = "the motion loses energy without input";
+  energy.applicable = false;
+  energy.sentence =
+      "not applicable: the known input supplies energy (H = H0 - q^T B u), so growing motion "
+      "is no evidence against the model; gamma_hat's interval says whether damping is found";
+  r.checks = {held, energy};
+  if (r.stopped) {
+    r.verdict = "interrupted";
+    r.reasons.push_back("interrupted");
+    return;
+  }
+  if (!held.passed) r.reasons.push_back("check held_out failed: " + held.sentence);
+  if (!r.interval) r.reasons.push_back("no interval for gamma_hat: " + rep.message);
+  // As for free records (identification_reasons): an interval that reaches 0, or that the
+  // regularisation of the Gauss-Newton matrix moves, does not identify the damping.
+  if (r.interval && std::isfinite(r.interval->low) && r.interval->low <= 0.0)
+    r.reasons.push_back("the " + detail::significant(100.0 * r.interval->level) + "% interval [" +
+                        detail::significant(r.interval->low) + ", " +
+                        detail::significant(r.interval->high) +
+                        "] reaches 0: these data do not tell the damping rate from no damping");
+  if (r.interval && !r.interval->stable)
+    r.reasons.push_back("the interval changes " +
+                        detail::significant(r.interval->regularisation_ratio) +
+                        "-fold with the regularisation of the Gauss-Newton matrix: the data do "
+                        "not separate the damping from the other parameters");
+  r.rejected = !held.passed;
+  r.identified = r.reasons.empty() && r.interval && std::isfinite(r.interval->low) &&
+                 std::isfinite(r.interval->high);
+  r.verdict = r.identified ? "identified" : r.rejected ? "model rejected" : "not identified";
+}
+
+// One driven fit: the equation-error start, the segments' start states, LM on the positions.
+struct DrivenFit {
+  HamiltonianLibraryMap map;
+  Vector theta;
+  Matrix z0, vz0;
+  ShootingReport rep;
+};
+
+DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& nt,
+                     const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
+                     long max_iterations = 200) {
+  const Index d = map.d();
+  Vector theta = driven_start(map, nt);
+  Matrix z0(2 * d, cut.train.size()), vz0(2 * d, cut.val.size());
+  const auto first_positions = [&](const ShootingSegments& s, Matrix& z) {
+    for (Index k = 0; k < s.size(); ++k) {
+      z.col(k).head(d) = s.q[static_cast<std::size_t>(k)].col(0);
+      z.col(k).tail(d).setZero();
+    }
+  };
+  first_positions(cut.train, z0);
+  first_positions(cut.val, vz0);
+  fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
+  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState);
+  ShootingOptions opt;
+  opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
+                                            : max_iterations;
+  opt.max_abs_state = kMaxAbsState;
+  opt.should_stop = hooks.should_stop;
+  opt.converged_chi2 = 1e-3;
+  ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
+  return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep};
+}
+
+// The Bayesian information criterion of a fit over the training segments (the same segments,
+// hence the same hidden start states, for every candidate): n log(loss) + parameters x log n.
+double driven_bic(const DrivenFit& f, Index n) {
+  const double nn = static_cast<double>(n);
+  return f.rep.final_loss > 0.0 && std::isfinite(f.rep.final_loss)
+             ? nn * std::log(f.rep.final_loss) +
+                   static_cast<double>(f.map.n_params()) * std::log(nn)
+             : std::numeric_limits<double>::infinity();
+}
+
+// The additions offered to `terms`: per coordinate its missing powers 3 and 4, and its sin/cos
+// pair when it has no sinusoid yet; per pair of coordinates (up to d = 4, neighbours beyond)
+// the missing powers 3 and 4 of their difference.
+std::vector<std::pair<std::string, std::vector<LibraryTerm>>> driven_additions(
+    const std::vector<LibraryTerm>& terms, Index d) {
+  std::vector<std::pair<std::string, std::vector<LibraryTerm>>> out;
+  const auto has = [&terms](const LibraryTerm& t) {
+    return std::find(terms.begin(), terms.end(), t) != terms.end();
+  };
+  const auto offer = [&](const std::vector<std::string>& names) {
+    std::vector<LibraryTerm> next = terms;
+    std::string added;
+    for (const std::string& n : names)
+      if (const LibraryTerm t = parse_term(n, d, "core"); !has(t)) {
+        next.push_back(t);
+        added += (added.empty() ? "" : ", ") + n;
+      }
+    if (!added.empty()) out.emplace_back(added, std::move(next));
+  };
+  for (Index i = 0; i < d; ++i) {
+    const std::string q = "q" + std::to_string(i + 1);
+    offer({q + "^3", q + "^4"});
+    const bool periodic = std::any_of(terms.begin(), terms.end(), [i](const LibraryTerm& t) {
+      return t.i == i && t.j < 0 && t.has_wavenumber();
+    });
+    if (!periodic) offer({"sin(" + q + ")", "cos(" + q + ")"});
+  }
+  for (Index i = 0; i < d; ++i)
+    for (Index j = i + 1; j < d; ++j) {
+      if (d > 4 && j != i + 1) continue;
+      const std::string x = "(q" + std::to_string(i + 1) + "-q" + std::to_string(j + 1) + ")";
+      offer({x + "^3", x + "^4"});
+    }
+  return out;
+}
+
+// Forward selection by BIC over the training segments, a few additions at most, then each
+// power of degree 3 or 4 or sin/cos pair dropped while that lowers the criterion. The velocity-free
+// analogue of the free route's selection: the input excites the record's whole range of amplitudes,
+// and the positions judge the force law. Every trial in record["selection"].
+DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
+                              const std::vector<Trajectory>& nt, const DrivenCut& cut,
+                              const IdentifyConfig& config, const IdentifyHooks& hooks,
+                              nlohmann::json& record) {
+  const Index d = fit.map.d();
+  const Index n = cut.train.n_residuals();
+  nlohmann::json trials = nlohmann::json::array();
+  const auto names = [](const std::vector<LibraryTerm>& ts) {
+    std::string out;
+    for (const LibraryTerm& t : ts) out += (out.empty() ? "" : ", ") + term_name(t);
+    return out;
+  };
+  const auto try_terms = [&](const std::string& what, const std::vector<LibraryTerm>& terms) {
+    throw_if_stop_requested("the selection of a driven record's terms");
+    DrivenFit x =
+        fit_driven(driven_map(spec, terms, d, m), nt, cut, config, hooks, kSelectionIterations);
+    const double change = driven_bic(x, n) - driven_bic(fit, n);
+    trials.push_back({{"change", what},
+                      {"terms", names(terms)},
+                      {"loss", x.rep.final_loss},
+                      {"bic_change", change}});
+    return std::make_pair(change, std::move(x));
+  };
+  for (int round = 0; round < kDrivenAdditions; ++round) {
+    std::optional<std::pair<double, DrivenFit>> best;
+    for (const auto& [what, terms] : driven_additions(fit.map.terms(), d)) {
+      auto t = try_terms("add " + what, terms);
+      if (t.first < 0.0 && (!best || t.first < best->first)) best = std::move(t);
+    }
+    if (!best) break;
+    fit = std::move(best->second);
+    trials.push_back({{"made", names(fit.map.terms())}});
+  }
+  for (bool dropped = true; dropped;) {
+    dropped = false;
+    const std::vector<LibraryTerm> terms = fit.map.terms();
+    for (std::size_t k = 0; k < terms.size(); ++k) {
+      // A power of degree 3 or 4, or a coordinate's sin/cos pair (at its sin): a sinusoid
+      // taken first can mimic the powers added after it.
+      const bool power = terms[k].shape == TermShape::kPower && terms[k].power >= 3;
+      if (!power && terms[k].shape != TermShape::kSin) continue;
+      std::vector<LibraryTerm> next;
+      std::string what;
+      for (const LibraryTerm& t : terms) {
+        const bool goes = power ? t == terms[k]
+                                : t.i == terms[k].i && t.j == terms[k].j &&
+                                      (t.shape == TermShape::kSin || t.shape == TermShape::kCos);
+        if (goes)
+          what += (what.empty() ? "" : ", ") + term_name(t);
+        else
+          next.push_back(t);
+      }
+      auto t = try_terms("drop " + what, next);
+      if (t.first >= 0.0) continue;
+      fit = std::move(t.second);
+      trials.push_back({{"made", names(fit.map.terms())}});
+      dropped = true;
+      break;
+    }
+  }
+  // The terms chosen, fitted in full from their equation-error start.
+  fit = fit_driven(driven_map(spec, fit.map.terms(), d, m), nt, cut, config, hooks);
+  record["selection"] = {
+      {"rule",
+       "from the quadratic terms, the addition (a coordinate's or a difference's powers 3 and 4, "
+       "or a coordinate's sin/cos pair) that lowers the Bayesian information criterion of the "
+       "training segments most, n log(loss) + parameters x log n, while one does (at most " +
+           std::to_string(kDrivenAdditions) +
+           "); then each power of degree 3 or 4, or sin/cos pair, dropped while that lowers it; "
+           "trial fits take at most " +
+           std::to_string(kSelectionIterations) +
+           " LM iterations, the terms chosen are fitted again in full"},
+      {"residuals", n},
+      {"trials", trials}};
+  return fit;
+}
+
+}  // namespace
+
+IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positions_only,
+                               const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  config.validate();
+  DrivenData data = check_driven(trajs, positions_only, config);
+  IdentifyResult r;
+  r.config = config;
+  r.observed = "positions";
+  std::vector<Trajectory> q;
+  for (const Trajectory& t : trajs) {
+    Trajectory x;
+    x.t = t.t;
+    x.z = data.had_momenta ? Matrix(t.z.topRows(t.z.rows() / 2)) : t.z;
+    x.u = t.u;
+    q.push_back(std::move(x));
+  }
+  data.d = q.front().z.rows();
+  if (data.had_momenta)
+    r.choices["momenta_set_aside"] =
+        "a record with inputs is fitted on its positions (the momenta are hidden states)";
+  r.normalization = driven_units(q, data.d);
+  std::vector<Trajectory> nt;
+  for (Trajectory t : q) {
+    t.z = (t.z.colwise() - r.normalization.q_shift).array().colwise() /
+          r.normalization.q_scale.array();
+    t.t = t.t / r.normalization.time_scale;
+    nt.push_back(std::move(t));
+  }
+  Index samples = 0;
+  for (const Trajectory& t : q) samples += t.t.size();
+  r.data = {{"d", data.d}, {"inputs", data.m}, {"trajectories", q.size()}, {"samples", samples}};
+  nlohmann::json record;
+  const LibrarySpec spec = driven_spec(config, data.d, data.m, record);
+  const bool terms_given = !config.core.is_null() && config.core.contains("terms");
+  DrivenCut cut = cut_driven(nt, data.d);
+  record["segment_length"] = kSegment;
+  record["segments"] = {{"train", cut.train.size()}, {"held_out", cut.val.size()}};
+  if (hooks.stage) hooks.stage("LM on the positions with the inputs");
+  DrivenFit fit = fit_driven(driven_map(spec, spec.terms, data.d, data.m), nt, cut, config, hooks);
+  if (!terms_given && !fit.rep.stopped) {
+    if (hooks.stage) hooks.stage("terms: selected on the positions with the inputs");
+    fit = select_driven_terms(std::move(fit), spec, data.m, nt, cut, config, hooks, record);
+  }
+  record["terms_fitted"] = nlohmann::json::array();
+  for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
+  const HamiltonianLibraryMap& map = fit.map;
+  Vector theta = fit.theta;
+  const Matrix& z0 = fit.z0;
+  const ShootingReport rep = fit.rep;
+  r.stopped = rep.stopped;
+  r.theta = theta;
+  r.lm.iterations = rep.iterations;
+  r.lm.accepted = rep.accepted;
+  r.lm.initial_cost = rep.initial_loss;
+  r.lm.final_cost = rep.final_loss;
+  r.lm.message = rep.message;
+  r.lm_best_iteration = rep.best_iteration;
+  r.quality.train_loss = rep.final_loss;
+  r.quality.val_loss = rep.val_loss;
+  r.gamma = std::abs(theta(*map.damping_param_index())) / r.normalization.time_scale;
+  r.input = {{"m", data.m},
+             {"hold", hold_name(map.inputs().hold)},
+             {"about",
+              "H = H0(q, p) - q^T B_p u(t); B is the gain on the acceleration, q''_i = ... + "
+              "sum_j B_ij u_j (data units), which positions fix; B_momentum is B_p in the "
+              "model's momentum units (a convention when the momenta are hidden)"}};
+  nlohmann::json b_p = nlohmann::json::array();
+  for (Index i = 0; i < data.d; ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Index j = 0; j < data.m; ++j)
+      row.push_back(r.normalization.p_scale(i) * theta(map.input_index(i, j)) /
+                    r.normalization.time_scale);
+    b_p.push_back(row);
+  }
+  r.input["B_momentum"] = b_p;
+  const double ratio =
+      rep.final_loss > 0.0 && std::isfinite(rep.val_loss) ? rep.val_loss / rep.final_loss : 1.0;
+  if (!r.stopped) driven_interval(map, z0, cut.train, std::sqrt(std::max(1.0, ratio)), hooks, r);
+  if (!r.input.contains("B")) r.input["B"] = nullptr;
+  r.choices["driven"] = record;
+  driven_verdict(rep, r);
+  if (r.hamiltonian.is_null())
+    r.hamiltonian = detail::hamiltonian_report(map, r.theta, r.normalization, {});
+  nlohmann::json model_spec = map.hyperparams();
+  model_spec["normalization"] = r.normalization;
+  r.model = make_model(model_spec);
+  return r;
+}
+
+}  // namespace csympnet

@@ -1,0 +1,313 @@
+// The stages of identify() (identify/identify.hpp), each a function or class with one job,
+// handing a typed state to the next (docs/architecture.md, "The identification in stages"):
+//
+//   inspect_data    the data as given: dimension, steps, a summary for the report
+//   choose_units    normalisation (or the init file's units), the normalised trajectories
+//   split_blocks    blocks, held-out blocks, window length, training and validation windows
+//   warm_start      γ₀ from the data, the dof scales, β's start
+//   CandidateFit    per candidate core: AdamW, Levenberg–Marquardt (budgets by work)
+//   choose_core     the lowest validation loss wins and continues LM
+//   adapt_windows   longer windows when the one-step residuals show noise, not misfit
+//   interval        cluster-robust sandwich over the training blocks, held-out inflation
+//   measure_quality held-out residuals, the null model, the structure residual
+//   run_checks      the model's assumptions tested (identify/model_checks.hpp)
+//   verdict         identified, not identified (and why), or the model rejected
+//
+// Private to the library (src/identify).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "csympnet/core/communicator.hpp"
+#include "csympnet/identify/identify.hpp"
+#include "csympnet/models/dissipation_terms.hpp"
+#include "csympnet/models/potential_library.hpp"
+#include "csympnet/train/window_loss.hpp"
+
+namespace csympnet::detail {
+
+// v with `digits` significant digits (printf's %g), for the sentences of the report.
+std::string significant(double v, int digits = 4);
+
+// What the data are, before anything is fitted.
+struct DataFacts {
+  Index d = 0;
+  double h_min = 0.0, h_max = 0.0;
+  bool varying_steps = false;
+  nlohmann::json summary;  // the report's "data"
+};
+DataFacts inspect_data(const std::vector<Trajectory>& trajs, bool pairs_only);
+
+// The units the fit works in: the normalisation chosen (or the init file's), recorded in
+// r.normalization and r.choices, and the data in those units.
+std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool pairs_only,
+                                     const IdentifyConfig& config, IdentifyResult& r);
+
+// Blocks and windows.
+struct BlockSplit {
+  std::vector<Trajectory> blocks;  // every block, normalised, in order
+  std::vector<Trajectory> train_blocks, val_blocks;
+  // Per block of `blocks`: its trajectory and first sample there (neighbouring blocks of one
+  // trajectory share an end sample); which blocks train and which are held out, in order.
+  std::vector<std::pair<Index, Index>> origin;
+  std::vector<Index> train_ids, val_ids;
+  Index m = 1;            // the window length in use
+  Index m_long = 1;       // the length an automatic window may grow to
+  bool adaptive = false;  // an automatic window: starts at one step, may grow (adapt_windows)
+  WindowSet train, val;   // windows of m steps; training blocks numbered 0 … B_t − 1
+  void set_window(Index len);
+};
+BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
+                        const IdentifyConfig& config, nlohmann::json& choices);
+
+// γ₀ (r.warm_start) and the dof scales (r.config.dof_scales); returns β's start.
+double warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given, IdentifyResult& r);
+
+// The candidate cores when none is given (LA and G, by dimension).
+std::vector<nlohmann::json> default_cores(Index d, bool varying_steps);
+std::string core_name(const nlohmann::json& core);
+
+// One candidate model and how far its training got.
+struct Candidate {
+  nlohmann::json core;
+  Model inner;
+  Vector theta;
+  TrainSummary training;
+  LmReport lm;
+  long lm_best_iteration = 0;
+  double lm_seconds = 0.0;
+  double val_loss = std::numeric_limits<double>::infinity();
+  bool pretrained = false;  // trained before choose_core (the library candidate)
+};
+std::vector<Candidate> make_candidates(const std::vector<nlohmann::json>& cores, Index d,
+                                       double beta_init, const IdentifyConfig& c,
+                                       std::uint64_t seed);
+
+// Training of candidates on the split's windows: AdamW and LM with their budgets by work.
+class CandidateFit {
+ public:
+  CandidateFit(const IdentifyConfig& given, const IdentifyConfig& resolved,
+               const IdentifyHooks& hooks, const Communicator& comm, const BlockSplit& split,
+               double share);
+  long epochs_for(const Candidate& x) const;
+  // LM iterations for about `target` seconds on one core (at least `floor`; 0 with more
+  // than 6,000 parameters).
+  long lm_budget(const Candidate& x, double target, long floor = 5) const;
+  void adamw(Candidate& x, const std::string& label) const;
+  void lm(Candidate& x, long budget, const std::string& label);
+  double loss(const Candidate& x, const WindowSet& w) const;
+  bool stop_requested() const;
+  // Remembers a stop requested now (polled between stages).
+  void note_stop() {
+    if (stop_requested()) stopped_ = true;
+  }
+  bool stopped() const { return stopped_; }
+  const BlockSplit& split() const { return *split_; }
+
+ private:
+  const IdentifyConfig* given_;
+  const IdentifyConfig* c_;
+  const IdentifyHooks* hooks_;
+  const Communicator* comm_;
+  const BlockSplit* split_;
+  double share_;
+  bool stopped_ = false;
+};
+
+inline constexpr long kLmPatience = 100;
+
+// Every candidate trained; the lowest validation loss wins and continues LM. Records the
+// choice in r (choices, config) and returns the winner's index.
+std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
+                        bool varying_steps, const IdentifyConfig& given, IdentifyResult& r);
+
+// The Hamiltonian-library candidate (identify_library.cpp): given_core {"type": "library"}
+// selects its terms (forward selection by Gauss–Newton gain, kept by the held-out loss, pruned
+// by their intervals); with "terms" it fits those. `record` is the report's
+// choices.library.
+// The largest d at which the library core is a default candidate.
+inline constexpr Index kLibraryMaxD = 4;
+struct LibraryFit {
+  Candidate cand;
+  nlohmann::json record;
+};
+// `dissipation`: IdentifyConfig::dissipation ("auto" selects Coulomb friction and drag beside
+// γ; "viscous" none; "viscous+coulomb", "viscous+drag" fit that term as given).
+LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
+                       double beta_init, const Normalization& units, bool balanced,
+                       const Communicator& comm, const std::string& dissipation = "auto");
+
+// The dissipation terms beside γ (identify_dissipation.cpp; docs/identification.md, "Dry
+// friction and drag"):
+// one term of `kind` on every coordinate;
+std::vector<DissipationTerm> dissipation_group(DissipationKind kind, Index d);
+// the rates of the library candidate's dissipation terms from index `first` on, and a change
+// of β, started by least squares on the training windows' momentum residuals of the candidate
+// with those rates at 0 (the residual over a window of span H is about −H times the new
+// forces at the window's mean momentum);
+void dissipation_start(Candidate& y, std::size_t first, const WindowSet& train);
+// the amplitude check (model_checks.hpp, amplitude_check) of a candidate on every block;
+ModelCheck amplitude_of(const Candidate& x, const BlockSplit& split,
+                        const std::function<bool()>& should_stop);
+
+// Whether the candidate explains the held-out windows to the noise floor (white one-step
+// residuals, or a clean fit), with the sentence saying which.
+bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why);
+
+// The correlation of consecutive windows' residuals (res: window_residuals of w) within a
+// block: about −1/2 for one-step residuals of pure measurement noise, positive for a misfit.
+double lag_one_correlation(const Vector& res, const WindowSet& w);
+
+// Longer windows when noise dominates misfit (an automatic window only); LM continues on them.
+void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
+                   const IdentifyConfig& given, IdentifyResult& r);
+
+// The largest absolute normalised coordinate: the data's scale for the interval's rounding term.
+double data_scale(const std::vector<Trajectory>& nt);
+
+// What the modes' intervals share with γ̂'s.
+struct ModeIntervalInput {
+  const NormalEquations* ne = nullptr;  // null: the modes without intervals
+  Index n_residuals = 0;
+  double residual_scale = 1.0;        // of the residuals in ne
+  double data_scale = 0.0;            // for the rounding term
+  double inflation = 1.0;             // the held-out inflation applied to γ̂'s interval
+  std::function<bool()> should_stop;  // polled per parameter; true: r.stopped, no intervals
+};
+
+// What the Hamiltonian's intervals share with γ̂'s (null ne: no intervals).
+struct HamiltonianIntervalInput {
+  const NormalEquations* ne = nullptr;
+  Index n_residuals = 0;
+  double residual_scale = 1.0;
+  double inflation = 1.0;
+  double level = 0.95;
+};
+// A library map's Hamiltonian in the user's units (identify_hamiltonian.cpp): the report's
+// "hamiltonian"; null for any other map.
+nlohmann::json hamiltonian_report(const OneStepMap& map, const Vector& theta,
+                                  const Normalization& units, const HamiltonianIntervalInput& in);
+// A library map's dissipation terms beside γ in the user's units, with their intervals (null
+// ne: none): the report's "dissipation" terms after the viscous one (identify_dissipation.cpp);
+// an empty list for any other map.
+// `integrator`: per term, the relative change of its value at twice the substeps, added in
+// quadrature to its standard error (as gamma's integrator share); empty: none.
+nlohmann::json dissipation_terms_report(const OneStepMap& map, const Vector& theta,
+                                        const Normalization& units,
+                                        const HamiltonianIntervalInput& in,
+                                        const std::vector<double>& integrator = {});
+
+// r.modes: the fitted map linearised at its fixed point nearest the training windows' mean
+// state, each oscillating mode's natural frequency and damping ratio, with intervals when
+// `in.ne` is given (identify_modes.cpp).
+void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeIntervalInput& in,
+                    IdentifyResult& r);
+
+// γ̂'s interval in the user's time units (r.interval), from the training windows, and the
+// modes with theirs (modal_analysis).
+void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<Trajectory>& nt,
+              const IdentifyHooks& hooks, const Communicator& comm, IdentifyResult& r);
+
+// r.quality from the validation windows.
+void measure_quality(const OneStepMap& map, const BlockSplit& split, Index d, IdentifyResult& r);
+
+// Appends to r.checks (which holds the data's own check, measured_momenta_check) the model's
+// assumptions tested on every block.
+void run_checks(const OneStepMap& map, const BlockSplit& split, const IdentifyHooks& hooks,
+                IdentifyResult& r);
+
+// r.reasons, r.identified, r.rejected.
+void verdict(const BlockSplit& split, double h_max, bool lm_fits, IdentifyResult& r);
+
+// The stages up to the chosen core trained (inspect_data … adapt_windows), recorded in r
+// (config, data, normalisation, choices, θ, training, γ̂, training and validation losses).
+struct CoreFit {
+  DataFacts facts;
+  std::vector<Trajectory> nt;  // the data in the fit's units
+  BlockSplit split;
+  std::vector<Candidate> cand;
+  std::size_t best = 0;  // the chosen candidate
+  bool lm_fits = true;   // at most 6,000 parameters: LM and an interval
+};
+// Whether the library core explains the data to the noise, so that the neural cores are not
+// trained; `why` says what was measured. The default judges the held-out one-step residuals
+// (at_noise_floor); the positions route judges the positions (identify_positions.cpp).
+using FloorTest =
+    std::function<bool(const Candidate& library, const BlockSplit& split, std::string& why)>;
+CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
+                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
+                 const FloorTest& floor_test = {});
+
+// Whether a record with momenta is fitted as a whole (config.record_fit: "whole", "windows",
+// or "auto": identify_states.cpp says when).
+bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config);
+// The whole-record fit of a record with momenta (identify_states.cpp): from the windows' fit,
+// θ and every segment's start state fitted to the observed q and p, the segments linked over
+// the record; r's θ, γ̂, losses and interval (with the modes', the Hamiltonian's and the
+// friction's) replaced, or the reason there is no interval in r.reasons. Returns whether the
+// whole record was fitted: false when no block has segments to fit (the windows' interval
+// then stands) or on a stop request (r.stopped).
+bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHooks& hooks,
+                      IdentifyResult& r);
+
+// The model in the user's units: the inner map wrapped in the normalisation (unless an init
+// file without one fixed the units).
+Model user_model(const Model& inner, const IdentifyResult& r);
+
+// A library candidate with one sin/cos or exp group replaced by the powers of the same
+// argument (1..4 of a coordinate; 2..4 of a difference, its linear part on the two
+// coordinates), started from the group's potential fitted by that polynomial over the
+// arguments of the positions q (d × N, the fit's units): one per such group
+// (identify_library_swap.cpp).
+struct PolynomialAlternative {
+  std::string replaced, by;
+  Candidate candidate;
+};
+std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib, Index d,
+                                                           const Matrix& q);
+// The reverse, for a coordinate without a sinusoid: its powers of degree 3 and 4 replaced by a
+// sin/cos pair of it (its linear and square terms kept or added), the pair started from the
+// powers' potential fitted by q_i, q_i², sin(κ q_i) and cos(κ q_i) over the positions q,
+// κ = 1 / the coordinate's half range.
+std::vector<PolynomialAlternative> periodic_alternatives(const Candidate& lib, Index d,
+                                                         const Matrix& q);
+// The library candidate with a linear term qI for every coordinate that has none (coefficients
+// 0, the rest of θ as it was), or none when it has them all or is no library core. From
+// positions alone the rest position is not known: the normalisation's shift (the mean of the
+// positions) misses it by a share of the amplitude that, at low noise, is larger than the noise
+// (identify_library_swap.cpp).
+std::optional<Candidate> with_rest_position_terms(const Candidate& lib, Index d);
+// The library candidate with the terms `next`: the mass, β and each kept term's coefficient
+// (and wavenumber) carried over from `lib`, a new term at 0. Throws for a candidate that is no
+// library core.
+Candidate library_with_terms(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next);
+// The same with the dissipation terms `next_dissipation` (a kept one's rate carried over, a new
+// one at HamiltonianLibraryMap::kDissipationInit).
+Candidate library_with(const Candidate& lib, Index d, const std::vector<LibraryTerm>& next,
+                       const std::vector<DissipationTerm>& next_dissipation);
+
+// identify_positions() after the core is trained on the positions with velocities from a
+// local polynomial: the momenta as hidden states (identify_positions.cpp).
+// `given` is the configuration as the user gave it: library terms named there are fitted as
+// given, and its lm_iterations (0: automatic, 100) bounds each positions fit. before_verdict,
+// when set, runs after the checks and before the verdict (the growth rate's refit).
+void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                         const IdentifyConfig& given, const IdentifyHooks& hooks, IdentifyResult& r,
+                         const std::function<void(IdentifyResult&)>& before_verdict = {});
+
+// The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its
+// end, t' = t_end − t (identify.cpp).
+std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs);
+// When the dissipation check of r finds growing motion: `refit` (the same pipeline) on the
+// record in reversed time, where growing motion decays, gives the growth rate and its interval
+// for the check's sentence; a record that seems to grow both ways leaves the check undecided.
+using Refit = std::function<IdentifyResult(const std::vector<Trajectory>&)>;
+void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
+                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r);
+
+}  // namespace csympnet::detail

@@ -1,0 +1,181 @@
+// The Hamiltonian-library core inside `fit` (src/identify/identify_library.cpp) and its
+// Hamiltonian in the user's units (identify_hamiltonian.cpp):
+//   - a clean Duffing oscillator: γ̂ to the data's precision, its terms found, no spurious term
+//     above its interval, the true coefficients inside theirs;
+//   - a pendulum in degrees with an offset and in milliseconds: the Hamiltonian reported in
+//     those units is the natural one transformed (wavenumber π/180, the offset as a phase);
+//   - the coefficients' intervals cover the truth at about their level (40 noisy records);
+//   - given terms are fitted as given.
+// The data come from a classical RK4 with 200 substeps per sample, independent of the map.
+#include <cmath>
+#include <functional>
+#include <iostream>
+#include <numbers>
+
+#include <gtest/gtest.h>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/core/rng.hpp"
+#include "csympnet/identify/identify.hpp"
+
+namespace csympnet {
+namespace {
+
+using Force = std::function<double(double)>;  // −dV/dq, d = 1, unit mass
+
+std::vector<Trajectory> rk4_records(const Force& force, double gamma,
+                                    const std::vector<Vector>& starts, int points, double h,
+                                    double sigma, std::uint64_t seed) {
+  Rng rng(seed, "library-test-noise");
+  std::vector<Trajectory> out;
+  for (const Vector& z0 : starts) {
+    Trajectory t;
+    t.t = Vector::LinSpaced(points, 0.0, h * (points - 1));
+    t.z.resize(2, points);
+    double q = z0(0), p = z0(1);
+    const double dt = h / 200.0;
+    const auto f = [&](double qq, double pp, double& dq, double& dp) {
+      dq = pp;
+      dp = force(qq) - gamma * pp;
+    };
+    for (int k = 0; k < points; ++k) {
+      t.z(0, k) = q;
+      t.z(1, k) = p;
+      for (int s = 0; s < 200; ++s) {
+        double a1, b1, a2, b2, a3, b3, a4, b4;
+        f(q, p, a1, b1);
+        f(q + 0.5 * dt * a1, p + 0.5 * dt * b1, a2, b2);
+        f(q + 0.5 * dt * a2, p + 0.5 * dt * b2, a3, b3);
+        f(q + dt * a3, p + dt * b3, a4, b4);
+        q += dt / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4);
+        p += dt / 6.0 * (b1 + 2 * b2 + 2 * b3 + b4);
+      }
+    }
+    out.push_back(t);
+  }
+  if (sigma > 0.0)
+    for (Trajectory& t : out)
+      for (Index i = 0; i < 2; ++i) {
+        const double sd = std::sqrt((t.z.row(i).array() - t.z.row(i).mean()).square().mean());
+        for (Index k = 0; k < t.z.cols(); ++k) t.z(i, k) += sigma * sd * rng.normal();
+      }
+  return out;
+}
+
+const nlohmann::json* find_term(const nlohmann::json& h, const std::string& name) {
+  for (const auto& t : h["terms"])
+    if (t["term"] == name) return &t;
+  return nullptr;
+}
+
+bool covers(const nlohmann::json& term, double truth) {
+  return term["interval"][0].get<double>() <= truth && truth <= term["interval"][1].get<double>();
+}
+
+TEST(LibraryCore, CleanDuffingGivesGammaAndItsTermsToTheDataPrecision) {
+  const double gamma = 0.05;
+  std::vector<Vector> starts;
+  for (double q0 : {1.2, 1.5, 0.9, 1.7}) starts.push_back((Vector(2) << q0, 0.1).finished());
+  const auto data =
+      rk4_records([](double q) { return q - q * q * q; }, gamma, starts, 120, 0.15, 0.0, 1);
+  IdentifyConfig c;
+  const IdentifyResult r = identify(data, false, c);
+  ASSERT_TRUE(r.identified) << r.choices.dump();
+  EXPECT_EQ(r.config.core["type"], "library");
+  EXPECT_LT(std::abs(r.gamma - gamma) / gamma, 1e-7) << r.gamma;
+  EXPECT_TRUE(r.interval->low <= gamma && gamma <= r.interval->high)
+      << r.gamma << " [" << r.interval->low << ", " << r.interval->high << "] "
+      << nlohmann::json(*r.interval).dump() << r.choices["library"].dump();
+  const nlohmann::json& h = r.hamiltonian;
+  ASSERT_TRUE(h.is_object());
+  // V = −q²/2 + q⁴/4 about the data's own origin; every other term is zero within its interval.
+  const auto* q2 = find_term(h, "q1^2");
+  const auto* q4 = find_term(h, "q1^4");
+  ASSERT_NE(q2, nullptr) << h.dump();
+  ASSERT_NE(q4, nullptr) << h.dump();
+  EXPECT_NEAR((*q2)["coefficient"].get<double>(), -0.5, 1e-6);
+  EXPECT_NEAR((*q4)["coefficient"].get<double>(), 0.25, 1e-6);
+  for (const auto& t : h["terms"]) {
+    if (&t == q2 || &t == q4) continue;
+    const double c0 = t["coefficient"].get<double>();
+    EXPECT_TRUE(covers(t, 0.0) || std::abs(c0) < 1e-6) << "spurious term " << t.dump();
+  }
+  EXPECT_NEAR(h["inverse_mass"][0][0].get<double>(), 1.0, 1e-6);
+}
+
+// A pendulum θ'' = −ω² sin θ − γθ' recorded in degrees about an offset of 30°, time in
+// milliseconds, angular velocity in degrees per natural time unit: H in those units is the
+// natural H times (180/π)(180/π)/1000 (q and p scales over the time scale), with cos(θ) become
+// cos(k(q − 30)) = cos(kq)cos(30k) + sin(kq)sin(30k), k = π/180.
+TEST(LibraryCore, TheHamiltonianIsReportedInTheUsersUnits) {
+  const double omega = 1.7, gamma = 0.08;
+  std::vector<Vector> starts;
+  for (double q0 : {1.0, 1.6, 2.2}) starts.push_back((Vector(2) << q0, 0.0).finished());
+  auto data = rk4_records([&](double q) { return -omega * omega * std::sin(q); }, gamma, starts,
+                          150, 0.2, 0.0, 2);
+  const double deg = 180.0 / std::numbers::pi;
+  for (Trajectory& t : data) {
+    t.t *= 1000.0;
+    t.z.row(0) = (t.z.row(0).array() * deg + 30.0).matrix();
+    t.z.row(1) *= deg;
+  }
+  const IdentifyResult r = identify(data, false, IdentifyConfig{});
+  ASSERT_TRUE(r.identified);
+  EXPECT_LT(std::abs(r.gamma * 1000.0 - gamma) / gamma, 1e-7);
+  const nlohmann::json& h = r.hamiltonian;
+  ASSERT_TRUE(h.is_object());
+  const double k = std::numbers::pi / 180.0, scale = deg * deg / 1000.0;
+  const auto* cs = find_term(h, "cos(q1)");
+  const auto* sn = find_term(h, "sin(q1)");
+  ASSERT_NE(cs, nullptr) << h.dump();
+  ASSERT_NE(sn, nullptr) << h.dump();
+  EXPECT_NEAR((*cs)["wavenumber"].get<double>(), k, 1e-9 * k);
+  const double amp = -omega * omega * scale;
+  EXPECT_NEAR((*cs)["coefficient"].get<double>(), amp * std::cos(30.0 * k), 1e-6 * std::abs(amp));
+  EXPECT_NEAR((*sn)["coefficient"].get<double>(), amp * std::sin(30.0 * k), 1e-6 * std::abs(amp));
+  // ½p² becomes (deg²/1000) ½ (p_user/deg)²: an inverse mass of 1/1000.
+  EXPECT_NEAR(h["inverse_mass"][0][0].get<double>(), 1e-3, 1e-12);
+}
+
+// Noisy linear oscillators (ω = 1.3, 1% noise, natural units): the q1^2 coefficient ω²/2
+// lies inside its 95% interval in about 95% of 40 records (at least 33: a binomial lower
+// tail below 1e-3 if the coverage were 0.95).
+TEST(LibraryCore, CoefficientIntervalsCoverAtAboutTheirLevel) {
+  const double omega = 1.3;
+  int covered = 0, n = 0;
+  for (int rec = 0; rec < 40; ++rec) {
+    Rng rng(100 + rec, "library-coverage-starts");
+    std::vector<Vector> starts;
+    for (int m = 0; m < 3; ++m) starts.push_back(rng.uniform_vector(2, -1.0, 1.0));
+    const auto data = rk4_records([&](double q) { return -omega * omega * q; }, 0.1, starts, 100,
+                                  0.2, 1e-2, 200 + rec);
+    IdentifyConfig c;
+    c.core = {{"type", "library"}};
+    const IdentifyResult r = identify(data, false, c);
+    const auto* q2 = find_term(r.hamiltonian, "q1^2");
+    if (q2 == nullptr || (*q2)["interval"].is_null()) continue;
+    ++n;
+    if (covers(*q2, 0.5 * omega * omega)) ++covered;
+  }
+  std::cout << "  q1^2 interval covered omega^2/2 in " << covered << " of " << n << "\n";
+  EXPECT_GE(n, 38);
+  EXPECT_GE(covered, 33);
+  EXPECT_LE(covered, n);
+}
+
+TEST(LibraryCore, GivenTermsAreFittedAsGiven) {
+  std::vector<Vector> starts = {(Vector(2) << 0.8, 0.0).finished(),
+                                (Vector(2) << -0.5, 0.4).finished()};
+  const auto data = rk4_records([](double q) { return -q; }, 0.1, starts, 80, 0.2, 0.0, 3);
+  IdentifyConfig c;
+  c.core = {{"type", "library"}, {"terms", {"q1", "q1^2", "q1^4"}}};
+  const IdentifyResult r = identify(data, false, c);
+  EXPECT_EQ(r.config.core["terms"], nlohmann::json({"q1", "q1^2", "q1^4"}));
+  EXPECT_TRUE(r.choices["library"]["forward"].empty());
+  EXPECT_LT(std::abs(r.gamma - 0.1), 1e-6) << r.choices.dump();
+  c.core = {{"type", "library"}, {"terms", {"q1^9"}}};
+  EXPECT_THROW(identify(data, false, c), Error);
+}
+
+}  // namespace
+}  // namespace csympnet

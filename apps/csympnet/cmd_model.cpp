@@ -15,10 +15,10 @@
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/diagnostics/observed.hpp"
 #include "csympnet/diagnostics/positions_score.hpp"
-#include "csympnet/paper/outputs.hpp"
-#include "csympnet/paper/run.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
+#include "csympnet/paper/outputs.hpp"
+#include "csympnet/paper/run.hpp"
 #include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "interrupt.hpp"
@@ -58,6 +58,202 @@ Vector parse_state(const std::string& s, Index dim) {
                 std::to_string(dim) + ", as the model's state q1..qd,p1..pd");
   return Eigen::Map<Vector>(v.data(), dim);
 }
+
+// The known system of an evaluation and its diagnostics' settings: --preset, else the one the
+// model file records. Without either, only the observed data (--data) can score the model: no
+// γ is assumed, and the options that change a system are refused.
+struct EvaluateSystem {
+  std::optional<RunConfig> config;
+  std::optional<System> system;
+};
+EvaluateSystem evaluate_system(const EvaluateArgs& a, const SavedModel& saved) {
+  EvaluateSystem known;
+  std::optional<RunConfig>& c = known.config;
+  if (!a.preset.empty()) {
+    c = default_run_config(a.preset, "csympnet");
+  } else if (saved.meta.contains("system") && saved.meta["system"].is_object()) {
+    // Only an object is a system (what `run` writes); a plain string or any other value
+    // (a label a user or another tool put there) records none.
+    c = default_run_config("s1", "csympnet");
+    try {
+      c->preset.system = saved.meta["system"].get<SystemSpec>();
+    } catch (const std::exception& e) {  // Error or nlohmann::json::exception
+      throw Error(a.model + ": meta.system is not a valid system (" + e.what() +
+                  "); expected one as written by csympnet run, or pass --preset");
+    }
+  }
+  require(c.has_value() || !a.data.empty(), [&] {
+    return "--data or --preset is required: " + a.model +
+           " does not record its system; expected --data TRAJ.csv (observed trajectories) or "
+           "--preset s1|s2|s3|s2-100|s3-100";
+  });
+  require(c.has_value() || !a.system.any(), [&] {
+    return "--d, --gamma, --omega, --k and --alpha change a known system, and " + a.model +
+           " records none; expected --preset with them";
+  });
+  require(c.has_value() || !a.h_test, [&] {
+    return std::string(
+        "--h-test is the step of the diagnostics against a known system; "
+        "expected --preset with it (against --data the observed steps are used)");
+  });
+  std::optional<System>& sys = known.system;
+  if (c) {
+    a.system.apply(c->preset);
+    if (a.h_test) c->preset.h_test = *a.h_test;
+    sys.emplace(c->preset.system);
+    require(sys->dim() == saved.model.dim(), [&] {
+      return "the model's dimension " + std::to_string(saved.model.dim()) +
+             " does not match the system's " + std::to_string(sys->dim());
+    });
+  }
+  return known;
+}
+
+// What evaluate scores: observed trajectories of states (or the system's test set), or
+// positions (with inputs, a driven record, its momenta set aside).
+struct EvaluateData {
+  std::vector<Trajectory> tests;
+  std::vector<Trajectory> positions;  // a positions file: d × n per trajectory
+  bool positions_only = false, driven = false;
+  std::string where;  // the data's name, for messages
+};
+EvaluateData evaluate_data(const EvaluateArgs& a, const SavedModel& saved,
+                           const EvaluateSystem& known) {
+  require(!a.warmup || !a.data.empty(), [&] {
+    return std::string(
+        "--warmup is the warm-up window of a positions file; expected --data POSITIONS.csv "
+        "with it");
+  });
+  EvaluateData out;
+  std::vector<Trajectory>& tests = out.tests;
+  std::vector<Trajectory>& positions = out.positions;
+  std::optional<CsvInput> input;
+  if (!a.data.empty()) input = read_csv_input(a.data, parse_column_map(a.columns));
+  // A record with inputs is scored as positions (its momenta, if any, set aside): a free run
+  // driven by its inputs from a state fitted to the warm-up.
+  const bool driven_data = out.driven = input && input->inputs > 0;
+  const bool positions_data = out.positions_only =
+      input && (input->kind == CsvKind::kPositions || driven_data);
+  if (input) out.where = input->name;
+  require(!a.warmup || positions_data, [&] {
+    return "--warmup is the warm-up window of a positions file, and " + a.data +
+           " holds states (their rollouts start from the first observed state); expected "
+           "--warmup only with a positions file '[traj,]t,q1..qd'";
+  });
+  if (driven_data) {
+    const bool states = input->kind != CsvKind::kPositions;
+    positions =
+        states ? parse_trajectories_csv(std::move(input->text), input->name, InputColumns::kRead)
+               : parse_positions_csv(std::move(input->text), input->name, InputColumns::kRead);
+    if (states)
+      for (Trajectory& t : positions) t.z = Matrix(t.z.topRows(t.z.rows() / 2));
+  } else if (positions_data) {
+    positions = parse_positions_csv(std::move(input->text), input->name);
+    // A known system is diagnosed on its own test set (the preset's) when there is one.
+    if (!a.preset.empty()) {
+      Rng rng(known.config->test_seed, "test-trajectories");
+      tests =
+          generate_test_set(*known.system, known.config->preset.n_test, known.config->preset.h_test,
+                            known.config->preset.horizon, rng, known.config->reference)
+              .trajectories;
+    }
+  } else if (input) {
+    tests = parse_trajectories_csv(std::move(input->text), input->name);
+    // Reading accepts single-point trajectories (they are valid data); a rollout needs two.
+    for (std::size_t k = 0; k < tests.size(); ++k) {
+      require(tests[k].z.rows() == saved.model.dim(), [&] {
+        return a.data + ": the trajectories have " + std::to_string(tests[k].z.rows() / 2) +
+               " degrees of freedom; expected d = " + std::to_string(saved.model.dim() / 2) +
+               " like the model " + a.model;
+      });
+      // The L2 error squares differences of states; beyond 1e150 they overflow.
+      require(tests[k].z.cwiseAbs().maxCoeff() <= 1e150, [&] {
+        return a.data + ": trajectory " + std::to_string(k + 1) +
+               " has a state value beyond 1e150 in magnitude (its square overflows "
+               "double); expected |value| <= 1e150";
+      });
+      require(tests[k].steps() >= 1, [&] {
+        return a.data + ": trajectory " + std::to_string(k + 1) + " of " +
+               std::to_string(tests.size()) +
+               " has a single point; expected at least two points per test trajectory";
+      });
+    }
+  } else {
+    // The test set's size, span and step are a preset's; none is assumed.
+    require(!a.preset.empty(), [&] {
+      return "--data or --preset is required to know the test set: " + a.model +
+             " records its system but not a test set";
+    });
+    Rng rng(known.config->test_seed, "test-trajectories");
+    tests =
+        generate_test_set(*known.system, known.config->preset.n_test, known.config->preset.h_test,
+                          known.config->preset.horizon, rng, known.config->reference)
+            .trajectories;
+  }
+  return out;
+}
+
+// evaluate's report: the diagnostics against the known system, the observed scores, the
+// positions' free-run score and, for a driven record, the simulation.
+nlohmann::json evaluate_report(const EvaluateArgs& a, const SavedModel& saved,
+                               const EvaluateSystem& known, const EvaluateData& data) {
+  // The positions first: a refusal (a short trajectory, a window the model does not explain)
+  // comes before any diagnostics of a test set.
+  nlohmann::json positions_score;
+  if (data.positions_only) {
+    PositionsScoreOptions opt;
+    opt.warmup = a.warmup;
+    opt.where = data.where;
+    positions_score = score_positions(saved.model, saved.theta, data.positions, opt);
+  }
+  const LearnedMap map = learned_map(saved.model, saved.theta);
+  nlohmann::json rep;
+  if (known.system && !data.tests.empty()) {
+    rep = evaluate(map, *known.system, data.tests, known.config->preset.h_test);
+    rep["gamma_true"] = known.system->gamma();
+    rep["system"] = known.config->preset.system;
+    rep["h_test"] = known.config->preset.h_test;
+  } else {
+    rep["gamma_hat"] = map.gamma_hat ? nlohmann::json(*map.gamma_hat) : nlohmann::json(nullptr);
+    rep["gamma_true"] =
+        known.system ? nlohmann::json(known.system->gamma()) : nlohmann::json(nullptr);
+    rep["system"] =
+        known.system ? nlohmann::json(known.config->preset.system) : nlohmann::json(nullptr);
+  }
+  if (data.driven) {
+    // The free-run simulation driven by the record's inputs, in the data's units.
+    rep["simulation"] = {{"rmse", positions_score["rmse_per_coordinate"]},
+                         {"rmse_all", positions_score["rmse"]},
+                         {"nrmse", positions_score["nrmse"]},
+                         {"warmup", a.warmup ? nlohmann::json(*a.warmup)
+                                             : positions_score["per_trajectory"][0]["warmup"]},
+                         {"samples_scored", positions_score["samples_scored"]},
+                         {"inputs", data.positions.front().u.rows()},
+                         {"rollout_finite", positions_score["rollout_finite"]},
+                         {"about",
+                          "free run of the model driven by the record's inputs u from a state "
+                          "fitted to the first warmup samples of each trajectory (left out of "
+                          "the score); rmse per q column in the data's units"}};
+  }
+  if (data.positions_only) {
+    rep["positions"] = std::move(positions_score);
+    rep["data"] = a.data;
+  } else if (!a.data.empty()) {
+    try {
+      rep["observed"] = score_observed(map, data.tests);
+    } catch (const Error& e) {
+      throw Error(a.data + ": " + e.what());
+    }
+    rep["data"] = a.data;
+  }
+  rep["model_file"] = a.model;
+  rep["model"] = saved.model.type();
+  rep["params"] = saved.model.n_params();
+  // The trajectories rolled out: the system's test set, else the positions scored.
+  rep["test_trajectories"] = data.tests.empty() ? data.positions.size() : data.tests.size();
+  return rep;
+}
+
 }  // namespace
 
 void add_evaluate(CLI::App& app) {
@@ -95,164 +291,9 @@ void add_evaluate(CLI::App& app) {
     std::optional<OutputDir> out_dir;
     if (!a->out.empty()) out_dir.emplace(a->out, a->force);
     const SavedModel saved = load_model(a->model);
-    // The system, when one is known: --preset, else the one the model file records. Without
-    // either, only the observed data (--data) can score the model: no γ is assumed.
-    std::optional<RunConfig> c;
-    if (!a->preset.empty()) {
-      c = default_run_config(a->preset, "csympnet");
-    } else if (saved.meta.contains("system") && saved.meta["system"].is_object()) {
-      // Only an object is a system (what `run` writes); a plain string or any other value
-      // (a label a user or another tool put there) records none.
-      c = default_run_config("s1", "csympnet");
-      try {
-        c->preset.system = saved.meta["system"].get<SystemSpec>();
-      } catch (const std::exception& e) {  // Error or nlohmann::json::exception
-        throw Error(a->model + ": meta.system is not a valid system (" + e.what() +
-                    "); expected one as written by csympnet run, or pass --preset");
-      }
-    }
-    require(c.has_value() || !a->data.empty(), [&] {
-      return "--data or --preset is required: " + a->model +
-             " does not record its system; expected --data TRAJ.csv (observed trajectories) or "
-             "--preset s1|s2|s3|s2-100|s3-100";
-    });
-    require(c.has_value() || !a->system.any(), [&] {
-      return "--d, --gamma, --omega, --k and --alpha change a known system, and " + a->model +
-             " records none; expected --preset with them";
-    });
-    require(c.has_value() || !a->h_test, [&] {
-      return std::string(
-          "--h-test is the step of the diagnostics against a known system; "
-          "expected --preset with it (against --data the observed steps are used)");
-    });
-    std::optional<System> sys;
-    if (c) {
-      a->system.apply(c->preset);
-      if (a->h_test) c->preset.h_test = *a->h_test;
-      sys.emplace(c->preset.system);
-      require(sys->dim() == saved.model.dim(), [&] {
-        return "the model's dimension " + std::to_string(saved.model.dim()) +
-               " does not match the system's " + std::to_string(sys->dim());
-      });
-    }
-    require(!a->warmup || !a->data.empty(), [&] {
-      return std::string(
-          "--warmup is the warm-up window of a positions file; expected --data POSITIONS.csv "
-          "with it");
-    });
-    std::vector<Trajectory> tests;
-    std::vector<Trajectory> positions;  // a positions file: d × n per trajectory
-    std::optional<CsvInput> input;
-    if (!a->data.empty()) input = read_csv_input(a->data, parse_column_map(a->columns));
-    // A record with inputs is scored as positions (its momenta, if any, set aside): a free run
-    // driven by its inputs from a state fitted to the warm-up.
-    const bool driven_data = input && input->inputs > 0;
-    const bool positions_data = input && (input->kind == CsvKind::kPositions || driven_data);
-    require(!a->warmup || positions_data, [&] {
-      return "--warmup is the warm-up window of a positions file, and " + a->data +
-             " holds states (their rollouts start from the first observed state); expected "
-             "--warmup only with a positions file '[traj,]t,q1..qd'";
-    });
-    if (driven_data) {
-      const bool states = input->kind != CsvKind::kPositions;
-      positions =
-          states ? parse_trajectories_csv(std::move(input->text), input->name, InputColumns::kRead)
-                 : parse_positions_csv(std::move(input->text), input->name, InputColumns::kRead);
-      if (states)
-        for (Trajectory& t : positions) t.z = Matrix(t.z.topRows(t.z.rows() / 2));
-    } else if (positions_data) {
-      positions = parse_positions_csv(std::move(input->text), input->name);
-      // A known system is diagnosed on its own test set (the preset's) when there is one.
-      if (!a->preset.empty()) {
-        Rng rng(c->test_seed, "test-trajectories");
-        tests = generate_test_set(*sys, c->preset.n_test, c->preset.h_test, c->preset.horizon, rng,
-                                  c->reference)
-                    .trajectories;
-      }
-    } else if (input) {
-      tests = parse_trajectories_csv(std::move(input->text), input->name);
-      // Reading accepts single-point trajectories (they are valid data); a rollout needs two.
-      for (std::size_t k = 0; k < tests.size(); ++k) {
-        require(tests[k].z.rows() == saved.model.dim(), [&] {
-          return a->data + ": the trajectories have " + std::to_string(tests[k].z.rows() / 2) +
-                 " degrees of freedom; expected d = " + std::to_string(saved.model.dim() / 2) +
-                 " like the model " + a->model;
-        });
-        // The L2 error squares differences of states; beyond 1e150 they overflow.
-        require(tests[k].z.cwiseAbs().maxCoeff() <= 1e150, [&] {
-          return a->data + ": trajectory " + std::to_string(k + 1) +
-                 " has a state value beyond 1e150 in magnitude (its square overflows "
-                 "double); expected |value| <= 1e150";
-        });
-        require(tests[k].steps() >= 1, [&] {
-          return a->data + ": trajectory " + std::to_string(k + 1) + " of " +
-                 std::to_string(tests.size()) +
-                 " has a single point; expected at least two points per test trajectory";
-        });
-      }
-    } else {
-      // The test set's size, span and step are a preset's; none is assumed.
-      require(!a->preset.empty(), [&] {
-        return "--data or --preset is required to know the test set: " + a->model +
-               " records its system but not a test set";
-      });
-      Rng rng(c->test_seed, "test-trajectories");
-      tests = generate_test_set(*sys, c->preset.n_test, c->preset.h_test, c->preset.horizon, rng,
-                                c->reference)
-                  .trajectories;
-    }
-    // The positions first: a refusal (a short trajectory, a window the model does not explain)
-    // comes before any diagnostics of a test set.
-    nlohmann::json positions_score;
-    if (positions_data) {
-      PositionsScoreOptions opt;
-      opt.warmup = a->warmup;
-      opt.where = input->name;
-      positions_score = score_positions(saved.model, saved.theta, positions, opt);
-    }
-    const LearnedMap map = learned_map(saved.model, saved.theta);
-    nlohmann::json rep;
-    if (sys && !tests.empty()) {
-      rep = evaluate(map, *sys, tests, c->preset.h_test);
-      rep["gamma_true"] = sys->gamma();
-      rep["system"] = c->preset.system;
-      rep["h_test"] = c->preset.h_test;
-    } else {
-      rep["gamma_hat"] = map.gamma_hat ? nlohmann::json(*map.gamma_hat) : nlohmann::json(nullptr);
-      rep["gamma_true"] = sys ? nlohmann::json(sys->gamma()) : nlohmann::json(nullptr);
-      rep["system"] = sys ? nlohmann::json(c->preset.system) : nlohmann::json(nullptr);
-    }
-    if (driven_data) {
-      // The free-run simulation driven by the record's inputs, in the data's units.
-      rep["simulation"] = {{"rmse", positions_score["rmse_per_coordinate"]},
-                           {"rmse_all", positions_score["rmse"]},
-                           {"nrmse", positions_score["nrmse"]},
-                           {"warmup", a->warmup ? nlohmann::json(*a->warmup)
-                                                : positions_score["per_trajectory"][0]["warmup"]},
-                           {"samples_scored", positions_score["samples_scored"]},
-                           {"inputs", positions.front().u.rows()},
-                           {"rollout_finite", positions_score["rollout_finite"]},
-                           {"about",
-                            "free run of the model driven by the record's inputs u from a state "
-                            "fitted to the first warmup samples of each trajectory (left out of "
-                            "the score); rmse per q column in the data's units"}};
-    }
-    if (positions_data) {
-      rep["positions"] = std::move(positions_score);
-      rep["data"] = a->data;
-    } else if (!a->data.empty()) {
-      try {
-        rep["observed"] = score_observed(map, tests);
-      } catch (const Error& e) {
-        throw Error(a->data + ": " + e.what());
-      }
-      rep["data"] = a->data;
-    }
-    rep["model_file"] = a->model;
-    rep["model"] = saved.model.type();
-    rep["params"] = saved.model.n_params();
-    // The trajectories rolled out: the system's test set, else the positions scored.
-    rep["test_trajectories"] = tests.empty() ? positions.size() : tests.size();
+    const EvaluateSystem known = evaluate_system(*a, saved);
+    const EvaluateData data = evaluate_data(*a, saved, known);
+    const nlohmann::json rep = evaluate_report(*a, saved, known, data);
     if (out_dir) out_dir->commit({{"report.json", json_file_text(rep)}});
     std::cout << rep.dump(2) << "\n";
   });

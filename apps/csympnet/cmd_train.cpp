@@ -14,12 +14,12 @@
 #include "csympnet/core/communicator.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
-#include "csympnet/paper/fit.hpp"
 #include "csympnet/identify/identify.hpp"
-#include "csympnet/paper/outputs.hpp"
 #include "csympnet/identify/time_unit.hpp"
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model_file.hpp"
+#include "csympnet/paper/fit.hpp"
+#include "csympnet/paper/outputs.hpp"
 #include "csympnet/train/loss.hpp"
 #include "fit_figure.hpp"
 #include "identify_summary.hpp"
@@ -296,7 +296,9 @@ FigureOutcome figure_of(const FitArgs& a, bool pairs_only) {
             "csympnet.fit_figure OUT --data FILE` draws it from a copy"};
   return draw_fit_figure(a.out);
 }
-void run_identify(const FitArgs& a, const CLI::App& cmd) {
+// The identification's settings from fit's options, every one checked (ranges, spellings)
+// before any work; the classic recipe's and train's options refused by name.
+IdentifyConfig identify_config_of(const FitArgs& a, const CLI::App& cmd) {
   for (const char* only_train : {"--chunk-pairs", "--batch-size"})
     if (cmd.count(only_train) > 0)
       throw CLI::ValidationError(only_train, "belongs to train and --recipe classic");
@@ -324,36 +326,32 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
   if (a.lr) settings["lr"] = *a.lr;
   if (a.val_fraction) settings["val_fraction"] = *a.val_fraction;
   if (!a.init.empty()) settings["init"] = a.init;
-  // Every option checked (ranges, spellings) before any work.
-  const IdentifyConfig c = at_boundary([&] { return make_identify_config(settings); });
-  // Under mpirun: one fit over the ranks, its window sums shared out; rank 0 alone talks and
-  // writes (docs/architecture.md, "Identification over MPI ranks").
-  const Communicator& comm = process_communicator();
-  const bool lead = comm.rank() == 0;
-  std::optional<OutputDir> out_dir;
-  if (lead) out_dir.emplace(prepare_output_dir(a.out, a.force));
+  return at_boundary([&] { return make_identify_config(settings); });
+}
+
+// The record as fit reads it: its kind (positions, pairs, trajectories; with inputs or not)
+// and its trajectories (pairs become two-sample trajectories).
+struct FitRecord {
+  bool positions_only = false, pairs_only = false, driven = false;
+  std::vector<Trajectory> trajs;
+};
+FitRecord read_fit_record(const CsvInput& input) {
+  FitRecord rec;
+  rec.positions_only = input.kind == CsvKind::kPositions;
+  // Known inputs (u1..um): the driven route, on the positions with the inputs.
+  rec.driven = input.inputs > 0;
   // The training reader first: it refuses, at their line, values too large to train on and
   // files whose trajectories give no pairs, which the plain readers accept.
-  const ColumnMap columns = parse_column_map(a.columns);
-  // The clock's unit changes only the report: given, or stated by the time column's name.
-  std::optional<TimeUnit> unit;
-  if (!a.time_unit.empty()) unit = parse_time_unit(a.time_unit, "--time-unit");
-  for (const auto& [canonical, own] : columns.columns)
-    if (canonical == "t" && !unit) unit = time_unit_of_column(own);
-  const CsvInput input = read_csv_input(a.data, columns);  // once: a pipe works
-  const bool positions_only = input.kind == CsvKind::kPositions;
-  // Known inputs (u1..um): the driven route, on the positions with the inputs.
-  const bool driven = input.inputs > 0;
   const PairSet checked =
-      positions_only || driven ? PairSet{} : parse_any_as_pairs(input.text, input.name);
-  const bool pairs_only = input.kind == CsvKind::kPairs;
-  std::vector<Trajectory> trajs;
-  if (driven) {
-    trajs = positions_only ? parse_positions_csv(input.text, input.name, InputColumns::kRead)
-                           : parse_trajectories_csv(input.text, input.name, InputColumns::kRead);
-  } else if (positions_only) {
-    trajs = parse_positions_csv(input.text, input.name);
-  } else if (pairs_only) {
+      rec.positions_only || rec.driven ? PairSet{} : parse_any_as_pairs(input.text, input.name);
+  rec.pairs_only = input.kind == CsvKind::kPairs;
+  if (rec.driven) {
+    rec.trajs = rec.positions_only
+                    ? parse_positions_csv(input.text, input.name, InputColumns::kRead)
+                    : parse_trajectories_csv(input.text, input.name, InputColumns::kRead);
+  } else if (rec.positions_only) {
+    rec.trajs = parse_positions_csv(input.text, input.name);
+  } else if (rec.pairs_only) {
     for (Index j = 0; j < checked.size(); ++j) {
       Trajectory t;
       t.t.resize(2);
@@ -361,11 +359,18 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
       t.z.resize(checked.dim(), 2);
       t.z.col(0) = checked.z0.col(j);
       t.z.col(1) = checked.z1.col(j);
-      trajs.push_back(std::move(t));
+      rec.trajs.push_back(std::move(t));
     }
   } else {
-    trajs = parse_trajectories_csv(input.text, input.name);
+    rec.trajs = parse_trajectories_csv(input.text, input.name);
   }
+  return rec;
+}
+
+// What fit tells as it works: the stages on stderr, AdamW on the progress line, LM one line a
+// second at most (on a terminal, redrawn in place) and the last one; every poll of the stop
+// request and of the progress an agreement over MPI ranks.
+IdentifyHooks fit_hooks(const Communicator& comm, bool talk, const ProgressCallback& adamw_line) {
   IdentifyHooks hooks;
   hooks.should_stop = [] { return interrupted(); };
   if (comm.size() > 1) {
@@ -373,57 +378,38 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     hooks.communicator = &comm;
     hooks.should_stop = [&comm] { return comm.any(interrupted()); };
   }
-  const bool talk = !a.quiet && lead;
   hooks.stage = [talk](const std::string& s) {
     if (talk)
       std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
   };
-  IdentifyResult r;
-  {
-    ProgressLine progress(a.quiet || !lead);
-    // AdamW on the progress line; LM one line a second at most (on a terminal, redrawn in
-    // place), and the last one.
-    const ProgressCallback adamw_line = progress.callback();
-    auto last = std::make_shared<std::chrono::steady_clock::time_point>();
-    const bool tty = isatty(STDERR_FILENO) == 1;
-    hooks.progress = [adamw_line, talk, last, tty](const TrainProgress& p) {
-      if (std::strcmp(p.stage, "lm") != 0) return adamw_line(p);
-      if (!talk) return true;
-      const auto now = std::chrono::steady_clock::now();
-      if (p.epoch < p.epochs && now - *last < std::chrono::seconds(1)) return true;
-      *last = now;
-      std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "",
-                   p.epoch, p.epochs, p.val_loss, tty ? "" : "\n");
-      return true;  // an interrupt reaches LM through should_stop
+  auto last = std::make_shared<std::chrono::steady_clock::time_point>();
+  const bool tty = isatty(STDERR_FILENO) == 1;
+  hooks.progress = [adamw_line, talk, last, tty](const TrainProgress& p) {
+    if (std::strcmp(p.stage, "lm") != 0) return adamw_line(p);
+    if (!talk) return true;
+    const auto now = std::chrono::steady_clock::now();
+    if (p.epoch < p.epochs && now - *last < std::chrono::seconds(1)) return true;
+    *last = now;
+    std::fprintf(stderr, "%s  LM iteration %ld / %ld, validation loss %.3e%s", tty ? "\r" : "",
+                 p.epoch, p.epochs, p.val_loss, tty ? "" : "\n");
+    return true;  // an interrupt reaches LM through should_stop
+  };
+  if (comm.size() > 1)
+    hooks.progress = [line = hooks.progress, &comm](const TrainProgress& p) {
+      return !comm.any(!line(p));
     };
-    if (comm.size() > 1)
-      hooks.progress = [line = hooks.progress, &comm](const TrainProgress& p) {
-        return !comm.any(!line(p));
-      };
+  return hooks;
+}
 
-    try {
-      r = driven           ? identify_driven(trajs, positions_only, c, hooks)
-          : positions_only ? identify_positions(trajs, c, hooks)
-                           : identify(trajs, pairs_only, c, hooks);
-    } catch (const OptionError& e) {  // an option the data cannot take (--window on pairs)
-      // --init names its own file: the data are not to blame.
-      if (e.message(cli_spelling()).rfind("--init", 0) == 0) throw;
-      throw Error(a.data + ": " + e.message(cli_spelling()));
-    } catch (const Error& e) {
-      throw Error(a.data + ": " + e.what());  // what the data lack: name the file
-    }
-  }
-  if (!lead) {  // the same result as rank 0's, which reports it
-    if (r.stopped)
-      throw Interrupted("rank " + std::to_string(comm.rank()) +
-                        " stopped with the others; rank 0 saved the best parameters in " + a.out);
-    return;
-  }
+// report.json, timings.json and model.json as one set in OUT; a figure of an earlier fit there
+// is removed, since it would not show this one.
+void write_fit_outputs(const FitArgs& a, const IdentifyResult& r,
+                       const std::optional<TimeUnit>& unit, OutputDir& out_dir) {
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
   if (!a.columns.empty()) report["data"]["columns"] = a.columns;
   report["time_unit"] = time_unit_report(unit, report);
-  out_dir->commit(
+  out_dir.commit(
       {{"report.json", json_file_text(report)},
        {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
                                         {"lm_seconds", r.lm_seconds},
@@ -439,11 +425,73 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
           }
           return meta;
         }())}});
-  // A figure of an earlier fit in this directory would not show this one.
   for (const char* name : kFitFigureFiles) {
     std::error_code ec;
     fs::remove(fs::path(a.out) / name, ec);
   }
+}
+
+// The fit's figure, unless skipped or impossible; whether it was drawn. An interrupt while
+// drawing leaves no half set of figures.
+bool draw_fit_figures(const FitArgs& a, const FitRecord& rec, const IdentifyResult& r) {
+  if (!a.no_figures && rec.driven)
+    std::fprintf(stderr, "fit: figure not drawn: no figure for a record with inputs yet\n");
+  if (a.no_figures || rec.driven || r.stopped || interrupted()) return false;
+  std::fflush(stdout);  // the answer first, while the figure is drawn
+  const FigureOutcome f = figure_of(a, rec.pairs_only);
+  if (interrupted()) {
+    for (const char* name : kFitFigureFiles) {
+      std::error_code ec;
+      fs::remove(fs::path(a.out) / name, ec);
+    }
+    throw Interrupted(
+        "stopped while drawing the figure; report.json and model.json are "
+        "complete in " +
+        a.out);
+  }
+  if (!f.drawn)
+    std::fprintf(stderr, "fit: figure not drawn: %s (--no-figures skips it)\n", f.why.c_str());
+  return f.drawn;
+}
+
+void run_identify(const FitArgs& a, const CLI::App& cmd) {
+  const IdentifyConfig c = identify_config_of(a, cmd);
+  // Under mpirun: one fit over the ranks, its window sums shared out; rank 0 alone talks and
+  // writes (docs/architecture.md, "Identification over MPI ranks").
+  const Communicator& comm = process_communicator();
+  const bool lead = comm.rank() == 0;
+  std::optional<OutputDir> out_dir;
+  if (lead) out_dir.emplace(prepare_output_dir(a.out, a.force));
+  const ColumnMap columns = parse_column_map(a.columns);
+  // The clock's unit changes only the report: given, or stated by the time column's name.
+  std::optional<TimeUnit> unit;
+  if (!a.time_unit.empty()) unit = parse_time_unit(a.time_unit, "--time-unit");
+  for (const auto& [canonical, own] : columns.columns)
+    if (canonical == "t" && !unit) unit = time_unit_of_column(own);
+  const FitRecord rec = read_fit_record(read_csv_input(a.data, columns));  // once: a pipe works
+  IdentifyResult r;
+  {
+    ProgressLine progress(a.quiet || !lead);
+    const IdentifyHooks hooks = fit_hooks(comm, !a.quiet && lead, progress.callback());
+    try {
+      r = rec.driven           ? identify_driven(rec.trajs, rec.positions_only, c, hooks)
+          : rec.positions_only ? identify_positions(rec.trajs, c, hooks)
+                               : identify(rec.trajs, rec.pairs_only, c, hooks);
+    } catch (const OptionError& e) {  // an option the data cannot take (--window on pairs)
+      // --init names its own file: the data are not to blame.
+      if (e.message(cli_spelling()).rfind("--init", 0) == 0) throw;
+      throw Error(a.data + ": " + e.message(cli_spelling()));
+    } catch (const Error& e) {
+      throw Error(a.data + ": " + e.what());  // what the data lack: name the file
+    }
+  }
+  if (!lead) {  // the same result as rank 0's, which reports it
+    if (r.stopped)
+      throw Interrupted("rank " + std::to_string(comm.rank()) +
+                        " stopped with the others; rank 0 saved the best parameters in " + a.out);
+    return;
+  }
+  write_fit_outputs(a, r, unit, *out_dir);
   if (r.identified) {
     print_gamma(r, unit);
     print_dissipation(r);
@@ -453,26 +501,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     std::printf("gamma_hat: %s\n", r.rejected ? "model rejected" : "not identified");
   }
   print_checks(r.checks, a.quiet);
-  bool figure = false;
-  if (!a.no_figures && driven)
-    std::fprintf(stderr, "fit: figure not drawn: no figure for a record with inputs yet\n");
-  if (!a.no_figures && !driven && !r.stopped && !interrupted()) {
-    std::fflush(stdout);  // the answer first, while the figure is drawn
-    const FigureOutcome f = figure_of(a, pairs_only);
-    figure = f.drawn;
-    if (interrupted()) {
-      for (const char* name : kFitFigureFiles) {  // no half set of figures
-        std::error_code ec;
-        fs::remove(fs::path(a.out) / name, ec);
-      }
-      throw Interrupted(
-          "stopped while drawing the figure; report.json and model.json are "
-          "complete in " +
-          a.out);
-    }
-    if (!f.drawn)
-      std::fprintf(stderr, "fit: figure not drawn: %s (--no-figures skips it)\n", f.why.c_str());
-  }
+  const bool figure = draw_fit_figures(a, rec, r);
   if (!a.quiet) print_identify_details(r, a.out, figure);
   if (r.stopped)
     throw Interrupted("stopped; the best parameters so far and their report are in " + a.out);

@@ -511,6 +511,62 @@ double factored_standard_error(const Matrix& a, Index n_free, Index b, double lo
   return std::sqrt(std::max(0.0, loss * e(b) / static_cast<double>(n)));
 }
 
+// A trial of the joint step δ = (δθ, δz): θ moved by the reduced system's `step`, and each
+// segment's start state by its own back-substitution, with the decrease the Gauss–Newton model
+// predicts, ½ (λ δᵀDδ − gᵀδ) in the cost ½ scale² ‖r‖² (the loss is twice the cost).
+struct JointTrial {
+  Vector theta;
+  Matrix z0;
+  double predicted = 0.0;
+};
+JointTrial joint_trial(const Vector& theta, const Matrix& z0, const Vector& step,
+                       const NormalEquations& ne, const std::vector<SegmentTerms>& terms,
+                       Index n_free, double lambda) {
+  JointTrial t{theta, z0, 0.0};
+  t.theta.head(n_free) += step;
+  double predicted =
+      -ne.g.dot(step) + lambda * step.dot(marquardt_diagonal(ne.a).cwiseProduct(step));
+  for (Index s = 0; s < z0.cols(); ++s) {
+    const SegmentTerms& x = terms[static_cast<std::size_t>(s)];
+    Matrix u = x.u;
+    const Vector du = marquardt_diagonal(x.u);
+    u.diagonal() += lambda * du;
+    const Vector dz = -small_factor(u).solve(x.gb + x.w.transpose() * step);
+    t.z0.col(s) += dz;
+    predicted += -x.gb.dot(dz) + lambda * dz.dot(du.cwiseProduct(dz));
+  }
+  t.predicted = 0.5 * predicted;
+  return t;
+}
+
+// Why three small steps ended the fit.
+std::string converged_message(double converged_chi2) {
+  return converged_chi2 > 0.0
+             ? "converged: the loss changes by less than " + std::to_string(converged_chi2) +
+                   " of chi-square (or 1e-10 of itself) per step"
+             : "converged: the loss changes by less than 1e-10 of itself per step";
+}
+
+// Every accepted iterate, for the choice at the end.
+struct ShootingIterate {
+  long iteration;
+  Vector theta;
+  Matrix z0, val_z0;
+  double val;
+};
+
+// The latest iterate whose held-out loss is within one standard error of the lowest: a
+// held-out loss at the noise floor changes by less than its own noise from step to step, and
+// the more converged fit of the positions is then the better estimate. Without held-out
+// segments, the latest.
+const ShootingIterate& chosen_iterate(const std::vector<ShootingIterate>& kept, double best_val,
+                                      double best_val_se, bool no_val) {
+  const ShootingIterate* chosen = &kept.front();
+  for (const ShootingIterate& x : kept)
+    if (x.val <= best_val + best_val_se || no_val) chosen = &x;
+  return *chosen;
+}
+
 }  // namespace
 
 ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
@@ -536,14 +592,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     rep.message = "the rollout from the start is not finite";
     return rep;
   }
-  // Every accepted iterate, for the choice at the end.
-  struct Iterate {
-    long iteration;
-    Vector theta;
-    Matrix z0, val_z0;
-    double val;
-  };
-  std::vector<Iterate> kept;
+  std::vector<ShootingIterate> kept;
   kept.push_back({0, theta, z0, val_z0, val_loss(theta, val_z0)});
   const double n_val = static_cast<double>(std::max<Index>(1, val.n_residuals()));
   const auto standard_error = [n_val](double loss) { return loss * std::sqrt(2.0 / n_val); };
@@ -590,29 +639,13 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       lambda *= 4.0;
       continue;
     }
-    Vector theta_try = theta;
-    theta_try.head(n_free) += step;
-    Matrix z0_try = z0;
-    // The decrease the Gauss–Newton model predicts for the joint step δ = (δθ, δz):
-    // with (JᵀJ + λD) δ = −g it is ½ (λ δᵀDδ − gᵀδ), in the cost ½ scale² ‖r‖².
-    double predicted =
-        -ne.g.dot(step) + lambda * step.dot(marquardt_diagonal(ne.a).cwiseProduct(step));
-    for (Index s = 0; s < train.size(); ++s) {
-      const SegmentTerms& x = terms[static_cast<std::size_t>(s)];
-      Matrix u = x.u;
-      const Vector du = marquardt_diagonal(x.u);
-      u.diagonal() += lambda * du;
-      const Vector dz = -small_factor(u).solve(x.gb + x.w.transpose() * step);
-      z0_try.col(s) += dz;
-      predicted += -x.gb.dot(dz) + lambda * dz.dot(du.cwiseProduct(dz));
-    }
-    predicted *= 0.5;
-    const double loss_try = z0_try.cwiseAbs().maxCoeff() <= options.max_abs_state
-                                ? shooting_loss(map, theta_try, z0_try, train)
+    JointTrial trial = joint_trial(theta, z0, step, ne, terms, n_free, lambda);
+    const double loss_try = trial.z0.cwiseAbs().maxCoeff() <= options.max_abs_state
+                                ? shooting_loss(map, trial.theta, trial.z0, train)
                                 : std::numeric_limits<double>::infinity();
     // Nielsen's update of λ from the gain ratio ρ (actual over predicted decrease; the loss is
     // twice the cost).
-    const double rho = predicted > 0.0 ? 0.5 * (loss - loss_try) / predicted : -1.0;
+    const double rho = trial.predicted > 0.0 ? 0.5 * (loss - loss_try) / trial.predicted : -1.0;
     if (!(std::isfinite(loss_try) && loss_try < loss)) {
       lambda *= nu;
       nu *= 2.0;
@@ -634,8 +667,8 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
                              std::abs(step(b)) <= options.converged_se * watch_se;
     watch_steps = watch_small ? watch_steps + 1 : 0;
     small_steps = small ? small_steps + 1 : 0;
-    theta = std::move(theta_try);
-    z0 = std::move(z0_try);
+    theta = std::move(trial.theta);
+    z0 = std::move(trial.z0);
     loss = loss_try;
     fresh = false;
     lambda = std::max(
@@ -662,26 +695,18 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       break;
     }
     if (small_steps >= 3) {
-      rep.message = options.converged_chi2 > 0.0
-                        ? "converged: the loss changes by less than " +
-                              std::to_string(options.converged_chi2) +
-                              " of chi-square (or 1e-10 of itself) per step"
-                        : "converged: the loss changes by less than 1e-10 of itself per step";
+      rep.message = converged_message(options.converged_chi2);
       break;
     }
   }
-  // The latest iterate whose held-out loss is within one standard error of the lowest: a
-  // held-out loss at the noise floor changes by less than its own noise from step to step, and
-  // the more converged fit of the positions is then the better estimate. The standard error of
-  // a mean of n squared Gaussian residuals is the mean times √(2/n).
-  const Iterate* chosen = &kept.front();
-  for (const Iterate& x : kept)
-    if (x.val <= best_val + standard_error(best_val) || val.size() == 0) chosen = &x;
-  theta = chosen->theta;
-  z0 = chosen->z0;
-  val_z0 = chosen->val_z0;
-  rep.best_iteration = chosen->iteration;
-  best_val = chosen->val;
+  // The standard error of a mean of n squared Gaussian residuals is the mean times √(2/n).
+  const ShootingIterate& chosen =
+      chosen_iterate(kept, best_val, standard_error(best_val), val.size() == 0);
+  theta = chosen.theta;
+  z0 = chosen.z0;
+  val_z0 = chosen.val_z0;
+  rep.best_iteration = chosen.iteration;
+  best_val = chosen.val;
   rep.final_loss = shooting_loss(map, theta, z0, train);
   rep.val_loss = best_val;
   return rep;

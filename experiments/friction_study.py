@@ -18,50 +18,8 @@ import sys
 
 import numpy as np
 
-
-def coulomb_advance(omega, gamma, mu, q, v, T):
-    """(q, v) after time T of q'' = -omega^2 q - gamma q' - mu sign(q'), exactly (underdamped):
-    the damped oscillator about the shifted centre between reversals, sticking for good at a
-    reversal where |omega^2 q| <= mu."""
-    w2 = omega * omega
-    wd = math.sqrt(w2 - 0.25 * gamma * gamma)
-    left = T
-    while left > 0.0:
-        if v == 0.0 and w2 * abs(q) <= mu:
-            return q, 0.0
-        s = (1.0 if v > 0 else -1.0) if v != 0.0 else (-1.0 if q > 0 else 1.0)
-        c = -mu * s / w2
-        a = q - c
-        b = (v + 0.5 * gamma * a) / wd
-        cc, dd = v, a * wd + 0.5 * gamma * b
-        phase = math.fmod(math.atan2(cc, dd), math.pi)
-        if phase < 0.0:
-            phase += math.pi
-        if phase <= 1e-15:
-            phase += math.pi
-        t_zero = phase / wd
-        t = min(left, t_zero)
-        e, cs, sn = math.exp(-0.5 * gamma * t), math.cos(wd * t), math.sin(wd * t)
-        q = c + e * (a * cs + b * sn)
-        v = e * (cc * cs - dd * sn) if t < t_zero else 0.0
-        left -= t
-    return q, v
-
-
-def drag_advance(omega, gamma, c, q, v, T, sub=400):
-    dt = T / sub
-    acc = lambda qq, vv: -omega * omega * qq - gamma * vv - c * vv * abs(vv)
-    for _ in range(sub):
-        a1, b1 = v, acc(q, v)
-        a2 = v + 0.5 * dt * b1
-        b2 = acc(q + 0.5 * dt * a1, a2)
-        a3 = v + 0.5 * dt * b2
-        b3 = acc(q + 0.5 * dt * a2, a3)
-        a4 = v + dt * b3
-        b4 = acc(q + dt * a3, a4)
-        q += dt / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
-        v += dt / 6 * (b1 + 2 * b2 + 2 * b3 + b4)
-    return q, v
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from idbench.friction import coulomb_advance, drag_advance  # noqa: E402  (one definition)
 
 
 def record(kind, omega, gamma, rate, starts, points, h, sigma, rng):

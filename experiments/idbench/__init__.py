@@ -8,7 +8,10 @@ and the peers of the observed plan), runner (one case), tables (statistics and o
 long, encoder counts, decays into the noise) with its own tables in observed_tables; forced
 (the forced plan's driven systems, inputs, first-order-hold RK4 and records), forced_plan (one
 forced case: linear ARX, polynomial NARX, the shooting oracle and csympnet, in peers/arx.py,
-peers/narx.py, peers/forced_oracle.py, peers/csympnet.py) and forced_tables.
+peers/narx.py, peers/forced_oracle.py, peers/csympnet.py) and forced_tables; friction (the
+friction plan's exact decays with dry friction or drag, and an encoder-read pendulum with dry
+friction), friction_plan (one case: csympnet, the oracle of peers/friction_oracle.py and the
+envelope fit of peers/friction_textbook.py) and friction_tables.
 
 Command (from the repository root; needs only /usr/bin/python3 with NumPy):
 
@@ -20,6 +23,8 @@ Command (from the repository root; needs only /usr/bin/python3 with NumPy):
         --systems all      # + csympnet_library; every system, the double pendulum included
     /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idf --forced-plan \
         --cases 9 --jobs 1 # driven systems: ARX, NARX, the oracle and csympnet side by side
+    /usr/bin/python3 experiments/identification_benchmark.py --out /tmp/idfr --friction-plan \
+        --cases 20         # dry friction and drag: csympnet, the oracle and the envelope fit
 
 Options: --cases N (default 120, 8 with --quick; with --violations 60, 10 with --quick),
 --quick (a few cases of small size), --violations (only violation cases, below), --seed S
@@ -46,7 +51,10 @@ columns u1..um; --forced-systems a,b,... a subset; see idbench/forced.py for the
 inputs and idbench/forced_plan.py for the methods and the free-run score). With --forced-plan,
 csympnet is `csympnet fit` on the training file then `csympnet evaluate --warmup 100` on each
 test file; a binary that refuses the input columns is recorded "unsupported" and the peers'
-tables are written all the same.
+tables are written all the same. --friction-plan (the friction plan instead: --cases in all,
+default 20, 5 with --quick; the strata viscous, coulomb, drag, coulomb-positions and
+encoder-pendulum taken in turn, --friction-strata a,b,... a subset; see idbench/friction.py for
+the records and idbench/friction_plan.py for the methods and the scores).
 
 Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p, unit masses, unless stated):
 

@@ -15,6 +15,9 @@ from .common import GEN_OMEGA_DT, METHODS, REPO, STOP, Interrupted
 from .forced import FORCED_SYSTEMS, plan_forced
 from .forced_plan import FORCED_METHODS, run_forced_case
 from .forced_tables import case_rms, write_forced_outputs
+from .friction import FRICTION_STRATA, plan_friction
+from .friction_plan import FRICTION_METHODS, run_friction_case
+from .friction_tables import write_friction_outputs
 from .generate import plan, plan_violations
 from .observed import OBSERVED_METHODS, OBSERVED_STRATA, plan_observed, run_observed_case
 from .observed_tables import write_observed_outputs
@@ -90,6 +93,25 @@ def progress_forced(i, n, c):
           file=sys.stderr, flush=True)
 
 
+def progress_friction(i, n, c):
+    parts = []
+    for m in FRICTION_METHODS:
+        r = c["methods"].get(m)
+        if r is None or r.get("status") == "skipped":
+            continue
+        cpu = r.get("cpu_seconds")
+        cpu = "" if cpu is None else f" {cpu:.1f} CPU s"
+        if r.get("status") == "ok":
+            cov = {True: " covers", False: " misses"}.get(r.get("covers"), "")
+            rate = r.get("rate_rel_err")
+            rate = "" if rate is None else f", rate {rate:.1e}"
+            kinds = f" [{','.join(r['kinds']) or 'viscous'}]" if "kinds" in r else ""
+            parts.append(f"{m} {r['rel_err']:.1e}{cov}{rate}{kinds}{cpu}")
+        else:
+            parts.append(f"{m} {r.get('status')}{cpu}")
+    print(f"[{i}/{n}] {c['id']}: " + ", ".join(parts), file=sys.stderr, flush=True)
+
+
 def parse_args():
     """The parser (main reports its own checks through it) and the parsed options."""
     ap = argparse.ArgumentParser(
@@ -149,6 +171,13 @@ def parse_args():
     ap.add_argument("--forced-systems", default=",".join(FORCED_SYSTEMS),
                     help="with --forced-plan: a comma-separated subset of "
                          + ",".join(FORCED_SYSTEMS))
+    ap.add_argument("--friction-plan", action="store_true",
+                    help="run the friction plan instead (viscous, Coulomb and drag decays, "
+                         "an encoder-read pendulum with dry friction: idbench/friction.py), "
+                         "csympnet beside the oracle and the envelope fit")
+    ap.add_argument("--friction-strata", default=",".join(FRICTION_STRATA),
+                    help="with --friction-plan: a comma-separated subset of "
+                         + ",".join(FRICTION_STRATA))
     ap.add_argument("--force", action="store_true",
                     help="write into a non-empty --out (its cases/ folder is replaced)")
     return ap, ap.parse_args()
@@ -160,22 +189,28 @@ def main():
         ap.error("--seed must be >= 0")
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
-    if args.forced_plan:
+    if sum(map(bool, (args.forced_plan, args.observed_plan, args.friction_plan,
+                      args.violations))) > 1:
+        ap.error("--forced-plan, --observed-plan, --friction-plan and --violations are plans "
+                 "of their own: give one")
+    if args.friction_plan:
+        n = args.cases if args.cases is not None else (5 if args.quick else 20)
+        fstrata = [x.strip() for x in args.friction_strata.split(",") if x.strip()]
+        bad = [x for x in fstrata if x not in FRICTION_STRATA]
+        if bad or not fstrata:
+            ap.error(f"unknown friction strata {bad}; choose from {','.join(FRICTION_STRATA)}")
+    elif args.forced_plan:
         n = args.cases if args.cases is not None else (3 if args.quick else 6)
         fsys = [x.strip() for x in args.forced_systems.split(",") if x.strip()]
         bad = [x for x in fsys if x not in FORCED_SYSTEMS]
         if bad or not fsys:
             ap.error(f"unknown forced systems {bad}; choose from {','.join(FORCED_SYSTEMS)}")
-        if args.violations or args.observed_plan:
-            ap.error("--forced-plan is a plan of its own: give one of the plans")
     elif args.observed_plan:
         n = args.cases if args.cases is not None else (5 if args.quick else 10)
         strata = [x.strip() for x in args.observed_strata.split(",") if x.strip()]
         bad = [x for x in strata if x not in OBSERVED_STRATA]
         if bad or not strata:
             ap.error(f"unknown observed strata {bad}; choose from {','.join(OBSERVED_STRATA)}")
-        if args.violations:
-            ap.error("--observed-plan and --violations are two plans: give one")
     elif args.with_momenta:
         ap.error("--with-momenta: needs --observed-plan")
     elif args.violations:
@@ -220,7 +255,11 @@ def main():
                          "stlsq_threshold": STLSQ_THRESHOLD, "stlsq_ridge": STLSQ_RIDGE,
                          "library_cap": LIBRARY_CAP}}
     run, write = None, write_outputs
-    if args.forced_plan:
+    if args.friction_plan:
+        meta.update(friction_plan=True, friction_strata=fstrata)
+        cases = plan_friction(n, args.seed, fstrata)
+        run, write = run_friction_case, write_friction_outputs
+    elif args.forced_plan:
         meta.update(forced_plan=True, forced_systems=fsys)
         cases = plan_forced(n, args.seed, fsys)
         run, write = run_forced_case, write_forced_outputs
@@ -272,6 +311,7 @@ def main():
                     continue
                 done_count += 1
                 (progress if run is None else progress_forced if args.forced_plan
+                 else progress_friction if args.friction_plan
                  else progress_observed)(done_count, len(cases), c)
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -289,17 +289,15 @@ class _Layout:
             _checks.choice("observed", observed, OBSERVED)
         self.z, self.t, self.observed = z, t, observed
         self.time_unit, self.unit_source = time_unit, "time_unit"
+        self.from_frame = _frames.is_pandas(z)
         self.frame_trajectories = False
-        if _frames.is_pandas(z):
+        if self.from_frame:
             frame = _frames.unpack(z, t, observed, name)
             self.z, self.t, self.observed = frame.z, frame.t, frame.observed
             self.frame_trajectories = isinstance(frame.z, list)
             if time_unit is None and frame.time_column is not None:
                 self.time_unit = _core.time_unit_of_column(frame.time_column)
                 self.unit_source = f"column {frame.time_column!r}"
-            self.from_frame = True
-        else:
-            self.from_frame = False
 
     def resolve(self, who, stacklevel, warn=True):
         """The layout, "states" when not given (with a LayoutWarning for an even number of
@@ -318,7 +316,7 @@ def _input_rows(arrays, trajs):
     """The inputs as one (M_k, m) array per trajectory, one row per sample time."""
     out = []
     for k, (a, tr) in enumerate(zip(arrays, trajs)):
-        a = np.asarray(a, dtype=float)
+        a = _checks.real_array(f"u[{k}]", a)
         if a.ndim == 1:
             a = a[:, None]
         if a.ndim != 2 or a.shape[0] != len(tr.t):

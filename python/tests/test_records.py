@@ -178,6 +178,8 @@ def test_an_array_without_observed_is_read_as_states_with_a_warning():
      r"x_next: expected shape \(12, 2\), got \(3, 2\)"),
     (lambda: _records.read_estimator([Z, Z], 0.1, observed="states", u=T), ValueError,
      "u: expected a list of 2 input arrays, one per trajectory of x"),
+    (lambda: _records.read(Q, T, None, observed="positions", u=np.array(["on"] * 12)),
+     TypeError, r"u\[0\]: expected real numbers"),
     (lambda: _records.pairs("", Z, Z[:3], 0.1), ValueError, "z1: has 3 states, expected 12"),
     (lambda: _records.trajectory_list([(T, Z, T)], "tests"), TypeError,
      r"tests\[0\]: expected a \(t, z\) pair"),

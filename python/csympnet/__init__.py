@@ -34,12 +34,12 @@ torch). See docs/python.md.
 
 from . import _core
 from ._core import Error
-from ._data import Pairs, System, Trajectory, generate, model_types, read_csv, systems, write_csv
-from ._estimator import CSympNetID, NoTimesWarning
+from ._data import System, generate, model_types, read_csv, systems, write_csv
+from ._estimator import CSympNetID
 from ._fit import RunResult, fit, fit_trajectories, run
-from ._identify import (Identification, LayoutWarning, ModelRejectedWarning, NotIdentifiedWarning,
-                        identify)
+from ._identify import Identification, ModelRejectedWarning, NotIdentifiedWarning, identify
 from ._model import Model, from_json, load
+from ._records import LayoutWarning, NoTimesWarning, Pairs, Trajectory
 
 __version__ = _core.__version__
 

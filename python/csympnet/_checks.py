@@ -1,8 +1,9 @@
-"""Argument checks of the public API.
+"""Argument checks of the public API: one value or one array at a time.
 
 Every check names the argument, says what was found and what was expected, and raises
 TypeError (wrong kind of object or dtype) or ValueError (wrong shape or value). What passes is
-a float64 C-contiguous array the compiled module can take as it is.
+a float64 C-contiguous array the compiled module can take as it is. Records (trajectories,
+pairs, frames, inputs) are read in _records.py, which builds on these.
 
 Only what Python alone can check lives here: the kinds of objects, array shapes and values
 before they are converted. The ranges of the options of fit, identify and run, and the rules
@@ -27,7 +28,8 @@ def path(name, p):
     return p
 
 
-def _as_real_array(name, x):
+def real_array(name, x):
+    """x as a float64 C-order array of any shape, refused unless it holds real numbers."""
     if x is None:
         raise TypeError(f"{name}: expected an array of real numbers, got None")
     try:
@@ -41,7 +43,7 @@ def _as_real_array(name, x):
     return np.asarray(a, dtype=np.float64, order="C")
 
 
-def _require_finite(name, a):
+def require_finite(name, a):
     if not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
         where = "" if a.ndim == 0 else f" (first at index {tuple(int(i) for i in bad)})"
@@ -50,7 +52,7 @@ def _require_finite(name, a):
 
 def states(name, z, dim=None, allow_single=True):
     """A state (2d,) or a batch (N, 2d) → ((N, 2d) array, whether a single state was given)."""
-    a = _as_real_array(name, z)
+    a = real_array(name, z)
     single = a.ndim == 1
     if single and allow_single:
         a = a.reshape(1, -1)
@@ -67,47 +69,31 @@ def states(name, z, dim=None, allow_single=True):
             f"{name}: states have {width} components; expected an even number 2d >= 2 "
             "(q1..qd, p1..pd)"
         )
-    _require_finite(name, a)
+    require_finite(name, a)
     return a, single
-
-
-# Like the CLI's readers: a state beyond this in magnitude has a square that overflows double,
-# so no loss on it is finite and training would keep its starting point.
-MAX_TRAINING_MAGNITUDE = 1e150
-
-
-def trainable(name, a):
-    """Refuses training data with a value whose square overflows (as `csympnet fit` does)."""
-    big = np.abs(a) > MAX_TRAINING_MAGNITUDE
-    if np.any(big):
-        at = tuple(int(i) for i in np.argwhere(big)[0])
-        raise ValueError(
-            f"{name}: {a[at]!r} at index {at} is too large to train on (its square overflows "
-            f"double); expected |value| <= {MAX_TRAINING_MAGNITUDE:g}")
-    return a
 
 
 def vector(name, x, length=None, min_length=0):
     """A 1-D array of finite reals."""
-    a = _as_real_array(name, x)
+    a = real_array(name, x)
     if a.ndim != 1:
         raise ValueError(f"{name}: expected a 1-D array, got shape {a.shape}")
     if length is not None and a.shape[0] != length:
         raise ValueError(f"{name}: has {a.shape[0]} entries, expected {length}")
     if a.shape[0] < min_length:
         raise ValueError(f"{name}: has {a.shape[0]} entries, expected at least {min_length}")
-    _require_finite(name, a)
+    require_finite(name, a)
     return a
 
 
 def steps(name, h, n):
     """Steps h > 0: a scalar (the same for all n) or an array of n → (n,) array."""
-    a = _as_real_array(name, h)
+    a = real_array(name, h)
     if a.ndim == 0:
         a = np.full(n, float(a))
     elif a.ndim != 1 or a.shape[0] != n:
         raise ValueError(f"{name}: expected a scalar or an array of {n} steps, got shape {a.shape}")
-    _require_finite(name, a)
+    require_finite(name, a)
     if n and not np.all(a > 0):
         raise ValueError(f"{name}: expected steps > 0, got {a[a <= 0][0]!r}")
     tiny = a < np.finfo(np.float64).tiny
@@ -156,38 +142,3 @@ def choice(name, x, options):
     if x not in options:
         raise ValueError(f"{name}: expected one of {', '.join(options)}, got {x!r}")
     return x
-
-
-def same_dimension(name, arrays, positions):
-    """A list of trajectories' arrays, (M, d) positions (or (M,): d = 1) or (M, 2d) states:
-    each must have the first's d, refused naming the entry and both dimensions (the library
-    would say only that the trajectories differ). Entries that are no 1-D or 2-D array are
-    left to the shape checks that follow."""
-    def columns(a):
-        n = np.ndim(a)
-        return 1 if n == 1 else np.shape(a)[1] if n == 2 else None
-    if not isinstance(arrays, (list, tuple)) or not arrays:
-        return
-    first = columns(arrays[0])
-    kind = "position" if positions else "state"
-    for k, a in enumerate(arrays[1:], start=1):
-        c = columns(a)
-        if first is None or c is None or c == first:
-            continue
-        d0, dk = (first, c) if positions else (first / 2, c / 2)
-        raise ValueError(f"{name}[{k}]: {c} {kind} columns (d = {dk:g}), but {name}[0] has "
-                         f"{first} (d = {d0:g}); expected every trajectory of the list to "
-                         f"have the same d")
-
-
-def trajectory(name, t, z, dim=None):
-    """One trajectory: times (n+1,) strictly increasing, states (n+1, 2d)."""
-    za, _ = states(f"{name} z", z, dim=dim, allow_single=False)
-    ta = vector(f"{name} t", t, length=za.shape[0], min_length=1)
-    if ta.shape[0] > 1 and not np.all(np.diff(ta) > 0):
-        k = int(np.argmax(np.diff(ta) <= 0))
-        raise ValueError(
-            f"{name} t: expected strictly increasing times, but t[{k + 1}] = {ta[k + 1]!r} "
-            f"follows t[{k}] = {ta[k]!r}"
-        )
-    return ta, za

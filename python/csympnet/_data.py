@@ -1,18 +1,11 @@
 """Systems, the paper's presets, data generation and CSV files."""
 
 import json
-from collections import namedtuple
 
 import numpy as np
 
-from . import _checks, _core
-
-Pairs = namedtuple("Pairs", "z0 z1 h")
-Pairs.__doc__ = """Snapshot pairs: z0, z1 of shape (N, 2d) (rows are states, q1..qd then
-p1..pd) and steps h of shape (N,), with z1 ≈ Φ_h(z0)."""
-
-Trajectory = namedtuple("Trajectory", "t z")
-Trajectory.__doc__ = """One trajectory: times t of shape (n+1,), states z of shape (n+1, 2d)."""
+from . import _checks, _core, _records
+from ._records import Pairs, Trajectory
 
 REFERENCES = ("splitting", "expm", "rk")
 
@@ -176,28 +169,6 @@ def write_csv(path, data):
     same bits."""
     path = _checks.path("path", path)
     if isinstance(data, Pairs):
-        z0, _ = _checks.states("z0", data.z0, allow_single=False)
-        z1, _ = _checks.states("z1", data.z1, dim=z0.shape[1], allow_single=False)
-        if z1.shape[0] != z0.shape[0]:
-            raise ValueError(f"z1: has {z1.shape[0]} states, expected {z0.shape[0]} (as z0)")
-        hs = _checks.steps("h", data.h, z0.shape[0])
-        _core.write_pairs_csv(path, z0, z1, hs)
+        _core.write_pairs_csv(path, *_records.pairs("", data.z0, data.z1, data.h))
     else:
-        _core.write_trajectories_csv(path, trajectory_list(data))
-
-
-def trajectory_list(trajs, name="trajectories", dim=None):
-    """Checked list of (t, z) pairs from a Trajectory, a (t, z) pair or a list of them."""
-    if isinstance(trajs, Trajectory) or (
-        isinstance(trajs, tuple) and len(trajs) == 2 and np.ndim(trajs[0]) == 1
-        and np.ndim(trajs[1]) == 2
-    ):
-        trajs = [trajs]
-    if not isinstance(trajs, (list, tuple)) or not trajs:
-        raise TypeError(f"{name}: expected a non-empty list of (t, z) trajectories")
-    out = []
-    for k, item in enumerate(trajs):
-        if not isinstance(item, (tuple, list)) or len(item) != 2:
-            raise TypeError(f"{name}[{k}]: expected a (t, z) pair")
-        out.append(Trajectory(*_checks.trajectory(f"{name}[{k}]", item[0], item[1], dim=dim)))
-    return out
+        _core.write_trajectories_csv(path, _records.trajectory_list(data))

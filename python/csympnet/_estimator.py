@@ -7,58 +7,12 @@ scikit-learn: hyperparameters are stored unchanged by __init__ and checked by fi
 """
 
 import inspect
-import warnings
 
 import numpy as np
 
-from . import _checks, _core, _frames
-from ._forms import OBSERVED, padded_positions
-from ._identify import (TIME_UNITS, NotIdentifiedWarning, _columns_of, _layout_warning,
-                        _time_unit_report, identify)
-
-
-class NoTimesWarning(UserWarning):
-    """Warned by CSympNetID.fit when neither times nor t_default are given: the samples are
-    then taken one time unit apart, so gamma_ is a rate per sample, not per second (or
-    whatever unit your clock has). Pass t (times or one step) or t_default to fit."""
-
-
-def _times(t, n_rows, t_default, name="t"):
-    """Sample times for n_rows states: t None (steps of t_default), a step, or the times."""
-    if t is None:
-        t = t_default
-    if np.ndim(t) == 0:
-        step = _checks.real(name, t, positive=True)
-        return step * np.arange(n_rows, dtype=float)
-    return _checks.vector(name, t, length=n_rows)
-
-
-def _trajectories(x, t, t_default):
-    """x and t in the accepted forms (see CSympNetID.fit) as a list of (t, z) pairs."""
-    if isinstance(x, (list, tuple)):
-        if len(x) == 0:
-            raise ValueError("x: expected at least one trajectory")
-        if isinstance(t, (list, tuple)):
-            if len(t) != len(x):
-                raise ValueError(f"t: {len(t)} time arrays for {len(x)} trajectories")
-            ts = t
-        else:
-            ts = [t] * len(x)
-        out = []
-        for k, (zk, tk) in enumerate(zip(x, ts)):
-            z, _ = _checks.states(f"x[{k}]", zk, allow_single=False)
-            out.append((_times(tk, z.shape[0], t_default, f"t[{k}]"), z))
-        return out
-    if np.ndim(x) == 3:
-        xa = np.asarray(x, dtype=float)
-        if t is not None and np.ndim(t) == 2:
-            ta = np.asarray(t, dtype=float)
-            if ta.shape != xa.shape[:2]:
-                raise ValueError(f"t: expected shape {xa.shape[:2]} for x of shape {xa.shape}")
-            return [(ta[k], xa[k]) for k in range(xa.shape[0])]
-        return [(_times(t, xa.shape[1], t_default), xa[k]) for k in range(xa.shape[0])]
-    z, _ = _checks.states("x", x, allow_single=False)
-    return [(_times(t, z.shape[0], t_default), z)]
+from . import _checks, _records
+from ._identify import identify_config, identify_records
+from ._records import NoTimesWarning  # noqa: F401 (csympnet.NoTimesWarning, documented here)
 
 
 class CSympNetID:
@@ -186,72 +140,20 @@ class CSympNetID:
         Returns self. When the data do not identify γ, this warns (NotIdentifiedWarning),
         sets identified_ = False and gamma_ = None; the model is still fitted.
         """
-        options = {name: getattr(self, name) for name in (
+        data = _records.read_estimator(
+            x, t, x_next=x_next, u=u, observed=self.observed, time_unit=self.time_unit,
+            t_default=self.t_default, stacklevel=3)
+        self.observed_ = data.observed
+        config = identify_config(**{name: getattr(self, name) for name in (
             "core", "seed", "window", "loss", "normalize", "epochs", "lr", "lm_iterations",
             "val_fraction", "blocks", "level", "dof_scales", "threads", "init",
-            "derived_momenta", "dissipation", "record_fit")}
-        options["verbose"] = self.verbose
-        t_default = 1.0 if self.t_default is None else self.t_default
-        observed, time_unit, unit_source = self.observed, self.time_unit, "time_unit"
-        if observed is not None:
-            _checks.choice("observed", observed, OBSERVED)
-        if time_unit is not None:
-            _checks.choice("time_unit", time_unit, TIME_UNITS)
-        if _frames.is_pandas(x):
-            if x_next is not None:
-                raise ValueError("x_next: pairs are arrays; a DataFrame holds trajectories")
-            frame = _frames.unpack(x, t, observed, "x")
-            x, t, observed = frame.z, frame.t, frame.observed
-            if time_unit is None and frame.time_column is not None:
-                time_unit = _core.time_unit_of_column(frame.time_column)
-                unit_source = f"column {frame.time_column!r}"
-        elif observed is None and x_next is None:
-            ncols = _columns_of(x)
-            if ncols is not None and ncols % 2 == 0:
-                _layout_warning("CSympNetID.fit", ncols, stacklevel=2)
-        # After the DataFrame is read: its time column gives the times.
-        if t is None and self.t_default is None:
-            warnings.warn(
-                "CSympNetID.fit: no times given (t) and no t_default: the samples are taken 1 "
-                "time unit apart, so gamma_ is per sample, not per unit of time; pass the "
-                "sample times or the step as t, or set t_default", NoTimesWarning, stacklevel=2)
-        observed = observed or "states"
-        self.observed_ = observed
-        positions_only = observed == "positions"
-        if positions_only and x_next is not None:
-            raise ValueError('x_next: pairs need whole states; observed="positions" takes '
-                             "trajectories of positions")
-        if x_next is not None and u is not None:
-            raise ValueError("u: known inputs go with trajectories; pairs (x_next) take none")
-        if x_next is not None:
-            z0, _ = _checks.states("x", x, allow_single=False)
-            z1, _ = _checks.states("x_next", x_next, dim=z0.shape[1], allow_single=False)
-            if z1.shape != z0.shape:
-                raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
-            h = _checks.steps("t", t_default if t is None else t, z0.shape[0])
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", NotIdentifiedWarning)
-                result = identify(pairs=(z0, z1, h), **options)
-            steps = h
-        else:
-            trajs = _trajectories(padded_positions(x) if positions_only else x, t, t_default)
-            zs = [z[:, :z.shape[1] // 2] if positions_only else z for _, z in trajs]
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", NotIdentifiedWarning)
-                us = None if u is None else (list(u) if isinstance(u, (list, tuple)) else u)
-                if us is not None and not isinstance(us, list) and len(trajs) != 1:
-                    raise ValueError(f"u: expected a list of {len(trajs)} input arrays, one per "
-                                     "trajectory of x")
-                result = identify(zs if us is None or isinstance(us, list) else zs[0],
-                                  [tt for tt, _ in trajs] if us is None or isinstance(us, list)
-                                  else trajs[0][0], observed=observed, u=us, **options)
-            steps = np.concatenate([np.diff(tt) for tt, _ in trajs])
-        for w in caught:  # re-raised here, so that it points at the caller's fit()
-            warnings.warn(str(w.message), w.category, stacklevel=2)
+            "derived_momenta", "dissipation", "record_fit")})
+        result = identify_records(data, config, None, self.verbose, stacklevel=3)
+        steps = data.steps()
         self.model_ = result.model
-        self.report_ = _time_unit_report(result.report, time_unit, unit_source)
-        self.time_unit_ = time_unit
-        self.gamma_per_s_ = self.report_["time_unit"]["gamma_per_s"] if time_unit else None
+        self.report_ = result.report
+        self.time_unit_ = data.time_unit
+        self.gamma_per_s_ = self.report_["time_unit"]["gamma_per_s"] if data.time_unit else None
         self.identified_ = result.identified
         self.reasons_ = result.reasons
         self.verdict_ = result.verdict
@@ -301,24 +203,7 @@ class CSympNetID:
         taken as fit takes them, except that without times the step is dt_, the step fitted
         (as in predict). 1 is perfect; predicting no change at all scores about 0. It is `model_.score(...)["one_step_r2"]`; Model.score also gives rollout errors."""
         self._check_fitted()
-        if getattr(self, "observed_", "states") == "positions" and x_next is None and \
-                np.ndim(x) >= 1 and np.shape(x)[-1] != self.n_features_in_:
-            raise ValueError(
-                f"x: score takes states (q, p), {self.n_features_in_} columns; this estimator "
-                "was fitted on positions alone, whose momenta are hidden: get a state from a "
-                "window of positions with model_.state_from_positions(q, t), or compare "
-                "simulate() with your positions")
-        if x_next is not None:
-            z0, _ = _checks.states("x", x, dim=self.n_features_in_, allow_single=False)
-            z1, _ = _checks.states("x_next", x_next, dim=self.n_features_in_, allow_single=False)
-            if z1.shape != z0.shape:
-                raise ValueError(f"x_next: expected shape {z0.shape}, got {z1.shape}")
-            h = _checks.steps("t", self.dt_ if t is None else t, z0.shape[0])
-            # Each pair as a trajectory of two points.
-            trajs_z = [np.stack([a, b]) for a, b in zip(z0, z1)]
-            trajs_t = [np.array([0.0, hj]) for hj in h]
-        else:
-            trajs = _trajectories(x, t, self.dt_)
-            trajs_z = [z for _, z in trajs]
-            trajs_t = [tt for tt, _ in trajs]
-        return float(self.model_.score(trajs_z, trajs_t)["one_step_r2"])
+        data = _records.read_estimator_score(
+            x, t, x_next=x_next, step=self.dt_, dim=self.n_features_in_,
+            fitted_on_positions=getattr(self, "observed_", "states") == "positions")
+        return float(self.model_._score(data)["one_step_r2"])

@@ -7,11 +7,11 @@ from collections import namedtuple
 
 import numpy as np
 
-from . import _checks, _core
-from ._verbose import progress_callback
-from ._data import REFERENCES, Trajectory, _system_overrides, systems, trajectory_list
-from ._forms import as_trajectories
+from . import _checks, _core, _records
+from ._data import REFERENCES, _system_overrides, systems
 from ._model import Model
+from ._records import Trajectory
+from ._verbose import progress_callback
 
 # The models fit_pairs() trains (paper/fit.hpp); csympnet.run trains every model type.
 FIT_MODELS = tuple(_core.fit_models())
@@ -54,16 +54,6 @@ def _core_spec(core):
         return json.dumps(spec)
     raise TypeError(
         f"core: expected None, a string like 'la:5:20' or a dict, got {type(core).__name__}")
-
-
-def _pairs(prefix, z0, z1, h):
-    a0, _ = _checks.states(f"{prefix}z0", z0, allow_single=False)
-    a1, _ = _checks.states(f"{prefix}z1", z1, dim=a0.shape[1], allow_single=False)
-    _checks.trainable(f"{prefix}z0", a0)
-    _checks.trainable(f"{prefix}z1", a1)
-    if a1.shape[0] != a0.shape[0]:
-        raise ValueError(f"{prefix}z1: has {a1.shape[0]} states, expected {a0.shape[0]} (as z0)")
-    return a0, a1, _checks.steps(f"{prefix}h", h, a0.shape[0])
 
 
 def _progress(progress):
@@ -143,7 +133,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     without the GIL; Ctrl-C stops it with KeyboardInterrupt.
     """
     _checks.choice("model", model, FIT_MODELS)
-    a0, a1, hs = _pairs("", z0, z1, h)
+    a0, a1, hs = _records.pairs("", z0, z1, h, train=True)
     if a0.shape[0] < 2 and validation is None:
         raise ValueError(
             f"z0: {a0.shape[0]} pair(s); expected at least 2 (one is held out for validation), "
@@ -153,7 +143,7 @@ def fit(z0, z1, h, model="csympnet", *, validation=None, epochs=None, core=None,
     if validation is not None:
         if not isinstance(validation, (tuple, list)) or len(validation) != 3:
             raise TypeError("validation: expected a (z0, z1, h) triple")
-        val = _pairs("validation ", *validation)
+        val = _records.pairs("validation ", *validation, train=True)
         if val[0].shape[1] != a0.shape[1]:
             raise ValueError(
                 f"validation z0: states have {val[0].shape[1]} components, expected "
@@ -237,8 +227,7 @@ def fit_trajectories(z, t, traj=None, model="csympnet", **options):
                       "CSympNetID.fit do; the arguments given look like (t, z) and were "
                       "swapped. Pass them as (z, t).", FutureWarning, stacklevel=2)
         z, t = t, z
-    trajs = as_trajectories(t, z, traj)
-    checked = trajectory_list(trajs, "trajectories")
+    checked = _records.trajectories(z, t, traj)
     if sum(len(tr.t) - 1 for tr in checked) < 1:
         raise ValueError("t, z: the trajectories give no pairs; expected at least one with 2 rows")
     z0, z1, h = _core.pairs_from_trajectories(checked)

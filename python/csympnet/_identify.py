@@ -6,12 +6,10 @@ import warnings
 
 import numpy as np
 
-from . import _checks, _core, _frames
+from . import _checks, _core, _records
 from ._fit import _core_spec
-from ._forms import OBSERVED, as_trajectories, padded_positions
-from ._verbose import progress_callback
-from ._data import trajectory_list
 from ._model import Model
+from ._verbose import progress_callback
 
 # The library's spellings (identify/identify.hpp).
 LOSSES = tuple(_core.identify_losses())
@@ -22,36 +20,7 @@ class NotIdentifiedWarning(UserWarning):
     """The data do not identify γ; `Identification.reasons` says why."""
 
 
-class LayoutWarning(UserWarning):
-    """Warned by `identify` and `CSympNetID.fit` when `observed` is not given and the columns
-    of an array are read as whole states, q1..qd then p1..pd: two columns are then one
-    coordinate and its momentum (d = 1), not two positions. Pass observed="positions" when
-    the columns are positions alone (a camera, an encoder), or observed="states" to say that
-    they are states and silence this. A pandas DataFrame says which by its column names
-    (q1..qd with p1..pd: states; any other names: positions), so it is not warned about."""
-
-
-def _layout_warning(who, ncols, stacklevel):
-    d = ncols // 2
-    qs = ", ".join(f"q{i}" for i in range(1, d + 1))
-    ps = ", ".join(f"p{i}" for i in range(1, d + 1))
-    warnings.warn(
-        f"{who}: observed not given: the {ncols} columns are read as a state ({qs}, {ps}), "
-        f"d = {d}; if they are {ncols} positions alone, pass observed=\"positions\" (the "
-        "momenta are then fitted as hidden states); observed=\"states\" silences this",
-        LayoutWarning, stacklevel=stacklevel + 1)
-
-
-def _columns_of(z):
-    """The number of columns of z in any accepted form, or None."""
-    first = z[0] if isinstance(z, (list, tuple)) and len(z) else z
-    return np.shape(first)[-1] if np.ndim(first) >= 1 else None
-
-
-TIME_UNITS = tuple(_core.time_units())
-
-
-def _time_unit_report(report, time_unit, source):
+def time_unit_report(report, time_unit, source):
     """The report's "time_unit" object (identify/time_unit.hpp), added in place."""
     report["time_unit"] = json.loads(_core.time_unit_report(time_unit, source, json.dumps(report)))
     return report
@@ -143,30 +112,6 @@ class Identification:
                 f"[{low:.6g}, {high:.6g}])")
 
 
-def _input_arrays(u, z, traj, pairs, checked):
-    """The inputs u as one (M_k, m) array per trajectory of `checked`, or a ValueError."""
-    if pairs is not None or traj is not None:
-        raise ValueError("u: known inputs go with trajectories given as arrays (z, t) or lists "
-                         "of them; pairs and traj labels are not supported with inputs")
-    arrays = list(u) if isinstance(u, (list, tuple)) else [u]
-    if isinstance(z, (list, tuple)) != isinstance(u, (list, tuple)) or len(arrays) != len(checked):
-        raise ValueError(f"u: expected one array of inputs per trajectory ({len(checked)}), "
-                         f"as z is given")
-    out = []
-    for k, (a, tr) in enumerate(zip(arrays, checked)):
-        a = np.asarray(a, dtype=float)
-        if a.ndim == 1:
-            a = a[:, None]
-        if a.ndim != 2 or a.shape[0] != len(tr.t):
-            raise ValueError(f"u[{k}]: expected shape ({len(tr.t)},) or ({len(tr.t)}, m), one row "
-                             f"per sample time; got {a.shape}")
-        if not np.all(np.isfinite(a)):
-            row = int(np.argwhere(~np.isfinite(a))[0][0])
-            raise ValueError(f"u[{k}]: row {row} is not finite; expected finite inputs")
-        out.append(np.ascontiguousarray(a))
-    return out
-
-
 def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, window=0,
              loss="balanced", normalize=True, epochs=0, lr=1e-3, lm_iterations=0,
              val_fraction=0.2, blocks=20, level=0.95, dof_scales="auto", threads=1,
@@ -245,56 +190,26 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
 
     Returns an Identification.
     """
-    if time_unit is not None:
-        _checks.choice("time_unit", time_unit, TIME_UNITS)
-    if observed is not None:
-        _checks.choice("observed", observed, OBSERVED)
-    unit_source = "time_unit"
-    if _frames.is_pandas(z):
-        frame = _frames.unpack(z, t, observed, "z")
-        if traj is not None and isinstance(frame.z, list):
-            raise ValueError("traj: the frame has a trajectory column; expected one of them")
-        z, t, observed = frame.z, frame.t, frame.observed
-        if time_unit is None and frame.time_column is not None:
-            time_unit = _core.time_unit_of_column(frame.time_column)
-            unit_source = f"column {frame.time_column!r}"
-    if observed is None:
-        ncols = _columns_of(z) if pairs is None else None
-        if ncols is not None and ncols % 2 == 0:
-            _layout_warning("csympnet.identify", ncols, stacklevel=2)
-        observed = "states"
-    positions_only = observed == "positions"
-    if pairs is not None:
-        if positions_only:
-            raise ValueError('observed: "positions" needs trajectories; a pair needs a whole '
-                             'state (q and p) at both ends')
-        if z is not None or t is not None or traj is not None:
-            raise ValueError("pairs: give either pairs=(z0, z1, h) or trajectories (z, t), not both")
-        if not isinstance(pairs, (tuple, list)) or len(pairs) != 3:
-            raise ValueError("pairs: expected a (z0, z1, h) triple")
-        z0, _ = _checks.states("pairs z0", pairs[0], allow_single=False)
-        z1, _ = _checks.states("pairs z1", pairs[1], allow_single=False)
-        if z1.shape != z0.shape:
-            raise ValueError(f"pairs z1: expected shape {z0.shape}, got {z1.shape}")
-        h = _checks.vector("pairs h", pairs[2], length=z0.shape[0])
-        trajs = [(np.array([0.0, hj]), np.stack([a, b])) for a, b, hj in zip(z0, z1, h)]
-        pairs_only = True
-    else:
-        if t is None:
-            raise ValueError("t: the sample times are needed with trajectories (identify(z, t))")
-        _checks.same_dimension("z", z, positions_only)
-        trajs = as_trajectories(t, padded_positions(z) if positions_only else z, traj)
-        pairs_only = False
-    checked = trajectory_list(trajs, "trajectories")
-    inputs = None if u is None else _input_arrays(u, z, traj, pairs, checked)
-    for k, tr in enumerate(checked):
-        _checks.trainable(f"trajectory {k} z", tr.z)
+    data = _records.read(z, t, traj, pairs_given=pairs, observed=observed, u=u,
+                         time_unit=time_unit, stacklevel=3)
+    config = identify_config(
+        core=core, seed=seed, window=window, loss=loss, normalize=normalize, epochs=epochs,
+        lr=lr, lm_iterations=lm_iterations, val_fraction=val_fraction, blocks=blocks,
+        level=level, dof_scales=dof_scales, threads=threads, init=init,
+        derived_momenta=derived_momenta, dissipation=dissipation, record_fit=record_fit)
+    return identify_records(data, config, progress, verbose, stacklevel=3)
+
+
+def identify_config(*, core, seed, window, loss, normalize, epochs, lr, lm_iterations,
+                    val_fraction, blocks, level, dof_scales, threads, init, derived_momenta,
+                    dissipation, record_fit):
+    """identify's options as the library's config (JSON text). Only their kinds are checked
+    here; the ranges are the library's (make_identify_config), which refuses a value with a
+    csympnet.Error naming the argument."""
     _checks.choice("loss", loss, LOSSES)
     _checks.choice("dof_scales", dof_scales, DOF_SCALES)
     if not isinstance(normalize, (bool, np.bool_)):
         raise TypeError(f"normalize: expected True or False, got {type(normalize).__name__}")
-    # The kinds here; the ranges are the library's (make_identify_config), which refuses a
-    # value with a csympnet.Error naming the argument.
     config = {
         "seed": _checks.seed("seed", seed),
         "window": _checks.integer("window", window),
@@ -318,13 +233,21 @@ def identify(z=None, t=None, traj=None, *, pairs=None, core=None, seed=42, windo
         if not isinstance(init, (str, os.PathLike)):
             raise TypeError(f"init: expected the path of a model file, got {type(init).__name__}")
         config["init"] = _checks.path("init", init)
+    return json.dumps(config)
+
+
+def identify_records(data, config, progress, verbose, stacklevel=2):
+    """Runs the library's identification on records read by _records.py with a config from
+    identify_config: an Identification, with a NotIdentifiedWarning (or ModelRejectedWarning)
+    when γ is not identified. `stacklevel` is that of a warning issued in this function."""
     with progress_callback(progress, verbose) as callback:
-        core_model, report_text = _core.identify(checked, pairs_only, json.dumps(config),
-                                                 callback, positions_only, inputs)
-    report = _time_unit_report(json.loads(report_text), time_unit, unit_source)
+        core_model, report_text = _core.identify(data.trajectories, data.pairs, config, callback,
+                                                 data.positions_only, data.inputs)
+    report = time_unit_report(json.loads(report_text), data.time_unit, data.unit_source)
     result = Identification(Model(core_model), report)
     if not result.identified:
         rejected = result.verdict == "model rejected"
         warnings.warn(f"csympnet.identify: {result.verdict}: " + "; ".join(result.reasons),
-                      ModelRejectedWarning if rejected else NotIdentifiedWarning, stacklevel=2)
+                      ModelRejectedWarning if rejected else NotIdentifiedWarning,
+                      stacklevel=stacklevel)
     return result

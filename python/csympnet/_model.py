@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 
-from . import _checks, _core
-from ._data import System, Trajectory, systems, trajectory_list
-from ._forms import OBSERVED, as_trajectories, padded_positions
+from . import _checks, _core, _records
+from ._data import System, systems
+from ._records import OBSERVED, Trajectory
 
 # Test sets generated when diagnostics() gets no trajectories: the presets' common values
 # (docs/protocol.md, "Test trajectories": 10 trajectories on [0, 10] with h_test = 0.2, data
@@ -140,20 +140,13 @@ class Model:
         the noise of the positions when the model explains the window. The momenta are in the
         units the fit chose for them. `model.rollout(state, h, steps=n)` then forecasts from
         t[-1]; `csympnet rollout --from-positions` does the same."""
-        qa = np.asarray(q, dtype=float)
-        if qa.ndim == 1:
-            qa = qa.reshape(-1, 1)
-        if qa.ndim != 2 or qa.shape[1] != self.d:
-            raise ValueError(f"q: expected positions (L, {self.d}) for d = {self.d}, got an array "
-                             f"of shape {np.shape(q)}")
+        qa = _records.positions("q", q, dim=self.d)
         if qa.shape[0] < 2:
             raise ValueError("q: expected at least 2 positions")
-        if not np.all(np.isfinite(qa)):
-            raise ValueError("q: expected finite positions")
         ta = _checks.vector("t", t, length=qa.shape[0])
         if not np.all(np.diff(ta) > 0):
             raise ValueError("t: expected strictly increasing times")
-        state, rms = self._m.state_from_positions(np.ascontiguousarray(qa), ta)
+        state, rms = self._m.state_from_positions(qa, ta)
         return state[0], float(rms)
 
     def jacobian(self, z, h):
@@ -218,24 +211,25 @@ class Model:
         scored sample). Definitions: include/csympnet/diagnostics/positions_score.hpp.
         """
         if observed is None:
-            first = z[0] if isinstance(z, (list, tuple)) and len(z) else z
-            width = 1 if np.ndim(first) == 1 else np.shape(first)[-1] if np.ndim(first) else None
-            observed = "positions" if width == self.d and width != 2 * self.d else "states"
+            observed = _records.observed_by_width(z, self.d)
         else:
             _checks.choice("observed", observed, OBSERVED)
+        if observed == "states" and warmup is not None:
+            raise ValueError('warmup: the warm-up window of positions alone; with states the '
+                             'rollout starts from the first observed state (expected '
+                             'observed="positions" with warmup=)')
+        if warmup is not None:
+            warmup = _checks.integer("warmup", warmup)
+        width = self.d if observed == "positions" else 2 * self.d
+        data = _records.trajectories(z, t, traj, observed=observed, name="data", dim=width)
+        return self._score(data, observed, warmup)
+
+    def _score(self, data, observed="states", warmup=None):
+        """score() on trajectories already read (_records.py): (t, z) with z of 2d states
+        or d positions, as `observed` says."""
         if observed == "states":
-            if warmup is not None:
-                raise ValueError('warmup: the warm-up window of positions alone; with states the '
-                                 'rollout starts from the first observed state (expected '
-                                 'observed="positions" with warmup=)')
-            data = trajectory_list(as_trajectories(t, z, traj), "data", dim=2 * self.d)
             scores, rollouts = self._m.score(data)
         else:
-            if warmup is not None:
-                warmup = _checks.integer("warmup", warmup)
-            padded = trajectory_list(as_trajectories(t, padded_positions(z), traj), "data",
-                                     dim=2 * self.d)
-            data = [(tr.t, np.ascontiguousarray(tr.z[:, :self.d])) for tr in padded]
             scores, rollouts = self._m.score_positions(data, warmup)
         out = json.loads(scores)
         out["rollouts"] = list(rollouts)
@@ -271,7 +265,7 @@ class Model:
             trajs, _ = _core.test_set(sys_obj._json, n, h_test, span, seed, "splitting")
             tests = [Trajectory(t, z) for t, z in trajs]
         else:
-            tests = trajectory_list(tests, "tests", dim=2 * self.d)
+            tests = _records.trajectory_list(tests, "tests", dim=2 * self.d)
         if sys_obj.d != self.d:
             raise ValueError(f"system: has d = {sys_obj.d}, but the model has d = {self.d}")
         scalars, rollouts, e_pred, e_ref = self._m.evaluate(sys_obj._json, tests, h_test)

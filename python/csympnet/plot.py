@@ -25,6 +25,7 @@ needs the compiled module, for the model's rollouts).
 
 import math
 import os
+import textwrap
 
 import numpy as np
 from matplotlib import rc_context
@@ -587,9 +588,245 @@ def fit_figure(out_dir, data=None, path=None, *, model=None, size="page"):
     model: a loaded Model (default: out_dir's model.json); path: save as PATH.png and
     PATH.pdf. Needs the compiled module for the model's rollouts (this module alone does
     not). Returns the Figure."""
-    from csympnet.fit_figure import draw  # the package: the rollouts are the library's
+    from csympnet._fit_record import read_fit  # the package: the rollouts are the library's
 
-    return draw(out_dir, data, path, model=model, size=size)
+    run = read_fit(out_dir, data, model)
+    fig = _fit_panels(run.report, run.data, run.rec, run.start, run.z, run.which, size)
+    if path is not None:
+        _save_atomic(fig, path)
+    return fig
+
+
+# The fit figure's record points; dofs drawn one panel each, beyond them a summary panel.
+_FIT_RECORD = {"color": "black", "lw": 0.0, "marker": ".", "markersize": 2.0, "zorder": 3}
+_FIT_DOF_PANELS = 3
+
+
+
+
+def _envelope(t, q_record, q_model):
+    """Amplitudes per half-cycle: the free run's sign changes about its mean cut the time axis;
+    in each whole half-cycle the peak |q - centre| of the record and of the free run, at its
+    time. Returns (times, record peaks, model peaks, centre); empty arrays when the free run
+    completes fewer than two half-cycles."""
+    finite = np.isfinite(q_model)
+    centre = float(np.mean(q_model[finite])) if finite.any() else 0.0
+    x, y = q_record - centre, q_model - centre
+    cuts = np.flatnonzero(np.diff(np.sign(y)) != 0) + 1
+    ts, rec, mod = [], [], []
+    for lo, hi in zip(cuts[:-1], cuts[1:]):  # whole half-cycles only
+        if hi - lo < 2:
+            continue
+        k = lo + int(np.argmax(np.abs(y[lo:hi])))
+        ts.append(t[k])
+        rec.append(float(np.max(np.abs(x[lo:hi]))))
+        mod.append(float(np.abs(y[k])))
+    return np.array(ts), np.array(rec), np.array(mod), centre
+
+
+def _fit_interval(iv, fmt="{:#.4g}"):
+    return f" [{fmt.format(iv[0])}, {fmt.format(iv[1])}]" if iv else ""
+
+
+def _fit_time_unit(report):
+    unit = report.get("time_unit")
+    return unit.get("unit") if isinstance(unit, dict) and unit.get("unit") else ""
+
+
+def _fit_heading(report, data, which):
+    per = _fit_time_unit(report) or "time unit"
+    name = os.path.basename(data)
+    g = report.get("gamma_hat")
+    if report.get("identified"):
+        lo, hi = report.get("gamma_ci_low"), report.get("gamma_ci_high")
+        level = 100 * float(report.get("gamma_ci_level") or 0.95)
+        text = (f"{name}: $\\hat\\gamma$ = {g:.4g}{_fit_interval((lo, hi) if lo is not None else None)}"
+                f" per {per} ({level:g}% interval)")
+    else:
+        verdict = "model rejected" if report.get("verdict") == "model rejected" else "not identified"
+        text = f"{name}: $\\gamma$ {verdict}" + (f" (estimate {g:.4g} per {per})" if g is not None else "")
+    return text + (f"\n{which}" if which else "")
+
+
+def _fit_modes_text(report, width=100):
+    """The lines of the text panel: γ̂, the verdict and its reasons, the modes."""
+    per = _fit_time_unit(report) or "time unit"
+    lines = []
+    g = report.get("gamma_hat")
+    if g is not None:
+        iv = ((report.get("gamma_ci_low"), report.get("gamma_ci_high"))
+              if report.get("identified") and report.get("gamma_ci_low") is not None else None)
+        lines.append(f"damping rate γ̂ = {g:.4g}{_fit_interval(iv)} per {per}: energy ∝ exp(−γ̂t), "
+                     "amplitude ∝ exp(−γ̂t/2)")
+    if not report.get("identified"):
+        lines.append("γ not identified:" if report.get("verdict") != "model rejected"
+                     else "model rejected:")
+        for why in report.get("reasons") or []:
+            wrapped = textwrap.wrap(why, width, initial_indent="  - ", subsequent_indent="    ")
+            lines += wrapped[:3] + (["    ... (report.json: reasons)"] if len(wrapped) > 3 else [])
+    modes = report.get("modes") or {}
+    if modes.get("list"):
+        lines.append(f"modes (ω in rad per {per}):")
+    for k, m in enumerate(modes.get("list") or [], 1):
+        lines.append(f"  {k}: ω = {m['angular_frequency']:#.4g}"
+                     f"{_fit_interval(m.get('angular_frequency_interval'))}, "
+                     f"damping ratio ζ = {m['damping_ratio']:#.4g}"
+                     f"{_fit_interval(m.get('damping_ratio_interval'))}")
+    if modes.get("note"):
+        lines += textwrap.wrap(modes["note"], width)
+    if not modes.get("list") and not modes.get("note"):
+        lines.append("no oscillating mode")
+    return lines
+
+
+def _fit_panels(report, data, rec, start, z, which, size):
+    d = rec.q.shape[1]
+    shown = min(d, _FIT_DOF_PANELS)
+    t, ts = rec.t, rec.t[start:]
+    qhat = z[:, :d]
+    unit = _fit_time_unit(report)
+    tlabel = f"time ({unit})" if unit else "time (unit of the data)"
+    rows = shown + 1 + (d > shown)
+    width, _, preset = _preset(size)
+    lines = _fit_modes_text(report, width=int(0.9 * width * 72.0 / (0.6 * preset["small"])))
+    text_h = len(lines) * preset["small"] * 1.45 / 72.0 + 0.15
+    with _rc(size):
+        fig = Figure(figsize=(width, 1.9 * rows + text_h + 0.5), layout="constrained")
+        FigureCanvasAgg(fig)
+        gs = fig.add_gridspec(rows + 1, 2, width_ratios=[1.6, 1.0],
+                              height_ratios=[1.9] * rows + [text_h])
+        for i in range(shown):
+            ax = fig.add_subplot(gs[i, 0])
+            ax.plot(t, rec.q[:, i], label="record", **_FIT_RECORD)
+            ax.plot(ts, _shown(qhat[:, i]), color=FEATURED_COLOR, lw=1.0,
+                    label=("free run from the first state" if start == 0 else
+                           f"free run from the state fitted\nto the first {start + 1} positions"),
+                    zorder=4)
+            if start > 0:
+                ax.axvline(t[start], color="0.5", lw=0.6, ls=":")
+            ax.set_ylabel(rec.names[i])
+            ax.set_title(f"{rec.names[i]}: record and the model's free run")
+            if i == 0:
+                ax.legend(loc="best", fontsize=preset["small"], framealpha=0.85)
+            res = fig.add_subplot(gs[i, 1])
+            with np.errstate(invalid="ignore", over="ignore"):
+                r = rec.q[start:, i] - qhat[:, i]
+            res.plot(ts, _shown(r), color="0.25", lw=0.6)
+            res.axhline(0.0, color="0.6", lw=0.5)
+            res.set_title("residual, record − free run")
+            res.set_ylabel(rec.names[i])
+            for a in (ax, res):
+                a.set_xlabel(tlabel)
+                _style(a, size)
+        row = shown
+        if d > shown:
+            ax = fig.add_subplot(gs[row, :])
+            with np.errstate(invalid="ignore", over="ignore"):
+                err = np.sqrt(np.mean((rec.q[start:] - qhat) ** 2, axis=0))
+                spread = np.std(rec.q[start:], axis=0)
+                rel = np.where(spread > 0, err / np.where(spread > 0, spread, 1.0), np.nan)
+            ax.bar(np.arange(d), _shown(rel), color=FEATURED_COLOR)
+            ax.set_xticks(np.arange(d), rec.names, rotation=45 if d > 6 else 0,
+                          fontsize=preset["small"])
+            ax.set_ylabel("rms error / spread")
+            ax.set_title(f"free-run error of every dof (the first {shown} drawn above)")
+            _style(ax, size)
+            ax.grid(False, axis="x")
+            row += 1
+        _envelope_panel(fig.add_subplot(gs[row, :]), report, rec, start, qhat, tlabel, size)
+        text = fig.add_subplot(gs[row + 1, :])
+        text.axis("off")
+        text.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=preset["small"],
+                  transform=text.transAxes, in_layout=False)
+        fig.suptitle(_fit_heading(report, data, which))
+    return fig
+
+
+def _window_rms(t, q_record, q_model, period):
+    """Amplitudes over consecutive windows of length `period` (the slowest mode's): the rms of
+    ‖q − centre‖ over the dofs, for the record and the free run, at each window's middle time.
+    A sum of modes that each decay as exp(−γt/2) has an rms over a period that decays so too."""
+    finite = np.isfinite(q_model).all(axis=1)
+    centre = np.mean(q_model[finite], axis=0) if finite.any() else np.zeros(q_model.shape[1])
+    edges = np.arange(t[0], t[-1] + 1e-12 * abs(t[-1]), period)
+    ts, rec, mod = [], [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        k = (t >= lo) & (t < hi)
+        if k.sum() < 2:
+            continue
+        ts.append(float(np.mean(t[k])))
+        rec.append(float(np.sqrt(np.mean(np.sum((q_record[k] - centre) ** 2, axis=1)))))
+        mod.append(float(np.sqrt(np.mean(np.sum((q_model[k] - centre) ** 2, axis=1)))))
+    return np.array(ts), np.array(rec), np.array(mod)
+
+
+def _envelope_panel(ax, report, rec, start, qhat, tlabel, size):
+    """The amplitude, record and free run, with the fitted A0 exp(−γ̂ t/2): for one dof the
+    peak per half-cycle; for several, the rms of ‖q − centre‖ over windows of one period of the
+    slowest mode (per-dof peaks beat between modes)."""
+    ts = rec.t[start:]
+    omegas = [m["angular_frequency"] for m in (report.get("modes") or {}).get("list") or []
+              if m.get("angular_frequency", 0) > 0]
+    d = rec.q.shape[1]
+    period = 2 * math.pi / min(omegas) if omegas else 0.0
+    if d > 1 and 0 < period <= (ts[-1] - ts[0]) / 2:
+        tk, rec_peaks, mod_peaks = _window_rms(ts, rec.q[start:], qhat, period)
+        ax.set_title(f"rms amplitude of q1..q{d} over windows of one period of the slowest mode")
+        ylabel = "rms ‖q − centre‖\n(log scale)"
+    else:
+        finite = np.isfinite(qhat).all(axis=1)
+        spread = np.std(qhat[finite], axis=0) if finite.any() else np.zeros(d)
+        i = int(np.argmax(spread))
+        tk, rec_peaks, mod_peaks, centre = _envelope(ts, rec.q[start:, i], qhat[:, i])
+        ax.set_title(f"amplitude of {rec.names[i]} per half-cycle")
+        sign = "−" if centre >= 0 else "+"
+        ylabel = f"|{rec.names[i]} {sign} {abs(centre):.3g}|\n(log scale)"
+    ax.set_xlabel(tlabel)
+    if tk.size < 2:
+        ax.text(0.5, 0.5, "the free run completes fewer than two half-cycles: no envelope",
+                ha="center", va="center", transform=ax.transAxes, in_layout=False)
+        ax.set_yticks([])
+        _style(ax, size)
+        return
+    ax.plot(tk, rec_peaks, "o", color="black", ms=2.5, label="record", zorder=3)
+    ax.plot(tk, mod_peaks, "-", color=FEATURED_COLOR, lw=1.0, label="free run", zorder=4)
+    g = report.get("gamma_hat")
+    good = rec_peaks > 0
+    if g is not None and good.any():
+        # A0 by least squares on log amplitudes with the slope fixed at -γ̂/2.
+        a0 = math.exp(float(np.mean(np.log(rec_peaks[good]) + 0.5 * g * (tk[good] - tk[0]))))
+        tt = np.linspace(tk[0], tk[-1], 200)
+        ax.plot(tt, a0 * np.exp(-0.5 * g * (tt - tk[0])), color="#1f77b4", ls="--", lw=1.1,
+                label=f"$A_0\\,e^{{-\\hat\\gamma t/2}}$, $\\hat\\gamma$ = {g:.4g}", zorder=5)
+    ax.set_yscale("log")
+    ax.set_ylabel(ylabel)
+    ax.legend(loc="best", fontsize=_preset(size)[2]["small"], framealpha=0.85)
+    _style(ax, size)
+
+
+def _save_atomic(fig, path, dpi=200):
+    """PATH.png and PATH.pdf, each written under a temporary name and renamed over its target,
+    so that a reader (or an interrupted draw) never leaves half a file. The PDF carries no
+    creation date, so the same fit gives the same bytes."""
+    base = os.fspath(path)
+    root, ext = os.path.splitext(base)
+    if ext.lower() in (".png", ".pdf"):
+        base = root
+    folder, name = os.path.split(base)
+    if folder:
+        os.makedirs(folder, exist_ok=True)
+    written = []
+    with rc_context(_TRUETYPE):
+        for suffix, meta in ((".png", {}), (".pdf", {"CreationDate": None})):
+            tmp = os.path.join(folder, f".{name}{suffix}.tmp.{os.getpid()}")
+            try:
+                fig.savefig(tmp, format=suffix[1:], dpi=dpi, metadata=meta)
+                os.replace(tmp, base + suffix)
+            finally:
+                if os.path.exists(tmp):
+                    os.remove(tmp)
+            written.append(base + suffix)
+    return written
 
 
 def summarize(samples):

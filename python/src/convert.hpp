@@ -2,7 +2,7 @@
 //
 // Python sees a batch of states as an (N, 2d) C-order array, one state per row; the library
 // sees a 2d x N column-major matrix, one state per column. The two have the same memory
-// layout, so a conversion is one copy. The Python layer (csympnet/_checks.py) has already
+// layout, so a conversion is one copy. The Python layer (csympnet/_records.py) has already
 // checked shapes, dtypes and finiteness and explained any problem to the user; the checks here
 // only guard the library against a caller that bypasses it.
 #pragma once
@@ -67,6 +67,37 @@ inline std::vector<Trajectory> trajectories_from(const py::sequence& seq, const 
     tr.t = vector_from(item[0].cast<DArray>(), where + ".t");
     tr.z = states_from(item[1].cast<DArray>(), where + ".z");
     tr.validate(where);
+    out.push_back(std::move(tr));
+  }
+  return out;
+}
+
+// Python (t, q) pairs of a record of positions alone → Trajectory whose z holds the d position
+// rows, as identify_positions and score_positions take them (no momenta, not even as zeros).
+// d < 0 accepts any d; those functions check the values and the times themselves.
+inline std::vector<Trajectory> positions_from(const py::sequence& seq, const std::string& name,
+                                              Index d = -1) {
+  std::vector<Trajectory> out;
+  for (std::size_t k = 0; k < seq.size(); ++k) {
+    const std::string where = name + "[" + std::to_string(k) + "]";
+    const auto item = seq[k].cast<py::sequence>();
+    require(item.size() == 2, [&] { return where + ": expected a (t, q) pair"; });
+    const DArray q = item[1].cast<DArray>();
+    require(q.ndim() == 2, [&] {
+      return where + ".q: expected a 2-D array of positions (M, d), got " +
+             std::to_string(q.ndim()) + " dimensions";
+    });
+    require(d < 0 || q.shape(1) == d, [&] {
+      return where + ".q: positions have " + std::to_string(q.shape(1)) +
+             " columns, expected d = " + std::to_string(d);
+    });
+    Trajectory tr;
+    tr.t = vector_from(item[0].cast<DArray>(), where + ".t");
+    tr.z = states_from(q, where + ".q");
+    require(tr.z.cols() == tr.t.size(), [&] {
+      return where + ": " + std::to_string(tr.z.cols()) + " positions for " +
+             std::to_string(tr.t.size()) + " times; expected one time per sample";
+    });
     out.push_back(std::move(tr));
   }
   return out;

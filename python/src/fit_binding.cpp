@@ -195,12 +195,15 @@ py::tuple run(const RunArgs& a, const py::object& progress) {
 }
 
 // identify() (what `csympnet fit` runs): returns the model and the report as JSON text.
+// `positions_only`: each z is a record of positions alone, (M, d), fitted by
+// identify_positions (or identify_driven on its positions); else states (M, 2d).
 py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
                                 const std::string& config_json, const py::object& progress,
                                 bool positions_only, const py::object& inputs) {
   // Every option checked first, before any work.
   const IdentifyConfig c = make_identify_config(parse_json(config_json, "config"));
-  std::vector<Trajectory> data = trajectories_from(trajs, "trajectories");
+  std::vector<Trajectory> data = positions_only ? positions_from(trajs, "trajectories")
+                                                : trajectories_from(trajs, "trajectories");
   // Known inputs, one (M, m) array per trajectory: the driven route (identify_driven).
   const bool driven = !inputs.is_none();
   if (driven) {
@@ -213,7 +216,8 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
         return where + ": " + std::to_string(data[k].u.cols()) + " rows of inputs for " +
                std::to_string(data[k].t.size()) + " sample times; expected one row per time";
       });
-      data[k].validate("trajectories[" + std::to_string(k) + "]");
+      // Positions are checked by identify_driven (a state's validate() wants 2d rows).
+      if (!positions_only) data[k].validate("trajectories[" + std::to_string(k) + "]");
     }
   }
   PythonProgress watch(progress);
@@ -224,20 +228,12 @@ py::tuple identify_trajectories(const py::sequence& trajs, bool pairs_only,
   IdentifyResult r;
   {
     py::gil_scoped_release nogil;
-    if (driven && positions_only) {
-      std::vector<Trajectory> positions;
-      for (const Trajectory& t : data) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), t.u});
-      r = identify_driven(positions, true, c, hooks);
-    } else if (driven) {
-      r = identify_driven(data, false, c, hooks);
-    } else if (positions_only) {
-      // The p rows are the caller's placeholders: the positions alone are fitted.
-      std::vector<Trajectory> positions;
-      for (const Trajectory& t : data) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), {}});
-      r = identify_positions(positions, c, hooks);
-    } else {
+    if (driven)
+      r = identify_driven(data, positions_only, c, hooks);
+    else if (positions_only)
+      r = identify_positions(data, c, hooks);
+    else
       r = identify(data, pairs_only, c, hooks);
-    }
   }
   watch.rethrow_if_stopped();  // a KeyboardInterrupt, or the progress callback's exception
   if (r.stopped) {

@@ -157,16 +157,7 @@ py::tuple score_model(const PyModel& m, const py::sequence& data) {
 // pairs: (scores as JSON text, rollouts). The library checks the values, times and lengths.
 py::tuple score_positions_model(const PyModel& m, const py::sequence& data,
                                 std::optional<long> warmup) {
-  std::vector<Trajectory> trajs;
-  for (std::size_t k = 0; k < data.size(); ++k) {
-    const std::string where = "data[" + std::to_string(k) + "]";
-    const auto item = data[k].cast<py::sequence>();
-    require(item.size() == 2, [&] { return where + ": expected a (t, q) pair"; });
-    Trajectory tr;
-    tr.t = vector_from(item[0].cast<DArray>(), where + ".t");
-    tr.z = states_from(item[1].cast<DArray>(), where + ".q", m.model.dim() / 2);
-    trajs.push_back(std::move(tr));
-  }
+  const std::vector<Trajectory> trajs = positions_from(data, "data", m.model.dim() / 2);
   PositionsScores s;
   {
     py::gil_scoped_release nogil;

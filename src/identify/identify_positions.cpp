@@ -685,10 +685,14 @@ bool judge_terms_on_chain(detail::Candidate& best, Index d, const Matrix& q_trai
   changed |= detail::prefer_polynomials_on_chain(best, d, q_train, linked, val.segs, val.z0, opt,
                                                  states, rec);
   changed |= detail::prune_library_terms(best, d, linked, val.segs, val.z0, opt, states, rec);
-  // Friction and drag chosen on the velocity start, confirmed on the positions.
-  if (auto_dissipation)
+  // Friction and drag the velocity start missed, offered on the positions; those it chose,
+  // confirmed there.
+  if (auto_dissipation) {
+    changed |=
+        detail::add_dissipation_on_chain(best, d, linked, val.segs, val.z0, opt, states, rec);
     changed |=
         detail::drop_dissipation_on_chain(best, d, linked, val.segs, val.z0, opt, states, rec);
+  }
   return changed;
 }
 

@@ -239,7 +239,7 @@ SegmentSums segment_sums(const OneStepMap& map, ConstParams theta, const Cut& c)
 // for the null comparison, which still finds a record of noise alone (a few hundred
 // parameters over thousands of positions absorb little of it). Returns which were used.
 std::string positions_quality(const OneStepMap& map, ConstParams theta, const Cut& train,
-                              const Cut& val, IdentifyQuality& q) {
+                              const Cut& val, HeldOutQuality& q) {
   const SegmentSums v = segment_sums(map, theta, val);
   const SegmentSums t = segment_sums(map, theta, train);
   q.val_relative_residual = v.motion > 0.0 ? std::sqrt(v.res / v.motion) : 0.0;
@@ -437,17 +437,14 @@ std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut&
 namespace detail {
 
 // The rest position is unknown from positions alone: every library candidate gets a linear
-// term per coordinate (with_rest_position_terms); the chosen one's θ and core are recorded in
-// r. Returns the sentence for the report, empty when no term was added to the chosen core.
-std::string add_rest_position_terms(CoreFit& f, IdentifyResult& r) {
+// term per coordinate (with_rest_position_terms). Returns the sentence for the report, empty
+// when no term was added to the chosen core.
+std::string add_rest_position_terms(CoreFit& f) {
   std::string said;
   for (std::size_t i = 0; i < f.cand.size(); ++i)
     if (std::optional<Candidate> x = with_rest_position_terms(f.cand[i], f.facts.d)) {
       f.cand[i] = std::move(*x);
       if (i != f.best) continue;
-      r.theta = f.cand[i].theta;
-      r.choices["core"] = f.cand[i].core;
-      r.config.core = f.cand[i].core;
       said =
           "a linear term per coordinate added to the selected library terms: the rest "
           "position is not known from positions alone";
@@ -455,24 +452,22 @@ std::string add_rest_position_terms(CoreFit& f, IdentifyResult& r) {
   return said;
 }
 
-// After the linking (and the pruning): γ̂, the reconstructed momenta, the interval, the quality,
-// the checks, the verdict and the Hamiltonian of the fitted `map` (best's), all in r.
+// After the linking (and the pruning): γ̂, the reconstructed momenta, the interval, the quality
+// and the sensitivity of the fitted `map` (best's), into `out`.
 void finish_on_positions(const OneStepMap& map, Candidate& best, Vector theta, CoreFit& f,
                          Cut& train, Cut& val, std::vector<Matrix>& states,
                          const ShootingReport& final_rep, const IdentifyHooks& hooks,
-                         IdentifyResult& r,
-                         const std::function<void(IdentifyResult&)>& before_verdict) {
+                         PositionsFit& out) {
   const Index d = f.facts.d;
   const Index n_free = free_parameters(map, d);
   BlockSplit& split = f.split;
-  nlohmann::json& rec = r.choices["positions"];
-  r.theta = theta;
+  nlohmann::json& rec = out.record;
   best.theta = theta;
-  const double tau = r.normalization.time_scale;
-  const double gamma_n = map.damping_rate(theta).value_or(0.0);
-  r.gamma = gamma_n / tau;
-  r.quality.train_loss = final_rep.final_loss;
-  r.quality.val_loss = final_rep.val_loss;
+  const Normalization& units = f.units.normalization;
+  out.fitted = true;
+  out.gamma = map.damping_rate(theta).value_or(0.0) / units.time_scale;
+  out.train_loss = final_rep.final_loss;
+  out.val_loss = final_rep.val_loss;
 
   // The blocks with reconstructed momenta: the checks, the modes' mean state, the structure.
   for (std::size_t i = 0; i < split.train_blocks.size(); ++i) {
@@ -486,58 +481,63 @@ void finish_on_positions(const OneStepMap& map, Candidate& best, Vector theta, C
   for (const auto& t : split.train_blocks) split.blocks.push_back(t);
   for (const auto& t : split.val_blocks) split.blocks.push_back(t);
 
-  r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, {});
-  if (!r.stopped) segments_interval(map, train, split, n_free, false, hooks, r);
-  measure_quality(map, split, d, r);  // the structure residual; the shares are replaced:
-  rec["quality_from"] = positions_quality(map, theta, train, val, r.quality);
-
-  if (!r.stopped && r.interval) run_checks(map, split, hooks, r);
-  if (before_verdict && !r.stopped) before_verdict(r);
-  verdict(split, f.facts.h_max, f.lm_fits, r);
-  // From positions alone the momenta's unit is not observed: H is fixed up to one factor
-  // (docs/derivations.md, "Positions only"), and its terms carry no intervals here.
-  r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
-  if (!r.hamiltonian.is_null())
-    r.hamiltonian["note"] =
-        "fitted from positions alone: the momenta's unit is not observed, so H (kinetic and "
-        "potential alike) is known up to one common factor; ratios of coefficients and the "
-        "wavenumbers are what the data fix; no intervals";
-  const double growth = largest_sensitivity(map, theta, train);
-  rec["sensitivity"] = growth;
-  if (!(growth <= kMaxSensitivity) && !r.stopped) {
-    r.reasons.push_back(
-        "the fitted map amplifies a perturbation of a segment's start state " +
-        significant(growth) +
-        "-fold over the segment (more than 1e6): the hidden momenta sit on an unstable "
-        "manifold of the map, where its derivatives and the interval mean nothing");
-    r.identified = false;
-    if (r.verdict == "identified") r.verdict = "not identified";
+  out.dissipation = dissipation_terms_report(map, theta, units, {});
+  if (!out.stopped) {
+    out.interval =
+        segments_interval(map, interval_basis(f, theta, best.core, out.train_loss, out.val_loss),
+                          train, split, n_free, false, hooks);
+    out.stopped = out.interval.stopped;
+    if (out.interval.degrees_of_freedom_factor)
+      rec["degrees_of_freedom_factor"] = *out.interval.degrees_of_freedom_factor;
+    if (out.interval.dissipation) out.dissipation = *out.interval.dissipation;
   }
-  r.model = user_model(best.inner, r);
+  out.quality = measure_quality(map, theta, split, d);  // the structure residual; the shares:
+  rec["quality_from"] = positions_quality(map, theta, train, val, out.quality);
+  out.sensitivity = largest_sensitivity(map, theta, train);
+  rec["sensitivity"] = out.sensitivity;
   rec["about"] =
       "the momenta are not observed: each segment's start state is fitted with the "
       "map, and the loss is on the positions alone (errors " +
       significant(std::sqrt(final_rep.final_loss)) + " rms in normalised units on training)";
 }
 
-void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         const IdentifyConfig& given, const IdentifyHooks& hooks, IdentifyResult& r,
-                         const std::function<void(IdentifyResult&)>& before_verdict) {
+// The options of every positions fit: `given`'s LM budget (else kPositionsLmIterations), the
+// convergence rules of the damping rate.
+ShootingOptions positions_options(const IdentifyConfig& given, const IdentifyHooks& hooks) {
+  ShootingOptions opt;
+  // Not the resolved lm_iterations: that is what the windows' LM spent (2 when the library core
+  // arrived converged), and a positions fit started from velocities from local fits needs more.
+  opt.iterations = given.lm_iterations > 0 ? given.lm_iterations : kPositionsLmIterations;
+  opt.patience = 20;
+  opt.max_abs_state = kMaxAbsState;
+  opt.should_stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  opt.converged_chi2 = 1e-3;
+  opt.converged_se = detail::kDampingConvergedSe;
+  return opt;
+}
+
+PositionsFit refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                                 const IdentifyConfig& given, const IdentifyHooks& hooks) {
   const auto t0 = std::chrono::steady_clock::now();
+  PositionsFit out;
+  out.stopped = f.stopped;
   const bool terms_given = given.core.is_object() && given.core.contains("terms");
   const Index d = f.facts.d;
-  const std::string rest_terms = r.config.init == nullptr && !terms_given && !r.stopped
-                                     ? add_rest_position_terms(f, r)
+  const std::vector<Trajectory>& nt = f.units.trajectories;
+  const std::string rest_terms = f.config.init == nullptr && !terms_given && !out.stopped
+                                     ? add_rest_position_terms(f)
                                      : std::string();
+  if (!rest_terms.empty()) out.core = f.cand[f.best].core;
   const OneStepMap& start_map = *f.cand[f.best].inner.map;
   const double spp = samples_per_period(positions);
   nlohmann::json tried = nlohmann::json::array();
   const bool any = cut_segments(f.split.train_blocks, d, 10).segs.size() > 0;
   const Index len =
-      any ? segment_length(start_map, r.theta, f.split.train_blocks, d, spp, tried) : 10;
+      any ? segment_length(start_map, f.cand[f.best].theta, f.split.train_blocks, d, spp, tried)
+          : 10;
   Cut train = cut_segments(f.split.train_blocks, d, len);
   Cut val = cut_segments(f.split.val_blocks, d, len);
-  nlohmann::json& rec = r.choices["positions"];
+  nlohmann::json& rec = out.record;
   rec = {{"segment_length", len},
          {"segment_lengths_tried", tried},
          {"samples_per_period", spp},
@@ -547,55 +547,32 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
          {"positions_set_aside", train.set_aside + val.set_aside},
          {"shortest_segment", kMinSegmentPositions}};
   if (!rest_terms.empty()) rec["rest_position"] = rest_terms;
-  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
-  // The data's own check does not apply: the momenta were not given.
-  ModelCheck none;
-  none.name = "measured_momenta";
-  none.assumption = "momenta measured, not derived from the positions";
-  none.applicable = false;
-  none.passed = true;
-  none.sentence =
-      "not applicable: the record has positions alone; the momenta are hidden states fitted "
-      "with the map";
-  r.checks = {none};
-  if (train.segs.size() == 0 && !r.stopped)
-    r.reasons.push_back(
+  if (train.segs.size() == 0 && !out.stopped)
+    out.reasons.push_back(
         "no training trajectory has " + std::to_string(kMinSegmentPositions) +
         " positions in a row without a gap (" + std::to_string(train.set_aside) +
         " positions set aside): from positions alone a trajectory needs 2 to fix its hidden "
         "start state (a position and a momentum per coordinate) and at least one more to "
         "constrain the dynamics; expected longer trajectories");
-  if (train.segs.size() == 0 || r.stopped || !f.lm_fits ||
-      r.training.stop_reason == StopReason::kDiverged) {
-    verdict(f.split, f.facts.h_max, f.lm_fits, r);
-    r.model = user_model(f.cand[f.best].inner, r);
-    return;
-  }
+  if (train.segs.size() == 0 || out.stopped || !f.lm_fits ||
+      f.training.stop_reason == StopReason::kDiverged)
+    return out;
   if (hooks.stage) hooks.stage("hidden momenta: positions-only Levenberg-Marquardt");
-  ShootingOptions opt;
-  // Not r.config.lm_iterations: that is what the windows' LM spent (2 when the library core
-  // arrived converged), and a positions fit started from velocities from local fits needs more.
-  opt.iterations = given.lm_iterations > 0 ? given.lm_iterations : kPositionsLmIterations;
-  opt.patience = 20;
-  opt.max_abs_state = kMaxAbsState;
-  opt.should_stop = stop;
-  opt.converged_chi2 = 1e-3;
-  opt.converged_se = detail::kDampingConvergedSe;
+  ShootingOptions opt = positions_options(given, hooks);
   SegmentFit seg;
-  const bool choosing = r.config.init == nullptr && f.cand.size() > 1;
+  const bool choosing = f.config.init == nullptr && f.cand.size() > 1;
   if (choosing) {
     const std::size_t was = f.best;
     f.best = choose_on_positions(f, train, val, d, opt, seg, rec);
     if (f.best != was) {
-      r.choices["core"] = f.cand[f.best].core;
-      r.config.core = f.cand[f.best].core;
-      r.choices["core_reason"] = rec["core_choice"]["reason"];
-      r.training = f.cand[f.best].training;
-      r.lm = f.cand[f.best].lm;
+      out.core = f.cand[f.best].core;
+      out.core_reason = rec["core_choice"]["reason"];
+      out.training = f.cand[f.best].training;
+      out.lm = f.cand[f.best].lm;
     }
   } else {
     opt.n_free = free_parameters(start_map, d);
-    seg = fit_segments(start_map, r.theta, train, val, opt);
+    seg = fit_segments(start_map, f.cand[f.best].theta, train, val, opt);
   }
   Candidate& best = f.cand[f.best];
   const OneStepMap& map = *best.inner.map;
@@ -617,27 +594,26 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
                {"final_loss", rep.final_loss},
                {"validation_loss", rep.val_loss},
                {"message", rep.message}};
-  if (rep.stopped) r.stopped = true;
+  if (rep.stopped) out.stopped = true;
 
   // The segments linked by continuity into chains over whole stretches of the record.
   BlockSplit& split = f.split;
-  std::vector<Matrix> states = segment_states(f.nt, split, train, val, map, theta);
+  std::vector<Matrix> states = segment_states(nt, split, train, val, map, theta);
   ShootingReport final_rep = rep;
-  if (!r.stopped) {
+  if (!out.stopped) {
     if (hooks.stage) hooks.stage("hidden momenta: linking the segments");
-    const RecordLayout layout = record_layout(f.nt, split);
+    const RecordLayout layout = record_layout(nt, split);
     LinkedFit linked =
-        link_segments(map, theta, f.nt, layout, len, states, val.segs, val.z0, opt, rep);
+        link_segments(map, theta, nt, layout, len, states, val.segs, val.z0, opt, rep);
     rec["linking"] = linked.record;
     // The velocity stage's families and higher powers judged on the linked positions
     // (replaces `best`, so `map` is not used below: the fitted map is read from `best` again).
-    if (r.config.init == nullptr && !terms_given && !linked.report.stopped) {
+    if (f.config.init == nullptr && !terms_given && !linked.report.stopped) {
       best.theta = theta;
-      if (judge_terms_on_chain(best, d, training_positions(split, d), f.nt, layout, linked, val,
-                               opt, states, given.dissipation == "auto", rec)) {
+      if (judge_terms_on_chain(best, d, training_positions(split, d), nt, layout, linked, val, opt,
+                               states, given.dissipation == "auto", rec)) {
         theta = best.theta;
-        r.choices["core"] = best.core;
-        r.config.core = best.core;
+        out.core = best.core;
       }
     }
     if (linked.chain.segs.size() > 0) {
@@ -646,23 +622,36 @@ void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
       train.at.clear();
       final_rep = linked.report;
     }
-    if (linked.report.stopped) r.stopped = true;
+    if (linked.report.stopped) out.stopped = true;
   }
-  finish_on_positions(*best.inner.map, best, theta, f, train, val, states, final_rep, hooks, r,
-                      before_verdict);
+  finish_on_positions(*best.inner.map, best, theta, f, train, val, states, final_rep, hooks, out);
   rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
 }
 
 }  // namespace detail
 
 namespace {
 
-// identify_positions; with `confirm_growth`, a record that gains energy is fitted again in
-// reversed time for its growth rate (detail::confirm_growth), as identify() does with momenta.
-IdentifyResult positions_once(const std::vector<Trajectory>& positions,
-                              const IdentifyConfig& config, const IdentifyHooks& hooks,
-                              bool confirm_growth) {
-  check_positions(positions);
+// The data's own check does not apply: the momenta were not given.
+ModelCheck momenta_not_given() {
+  ModelCheck none;
+  none.name = "measured_momenta";
+  none.assumption = "momenta measured, not derived from the positions";
+  none.applicable = false;
+  none.passed = true;
+  none.sentence =
+      "not applicable: the record has positions alone; the momenta are hidden states fitted "
+      "with the map";
+  return none;
+}
+
+// The velocity start's half width (in the data's time) and the lag it came from.
+struct VelocityStart {
+  std::vector<Trajectory> states;  // the positions with velocities from local fits
+  double half = 0.0, lag = 0.0;
+};
+VelocityStart velocity_start(const std::vector<Trajectory>& positions) {
   // Half the time over which the motion stays correlated, in the median step: the local fits
   // stay within the motion's own time scale.
   std::vector<double> steps;
@@ -673,37 +662,115 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
           "with two or more");
   std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
   const double h_median = steps[steps.size() / 2];
-  const double lag = half_correlation_lag(positions);
-  const double half = std::clamp(std::floor(lag / 2.0), 2.0, 20.0) * h_median;
-  std::vector<Trajectory> states;
-  for (const Trajectory& t : positions) states.push_back(with_local_velocities(t, half));
-  check_velocity_start(states, h_median);
-  IdentifyResult r;
+  VelocityStart v;
+  v.lag = half_correlation_lag(positions);
+  v.half = std::clamp(std::floor(v.lag / 2.0), 2.0, 20.0) * h_median;
+  for (const Trajectory& t : positions) v.states.push_back(with_local_velocities(t, v.half));
+  check_velocity_start(v.states, h_median);
+  return v;
+}
+
+// The positions route after refine_on_positions: the checks on the blocks with the momenta
+// reconstructed, the growth rate, the verdict (and the sensitivity's reason), the Hamiltonian
+// up to its factor.
+detail::FinalFit judge_on_positions(const std::vector<Trajectory>& positions,
+                                    const detail::CoreFit& f, const detail::PositionsFit& p,
+                                    const detail::Refit& refit, const IdentifyConfig& config,
+                                    const IdentifyHooks& hooks) {
+  using namespace detail;
+  FinalFit end;
+  end.observed = "positions";
+  end.choices["positions"] = p.record;
+  if (p.core_reason) end.choices["core_reason"] = *p.core_reason;
+  end.core = p.core;
+  end.training = p.training;
+  end.lm = p.lm;
+  const Candidate& best = f.cand[f.best];
+  const OneStepMap& map = *best.inner.map;
+  const Normalization& units = f.units.normalization;
+  end.theta = best.theta;
+  bool stopped = f.stopped || p.stopped;
+  ModelChecks checks = {momenta_not_given()};
+  if (!p.fitted) {  // nothing fitted on the positions: the velocity start's fit, unassessed
+    end.gamma = f.gamma;
+    end.quality.train_loss = f.train_loss;
+    end.quality.val_loss = f.val_loss;
+    end.verdict = verdict(f.split, f.facts.h_max, f.lm_fits,
+                          evidence(f, end, std::move(checks), p.reasons, stopped));
+    end.stopped = stopped;
+    return end;
+  }
+  end.gamma = p.gamma;
+  end.quality = {p.train_loss, p.val_loss, p.quality.val_relative_residual, p.quality.null_ratio,
+                 p.quality.structure_residual_max};
+  end.interval = p.interval;
+  end.dissipation = p.dissipation;
+  if (!stopped && end.interval.interval)
+    for (ModelCheck& k :
+         run_checks(map, end.theta, f.split, units.time_scale, f.config.level, hooks))
+      checks.push_back(std::move(k));
+  if (refit && !stopped) {
+    GrowthRate growth = confirm_growth(positions, refit, config, hooks, std::move(checks), stopped);
+    checks = std::move(growth.checks);
+    stopped = stopped || growth.stopped;
+  }
+  end.verdict = verdict(f.split, f.facts.h_max, f.lm_fits,
+                        evidence(f, end, std::move(checks), p.interval.reasons, stopped));
+  // From positions alone the momenta's unit is not observed: H is fixed up to one factor
+  // (docs/derivations.md, "Positions only"), and its terms carry no intervals here.
+  end.hamiltonian = hamiltonian_report(map, end.theta, units, {});
+  if (!end.hamiltonian.is_null())
+    end.hamiltonian["note"] =
+        "fitted from positions alone: the momenta's unit is not observed, so H (kinetic and "
+        "potential alike) is known up to one common factor; ratios of coefficients and the "
+        "wavenumbers are what the data fix; no intervals";
+  if (!(p.sensitivity <= kMaxSensitivity) && !stopped) {
+    end.verdict.reasons.push_back(
+        "the fitted map amplifies a perturbation of a segment's start state " +
+        significant(p.sensitivity) +
+        "-fold over the segment (more than 1e6): the hidden momenta sit on an unstable "
+        "manifold of the map, where its derivatives and the interval mean nothing");
+    end.verdict.identified = false;
+    if (end.verdict.text == "identified") end.verdict.text = "not identified";
+  }
+  end.stopped = stopped;
+  return end;
+}
+
+// identify_positions; with `confirm_growth`, a record that gains energy is fitted again in
+// reversed time for its growth rate (detail::confirm_growth), as identify() does with momenta.
+// `set_aside`: the given momenta's check, when they were set aside (it stands for the
+// positions' own).
+IdentifyResult positions_once(const std::vector<Trajectory>& positions,
+                              const IdentifyConfig& config, const IdentifyHooks& hooks,
+                              bool confirm_growth, const ModelCheck* set_aside = nullptr) {
+  check_positions(positions);
+  const VelocityStart start = velocity_start(positions);
   const double spp = samples_per_period(positions);
   const Index d = positions.front().z.rows();
   detail::CoreFit f = detail::fit_core(
-      states, false, config, hooks, r,
+      start.states, false, config, hooks,
       [spp, d](const detail::Candidate& lib, const detail::BlockSplit& split, std::string& why) {
         return positions_floor(lib, split, d, spp, why);
       });
-  r.observed = "positions";
-  r.choices["velocity_start"] = {
-      {"method", "local quadratic least squares"},
-      {"half_width_time", half},
-      {"half_correlation_lag_samples", lag},
-      {"about", "a start for the hidden momenta only; gamma comes from the positions alone"}};
-  std::function<void(IdentifyResult&)> growth;
+  const detail::PositionsFit p = detail::refine_on_positions(positions, f, config, hooks);
+  detail::Refit refit;
   if (confirm_growth)
-    growth = [&](IdentifyResult& out) {
-      detail::confirm_growth(
-          positions,
-          [&](const std::vector<Trajectory>& reversed) {
-            return positions_once(reversed, config, hooks, false);
-          },
-          config, hooks, out);
+    refit = [&](const std::vector<Trajectory>& reversed) {
+      return positions_once(reversed, config, hooks, false);
     };
-  detail::refine_on_positions(positions, f, config, hooks, r, growth);
-  return r;
+  detail::FinalFit end = judge_on_positions(positions, f, p, refit, config, hooks);
+  end.choices["velocity_start"] = {
+      {"method", "local quadratic least squares"},
+      {"half_width_time", start.half},
+      {"half_correlation_lag_samples", start.lag},
+      {"about", "a start for the hidden momenta only; gamma comes from the positions alone"}};
+  if (set_aside != nullptr) {
+    end.verdict.checks.front() = *set_aside;
+    end.choices["momenta_set_aside"] =
+        "the given momenta are a filter of the noisy positions (check measured_momenta)";
+  }
+  return detail::assemble(f, end);
 }
 
 }  // namespace
@@ -712,5 +779,16 @@ IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
                                   const IdentifyConfig& config, const IdentifyHooks& hooks) {
   return positions_once(positions, config, hooks, true);
 }
+
+namespace detail {
+
+IdentifyResult positions_in_place_of_momenta(const std::vector<Trajectory>& positions,
+                                             const IdentifyConfig& config,
+                                             const IdentifyHooks& hooks,
+                                             const ModelCheck& set_aside) {
+  return positions_once(positions, config, hooks, true, &set_aside);
+}
+
+}  // namespace detail
 
 }  // namespace csympnet

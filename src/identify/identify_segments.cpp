@@ -149,22 +149,23 @@ NormalEquations embedded(const NormalEquations& ne, Index p) {
   return out;
 }
 
-void segments_interval(const OneStepMap& map, const Cut& train, const detail::BlockSplit& split,
-                       Index n_free, bool momenta_observed, const IdentifyHooks& hooks,
-                       IdentifyResult& r) {
+GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, const Cut& train,
+                                const BlockSplit& split, Index n_free, bool momenta_observed,
+                                const IdentifyHooks& hooks) {
   if (hooks.stage) hooks.stage("interval");
+  GammaInterval out;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   const Index d = train.segs.d, p = map.n_params();
-  const Vector& theta = r.theta;
-  const double tau = r.normalization.time_scale;
+  const Vector& theta = at.theta;
+  const double tau = at.units.time_scale;
   const double gamma_n = map.damping_rate(theta).value_or(0.0);
   const Index n_res = train.segs.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
   NormalEquations ne =
       shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, true, stop);
   if (ne.stopped) {
-    r.stopped = true;
-    return;
+    out.stopped = true;
+    return out;
   }
   // The residuals have also fitted 2d unknowns per segment: their spread understates the
   // noise by that many degrees of freedom (docs/derivations.md, "Positions only").
@@ -176,44 +177,43 @@ void segments_interval(const OneStepMap& map, const Cut& train, const detail::Bl
   SandwichInterval s;
   try {
     s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0, n_res,
-                          ne.cost, scale, detail::data_scale(split.blocks), r.config.level);
+                          ne.cost, scale, detail::data_scale(split.blocks), at.level);
   } catch (const Error&) {
     // A property of the data (too few positions per hidden start), not an internal failure.
-    r.reasons.push_back(
+    out.reasons.push_back(
         std::string(momenta_observed ? "the states" : "the positions") +
         " do not fix the parameters: the Gauss-Newton matrix, with each segment's start state "
         "eliminated, could not be factored even regularised, so no interval can be formed (too "
         "few samples per segment for its start state and the dynamics)");
-    return;
+    return out;
   }
-  const double ratio = r.quality.train_loss > 0.0 && std::isfinite(r.quality.val_loss)
-                           ? r.quality.val_loss / r.quality.train_loss
-                           : 1.0;
+  const double ratio =
+      at.train_loss > 0.0 && std::isfinite(at.val_loss) ? at.val_loss / at.train_loss : 1.0;
   const double inflation = std::sqrt(std::max(1.0, ratio));
   inflate_interval(s, inflation);
   // With the momenta observed the library core's integrator share is added, as interval() does.
-  const auto& lib = r.choices.value("library", nlohmann::json::object());
-  const bool library =
-      r.config.core.is_object() && r.config.core.value("type", nlohmann::json()) == "library";
-  if (momenta_observed && library && lib.contains("gamma_change_at_twice_the_substeps"))
+  const nlohmann::json& lib = at.library;
+  if (momenta_observed && lib.contains("gamma_change_at_twice_the_substeps"))
     add_integrator(s, lib["gamma_change_at_twice_the_substeps"].get<double>());
   for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
                     &s.optimisation, &s.rounding, &s.integrator})
     *v /= tau;
   s.method += momenta_observed ? " of the whole-record fit (q and p observed)"
                                : " over hidden start states (positions only)";
-  r.interval = s;
-  r.choices[momenta_observed ? "whole_record" : "positions"]["degrees_of_freedom_factor"] =
-      dof_factor;
+  out.interval = s;
+  out.degrees_of_freedom_factor = dof_factor;
   const NormalEquations all = embedded(ne, p);
-  detail::modal_analysis(
-      map, split.train, {&all, n_res, scale, detail::data_scale(split.blocks), inflation, stop}, r);
+  out.modes =
+      modal_analysis(map, theta, split.train, tau, at.level,
+                     {&all, n_res, scale, detail::data_scale(split.blocks), inflation, stop});
+  out.stopped = out.modes.stopped;
   // Friction and drag in the user's units are products the gauge of the hidden momenta leaves
   // alone (W μ, c / W), so they keep their intervals from positions alone; with the momenta
   // observed the Hamiltonian's terms get theirs too.
-  const HamiltonianIntervalInput shared = {&all, n_res, scale, inflation, r.config.level};
-  if (momenta_observed) r.hamiltonian = hamiltonian_report(map, theta, r.normalization, shared);
-  r.dissipation = detail::dissipation_terms_report(map, theta, r.normalization, shared);
+  const HamiltonianIntervalInput shared = {&all, n_res, scale, inflation, at.level};
+  if (momenta_observed) out.hamiltonian = hamiltonian_report(map, theta, at.units, shared);
+  out.dissipation = detail::dissipation_terms_report(map, theta, at.units, shared);
+  return out;
 }
 
 SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& train,

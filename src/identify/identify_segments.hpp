@@ -78,10 +78,10 @@ Index free_parameters(const OneStepMap& map, Index d);
 // γ̂'s interval (and the modes', the friction's; with the momenta observed, the Hamiltonian's
 // terms' too) from the training segments' normal equations with the start states eliminated:
 // the sandwich of interval(), with the degrees-of-freedom correction for the fitted start
-// states and the held-out inflation; r.stopped on an interrupt.
-void segments_interval(const OneStepMap& map, const Cut& train, const BlockSplit& split,
-                       Index n_free, bool momenta_observed, const IdentifyHooks& hooks,
-                       IdentifyResult& r);
+// states and the held-out inflation (the losses of `at`: the segments' or the chain's).
+GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, const Cut& train,
+                                const BlockSplit& split, Index n_free, bool momenta_observed,
+                                const IdentifyHooks& hooks);
 
 // The training blocks' positions side by side (d x n).
 Matrix training_positions(const BlockSplit& split, Index d);

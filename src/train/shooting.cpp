@@ -511,6 +511,47 @@ double factored_standard_error(const Matrix& a, Index n_free, Index b, double lo
   return std::sqrt(std::max(0.0, loss * e(b) / static_cast<double>(n)));
 }
 
+// The start states' part of the joint step δ = (δθ, δz) for θ's part `step` at damping λ, each
+// segment's block solved on its own: z0 + δz into `z0_try`. Returns the decrease the
+// Gauss–Newton model predicts for δ: with (JᵀJ + λD) δ = −g it is ½ (λ δᵀDδ − gᵀδ), in the
+// cost ½ scale² ‖r‖².
+double joint_step(const NormalEquations& ne, const std::vector<SegmentTerms>& terms,
+                  const Vector& step, double lambda, Matrix& z0_try) {
+  double predicted =
+      -ne.g.dot(step) + lambda * step.dot(marquardt_diagonal(ne.a).cwiseProduct(step));
+  for (Index s = 0; s < z0_try.cols(); ++s) {
+    const SegmentTerms& x = terms[static_cast<std::size_t>(s)];
+    Matrix u = x.u;
+    const Vector du = marquardt_diagonal(x.u);
+    u.diagonal() += lambda * du;
+    const Vector dz = -small_factor(u).solve(x.gb + x.w.transpose() * step);
+    z0_try.col(s) += dz;
+    predicted += -x.gb.dot(dz) + lambda * dz.dot(du.cwiseProduct(dz));
+  }
+  predicted *= 0.5;
+  return predicted;
+}
+
+// An accepted iterate of fit_shooting, kept for the choice at the end.
+struct ShootingIterate {
+  long iteration;
+  Vector theta;
+  Matrix z0, val_z0;
+  double val;
+};
+
+// The latest iterate whose held-out loss is within one standard error (`se`) of the lowest,
+// `best_val` (any iterate without held-out segments): a held-out loss at the noise floor
+// changes by less than its own noise from step to step, and the more converged fit of the
+// positions is then the better estimate.
+const ShootingIterate& chosen_iterate(const std::vector<ShootingIterate>& kept, double best_val,
+                                      double se, bool held_out) {
+  const ShootingIterate* chosen = &kept.front();
+  for (const ShootingIterate& x : kept)
+    if (x.val <= best_val + se || !held_out) chosen = &x;
+  return *chosen;
+}
+
 }  // namespace
 
 ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
@@ -537,13 +578,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     return rep;
   }
   // Every accepted iterate, for the choice at the end.
-  struct Iterate {
-    long iteration;
-    Vector theta;
-    Matrix z0, val_z0;
-    double val;
-  };
-  std::vector<Iterate> kept;
+  std::vector<ShootingIterate> kept;
   kept.push_back({0, theta, z0, val_z0, val_loss(theta, val_z0)});
   const double n_val = static_cast<double>(std::max<Index>(1, val.n_residuals()));
   const auto standard_error = [n_val](double loss) { return loss * std::sqrt(2.0 / n_val); };
@@ -593,20 +628,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     Vector theta_try = theta;
     theta_try.head(n_free) += step;
     Matrix z0_try = z0;
-    // The decrease the Gauss–Newton model predicts for the joint step δ = (δθ, δz):
-    // with (JᵀJ + λD) δ = −g it is ½ (λ δᵀDδ − gᵀδ), in the cost ½ scale² ‖r‖².
-    double predicted =
-        -ne.g.dot(step) + lambda * step.dot(marquardt_diagonal(ne.a).cwiseProduct(step));
-    for (Index s = 0; s < train.size(); ++s) {
-      const SegmentTerms& x = terms[static_cast<std::size_t>(s)];
-      Matrix u = x.u;
-      const Vector du = marquardt_diagonal(x.u);
-      u.diagonal() += lambda * du;
-      const Vector dz = -small_factor(u).solve(x.gb + x.w.transpose() * step);
-      z0_try.col(s) += dz;
-      predicted += -x.gb.dot(dz) + lambda * dz.dot(du.cwiseProduct(dz));
-    }
-    predicted *= 0.5;
+    const double predicted = joint_step(ne, terms, step, lambda, z0_try);
     const double loss_try = z0_try.cwiseAbs().maxCoeff() <= options.max_abs_state
                                 ? shooting_loss(map, theta_try, z0_try, train)
                                 : std::numeric_limits<double>::infinity();
@@ -670,18 +692,14 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       break;
     }
   }
-  // The latest iterate whose held-out loss is within one standard error of the lowest: a
-  // held-out loss at the noise floor changes by less than its own noise from step to step, and
-  // the more converged fit of the positions is then the better estimate. The standard error of
-  // a mean of n squared Gaussian residuals is the mean times √(2/n).
-  const Iterate* chosen = &kept.front();
-  for (const Iterate& x : kept)
-    if (x.val <= best_val + standard_error(best_val) || val.size() == 0) chosen = &x;
-  theta = chosen->theta;
-  z0 = chosen->z0;
-  val_z0 = chosen->val_z0;
-  rep.best_iteration = chosen->iteration;
-  best_val = chosen->val;
+  // The standard error of a mean of n squared Gaussian residuals is the mean times √(2/n).
+  const ShootingIterate& chosen =
+      chosen_iterate(kept, best_val, standard_error(best_val), val.size() > 0);
+  theta = chosen.theta;
+  z0 = chosen.z0;
+  val_z0 = chosen.val_z0;
+  rep.best_iteration = chosen.iteration;
+  best_val = chosen.val;
   rep.final_loss = shooting_loss(map, theta, z0, train);
   rep.val_loss = best_val;
   return rep;

@@ -609,8 +609,7 @@ IdentifyResult assemble_driven(const DrivenFit& fit, const DrivenData& data,
   r.quality.train_loss = rep.final_loss;
   r.quality.val_loss = rep.val_loss;
   r.gamma = std::abs(fit.theta(*map.damping_param_index())) / units.time_scale;
-  r.input = input_record(map, fit.theta, units, data.d, data.m,
-                         iv.gain.is_null() ? nlohmann::json() : iv.gain);
+  r.input = input_record(map, fit.theta, units, data.d, data.m, iv.gain);
   r.interval = iv.gamma.interval;
   r.modes = iv.gamma.modes.list;
   r.modes_note = iv.gamma.modes.note;

@@ -29,145 +29,16 @@
 #include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "identify_chain.hpp"
+#include "identify_positions.hpp"
 #include "identify_segments.hpp"
 #include "identify_stages.hpp"
 
 namespace csympnet {
 
-namespace {
-
-void check_positions(const std::vector<Trajectory>& positions) {
-  require(!positions.empty(), "fit: no data");
-  const Index d = positions.front().z.rows();
-  for (std::size_t k = 0; k < positions.size(); ++k) {
-    const Trajectory& t = positions[k];
-    const std::string where = "fit: trajectory " + std::to_string(k);
-    require(d >= 1 && t.z.rows() == d, [&] {
-      return where + " has " + std::to_string(t.z.rows()) +
-             " position rows (d = " + std::to_string(t.z.rows()) + "), but trajectory 0 has " +
-             std::to_string(d) + "; expected every trajectory to have the same d";
-    });
-    require(t.t.size() >= 1 && t.z.cols() == t.t.size(),
-            [&] { return where + ": expected one time per sample"; });
-    require(t.t.allFinite() && t.z.allFinite(), [&] { return where + ": non-finite value"; });
-    for (Index i = 1; i < t.t.size(); ++i)
-      require(t.t(i) > t.t(i - 1), [&] {
-        return where + ": times must increase strictly (sample " + std::to_string(i) + ")";
-      });
-  }
-  // As the states' normalisation refuses a constant column, before any fit (a constant q2 once
-  // ran half a minute to "not identified").
-  for (Index i = 0; i < d; ++i) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (const Trajectory& t : positions) {
-      lo = std::min(lo, t.z.row(i).minCoeff());
-      hi = std::max(hi, t.z.row(i).maxCoeff());
-    }
-    require(hi > lo, [&] {
-      return "fit: q" + std::to_string(i + 1) + " does not vary in the data (every value is " +
-             number_text(lo) + "); expected every coordinate to vary";
-    });
-  }
-}
-
-// The lag, in samples, at which the positions' autocorrelation first falls below 1/2: the
-// motion's time scale, an oscillation's (about a sixth of a period) or a decay's (about 0.7 of
-// its time constant), whichever is shorter; the smallest over the coordinates, pooled over
-// the trajectories.
-double half_correlation_lag(const std::vector<Trajectory>& positions) {
-  double lag = std::numeric_limits<double>::infinity();
-  const Index d = positions.front().z.rows();
-  for (Index i = 0; i < d; ++i) {
-    const Index max_lag = 400;
-    std::vector<double> num(max_lag + 1, 0.0);
-    double var = 0.0;
-    for (const Trajectory& t : positions) {
-      const Vector x = t.z.row(i).transpose().array() - t.z.row(i).mean();
-      var += x.squaredNorm();
-      for (Index k = 1; k <= max_lag && k < x.size(); ++k)
-        num[static_cast<std::size_t>(k)] += x.head(x.size() - k).dot(x.tail(x.size() - k));
-    }
-    if (!(var > 0.0)) continue;
-    for (Index k = 1; k <= max_lag; ++k)
-      if (num[static_cast<std::size_t>(k)] < 0.5 * var) {
-        lag = std::min(lag, static_cast<double>(k));
-        break;
-      }
-  }
-  return std::isfinite(lag) ? lag : 400.0;
-}
-
-// dq/dt at every sample from a least-squares quadratic over the samples within `half` of its
-// time (at least the 2 nearest on each side that exist; gaps are not spanned by more): a start
-// for the momenta, not an estimate of them.
-Trajectory with_local_velocities(const Trajectory& t, double half) {
-  const Index d = t.z.rows(), n = t.t.size();
-  Trajectory out;
-  out.t = t.t;
-  out.z.resize(2 * d, n);
-  out.z.topRows(d) = t.z;
-  if (n < 2) {
-    out.z.bottomRows(d).setZero();
-    return out;
-  }
-  // A sample exactly `half` away (half is a whole number of median steps) is inside: with a
-  // margin far above rounding, so that times in s and in ms (0.2 s is 0.19999999999999907
-  // after the arithmetic, 200 ms is 200) take the same samples and give the same answer.
-  const double reach = half * (1.0 + 1e-9);
-  for (Index j = 0; j < n; ++j) {
-    Index lo = std::max<Index>(0, j - 2), hi = std::min<Index>(n - 1, j + 2);
-    while (lo > 0 && t.t(j) - t.t(lo - 1) <= reach) --lo;
-    while (hi < n - 1 && t.t(hi + 1) - t.t(j) <= reach) ++hi;
-    const Index degree = hi - lo >= 2 ? 2 : 1;
-    Matrix x(hi - lo + 1, degree + 1);
-    // In units of `half`: powers of the raw offsets (1e-20 s and its square) would differ by
-    // more than the QR's rank threshold spans, and it would drop the slope as rank-deficient.
-    for (Index i = lo; i <= hi; ++i) {
-      const double s = (t.t(i) - t.t(j)) / half;
-      for (Index p = 0; p <= degree; ++p) x(i - lo, p) = std::pow(s, static_cast<double>(p));
-    }
-    const Matrix coef = x.colPivHouseholderQr().solve(t.z.middleCols(lo, hi - lo + 1).transpose());
-    out.z.col(j).tail(d) = coef.row(1).transpose() / half;
-  }
-  return out;
-}
-
-// The velocity start must be a state the normalisation can scale: Δq/Δt with steps of 1e-200
-// (or 1e200) time units is a velocity whose square is no normal double, and the states'
-// normalisation would blame a "p" the record does not have. Refused in the record's own
-// columns, t and q.
-void check_velocity_start(const std::vector<Trajectory>& states, double h_median) {
-  const Index d = states.front().z.rows() / 2;
-  for (Index i = 0; i < d; ++i) {
-    double sum = 0.0, sq = 0.0, count = 0.0, widest = 0.0;
-    for (const Trajectory& t : states) {
-      sum += t.z.row(d + i).sum();
-      count += static_cast<double>(t.z.cols());
-      widest = std::max(widest, t.z.row(i).maxCoeff() - t.z.row(i).minCoeff());
-    }
-    for (const Trajectory& t : states) sq += (t.z.row(d + i).array() - sum / count).square().sum();
-    const double spread2 = sq / count;
-    if (std::isfinite(spread2) && spread2 >= std::numeric_limits<double>::min()) continue;
-    if (!(widest > 0.0)) continue;  // a constant q: check_positions names it
-    const std::string q = "q" + std::to_string(i + 1);
-    throw Error("fit: the times' median step " + number_text(h_median) + " with " + q +
-                "'s variations (up to " + number_text(widest) +
-                ") give velocities dq/dt whose squares are not normal doubles (" +
-                (std::isfinite(spread2) ? "they underflow" : "they overflow") +
-                "); expected the steps of t and the variations of " + q +
-                " to keep |dq/dt| roughly between 1e-150 and 1e150 (rescale t, e.g. to seconds)");
-  }
-}
-
-}  // namespace
-
 namespace detail {
 
 inline constexpr double kMaxSensitivity = 1e6;
 
-// The positions fit of a neural candidate core, for the comparison of cores: at most this many
-// Levenberg–Marquardt steps (a G core on a 3-cart record ran its 100, 32 s, to lose).
-inline constexpr long kNeuralComparisonIterations = 40;
 // Per normalised trajectory, the state at every sample: the segments' fitted rollouts where a
 // segment covers it (training and held-out blocks alike), the velocity start elsewhere.
 std::vector<Matrix> segment_states(const std::vector<Trajectory>& nt,
@@ -251,190 +122,6 @@ std::string positions_quality(const OneStepMap& map, ConstParams theta, const Cu
   return val_moves ? "held-out segments"
                    : "training segments (the held-out segments do not move beyond the noise)";
 }
-
-}  // namespace detail
-
-namespace {
-
-using detail::Cut;
-using detail::cut_segments;
-using detail::fit_segments;
-using detail::free_parameters;
-using detail::kMaxAbsState;
-using detail::kMaxSensitivity;
-using detail::kMinSegmentPositions;
-using detail::kNeuralComparisonIterations;
-using detail::kPositionsLmIterations;
-using detail::samples_per_period;
-using detail::SegmentFit;
-using detail::segments_interval;
-
-// The lag-one correlation of the residuals within the segments, pooled over segments and
-// coordinates, and how many neighbouring pairs it pools.
-struct LagOne {
-  double rho = 0.0;
-  Index pairs = 0;
-};
-LagOne residual_lag_one(const OneStepMap& map, ConstParams theta, const Matrix& z0,
-                        const ShootingSegments& segs) {
-  const Vector r = shooting_residuals(map, theta, z0, segs);
-  const Index d = segs.d;
-  double num = 0.0, den = 0.0;
-  LagOne out;
-  Index at = 0;
-  for (Index s = 0; s < segs.size(); ++s) {
-    const Index len = segs.q[static_cast<std::size_t>(s)].cols();
-    for (Index k = 0; k < len; ++k)
-      for (Index i = 0; i < d; ++i) {
-        const double v = r(at + k * d + i);
-        den += v * v;
-        if (k + 1 < len) {
-          num += v * r(at + (k + 1) * d + i);
-          ++out.pairs;
-        }
-      }
-    at += len * d;
-  }
-  out.rho = den > 0.0 ? num / den : 0.0;
-  return out;
-}
-
-// The floor test of the positions route (detail::FloorTest): the library core, with its rest
-// position terms, fitted to segments of up to two periods (80 positions at most) of the
-// positions; when the lag-one correlation of its held-out residuals is within three standard
-// errors (1/√pairs each) of what measurement noise leaves, nothing smooth is left for a neural
-// core to explain, and those are not trained. Noise leaves −2/(L − 2) over segments of L
-// positions: each coordinate's fitted start (a position and a momentum) takes the residuals'
-// slowest part. A misfit of the force shows as a positive excess, the larger the longer the
-// segments (over 10 positions the fitted starts absorb it). The velocity start's own test
-// judges velocities from local fits, whose errors are smooth: there a linear two-cart record
-// at 0.2% noise "left structure", and two neural cores were trained and fitted on the
-// positions to lose (30 of a fit's 35 CPU s).
-bool positions_floor(const detail::Candidate& library, const detail::BlockSplit& split, Index d,
-                     double spp, std::string& why) {
-  std::optional<detail::Candidate> rest = detail::with_rest_position_terms(library, d);
-  const detail::Candidate& x = rest ? *rest : library;
-  const Index len = std::clamp<Index>(static_cast<Index>(std::lround(2.0 * spp)), 10, 80);
-  const Cut train = cut_segments(split.train_blocks, d, len);
-  const Cut val = cut_segments(split.val_blocks, d, len);
-  if (train.segs.size() == 0 || val.segs.size() == 0) {
-    why = "no training or held-out segment of " + std::to_string(len) +
-          " positions to judge the library core on: the neural cores were trained too";
-    return false;
-  }
-  // Friction or drag chosen on the velocity start may be false (its local fits' errors grow
-  // with the amplitude); the core is judged with and without it, the whiter wins.
-  std::vector<const detail::Candidate*> versions = {&x};
-  std::optional<detail::Candidate> viscous;
-  if (const auto* lm = dynamic_cast<const HamiltonianLibraryMap*>(x.inner.map.get());
-      lm != nullptr && !lm->dissipation().empty()) {
-    viscous = detail::library_with(x, d, lm->terms(), {});
-    versions.push_back(&*viscous);
-  }
-  const double noise = -2.0 / static_cast<double>(len - 2);
-  LagOne best{std::numeric_limits<double>::infinity(), 0};
-  for (const detail::Candidate* v : versions) {
-    const OneStepMap& map = *v->inner.map;
-    ShootingOptions opt;
-    opt.iterations = kPositionsLmIterations;
-    opt.patience = 20;
-    opt.max_abs_state = kMaxAbsState;
-    opt.should_stop = [] { return stop_requested(); };
-    opt.converged_chi2 = 1e-3;
-    opt.converged_se = detail::kDampingConvergedSe;
-    opt.n_free = free_parameters(map, d);
-    const SegmentFit fit = fit_segments(map, v->theta, train, val, opt);
-    throw_if_stop_requested("the library core's test on the positions");
-    const LagOne lag = residual_lag_one(map, fit.theta, fit.val.z0, fit.val.segs);
-    if (std::isfinite(fit.rep.val_loss) && lag.rho < best.rho) best = lag;
-  }
-  const double bound = noise + 3.0 / std::sqrt(static_cast<double>(std::max<Index>(best.pairs, 1)));
-  const bool white = best.rho <= bound;
-  why = std::string(white ? "the library core's held-out position residuals are noise"
-                          : "the library core leaves smooth structure in the held-out "
-                            "positions") +
-        " (lag-one correlation " + detail::significant(best.rho, 3) + " within segments of " +
-        std::to_string(len) + " positions, where noise leaves " + detail::significant(noise, 3) +
-        ", three standard errors " + detail::significant(bound - noise, 2) +
-        "): the neural cores were " + (white ? "not trained" : "trained too");
-  return white;
-}
-
-// The cores compared on what was observed: every trained candidate's segment fit on the
-// positions, and the held-out loss of the positions decides. The velocity start's choice was
-// made on velocities from local fits, whose noise hides the force law at many samples per
-// period. Parsimony: the library core (a readable Hamiltonian with few parameters) is kept
-// unless a neural core's held-out loss is lower by more than three of its standard errors
-// (√(2/n) of itself); between neural cores the lower loss wins. Returns the chosen index, its
-// fit in `chosen`, and records every candidate.
-std::size_t choose_on_positions(detail::CoreFit& f, const Cut& train, const Cut& val, Index d,
-                                const ShootingOptions& base, SegmentFit& chosen,
-                                nlohmann::json& rec) {
-  std::vector<std::optional<SegmentFit>> fits(f.cand.size());
-  nlohmann::json tried = nlohmann::json::array();
-  std::vector<std::size_t> tried_index;  // tried[k] is candidate tried_index[k]
-  const auto is_library = [&](std::size_t i) {
-    return f.cand[i].core.is_object() && f.cand[i].core.value("type", "") == "library";
-  };
-  const double n_val = static_cast<double>(std::max<Index>(1, val.segs.n_residuals()));
-  for (std::size_t i = 0; i < f.cand.size(); ++i) {
-    const detail::Candidate& x = f.cand[i];
-    if (i != f.best && !(std::isfinite(x.val_loss) && x.theta.allFinite())) continue;
-    const auto t0 = std::chrono::steady_clock::now();
-    ShootingOptions opt = base;
-    opt.n_free = free_parameters(*x.inner.map, d);
-    // A neural core is compared after at most kNeuralComparisonIterations steps: the library
-    // wins ties anyway, and a neural core chosen is fitted further by the linking.
-    if (!is_library(i)) opt.iterations = std::min(opt.iterations, kNeuralComparisonIterations);
-    fits[i] = fit_segments(*x.inner.map, x.theta, train, val, opt);
-    tried_index.push_back(i);
-    tried.push_back(
-        {{"core", detail::core_name(x.core)},
-         {"model", x.core},
-         {"held_out_position_loss", fits[i]->rep.val_loss},
-         {"training_position_loss", fits[i]->rep.final_loss},
-         {"lm_iterations", fits[i]->rep.iterations},
-         {"lm_message", fits[i]->rep.message},
-         {"chosen_on_velocities", i == f.best},
-         {"seconds",
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
-    if (fits[i]->rep.stopped) break;
-  }
-  std::size_t pick = f.best;
-  const auto val_of = [&](std::size_t i) {
-    const double v = fits[i] ? fits[i]->rep.val_loss : std::numeric_limits<double>::infinity();
-    return std::isfinite(v) ? v : std::numeric_limits<double>::infinity();
-  };
-  std::optional<std::size_t> lib, neural;
-  for (std::size_t i = 0; i < fits.size(); ++i) {
-    if (!fits[i]) continue;
-    if (is_library(i) && (!lib || val_of(i) < val_of(*lib))) lib = i;
-    if (!is_library(i) && (!neural || val_of(i) < val_of(*neural))) neural = i;
-  }
-  std::string why;
-  if (lib && neural) {
-    const double v = val_of(*neural);
-    const bool neural_wins = val_of(*lib) > v * (1.0 + 3.0 * std::sqrt(2.0 / n_val));
-    pick = neural_wins ? *neural : *lib;
-    why = neural_wins ? "the held-out loss of the positions: the neural core's is lower than "
-                        "the library's by more than three standard errors"
-                      : "the held-out loss of the positions: the library core's is within "
-                        "three standard errors of the lowest (parsimony: a readable Hamiltonian "
-                        "with few parameters)";
-  } else {
-    pick = lib ? *lib : neural ? *neural : f.best;
-    why = "the only candidate fitted on the positions";
-  }
-  if (!fits[pick]) pick = f.best;
-  for (std::size_t k = 0; k < tried.size(); ++k) tried[k]["chosen"] = tried_index[k] == pick;
-  rec["core_choice"] = {{"candidates", tried}, {"reason", why}, {"validation_residuals", n_val}};
-  chosen = std::move(*fits[pick]);
-  return pick;
-}
-
-}  // namespace
-
-namespace detail {
 
 // The rest position is unknown from positions alone: every library candidate gets a linear
 // term per coordinate (with_rest_position_terms). Returns the sentence for the report, empty
@@ -646,30 +333,6 @@ ModelCheck momenta_not_given() {
   return none;
 }
 
-// The velocity start's half width (in the data's time) and the lag it came from.
-struct VelocityStart {
-  std::vector<Trajectory> states;  // the positions with velocities from local fits
-  double half = 0.0, lag = 0.0;
-};
-VelocityStart velocity_start(const std::vector<Trajectory>& positions) {
-  // Half the time over which the motion stays correlated, in the median step: the local fits
-  // stay within the motion's own time scale.
-  std::vector<double> steps;
-  for (const Trajectory& t : positions)
-    for (Index k = 1; k < t.t.size(); ++k) steps.push_back(t.t(k) - t.t(k - 1));
-  require(!steps.empty(),
-          "fit: every trajectory has a single position; expected at least one "
-          "with two or more");
-  std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
-  const double h_median = steps[steps.size() / 2];
-  VelocityStart v;
-  v.lag = half_correlation_lag(positions);
-  v.half = std::clamp(std::floor(v.lag / 2.0), 2.0, 20.0) * h_median;
-  for (const Trajectory& t : positions) v.states.push_back(with_local_velocities(t, v.half));
-  check_velocity_start(v.states, h_median);
-  return v;
-}
-
 // The positions route after refine_on_positions: the checks on the blocks with the momenta
 // reconstructed, the growth rate, the verdict (and the sensitivity's reason), the Hamiltonian
 // up to its factor.
@@ -744,14 +407,14 @@ detail::FinalFit judge_on_positions(const std::vector<Trajectory>& positions,
 IdentifyResult positions_once(const std::vector<Trajectory>& positions,
                               const IdentifyConfig& config, const IdentifyHooks& hooks,
                               bool confirm_growth, const ModelCheck* set_aside = nullptr) {
-  check_positions(positions);
-  const VelocityStart start = velocity_start(positions);
-  const double spp = samples_per_period(positions);
+  detail::check_positions(positions);
+  const detail::VelocityStart start = detail::velocity_start(positions);
+  const double spp = detail::samples_per_period(positions);
   const Index d = positions.front().z.rows();
   detail::CoreFit f = detail::fit_core(
       start.states, false, config, hooks,
       [spp, d](const detail::Candidate& lib, const detail::BlockSplit& split, std::string& why) {
-        return positions_floor(lib, split, d, spp, why);
+        return detail::positions_floor(lib, split, d, spp, why);
       });
   const detail::PositionsFit p = detail::refine_on_positions(positions, f, config, hooks);
   detail::Refit refit;

@@ -8,6 +8,7 @@
 //   split_blocks     → BlockSplit      blocks, held-out blocks, window length, the windows
 //   warm_start       → WarmStart       γ₀ from the data, the dof scales, β's start
 //   CandidateFit                       per candidate core: AdamW, Levenberg–Marquardt
+//   fit_library      → LibraryFit      the Hamiltonian-library candidate, its terms selected
 //   choose_core      → CoreChoice      the lowest validation loss wins and continues LM
 //   adapt_windows    → WindowChoice    longer windows when the residuals show noise, not misfit
 //   fit_core         → CoreFit         the stages above, their choices merged in order
@@ -19,6 +20,9 @@
 //   run_checks       → ModelChecks     the model's assumptions tested (identify/model_checks.hpp)
 //   confirm_growth   → GrowthRate      growing motion fitted again in reversed time
 //   verdict          → Verdict         identified, not identified (and why), or rejected
+//   assemble         → IdentifyResult  from the CoreFit and the route's FinalFit
+//
+// A driven record (identify_driven.cpp) has its own stages and assembles its own result.
 //
 // Private to the library (src/identify).
 #pragma once

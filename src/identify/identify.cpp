@@ -313,16 +313,12 @@ IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
     if (derived.applicable && !derived.passed && !config.use_derived_momenta) {
       std::vector<Trajectory> positions;
       for (const Trajectory& t : trajs) positions.push_back({t.t, t.z.topRows(t.z.rows() / 2), {}});
-      IdentifyResult r = identify_positions(positions, config, hooks);
       derived.passed = true;
       derived.sentence = derived.sentence.substr(0, derived.sentence.find(": they carry")) +
                          "): they would hand the damping rate the positions' noise differenced "
                          "and the filter's bias, so they were set aside and the momenta fitted "
                          "as hidden states from the positions alone";
-      r.checks.front() = derived;
-      r.choices["momenta_set_aside"] =
-          "the given momenta are a filter of the noisy positions (check measured_momenta)";
-      return r;
+      return detail::positions_in_place_of_momenta(positions, config, hooks, derived);
     }
   }
   return identify_once(trajs, pairs_only, config, hooks, true);
@@ -348,17 +344,20 @@ std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs) {
 // reversed time, where growing motion decays: its γ̂ and interval are the growth rate and its
 // interval. If the reversed record seems to grow too, no process explains both directions:
 // the "growth" is a bias (noise at small damping), and the check is left undecided.
-void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
-                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r) {
+GrowthRate confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
+                          const IdentifyConfig& config, const IdentifyHooks& hooks,
+                          ModelChecks checks, bool stopped) {
+  GrowthRate out;
+  out.checks = std::move(checks);
   ModelCheck* growth = nullptr;
-  for (ModelCheck& k : r.checks)
+  for (ModelCheck& k : out.checks)
     if (k.name == "dissipation" && !k.passed) growth = &k;
-  if (growth == nullptr || r.stopped || config.init != nullptr) return;
+  if (growth == nullptr || stopped || config.init != nullptr) return out;
   if (hooks.stage) hooks.stage("growth rate (the same fit in reversed time)");
   const IdentifyResult rev = refit(reversed_in_time(trajs));
   if (rev.stopped) {
-    r.stopped = true;
-    return;
+    out.stopped = true;
+    return out;
   }
   nlohmann::json g = {{"rate", rev.gamma}, {"verdict", rev.verdict}, {"reasons", rev.reasons}};
   bool grows_backwards = false;
@@ -382,157 +381,301 @@ void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
     growth->effect = rev.gamma;
   }
   growth->details["reversed_time_fit"] = g;
+  return out;
 }
 
-CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
-                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
-                 const FloorTest& floor_test) {
-  check_inputs(trajs, config);
-  r.config = config;
-  const Communicator& comm =
-      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
-  CoreFit f;
-  f.facts = inspect_data(trajs, pairs_only);
-  r.data = f.facts.summary;
-  f.nt = choose_units(trajs, pairs_only, config, r);
-  // A property of the data alone, reported whatever the fit does.
-  r.checks = {measured_momenta_check(f.nt, pairs_only)};
-  if (config.use_derived_momenta && !r.checks.front().passed) {
-    ModelCheck& k = r.checks.front();
-    k.passed = true;
-    k.sentence +=
-        " (used as given, derived_momenta = use: the interval does not account for "
-        "that bias)";
-  }
-  f.split = split_blocks(f.nt, pairs_only, config, r.choices);
-  // Progress reports γ̂ in the data's time units, not the normalised ones the fit works in.
+namespace {
+
+// The candidate cores: the given one, the init file's, or an LA and a G core chosen between by
+// validation loss; the library core first (fit_core), unless beyond kLibraryMaxD.
+struct CoreCandidates {
+  bool choosing = false;
+  bool library_given = false;
+  bool library_tried = false;
+  std::vector<nlohmann::json> cores;  // the neural (or given, or init file's) cores
+};
+CoreCandidates core_candidates(const IdentifyConfig& c, const IdentifyConfig& given,
+                               const DataFacts& facts) {
+  CoreCandidates out;
+  out.choosing = c.core.is_null();
+  out.library_given = !out.choosing && given.init == nullptr && c.core.is_object() &&
+                      c.core.contains("type") && c.core.at("type") == "library";
+  // A forced friction or drag term lives in the library core alone: the only candidate.
+  const bool forced_dissipation = c.dissipation != "auto" && c.dissipation != "viscous";
+  out.cores = out.choosing && !forced_dissipation ? default_cores(facts.d, facts.varying_steps)
+              : out.library_given || out.choosing ? std::vector<nlohmann::json>{}
+                                                  : std::vector<nlohmann::json>{c.core};
+  // The library core's cost grows as d⁴ (d² terms, a Jacobian row per coordinate, a pair of
+  // which grows with both; an FPU chain with d = 8 and 300 samples took 137 s): beyond
+  // d = kLibraryMaxD it is left out of the choice (given with --core library, it runs at any d).
+  out.library_tried =
+      out.library_given || (out.choosing && (facts.d <= kLibraryMaxD || forced_dissipation));
+  return out;
+}
+
+// Progress reports γ̂ in the data's time units, not the normalised ones the fit works in.
+IdentifyHooks in_user_units(const IdentifyHooks& hooks, double tau) {
   IdentifyHooks user_hooks = hooks;
-  if (hooks.progress) {
-    const double tau = r.normalization.time_scale;
+  if (hooks.progress)
     user_hooks.progress = [&hooks, tau](const TrainProgress& p) {
       TrainProgress q = p;
       q.gamma_hat = p.gamma_hat / tau;
       return hooks.progress(q);
     };
-  }
+  return user_hooks;
+}
 
-  // Candidate cores: the given one, the init file's, or an LA and a G core chosen between by
-  // validation loss.
-  IdentifyConfig& c = r.config;
+// The chosen core as the windows left it, for the stages after fit_core.
+void keep_chosen(CoreFit& f, const CandidateFit& fit) {
+  const Candidate& best = f.cand[f.best];
+  f.theta = best.theta;
+  f.training = best.training;
+  f.stopped = fit.stopped();
+  f.lm = best.lm;
+  f.lm_best_iteration = best.lm_best_iteration;
+  for (const Candidate& x : f.cand) {
+    f.lm_seconds += x.lm_seconds;
+    f.adamw_seconds += x.training.seconds;
+  }
+  f.gamma = best.inner.map->damping_rate(f.theta).value_or(0.0) / f.units.normalization.time_scale;
+  f.train_loss = fit.loss(best, f.split.train);
+  f.val_loss = fit.loss(best, f.split.val);
+}
+
+}  // namespace
+
+CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
+                 const IdentifyConfig& config, const IdentifyHooks& hooks,
+                 const FloorTest& floor_test) {
+  check_inputs(trajs, config);
+  const Communicator& comm =
+      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
+  CoreFit f;
+  IdentifyConfig& c = f.config;  // resolved as each stage chooses
+  c = config;
+  f.choices = nlohmann::json::object();
+  f.facts = inspect_data(trajs, pairs_only);
+  f.units = choose_units(trajs, pairs_only, config);
+  c.normalize = f.units.normalize;
+  f.choices.update(f.units.choices);
+  // A property of the data alone, reported whatever the fit does.
+  f.data_check = measured_momenta_check(f.units.trajectories, pairs_only);
+  if (config.use_derived_momenta && !f.data_check.passed) {
+    f.data_check.passed = true;
+    f.data_check.sentence +=
+        " (used as given, derived_momenta = use: the interval does not account for "
+        "that bias)";
+  }
+  f.split = split_blocks(f.units.trajectories, pairs_only, config);
+  f.choices["blocks"] = f.split.summary;
+  const IdentifyHooks user_hooks = in_user_units(hooks, f.units.normalization.time_scale);
+
   if (config.init != nullptr) c.core = config.init->inner_spec.at("core");
-  const bool choosing = c.core.is_null();
-  const bool library_given = !choosing && config.init == nullptr && c.core.is_object() &&
-                             c.core.contains("type") && c.core.at("type") == "library";
-  // A forced friction or drag term lives in the library core alone: the only candidate.
-  const bool forced_dissipation = c.dissipation != "auto" && c.dissipation != "viscous";
-  std::vector<nlohmann::json> cores =
-      choosing && !forced_dissipation ? default_cores(f.facts.d, f.facts.varying_steps)
-      : library_given || choosing     ? std::vector<nlohmann::json>{}
-                                      : std::vector<nlohmann::json>{c.core};
+  CoreCandidates cc = core_candidates(c, config, f.facts);
   if (hooks.stage) hooks.stage("warm start");
-  const double beta_init = warm_start(f.split, f.facts.d, config, r);
+  f.warm = warm_start(f.split, f.facts.d, config);
+  c.dof_scales = f.warm.dof_scales;
+  f.choices.update(f.warm.choices);
   CandidateFit fit(config, c, user_hooks, comm, f.split,
-                   1.0 / static_cast<double>(std::max<std::size_t>(cores.size(), 1)));
+                   1.0 / static_cast<double>(std::max<std::size_t>(cc.cores.size(), 1)));
   // The library core first: where it explains the held-out data to the noise floor, the
   // neural cores are not trained (their budget buys nothing the data can show).
   std::optional<Candidate> library;
   std::string floor_reason;
-  // The library core's cost grows as d⁴ (d² terms, a Jacobian row per coordinate, a pair of
-  // which grows with both; an FPU chain with d = 8 and 300 samples took 137 s): beyond
-  // d = kLibraryMaxD it is left out of the choice (given with --core library, it runs at any d).
-  const bool library_tried =
-      library_given || (choosing && (f.facts.d <= kLibraryMaxD || forced_dissipation));
-  if (choosing && !library_tried)
-    r.choices["library_skipped"] = "d = " + std::to_string(f.facts.d) + " > " +
+  if (cc.choosing && !cc.library_tried)
+    f.choices["library_skipped"] = "d = " + std::to_string(f.facts.d) + " > " +
                                    std::to_string(kLibraryMaxD) +
                                    ": the library core is not tried by default (--core library "
                                    "runs it)";
-  if (library_tried) {
+  if (cc.library_tried) {
     if (hooks.stage) hooks.stage("library core");
-    LibraryFit lib = fit_library(fit, library_given ? c.core : nlohmann::json::object(), f.facts.d,
-                                 beta_init, r.normalization, c.balanced, comm, c.dissipation);
-    const bool at_floor = floor_test && choosing
+    LibraryFit lib =
+        fit_library(fit, cc.library_given ? c.core : nlohmann::json::object(), f.facts.d,
+                    f.warm.beta_init, f.units.normalization, c.balanced, comm, c.dissipation);
+    const bool at_floor = floor_test && cc.choosing
                               ? floor_test(lib.cand, f.split, floor_reason)
                               : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason);
-    if (at_floor && choosing) cores.clear();
+    if (at_floor && cc.choosing) cc.cores.clear();
     lib.record["floor"] = floor_reason;
-    r.choices["library"] = lib.record;
+    f.choices["library"] = lib.record;
     library = std::move(lib.cand);
   }
-  f.cand = make_candidates(cores, f.facts.d, beta_init, c, config.seed);
+  f.cand = make_candidates(cc.cores, f.facts.d, f.warm.beta_init, c, config.seed);
   if (config.init != nullptr) check_init_start(f.cand.front(), fit, f.split, *config.init);
   if (library) f.cand.insert(f.cand.begin(), std::move(*library));
-  f.best = choose_core(f.cand, fit, choosing, f.facts.varying_steps, config, r);
-  if (choosing && f.cand.size() == 1) r.choices["core_reason"] = floor_reason;
-  if (library_given) r.choices["core_reason"] = "given: the library core, its terms selected";
+  f.choice = choose_core(f.cand, fit, cc.choosing, f.facts.varying_steps, config);
+  f.best = f.choice.index;
+  c.core = f.choice.core;
+  c.epochs = f.choice.epochs;
+  c.lm_iterations = f.choice.lm_iterations;
+  f.choices.update(f.choice.choices);
+  if (cc.choosing && f.cand.size() == 1) f.choices["core_reason"] = floor_reason;
+  if (cc.library_given) f.choices["core_reason"] = "given: the library core, its terms selected";
   Candidate& best = f.cand[f.best];
   f.lm_fits = best.inner.n_params() <= 6000;
-  if (!f.lm_fits) r.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
-  r.choices["lm_patience"] = kLmPatience;
-  adapt_windows(best, fit, f.split, config, r);
-  r.theta = best.theta;
-  r.training = best.training;
-  r.stopped = fit.stopped();
-  r.lm = best.lm;
-  r.lm_best_iteration = best.lm_best_iteration;
-  for (const Candidate& x : f.cand) {
-    r.lm_seconds += x.lm_seconds;
-    r.adamw_seconds += x.training.seconds;
-  }
+  if (!f.lm_fits) f.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
+  f.choices["lm_patience"] = kLmPatience;
+  f.windows = adapt_windows(best, fit, f.split, config, f.facts.summary.value("pairs_file", false),
+                            c.balanced);
+  f.choices.update(f.windows.choices);
   c.window = f.split.m;
-  r.choices["window"] = f.split.m;
-  r.gamma = best.inner.map->damping_rate(r.theta).value_or(0.0) / r.normalization.time_scale;
-  r.quality.train_loss = fit.loss(best, f.split.train);
-  r.quality.val_loss = fit.loss(best, f.split.val);
+  f.choices["window"] = f.split.m;
+  keep_chosen(f, fit);
   return f;
 }
 
-Model user_model(const Model& inner, const IdentifyResult& r) {
+Model user_model(const Model& inner, const Normalization& units, const IdentifyInit* init) {
   nlohmann::json user_spec = inner.hyperparams();
-  const IdentifyInit* init = r.config.init.get();
-  if (init == nullptr || init->normalization) user_spec["normalization"] = r.normalization;
+  if (init == nullptr || init->normalization) user_spec["normalization"] = units;
   return make_model(user_spec);
+}
+
+IntervalBasis interval_basis(const CoreFit& f, const Vector& theta, const nlohmann::json& core,
+                             double train_loss, double val_loss) {
+  IntervalBasis at;
+  at.theta = theta;
+  at.units = f.units.normalization;
+  at.level = f.config.level;
+  at.balanced = f.config.balanced;
+  at.train_loss = train_loss;
+  at.val_loss = val_loss;
+  if (core.is_object() && core.value("type", nlohmann::json()) == "library")
+    at.library = f.choices.value("library", nlohmann::json::object());
+  return at;
+}
+
+Evidence evidence(const CoreFit& f, const FinalFit& end, ModelChecks checks,
+                  std::vector<std::string> reasons, bool stopped) {
+  Evidence e;
+  e.gamma = end.gamma;
+  e.interval = end.interval.interval;
+  e.quality = end.quality;
+  e.training_stop = end.training.value_or(f.training).stop_reason;
+  e.level = f.config.level;
+  e.stopped = stopped;
+  e.checks = std::move(checks);
+  e.reasons = std::move(reasons);
+  return e;
+}
+
+// The one place the result is put together: what fit_core's stages found, and where the
+// route's last fit ended and how it was judged.
+IdentifyResult assemble(const CoreFit& f, const FinalFit& end) {
+  IdentifyResult r;
+  r.config = f.config;
+  r.data = f.facts.summary;
+  r.normalization = f.units.normalization;
+  r.choices = f.choices;
+  r.choices.update(end.choices);
+  if (end.core) {
+    r.config.core = *end.core;
+    r.choices["core"] = *end.core;
+  }
+  r.warm_start = f.warm.gamma;
+  r.warm_start_note = f.warm.note;
+  r.training = end.training.value_or(f.training);
+  r.lm = end.lm.value_or(f.lm);
+  r.lm_best_iteration = f.lm_best_iteration;
+  r.adamw_seconds = f.adamw_seconds;
+  r.lm_seconds = f.lm_seconds;
+  r.interval_seconds = end.interval.seconds;
+  r.observed = end.observed;
+  r.theta = end.theta;
+  r.gamma = end.gamma;
+  r.quality = end.quality;
+  r.interval = end.interval.interval;
+  r.modes = end.interval.modes.list;
+  r.modes_note = end.interval.modes.note;
+  r.hamiltonian = end.hamiltonian;
+  r.dissipation = end.dissipation;
+  r.checks = end.verdict.checks;
+  r.reasons = end.verdict.reasons;
+  r.identified = end.verdict.identified;
+  r.rejected = end.verdict.rejected;
+  r.verdict = end.verdict.text;
+  r.stopped = f.stopped || end.stopped;
+  r.model = user_model(f.cand[f.best].inner, r.normalization, f.config.init.get());
+  return r;
 }
 
 }  // namespace detail
 
 namespace {
 
-// The stages of identify_stages.hpp, in order; each records what it chose in r.
+// The windows route: fit_core, then (a record with momenta) the whole record, γ̂'s interval,
+// the quality, the checks, the growth rate in reversed time, the verdict; assembled from what
+// each returns.
 IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_only,
                              const IdentifyConfig& config, const IdentifyHooks& hooks,
                              bool confirm_growth_in_reversed_time) {
   using namespace detail;
-  IdentifyResult r;
-  CoreFit f = fit_core(trajs, pairs_only, config, hooks, r);
+  CoreFit f = fit_core(trajs, pairs_only, config, hooks);
   const Communicator& comm =
       hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
+  FinalFit end;
+  end.theta = f.theta;
+  end.gamma = f.gamma;
+  end.quality.train_loss = f.train_loss;
+  end.quality.val_loss = f.val_loss;
+  nlohmann::json core = f.config.core;
+  bool stopped = f.stopped;
   // γ̂'s interval and the model's quality, in the user's time units.
-  const bool assess = !r.stopped && f.lm_fits && r.training.stop_reason != StopReason::kDiverged;
+  const bool assess = !stopped && f.lm_fits && f.training.stop_reason != StopReason::kDiverged;
   // Trajectories with momenta: the whole record fitted with q and p observed, its interval
   // (identify_states.cpp); else the windows' interval.
   bool whole = false;
-  if (assess && !pairs_only && whole_record_wanted(f, r.config))
-    whole = fit_whole_record(f, config, hooks, r);
-  const Candidate& best = f.cand[f.best];
-  const OneStepMap& map = *best.inner.map;
-  if (assess && !whole && !r.stopped) interval(map, f.split, f.nt, hooks, comm, r);
-  measure_quality(map, f.split, f.facts.d, r);
-  if (assess && !r.stopped) run_checks(map, f.split, hooks, r);
-  if (confirm_growth_in_reversed_time)
-    confirm_growth(
+  if (assess && !pairs_only && whole_record_wanted(f, f.config)) {
+    WholeRecordFit w = fit_whole_record(f, config, hooks);
+    stopped = stopped || w.stopped;
+    end.choices["whole_record"] = w.record;
+    if (w.core) core = *w.core;
+    end.core = w.core;
+    whole = w.fitted;
+    if (whole) {
+      end.theta = w.theta;
+      end.gamma = w.gamma;
+      end.quality.train_loss = w.train_loss;
+      end.quality.val_loss = w.val_loss;
+      end.interval = std::move(w.interval);
+    }
+  }
+  const OneStepMap& map = *f.cand[f.best].inner.map;
+  if (assess && !whole && !stopped) {
+    end.interval = interval(
+        map, interval_basis(f, end.theta, core, end.quality.train_loss, end.quality.val_loss),
+        f.split, f.units.trajectories, hooks, comm);
+    stopped = stopped || end.interval.stopped;
+  }
+  const HeldOutQuality held = measure_quality(map, end.theta, f.split, f.facts.d);
+  end.quality.val_relative_residual = held.val_relative_residual;
+  end.quality.null_ratio = held.null_ratio;
+  end.quality.structure_residual_max = held.structure_residual_max;
+  const Normalization& units = f.units.normalization;
+  ModelChecks checks = {f.data_check};
+  if (assess && !stopped)
+    for (ModelCheck& k :
+         run_checks(map, end.theta, f.split, units.time_scale, f.config.level, hooks))
+      checks.push_back(std::move(k));
+  if (confirm_growth_in_reversed_time) {
+    GrowthRate growth = confirm_growth(
         trajs,
         [&](const std::vector<Trajectory>& reversed) {
           return identify_once(reversed, pairs_only, config, hooks, false);
         },
-        config, hooks, r);
-  verdict(f.split, f.facts.h_max, f.lm_fits, r);
-  if (r.hamiltonian.is_null())
-    r.hamiltonian = hamiltonian_report(map, r.theta, r.normalization, {});
-  if (r.dissipation.empty())
-    r.dissipation = dissipation_terms_report(map, r.theta, r.normalization, {});
-  r.model = user_model(best.inner, r);
-  return r;
+        config, hooks, std::move(checks), stopped);
+    checks = std::move(growth.checks);
+    stopped = stopped || growth.stopped;
+  }
+  end.verdict = verdict(f.split, f.facts.h_max, f.lm_fits,
+                        evidence(f, end, std::move(checks), end.interval.reasons, stopped));
+  end.hamiltonian = end.interval.hamiltonian.is_null()
+                        ? hamiltonian_report(map, end.theta, units, {})
+                        : end.interval.hamiltonian;
+  end.dissipation = end.interval.dissipation && !end.interval.dissipation->empty()
+                        ? *end.interval.dissipation
+                        : dissipation_terms_report(map, end.theta, units, {});
+  end.stopped = stopped;
+  return assemble(f, end);
 }
 
 // The report's "dissipation": the viscous rate first, then friction and drag; intervals as

@@ -231,8 +231,8 @@ long continue_winner(Candidate& best, CandidateFit& fit, std::size_t n_cand,
 
 }  // namespace
 
-std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
-                        bool varying_steps, const IdentifyConfig& given, IdentifyResult& r) {
+CoreChoice choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
+                       bool varying_steps, const IdentifyConfig& given) {
   nlohmann::json tried = nlohmann::json::array();
   std::size_t win = 0;
   for (std::size_t k = 0; k < cand.size(); ++k) {
@@ -259,32 +259,32 @@ std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool ch
   }
   fit.note_stop();
   Candidate& best = cand[win];
-  IdentifyConfig& c = r.config;
-  c.core = best.core;
-  r.choices["core"] = best.core;
+  CoreChoice out;
+  out.index = win;
+  out.core = best.core;
+  out.choices["core"] = best.core;
   if (choosing) {
-    r.choices["core_candidates"] = tried;
+    out.choices["core_candidates"] = tried;
     std::string why = "lowest validation loss of " + std::to_string(cand.size()) + " candidates (" +
                       core_name(best.core) + ")";
     if (varying_steps) why += "; the LA candidate has step polynomials because the steps vary";
-    r.choices["core_reason"] = why;
+    out.choices["core_reason"] = why;
   } else {
-    r.choices["core_reason"] = given.init != nullptr ? "the init model file's" : "given";
+    out.choices["core_reason"] = given.init != nullptr ? "the init model file's" : "given";
   }
-  c.epochs = best.pretrained ? 0 : fit.epochs_for(best);
-  r.choices["epochs"] = c.epochs;
+  out.epochs = best.pretrained ? 0 : fit.epochs_for(best);
+  out.choices["epochs"] = out.epochs;
   if (given.init != nullptr) {
-    r.choices["init"] = {{"file", given.init->file}, {"checksum", given.init->checksum}};
-    r.choices["epochs_reason"] = given.epochs > 0
-                                     ? "given: AdamW from the init model file's parameters"
-                                     : "none: LM refines the init model file's parameters";
+    out.choices["init"] = {{"file", given.init->file}, {"checksum", given.init->checksum}};
+    out.choices["epochs_reason"] = given.epochs > 0
+                                       ? "given: AdamW from the init model file's parameters"
+                                       : "none: LM refines the init model file's parameters";
   }
   // The library candidate ran its LM to convergence already.
-  const long lm_total =
+  out.lm_iterations =
       best.pretrained ? best.lm.iterations : continue_winner(best, fit, cand.size(), given);
-  r.choices["lm_iterations"] = lm_total;
-  c.lm_iterations = lm_total;
-  return win;
+  out.choices["lm_iterations"] = out.lm_iterations;
+  return out;
 }
 
 double lag_one_correlation(const Vector& res, const WindowSet& w) {
@@ -305,34 +305,35 @@ double lag_one_correlation(const Vector& res, const WindowSet& w) {
 // positively. So a negative lag-one correlation says noise dominates, and windows of m_long
 // steps (which divide its bias and variance) are worth their compounding of misfit; LM
 // continues from the one-step fit.
-void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
-                   const IdentifyConfig& given, IdentifyResult& r) {
+WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
+                           const IdentifyConfig& given, bool pairs_file, bool balanced) {
+  WindowChoice out;
+  nlohmann::json& choices = out.choices;
   if (!split.adaptive || fit.stopped()) {
-    r.choices["window_reason"] = given.window > 0 ? "given"
-                                 : r.data.value("pairs_file", false)
-                                     ? "pairs: one step"
-                                     : "trajectories too short for longer windows";
-    return;
+    choices["window_reason"] = given.window > 0 ? "given"
+                               : pairs_file     ? "pairs: one step"
+                                                : "trajectories too short for longer windows";
+    return out;
   }
   const OneStepMap& map = *best.inner.map;
   const WindowSet& train = split.train;
-  const double rho =
-      lag_one_correlation(window_residuals(map, best.theta, train, r.config.balanced), train);
-  r.choices["one_step_residual_lag1_correlation"] = rho;
+  const double rho = lag_one_correlation(window_residuals(map, best.theta, train, balanced), train);
+  choices["one_step_residual_lag1_correlation"] = rho;
   if (rho < 0.0) {
     split.set_window(split.m_long);
-    r.choices["window_reason"] =
+    choices["window_reason"] =
         "one-step residuals correlate negatively along trajectories "
         "(noise dominates misfit): windows of " +
         std::to_string(split.m) + " steps";
     const long stage_b = fit.lm_budget(best, 15.0);
-    r.choices["lm_iterations_windows"] = stage_b;
+    choices["lm_iterations_windows"] = stage_b;
     fit.lm(best, stage_b, "LM on longer windows (noise dominates)");
   } else {
-    r.choices["window_reason"] =
+    choices["window_reason"] =
         "one-step residuals correlate positively along trajectories "
         "(misfit dominates noise): one-step windows";
   }
+  return out;
 }
 
 }  // namespace csympnet::detail

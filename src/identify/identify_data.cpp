@@ -125,20 +125,22 @@ DataFacts inspect_data(const std::vector<Trajectory>& trajs, bool pairs_only) {
   return f;
 }
 
-std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool pairs_only,
-                                     const IdentifyConfig& config, IdentifyResult& r) {
+Units choose_units(const std::vector<Trajectory>& trajs, bool pairs_only,
+                   const IdentifyConfig& config) {
   const Index d = trajs.front().z.rows() / 2;
   const IdentifyInit* init = config.init.get();
+  Units u;
+  u.normalize = config.normalize;
   // A model file to start from keeps its own units (its θ is in those units).
   if (init != nullptr) {
-    r.config.normalize = init->normalization.has_value();  // what the report says was done
-    r.normalization = init->normalization.value_or(identity_normalization(d));
-    r.choices["normalization_reason"] =
+    u.normalize = init->normalization.has_value();  // what the report says was done
+    u.normalization = init->normalization.value_or(identity_normalization(d));
+    u.choices["normalization_reason"] =
         init->normalization ? "the init model file's own (its parameters are in those units)"
                             : "none: the init model file has none, so the data are fitted "
                               "in their own units";
   } else {
-    r.normalization = config.normalize
+    u.normalization = config.normalize
                           ? (pairs_only ? fit_normalization(pairs_from_trajectories(trajs))
                                         : fit_normalization(trajs))
                           : identity_normalization(d);
@@ -147,7 +149,7 @@ std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool 
     // The init file's time scale must suit these data's steps: the steps in its units must
     // be normal, finite numbers (a τ of 1e-308 used to surface as an error blamed on the data).
     const DataFacts f = inspect_data(trajs, pairs_only);
-    const double tau = r.normalization.time_scale;
+    const double tau = u.normalization.time_scale;
     const double lo = f.h_min / tau, hi = f.h_max / tau;
     if (!(std::isfinite(hi) && hi <= 1e150 && lo >= std::numeric_limits<double>::min()))
       throw OptionError("init", init->file + ": its time scale " + number_text(tau) +
@@ -157,7 +159,8 @@ std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool 
                                     " in its units, beyond what can be computed with; expected "
                                     "a model fitted on data with steps like these");
   }
-  return normalize(r.normalization, trajs);
+  u.trajectories = normalize(u.normalization, trajs);
+  return u;
 }
 
 void BlockSplit::set_window(Index len) {
@@ -167,7 +170,7 @@ void BlockSplit::set_window(Index len) {
 }
 
 BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
-                        const IdentifyConfig& config, nlohmann::json& choices) {
+                        const IdentifyConfig& config) {
   BlockSplit s;
   Index m = config.window > 0 ? config.window : (pairs_only ? 1 : 4);
   if (pairs_only) {
@@ -205,41 +208,40 @@ BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
   s.adaptive = config.window == 0 && !pairs_only && m > 1;
   s.m_long = m;
   s.set_window(s.adaptive ? 1 : m);
-  choices["blocks"] = {{"total", n_blocks},
-                       {"train", static_cast<long>(train_ids.size())},
-                       {"validation", static_cast<long>(val_ids.size())},
-                       {"kind", pairs_only ? "pairs"
-                                           : (static_cast<long>(nt.size()) >= config.target_blocks
-                                                  ? "trajectories"
-                                                  : "segments of trajectories")}};
+  s.summary = {{"total", n_blocks},
+               {"train", static_cast<long>(train_ids.size())},
+               {"validation", static_cast<long>(val_ids.size())},
+               {"kind", pairs_only ? "pairs"
+                                   : (static_cast<long>(nt.size()) >= config.target_blocks
+                                          ? "trajectories"
+                                          : "segments of trajectories")}};
   return s;
 }
 
-double warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given,
-                  IdentifyResult& r) {
+WarmStart warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given) {
   const IdentifyInit* init = given.init.get();
-  IdentifyConfig& c = r.config;
+  WarmStart w;
+  w.dof_scales = given.dof_scales;
   if (init != nullptr)
-    c.dof_scales = init->dof_scales ? DofScales::kLearned : DofScales::kFixed;
-  else if (c.dof_scales == DofScales::kAuto)
-    c.dof_scales = d > 1 ? DofScales::kLearned : DofScales::kFixed;
-  r.choices["dof_scales"] = to_string(c.dof_scales);
+    w.dof_scales = init->dof_scales ? DofScales::kLearned : DofScales::kFixed;
+  else if (w.dof_scales == DofScales::kAuto)
+    w.dof_scales = d > 1 ? DofScales::kLearned : DofScales::kFixed;
+  w.choices["dof_scales"] = to_string(w.dof_scales);
   if (init != nullptr)
-    r.choices["dof_scales_reason"] = "the init model file's";
-  else if (c.dof_scales == DofScales::kLearned)
-    r.choices["dof_scales_reason"] =
+    w.choices["dof_scales_reason"] = "the init model file's";
+  else if (w.dof_scales == DofScales::kLearned)
+    w.choices["dof_scales_reason"] =
         given.dof_scales == DofScales::kAuto
             ? "d > 1: momenta's per-dof units (velocities, masses) are learned, not assumed"
             : "given";
-  double beta_init = 0.1;
   const WindowSet one = windows_from_trajectories(split.train_blocks, 1);
   try {
-    r.warm_start = gamma_warm_start(pairs_of(one));
-    beta_init = std::max(std::abs(r.warm_start->gamma), 1e-6);
+    w.gamma = gamma_warm_start(pairs_of(one));
+    w.beta_init = std::max(std::abs(w.gamma->gamma), 1e-6);
   } catch (const Error& e) {
-    r.warm_start_note = e.what();
+    w.note = e.what();
   }
-  return beta_init;
+  return w;
 }
 
 std::string significant(double v, int digits) {

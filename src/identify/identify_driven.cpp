@@ -259,56 +259,63 @@ SandwichInterval interval_of(const NormalEquations& ne, const Vector& grad, doub
   return iv;
 }
 
+// γ̂'s interval (with the Hamiltonian's and the modes'), and the input gain's.
+struct DrivenInterval {
+  detail::GammaInterval gamma;
+  nlohmann::json gain;  // {"B", "B_ci_low", "B_ci_high"}: the gain on the acceleration
+};
+
 // γ̂'s interval, the input gain's and the modes', from the training segments' normal
-// equations with the start states eliminated (as positions_interval of identify_positions).
-void driven_interval(const HamiltonianLibraryMap& map, const Matrix& z0,
-                     const ShootingSegments& train, double inflation, const IdentifyHooks& hooks,
-                     IdentifyResult& r) {
+// equations with the start states eliminated (as segments_interval of identify_segments).
+DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& theta,
+                               const Normalization& units, double level, const Matrix& z0,
+                               const ShootingSegments& train, double inflation,
+                               const IdentifyHooks& hooks) {
   if (hooks.stage) hooks.stage("interval");
+  DrivenInterval out;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   const Index d = map.d(), m = map.n_inputs(), p = map.n_params();
-  const double tau = r.normalization.time_scale;
+  const double tau = units.time_scale;
   const Index n_res = train.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-  NormalEquations ne = shooting_normal_equations(map, r.theta, z0, train, p, scale, true, stop);
+  NormalEquations ne = shooting_normal_equations(map, theta, z0, train, p, scale, true, stop);
   if (ne.stopped) {
-    r.stopped = true;
-    return;
+    out.gamma.stopped = true;
+    return out;
   }
   const double hidden = static_cast<double>(2 * d * train.size());
   const double dof_factor =
       std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
   ne.scores *= dof_factor;
   const Index bi = *map.damping_param_index();
-  const double level = r.config.level;
   try {
     SandwichInterval s =
-        sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(r.theta(bi)),
-                          r.theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
+        sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
+                          theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
     inflate_interval(s, inflation);
     for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
                       &s.optimisation, &s.rounding})
       *v /= tau;
     s.method += " over hidden start states (positions with known inputs)";
-    r.interval = s;
+    out.gamma.interval = s;
   } catch (const Error&) {
-    r.reasons.push_back(
+    out.gamma.reasons.push_back(
         "the positions and inputs do not fix the parameters: the Gauss-Newton matrix could not "
         "be factored even regularised, so no interval can be formed");
-    return;
+    return out;
   }
   // The gain on the acceleration, q''_i = ... + G_ij u_j: G = W B, which the hidden momenta's
   // unit leaves alone (B alone is not fixed by positions).
   nlohmann::json gain = nlohmann::json::array(), low = gain, high = gain;
   for (Index i = 0; i < d; ++i) {
     nlohmann::json g_row = nlohmann::json::array(), l_row = g_row, h_row = g_row;
-    const double w = r.theta(i);
+    const double w = theta(i);
     for (Index j = 0; j < m; ++j) {
       Vector grad = Vector::Zero(p);
-      const double b = r.theta(map.input_index(i, j));
+      const double b = theta(map.input_index(i, j));
       grad(i) = b;
       grad(map.input_index(i, j)) = w;
-      const double unit = r.normalization.q_scale(i) / (tau * tau);
+      const double unit = units.q_scale(i) / (tau * tau);
       const SandwichInterval iv =
           interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
       g_row.push_back(iv.gamma);
@@ -319,32 +326,37 @@ void driven_interval(const HamiltonianLibraryMap& map, const Matrix& z0,
     low.push_back(l_row);
     high.push_back(h_row);
   }
-  r.input["B"] = gain;
-  r.input["B_ci_low"] = low;
-  r.input["B_ci_high"] = high;
-  r.hamiltonian = detail::hamiltonian_report(map, r.theta, r.normalization,
-                                             {&ne, n_res, scale, inflation, level});
+  out.gain = {{"B", gain}, {"B_ci_low", low}, {"B_ci_high", high}};
+  out.gamma.hamiltonian =
+      detail::hamiltonian_report(map, theta, units, {&ne, n_res, scale, inflation, level});
   WindowSet starts;
   starts.m = 1;
   starts.z0 = z0;
   starts.zm.resize(2 * d, train.size());
   starts.h.resize(1, train.size());
   for (Index s = 0; s < train.size(); ++s) {
-    const Matrix z = shooting_states(map, r.theta, z0.col(s), train.h[static_cast<std::size_t>(s)],
+    const Matrix z = shooting_states(map, theta, z0.col(s), train.h[static_cast<std::size_t>(s)],
                                      train.inputs(s));
     starts.zm.col(s) = z.col(1);
     starts.h(0, s) = train.h[static_cast<std::size_t>(s)](0);
   }
-  detail::modal_analysis(map, starts, {&ne, n_res, scale, 1.0, inflation, stop}, r);
+  out.gamma.modes = detail::modal_analysis(map, theta, starts, tau, level,
+                                           {&ne, n_res, scale, 1.0, inflation, stop});
+  out.gamma.stopped = out.gamma.modes.stopped;
+  return out;
 }
 
-// The checks a driven record can take, and the verdict.
-void driven_verdict(const ShootingReport& rep, IdentifyResult& r) {
+// The checks a driven record can take, and the verdict; `reasons`: the interval's.
+detail::Verdict driven_verdict(const ShootingReport& rep, const IdentifyQuality& quality,
+                               const std::optional<SandwichInterval>& interval, bool stopped,
+                               std::vector<std::string> reasons) {
+  detail::Verdict v;
+  v.reasons = std::move(reasons);
   ModelCheck held;
   held.name = "held_out";
   held.assumption = "the model explains held-out segments as it explains its training segments";
   held.effect_name = "held-out over training loss of the positions";
-  held.effect = r.quality.train_loss > 0.0 ? r.quality.val_loss / r.quality.train_loss : 1.0;
+  held.effect = quality.train_loss > 0.0 ? quality.val_loss / quality.train_loss : 1.0;
   held.effect_threshold = kHeldOutRatioMax;
   held.passed = std::isfinite(held.effect) && held.effect <= kHeldOutRatioMax;
   held.sentence = "held-out loss " + detail::significant(held.effect) +
@@ -357,30 +369,31 @@ void driven_verdict(const ShootingReport& rep, IdentifyResult& r) {
   energy.sentence =
       "not applicable: the known input supplies energy (H = H0 - q^T B u), so growing motion "
       "is no evidence against the model; gamma_hat's interval says whether damping is found";
-  r.checks = {held, energy};
-  if (r.stopped) {
-    r.verdict = "interrupted";
-    r.reasons.push_back("interrupted");
-    return;
+  v.checks = {held, energy};
+  if (stopped) {
+    v.text = "interrupted";
+    v.reasons.push_back("interrupted");
+    return v;
   }
-  if (!held.passed) r.reasons.push_back("check held_out failed: " + held.sentence);
-  if (!r.interval) r.reasons.push_back("no interval for gamma_hat: " + rep.message);
+  if (!held.passed) v.reasons.push_back("check held_out failed: " + held.sentence);
+  if (!interval) v.reasons.push_back("no interval for gamma_hat: " + rep.message);
   // As for free records (identification_reasons): an interval that reaches 0, or that the
   // regularisation of the Gauss-Newton matrix moves, does not identify the damping.
-  if (r.interval && std::isfinite(r.interval->low) && r.interval->low <= 0.0)
-    r.reasons.push_back("the " + detail::significant(100.0 * r.interval->level) + "% interval [" +
-                        detail::significant(r.interval->low) + ", " +
-                        detail::significant(r.interval->high) +
+  if (interval && std::isfinite(interval->low) && interval->low <= 0.0)
+    v.reasons.push_back("the " + detail::significant(100.0 * interval->level) + "% interval [" +
+                        detail::significant(interval->low) + ", " +
+                        detail::significant(interval->high) +
                         "] reaches 0: these data do not tell the damping rate from no damping");
-  if (r.interval && !r.interval->stable)
-    r.reasons.push_back("the interval changes " +
-                        detail::significant(r.interval->regularisation_ratio) +
+  if (interval && !interval->stable)
+    v.reasons.push_back("the interval changes " +
+                        detail::significant(interval->regularisation_ratio) +
                         "-fold with the regularisation of the Gauss-Newton matrix: the data do "
                         "not separate the damping from the other parameters");
-  r.rejected = !held.passed;
-  r.identified = r.reasons.empty() && r.interval && std::isfinite(r.interval->low) &&
-                 std::isfinite(r.interval->high);
-  r.verdict = r.identified ? "identified" : r.rejected ? "model rejected" : "not identified";
+  v.rejected = !held.passed;
+  v.identified = v.reasons.empty() && interval && std::isfinite(interval->low) &&
+                 std::isfinite(interval->high);
+  v.text = v.identified ? "identified" : v.rejected ? "model rejected" : "not identified";
+  return v;
 }
 
 // One driven fit: the equation-error start, the segments' start states, LM on the positions.
@@ -544,15 +557,83 @@ DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
   return fit;
 }
 
+// The input's record in the report (r.input): the gain B on the acceleration with its interval
+// (null without one), B_p in the model's momentum units.
+nlohmann::json input_record(const HamiltonianLibraryMap& map, const Vector& theta,
+                            const Normalization& units, Index d, Index m,
+                            const nlohmann::json& gain) {
+  nlohmann::json input = {
+      {"m", m},
+      {"hold", hold_name(map.inputs().hold)},
+      {"about",
+       "H = H0(q, p) - q^T B_p u(t); B is the gain on the acceleration, q''_i = ... + "
+       "sum_j B_ij u_j (data units), which positions fix; B_momentum is B_p in the "
+       "model's momentum units (a convention when the momenta are hidden)"}};
+  nlohmann::json b_p = nlohmann::json::array();
+  for (Index i = 0; i < d; ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Index j = 0; j < m; ++j)
+      row.push_back(units.p_scale(i) * theta(map.input_index(i, j)) / units.time_scale);
+    b_p.push_back(row);
+  }
+  input["B_momentum"] = b_p;
+  if (gain.is_null())
+    input["B"] = nullptr;
+  else
+    input.update(gain);
+  return input;
+}
+
+// The fit in the data's units with its interval and verdict: the one place a driven record's
+// result is put together.
+IdentifyResult assemble_driven(const DrivenFit& fit, const DrivenData& data,
+                               const Normalization& units, const IdentifyConfig& config,
+                               nlohmann::json choices, nlohmann::json summary,
+                               const DrivenInterval& iv, const detail::Verdict& v, bool stopped) {
+  const HamiltonianLibraryMap& map = fit.map;
+  const ShootingReport& rep = fit.rep;
+  IdentifyResult r;
+  r.config = config;
+  r.observed = "positions";
+  r.normalization = units;
+  r.data = std::move(summary);
+  r.choices = std::move(choices);
+  r.stopped = stopped;
+  r.theta = fit.theta;
+  r.lm.iterations = rep.iterations;
+  r.lm.accepted = rep.accepted;
+  r.lm.initial_cost = rep.initial_loss;
+  r.lm.final_cost = rep.final_loss;
+  r.lm.message = rep.message;
+  r.lm_best_iteration = rep.best_iteration;
+  r.quality.train_loss = rep.final_loss;
+  r.quality.val_loss = rep.val_loss;
+  r.gamma = std::abs(fit.theta(*map.damping_param_index())) / units.time_scale;
+  r.input = input_record(map, fit.theta, units, data.d, data.m, iv.gain);
+  r.interval = iv.gamma.interval;
+  r.modes = iv.gamma.modes.list;
+  r.modes_note = iv.gamma.modes.note;
+  r.checks = v.checks;
+  r.reasons = v.reasons;
+  r.identified = v.identified;
+  r.rejected = v.rejected;
+  r.verdict = v.text;
+  r.hamiltonian = iv.gamma.hamiltonian.is_null()
+                      ? detail::hamiltonian_report(map, fit.theta, units, {})
+                      : iv.gamma.hamiltonian;
+  nlohmann::json model_spec = map.hyperparams();
+  model_spec["normalization"] = units;
+  r.model = make_model(model_spec);
+  return r;
+}
+
 }  // namespace
 
 IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positions_only,
                                const IdentifyConfig& config, const IdentifyHooks& hooks) {
   config.validate();
   DrivenData data = check_driven(trajs, positions_only, config);
-  IdentifyResult r;
-  r.config = config;
-  r.observed = "positions";
+  nlohmann::json choices = nlohmann::json::object();
   std::vector<Trajectory> q;
   for (const Trajectory& t : trajs) {
     Trajectory x;
@@ -563,19 +644,19 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   }
   data.d = q.front().z.rows();
   if (data.had_momenta)
-    r.choices["momenta_set_aside"] =
+    choices["momenta_set_aside"] =
         "a record with inputs is fitted on its positions (the momenta are hidden states)";
-  r.normalization = driven_units(q, data.d);
+  const Normalization units = driven_units(q, data.d);
   std::vector<Trajectory> nt;
   for (Trajectory t : q) {
-    t.z = (t.z.colwise() - r.normalization.q_shift).array().colwise() /
-          r.normalization.q_scale.array();
-    t.t = t.t / r.normalization.time_scale;
+    t.z = (t.z.colwise() - units.q_shift).array().colwise() / units.q_scale.array();
+    t.t = t.t / units.time_scale;
     nt.push_back(std::move(t));
   }
   Index samples = 0;
   for (const Trajectory& t : q) samples += t.t.size();
-  r.data = {{"d", data.d}, {"inputs", data.m}, {"trajectories", q.size()}, {"samples", samples}};
+  nlohmann::json summary = {
+      {"d", data.d}, {"inputs", data.m}, {"trajectories", q.size()}, {"samples", samples}};
   nlohmann::json record;
   const LibrarySpec spec = driven_spec(config, data.d, data.m, record);
   const bool terms_given = !config.core.is_null() && config.core.contains("terms");
@@ -590,48 +671,24 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   }
   record["terms_fitted"] = nlohmann::json::array();
   for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
-  const HamiltonianLibraryMap& map = fit.map;
-  Vector theta = fit.theta;
-  const Matrix& z0 = fit.z0;
-  const ShootingReport rep = fit.rep;
-  r.stopped = rep.stopped;
-  r.theta = theta;
-  r.lm.iterations = rep.iterations;
-  r.lm.accepted = rep.accepted;
-  r.lm.initial_cost = rep.initial_loss;
-  r.lm.final_cost = rep.final_loss;
-  r.lm.message = rep.message;
-  r.lm_best_iteration = rep.best_iteration;
-  r.quality.train_loss = rep.final_loss;
-  r.quality.val_loss = rep.val_loss;
-  r.gamma = std::abs(theta(*map.damping_param_index())) / r.normalization.time_scale;
-  r.input = {{"m", data.m},
-             {"hold", hold_name(map.inputs().hold)},
-             {"about",
-              "H = H0(q, p) - q^T B_p u(t); B is the gain on the acceleration, q''_i = ... + "
-              "sum_j B_ij u_j (data units), which positions fix; B_momentum is B_p in the "
-              "model's momentum units (a convention when the momenta are hidden)"}};
-  nlohmann::json b_p = nlohmann::json::array();
-  for (Index i = 0; i < data.d; ++i) {
-    nlohmann::json row = nlohmann::json::array();
-    for (Index j = 0; j < data.m; ++j)
-      row.push_back(r.normalization.p_scale(i) * theta(map.input_index(i, j)) /
-                    r.normalization.time_scale);
-    b_p.push_back(row);
-  }
-  r.input["B_momentum"] = b_p;
+  const ShootingReport& rep = fit.rep;
+  bool stopped = rep.stopped;
   const double ratio =
       rep.final_loss > 0.0 && std::isfinite(rep.val_loss) ? rep.val_loss / rep.final_loss : 1.0;
-  if (!r.stopped) driven_interval(map, z0, cut.train, std::sqrt(std::max(1.0, ratio)), hooks, r);
-  if (!r.input.contains("B")) r.input["B"] = nullptr;
-  r.choices["driven"] = record;
-  driven_verdict(rep, r);
-  if (r.hamiltonian.is_null())
-    r.hamiltonian = detail::hamiltonian_report(map, r.theta, r.normalization, {});
-  nlohmann::json model_spec = map.hyperparams();
-  model_spec["normalization"] = r.normalization;
-  r.model = make_model(model_spec);
-  return r;
+  DrivenInterval iv;
+  if (!stopped) {
+    iv = driven_interval(fit.map, fit.theta, units, config.level, fit.z0, cut.train,
+                         std::sqrt(std::max(1.0, ratio)), hooks);
+    stopped = stopped || iv.gamma.stopped;
+  }
+  choices["driven"] = record;
+  IdentifyQuality quality;
+  quality.train_loss = rep.final_loss;
+  quality.val_loss = rep.val_loss;
+  const detail::Verdict v =
+      driven_verdict(rep, quality, iv.gamma.interval, stopped, iv.gamma.reasons);
+  return assemble_driven(fit, data, units, config, std::move(choices), std::move(summary), iv, v,
+                         stopped);
 }
 
 }  // namespace csympnet

@@ -91,10 +91,11 @@ bool mode_gradients(const OneStepMap& map, const Vector& theta, const Vector& z0
 
 }  // namespace
 
-void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeIntervalInput& in,
-                    IdentifyResult& r) {
+Modes modal_analysis(const OneStepMap& map, ConstParams theta_fitted, const WindowSet& train,
+                     double time_scale, double level, const ModeIntervalInput& in) {
+  Modes out;
   const Index n = train.size();
-  if (n == 0) return;
+  if (n == 0) return out;
   std::vector<double> hs(train.h.row(0).data(), train.h.row(0).data() + n);
   std::nth_element(hs.begin(), hs.begin() + n / 2, hs.end());
   const double h = hs[static_cast<std::size_t>(n / 2)];
@@ -105,7 +106,7 @@ void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeInt
   // in p is 0: there is nothing to linearise. The modes are those of the map without its dry
   // friction (the potential, the mass and the viscous rate: small oscillations as they would
   // be without the friction), and the note says so.
-  Vector theta = r.theta;
+  Vector theta = theta_fitted;
   std::string friction_note;
   std::vector<Index> held;
   if (const auto* lib = dynamic_cast<const HamiltonianLibraryMap*>(&map))
@@ -117,50 +118,49 @@ void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeInt
             "the modes of the fitted map without its dry friction (Coulomb friction has no "
             "linearisation at rest)";
       }
-  if (!friction_note.empty()) r.modes_note = friction_note;
+  if (!friction_note.empty()) out.note = friction_note;
   const std::optional<std::vector<Complex>> s = mode_eigenvalues(map, theta, z, h, tolerance);
   const Index d = train.dim() / 2;
   if (!s) {
-    r.modes_note = "the fitted map has no equilibrium near the data: no modes";
-    return;
+    out.note = "the fitted map has no equilibrium near the data: no modes";
+    return out;
   }
   if (static_cast<Index>(s->size()) < d)
-    r.modes_note +=
-        (r.modes_note.empty() ? "" : "; ") + std::to_string(d - static_cast<Index>(s->size())) +
-        " of the " + std::to_string(d) +
-        " modes do not oscillate at the equilibrium (overdamped, or no restoring force)";
-  const double tau = r.normalization.time_scale;
-  for (Complex x : *s) r.modes.push_back({frequency_of(x) / tau, ratio_of(x), {}, {}});
-  if (in.ne == nullptr || s->empty()) return;
+    out.note += (out.note.empty() ? "" : "; ") + std::to_string(d - static_cast<Index>(s->size())) +
+                " of the " + std::to_string(d) +
+                " modes do not oscillate at the equilibrium (overdamped, or no restoring force)";
+  const double tau = time_scale;
+  for (Complex x : *s) out.list.push_back({frequency_of(x) / tau, ratio_of(x), {}, {}});
+  if (in.ne == nullptr || s->empty()) return out;
   Matrix d_freq, d_ratio;
   if (!mode_gradients(map, theta, z, h, tolerance, *s, in.should_stop, held, d_freq, d_ratio)) {
     if (in.should_stop && in.should_stop()) {
-      r.stopped = true;  // interrupted: the modes without intervals
-      return;
+      out.stopped = true;  // interrupted: the modes without intervals
+      return out;
     }
-    r.modes_note += (r.modes_note.empty() ? "" : "; ") +
-                    std::string(
-                        "a mode is lost under a small change of the parameters: no "
-                        "intervals for the modes");
-    return;
+    out.note += (out.note.empty() ? "" : "; ") +
+                std::string(
+                    "a mode is lost under a small change of the parameters: no "
+                    "intervals for the modes");
+    return out;
   }
   const NormalEquations& ne = *in.ne;
   const auto interval_of = [&](const Vector& grad, double value, double unit) {
     if (!(grad.squaredNorm() > 0.0)) return std::optional<SandwichInterval>();
-    SandwichInterval iv =
-        sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals, ne.cost,
-                             in.residual_scale, in.data_scale, r.config.level);
+    SandwichInterval iv = sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals,
+                                               ne.cost, in.residual_scale, in.data_scale, level);
     inflate_interval(iv, in.inflation);
     for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich, &iv.model_based,
                       &iv.optimisation, &iv.rounding})
       *v /= unit;
     return std::optional<SandwichInterval>(iv);
   };
-  for (std::size_t k = 0; k < r.modes.size(); ++k) {
+  for (std::size_t k = 0; k < out.list.size(); ++k) {
     const Index kk = static_cast<Index>(k);
-    r.modes[k].frequency_interval = interval_of(d_freq.col(kk), frequency_of((*s)[k]), tau);
-    r.modes[k].damping_ratio_interval = interval_of(d_ratio.col(kk), ratio_of((*s)[k]), 1.0);
+    out.list[k].frequency_interval = interval_of(d_freq.col(kk), frequency_of((*s)[k]), tau);
+    out.list[k].damping_ratio_interval = interval_of(d_ratio.col(kk), ratio_of((*s)[k]), 1.0);
   }
+  return out;
 }
 
 }  // namespace csympnet::detail

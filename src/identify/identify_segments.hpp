@@ -49,6 +49,11 @@ Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len, Inde
 // of its mean (the whole record when it never crosses): the scale of the segments.
 double samples_per_period(const std::vector<Trajectory>& positions);
 
+// The largest growth of a perturbation of a segment's start state along its fitted rollout,
+// ‖∂z_L/∂z_0‖: beyond a few orders of magnitude the start sits on an unstable manifold of the
+// map, and the derivatives and the interval mean nothing.
+double largest_sensitivity(const OneStepMap& map, ConstParams theta, const Cut& c);
+
 // The segment length: the longest of 10, 20, 40, 80 (up to two periods, `spp` samples per
 // period) over which the model at θ still follows the training blocks, its start states fitted
 // (`rows` observed per sample, as cut_segments); every length tried is recorded in `tried`.
@@ -73,10 +78,10 @@ Index free_parameters(const OneStepMap& map, Index d);
 // γ̂'s interval (and the modes', the friction's; with the momenta observed, the Hamiltonian's
 // terms' too) from the training segments' normal equations with the start states eliminated:
 // the sandwich of interval(), with the degrees-of-freedom correction for the fitted start
-// states and the held-out inflation; r.stopped on an interrupt.
-void segments_interval(const OneStepMap& map, const Cut& train, const BlockSplit& split,
-                       Index n_free, bool momenta_observed, const IdentifyHooks& hooks,
-                       IdentifyResult& r);
+// states and the held-out inflation (the losses of `at`: the segments' or the chain's).
+GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, const Cut& train,
+                                const BlockSplit& split, Index n_free, bool momenta_observed,
+                                const IdentifyHooks& hooks);
 
 // The training blocks' positions side by side (d x n).
 Matrix training_positions(const BlockSplit& split, Index d);

@@ -1,17 +1,28 @@
-// The stages of identify() (identify/identify.hpp), each a function or class with one job,
-// handing a typed state to the next (docs/architecture.md, "The identification in stages"):
+// The stages of identify() (identify/identify.hpp), each a function or class with one job that
+// returns what it found as a value of its own (docs/architecture.md, "The identification in
+// stages"); no stage writes into the IdentifyResult, which assemble() (identify.cpp) builds from
+// those values in one place:
 //
-//   inspect_data    the data as given: dimension, steps, a summary for the report
-//   choose_units    normalisation (or the init file's units), the normalised trajectories
-//   split_blocks    blocks, held-out blocks, window length, training and validation windows
-//   warm_start      γ₀ from the data, the dof scales, β's start
-//   CandidateFit    per candidate core: AdamW, Levenberg–Marquardt (budgets by work)
-//   choose_core     the lowest validation loss wins and continues LM
-//   adapt_windows   longer windows when the one-step residuals show noise, not misfit
-//   interval        cluster-robust sandwich over the training blocks, held-out inflation
-//   measure_quality held-out residuals, the null model, the structure residual
-//   run_checks      the model's assumptions tested (identify/model_checks.hpp)
-//   verdict         identified, not identified (and why), or the model rejected
+//   inspect_data     → DataFacts       dimension, steps, a summary for the report
+//   choose_units     → Units           normalisation (or the init file's units), the data in it
+//   split_blocks     → BlockSplit      blocks, held-out blocks, window length, the windows
+//   warm_start       → WarmStart       γ₀ from the data, the dof scales, β's start
+//   CandidateFit                       per candidate core: AdamW, Levenberg–Marquardt
+//   fit_library      → LibraryFit      the Hamiltonian-library candidate, its terms selected
+//   choose_core      → CoreChoice      the lowest validation loss wins and continues LM
+//   adapt_windows    → WindowChoice    longer windows when the residuals show noise, not misfit
+//   fit_core         → CoreFit         the stages above, their choices merged in order
+//   fit_whole_record → WholeRecordFit  a record with momenta fitted whole (identify_states.cpp)
+//   refine_on_positions → PositionsFit the momenta as hidden states (identify_positions.cpp)
+//   interval         → GammaInterval   cluster-robust sandwich over the training blocks, held-out
+//                                      inflation; the modes (modal_analysis → Modes) with theirs
+//   measure_quality  → HeldOutQuality  held-out residuals, the null model, the structure residual
+//   run_checks       → ModelChecks     the model's assumptions tested (identify/model_checks.hpp)
+//   confirm_growth   → GrowthRate      growing motion fitted again in reversed time
+//   verdict          → Verdict         identified, not identified (and why), or rejected
+//   assemble         → IdentifyResult  from the CoreFit and the route's FinalFit
+//
+// A driven record (identify_driven.cpp) has its own stages and assembles its own result.
 //
 // Private to the library (src/identify).
 #pragma once
@@ -43,10 +54,16 @@ struct DataFacts {
 };
 DataFacts inspect_data(const std::vector<Trajectory>& trajs, bool pairs_only);
 
-// The units the fit works in: the normalisation chosen (or the init file's), recorded in
-// r.normalization and r.choices, and the data in those units.
-std::vector<Trajectory> choose_units(const std::vector<Trajectory>& trajs, bool pairs_only,
-                                     const IdentifyConfig& config, IdentifyResult& r);
+// The units the fit works in: the normalisation chosen (or the init file's), and the data in
+// those units.
+struct Units {
+  Normalization normalization;
+  bool normalize = true;                              // the report's config.normalize
+  nlohmann::json choices = nlohmann::json::object();  // why, for an init file's units
+  std::vector<Trajectory> trajectories;               // the data, normalised
+};
+Units choose_units(const std::vector<Trajectory>& trajs, bool pairs_only,
+                   const IdentifyConfig& config);
 
 // Blocks and windows.
 struct BlockSplit {
@@ -56,17 +73,25 @@ struct BlockSplit {
   // trajectory share an end sample); which blocks train and which are held out, in order.
   std::vector<std::pair<Index, Index>> origin;
   std::vector<Index> train_ids, val_ids;
-  Index m = 1;            // the window length in use
-  Index m_long = 1;       // the length an automatic window may grow to
-  bool adaptive = false;  // an automatic window: starts at one step, may grow (adapt_windows)
-  WindowSet train, val;   // windows of m steps; training blocks numbered 0 … B_t − 1
+  Index m = 1;             // the window length in use
+  Index m_long = 1;        // the length an automatic window may grow to
+  bool adaptive = false;   // an automatic window: starts at one step, may grow (adapt_windows)
+  WindowSet train, val;    // windows of m steps; training blocks numbered 0 … B_t − 1
+  nlohmann::json summary;  // the report's choices.blocks
   void set_window(Index len);
 };
 BlockSplit split_blocks(const std::vector<Trajectory>& nt, bool pairs_only,
-                        const IdentifyConfig& config, nlohmann::json& choices);
+                        const IdentifyConfig& config);
 
-// γ₀ (r.warm_start) and the dof scales (r.config.dof_scales); returns β's start.
-double warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given, IdentifyResult& r);
+// γ₀ from the one-step pairs, the dof scales chosen, and β's start.
+struct WarmStart {
+  double beta_init = 0.1;               // |γ₀| (at least 1e-6), or 0.1 without γ₀
+  std::optional<GammaWarmStart> gamma;  // γ₀ in the fit's units
+  std::string note;                     // why there is no γ₀
+  DofScales dof_scales = DofScales::kFixed;
+  nlohmann::json choices = nlohmann::json::object();  // dof_scales and why
+};
+WarmStart warm_start(const BlockSplit& split, Index d, const IdentifyConfig& given);
 
 // The candidate cores when none is given (LA and G, by dimension).
 std::vector<nlohmann::json> default_cores(Index d, bool varying_steps);
@@ -121,10 +146,16 @@ class CandidateFit {
 
 inline constexpr long kLmPatience = 100;
 
-// Every candidate trained; the lowest validation loss wins and continues LM. Records the
-// choice in r (choices, config) and returns the winner's index.
-std::size_t choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
-                        bool varying_steps, const IdentifyConfig& given, IdentifyResult& r);
+// Every candidate trained; the lowest validation loss wins and continues LM.
+struct CoreChoice {
+  std::size_t index = 0;  // the winner in the candidates
+  nlohmann::json core;    // its core
+  long epochs = 0;        // its AdamW epochs and LM iterations, the report's config
+  long lm_iterations = 0;
+  nlohmann::json choices = nlohmann::json::object();  // core, its candidates and why; budgets
+};
+CoreChoice choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool choosing,
+                       bool varying_steps, const IdentifyConfig& given);
 
 // The Hamiltonian-library candidate (identify_library.cpp): given_core {"type": "library"}
 // selects its terms (forward selection by Gauss–Newton gain, kept by the held-out loss, pruned
@@ -164,8 +195,11 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
 double lag_one_correlation(const Vector& res, const WindowSet& w);
 
 // Longer windows when noise dominates misfit (an automatic window only); LM continues on them.
-void adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
-                   const IdentifyConfig& given, IdentifyResult& r);
+struct WindowChoice {
+  nlohmann::json choices = nlohmann::json::object();  // why this window; the LM spent on it
+};
+WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
+                           const IdentifyConfig& given, bool pairs_file, bool balanced);
 
 // The largest absolute normalised coordinate: the data's scale for the interval's rounding term.
 double data_scale(const std::vector<Trajectory>& nt);
@@ -177,7 +211,7 @@ struct ModeIntervalInput {
   double residual_scale = 1.0;        // of the residuals in ne
   double data_scale = 0.0;            // for the rounding term
   double inflation = 1.0;             // the held-out inflation applied to γ̂'s interval
-  std::function<bool()> should_stop;  // polled per parameter; true: r.stopped, no intervals
+  std::function<bool()> should_stop;  // polled per parameter; true: stopped, no intervals
 };
 
 // What the Hamiltonian's intervals share with γ̂'s (null ne: no intervals).
@@ -202,37 +236,105 @@ nlohmann::json dissipation_terms_report(const OneStepMap& map, const Vector& the
                                         const HamiltonianIntervalInput& in,
                                         const std::vector<double>& integrator = {});
 
-// r.modes: the fitted map linearised at its fixed point nearest the training windows' mean
-// state, each oscillating mode's natural frequency and damping ratio, with intervals when
-// `in.ne` is given (identify_modes.cpp).
-void modal_analysis(const OneStepMap& map, const WindowSet& train, const ModeIntervalInput& in,
-                    IdentifyResult& r);
+// The fitted map linearised at its fixed point nearest the training windows' mean state: each
+// oscillating mode's natural frequency and damping ratio (user's time units: time_scale), with
+// intervals at `level` when `in.ne` is given (identify_modes.cpp).
+struct Modes {
+  std::vector<Mode> list;  // ascending frequency
+  std::string note;        // why fewer than d modes, or none
+  bool stopped = false;    // interrupted: the modes without intervals
+};
+Modes modal_analysis(const OneStepMap& map, ConstParams theta, const WindowSet& train,
+                     double time_scale, double level, const ModeIntervalInput& in);
 
-// γ̂'s interval in the user's time units (r.interval), from the training windows, and the
-// modes with theirs (modal_analysis).
-void interval(const OneStepMap& map, const BlockSplit& split, const std::vector<Trajectory>& nt,
-              const IdentifyHooks& hooks, const Communicator& comm, IdentifyResult& r);
+// What γ̂'s interval is formed at: the fitted θ, and the fit's losses for the held-out inflation.
+struct IntervalBasis {
+  Vector theta;         // the fit's units
+  Normalization units;  // γ̂ and the terms in the user's units
+  double level = 0.95;
+  bool balanced = true;
+  double train_loss = 0.0, val_loss = 0.0;
+  // choices.library when the core is the library core (its integrator's shares), else null.
+  nlohmann::json library;
+};
+// γ̂'s interval in the user's time units, with what shares its normal equations: the modes',
+// the Hamiltonian's and the friction's.
+struct GammaInterval {
+  std::optional<SandwichInterval> interval;
+  Modes modes;
+  nlohmann::json hamiltonian;                       // with intervals; null: none formed
+  std::optional<nlohmann::json> dissipation;        // with intervals; none: none formed
+  std::vector<std::string> reasons;                 // why no interval could be formed
+  std::optional<double> degrees_of_freedom_factor;  // segments: for the fitted start states
+  bool stopped = false;                             // interrupted: no interval
+  double seconds = 0.0;
+};
+// From the training windows (interval of the windows' fit).
+GammaInterval interval(const OneStepMap& map, const IntervalBasis& at, const BlockSplit& split,
+                       const std::vector<Trajectory>& nt, const IdentifyHooks& hooks,
+                       const Communicator& comm);
 
-// r.quality from the validation windows.
-void measure_quality(const OneStepMap& map, const BlockSplit& split, Index d, IdentifyResult& r);
+// The quality on the validation windows (IdentifyQuality's shares; the losses are the fit's).
+struct HeldOutQuality {
+  double val_relative_residual = 0.0;
+  double null_ratio = 0.0;
+  double structure_residual_max = 0.0;
+};
+HeldOutQuality measure_quality(const OneStepMap& map, ConstParams theta, const BlockSplit& split,
+                               Index d);
 
-// Appends to r.checks (which holds the data's own check, measured_momenta_check) the model's
-// assumptions tested on every block.
-void run_checks(const OneStepMap& map, const BlockSplit& split, const IdentifyHooks& hooks,
-                IdentifyResult& r);
+// The model's assumptions tested on every block (model_checks.hpp, check_model), in the user's
+// time units (time_scale).
+using ModelChecks = std::vector<ModelCheck>;
+ModelChecks run_checks(const OneStepMap& map, ConstParams theta, const BlockSplit& split,
+                       double time_scale, double level, const IdentifyHooks& hooks);
 
-// r.reasons, r.identified, r.rejected.
-void verdict(const BlockSplit& split, double h_max, bool lm_fits, IdentifyResult& r);
+// What the verdict weighs: the fit, its interval, its quality and the checks.
+struct Evidence {
+  double gamma = 0.0;  // γ̂, user's units
+  std::optional<SandwichInterval> interval;
+  IdentifyQuality quality;
+  StopReason training_stop = TrainSummary{}.stop_reason;
+  double level = 0.95;
+  bool stopped = false;
+  ModelChecks checks;                // the data's own check first
+  std::vector<std::string> reasons;  // the stages' before (no interval could be formed)
+};
+// Identified, not identified (and why: failed checks first), or the model rejected.
+struct Verdict {
+  bool identified = false;
+  bool rejected = false;
+  std::string text;  // "identified", "not identified", "model rejected" or "interrupted"
+  std::vector<std::string> reasons;
+  ModelChecks checks;  // as judged: undecided where the model explains too little to test
+};
+Verdict verdict(const BlockSplit& split, double h_max, bool lm_fits, Evidence e);
 
-// The stages up to the chosen core trained (inspect_data … adapt_windows), recorded in r
-// (config, data, normalisation, choices, θ, training, γ̂, training and validation losses).
+// The stages up to the chosen core trained (inspect_data … adapt_windows), with what each
+// found; choices and config merged from them in order.
 struct CoreFit {
   DataFacts facts;
-  std::vector<Trajectory> nt;  // the data in the fit's units
+  Units units;            // units.trajectories: the data in the fit's units
+  ModelCheck data_check;  // measured_momenta_check of the data (derived_momenta applied)
   BlockSplit split;
+  WarmStart warm;
   std::vector<Candidate> cand;
-  std::size_t best = 0;  // the chosen candidate
-  bool lm_fits = true;   // at most 6,000 parameters: LM and an interval
+  CoreChoice choice;
+  WindowChoice windows;
+  std::size_t best = 0;    // the chosen candidate
+  bool lm_fits = true;     // at most 6,000 parameters: LM and an interval
+  bool stopped = false;    // a stop was requested during training
+  IdentifyConfig config;   // with every automatic choice resolved
+  nlohmann::json choices;  // every stage's, merged in order
+  // The chosen core as the windows left it: θ, γ̂ (user's time units), its window losses, its
+  // training and LM (the whole-record and positions fits refit θ, not these records).
+  Vector theta;
+  double gamma = 0.0;
+  double train_loss = 0.0, val_loss = 0.0;
+  TrainSummary training;
+  LmReport lm;
+  long lm_best_iteration = 0;
+  double adamw_seconds = 0.0, lm_seconds = 0.0;  // over every candidate
 };
 // Whether the library core explains the data to the noise, so that the neural cores are not
 // trained; `why` says what was measured. The default judges the held-out one-step residuals
@@ -240,7 +342,7 @@ struct CoreFit {
 using FloorTest =
     std::function<bool(const Candidate& library, const BlockSplit& split, std::string& why)>;
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
-                 const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r,
+                 const IdentifyConfig& config, const IdentifyHooks& hooks,
                  const FloorTest& floor_test = {});
 
 // Whether a record with momenta is fitted as a whole (config.record_fit: "whole", "windows",
@@ -248,16 +350,53 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
 bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config);
 // The whole-record fit of a record with momenta (identify_states.cpp): from the windows' fit,
 // θ and every segment's start state fitted to the observed q and p, the segments linked over
-// the record; r's θ, γ̂, losses and interval (with the modes', the Hamiltonian's and the
-// friction's) replaced, or the reason there is no interval in r.reasons. Returns whether the
-// whole record was fitted: false when no block has segments to fit (the windows' interval
-// then stands) or on a stop request (r.stopped).
-bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHooks& hooks,
-                      IdentifyResult& r);
+// the record; the chosen candidate (f.cand[f.best]) carries its θ and core.
+struct WholeRecordFit {
+  // Whether the whole record was fitted: false when no block has segments to fit (the
+  // windows' θ and interval then stand) or on a stop request.
+  bool fitted = false;
+  bool stopped = false;
+  nlohmann::json record;               // choices.whole_record
+  std::optional<nlohmann::json> core;  // when the chain's judgement of the terms changed it
+  // When fitted: θ, γ̂ (user's time units), the chain's losses, and the interval (with the
+  // modes', the Hamiltonian's and the friction's) or the reason there is none.
+  Vector theta;
+  double gamma = 0.0;
+  double train_loss = 0.0, val_loss = 0.0;
+  GammaInterval interval;
+};
+WholeRecordFit fit_whole_record(CoreFit& f, const IdentifyConfig& given,
+                                const IdentifyHooks& hooks);
 
 // The model in the user's units: the inner map wrapped in the normalisation (unless an init
 // file without one fixed the units).
-Model user_model(const Model& inner, const IdentifyResult& r);
+Model user_model(const Model& inner, const Normalization& units, const IdentifyInit* init);
+
+// Where a route's last fit ended and how it was judged: assemble() (identify.cpp) puts it
+// beside the CoreFit into the IdentifyResult.
+struct FinalFit {
+  std::string observed = "positions and momenta";
+  Vector theta;                                       // the fit's units
+  double gamma = 0.0;                                 // user's time units
+  std::optional<nlohmann::json> core;                 // when the route changed the core
+  nlohmann::json choices = nlohmann::json::object();  // the route's records, over fit_core's
+  std::optional<TrainSummary> training;               // when the route chose another candidate
+  std::optional<LmReport> lm;
+  IdentifyQuality quality;
+  GammaInterval interval;  // its interval, modes and timing
+  nlohmann::json hamiltonian;
+  nlohmann::json dissipation = nlohmann::json::array();
+  Verdict verdict;
+  bool stopped = false;  // a stage after fit_core was interrupted
+};
+IdentifyResult assemble(const CoreFit& f, const FinalFit& end);
+// The basis of an interval at θ of the model with `core` (the losses: the held-out inflation's).
+IntervalBasis interval_basis(const CoreFit& f, const Vector& theta, const nlohmann::json& core,
+                             double train_loss, double val_loss);
+// What the verdict weighs of a route's end (its γ̂, interval, quality and training) beside the
+// checks and the reasons the stages gave before.
+Evidence evidence(const CoreFit& f, const FinalFit& end, ModelChecks checks,
+                  std::vector<std::string> reasons, bool stopped);
 
 // A library candidate with one sin/cos or exp group replaced by the powers of the same
 // argument (1..4 of a coordinate; 2..4 of a difference, its linear part on the two
@@ -292,22 +431,55 @@ Candidate library_with(const Candidate& lib, Index d, const std::vector<LibraryT
                        const std::vector<DissipationTerm>& next_dissipation);
 
 // identify_positions() after the core is trained on the positions with velocities from a
-// local polynomial: the momenta as hidden states (identify_positions.cpp).
-// `given` is the configuration as the user gave it: library terms named there are fitted as
-// given, and its lm_iterations (0: automatic, 100) bounds each positions fit. before_verdict,
-// when set, runs after the checks and before the verdict (the growth rate's refit).
-void refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
-                         const IdentifyConfig& given, const IdentifyHooks& hooks, IdentifyResult& r,
-                         const std::function<void(IdentifyResult&)>& before_verdict = {});
+// local polynomial: the momenta as hidden states (identify_positions.cpp), fitted with θ on the
+// positions, the segments linked; its interval and quality. The chosen candidate
+// (f.cand[f.best]) carries the final θ and core, f.split the blocks with the reconstructed
+// momenta. `given` is the configuration as the user gave it: library terms named there are
+// fitted as given, and its lm_iterations (0: automatic, 100) bounds each positions fit.
+struct PositionsFit {
+  nlohmann::json record;               // choices.positions
+  std::optional<nlohmann::json> core;  // when the route changed the core
+  // When the positions chose another candidate than the velocity start: why, and its
+  // training records.
+  std::optional<nlohmann::json> core_reason;
+  std::optional<TrainSummary> training;
+  std::optional<LmReport> lm;
+  std::vector<std::string> reasons;  // why nothing was fitted on the positions
+  // Whether the positions were fitted: false with no segment to fit, a stop, no LM or a
+  // diverged training (the velocity start's θ then stands, unassessed).
+  bool fitted = false;
+  bool stopped = false;
+  // When fitted: γ̂ (user's time units), the final losses, the interval, the quality on the
+  // positions, the friction and drag, and the largest sensitivity of a segment's rollout.
+  double gamma = 0.0;
+  double train_loss = 0.0, val_loss = 0.0;
+  GammaInterval interval;
+  HeldOutQuality quality;
+  nlohmann::json dissipation = nlohmann::json::array();
+  double sensitivity = 0.0;
+};
+PositionsFit refine_on_positions(const std::vector<Trajectory>& positions, CoreFit& f,
+                                 const IdentifyConfig& given, const IdentifyHooks& hooks);
+// identify_positions() of a record whose given momenta were set aside: `set_aside` (the data's
+// measured_momenta check, passed, saying why) stands for the positions route's own check.
+IdentifyResult positions_in_place_of_momenta(const std::vector<Trajectory>& positions,
+                                             const IdentifyConfig& config,
+                                             const IdentifyHooks& hooks,
+                                             const ModelCheck& set_aside);
 
 // The data in reversed time: each trajectory (a pair is a two-point trajectory) read from its
 // end, t' = t_end − t (identify.cpp).
 std::vector<Trajectory> reversed_in_time(const std::vector<Trajectory>& trajs);
-// When the dissipation check of r finds growing motion: `refit` (the same pipeline) on the
-// record in reversed time, where growing motion decays, gives the growth rate and its interval
-// for the check's sentence; a record that seems to grow both ways leaves the check undecided.
+// When the dissipation check finds growing motion: `refit` (the same pipeline) on the record
+// in reversed time, where growing motion decays, gives the growth rate and its interval for
+// the check's sentence; a record that seems to grow both ways leaves the check undecided.
+struct GrowthRate {
+  ModelChecks checks;    // the checks, the failed dissipation check completed
+  bool stopped = false;  // the fit in reversed time was interrupted
+};
 using Refit = std::function<IdentifyResult(const std::vector<Trajectory>&)>;
-void confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
-                    const IdentifyConfig& config, const IdentifyHooks& hooks, IdentifyResult& r);
+GrowthRate confirm_growth(const std::vector<Trajectory>& trajs, const Refit& refit,
+                          const IdentifyConfig& config, const IdentifyHooks& hooks,
+                          ModelChecks checks, bool stopped);
 
 }  // namespace csympnet::detail

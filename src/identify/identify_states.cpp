@@ -83,20 +83,22 @@ bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config) {
   return core.is_object() && core.value("type", "") == "library";
 }
 
-bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHooks& hooks,
-                      IdentifyResult& r) {
+WholeRecordFit fit_whole_record(CoreFit& f, const IdentifyConfig& given,
+                                const IdentifyHooks& hooks) {
   const auto t0 = std::chrono::steady_clock::now();
   const Index d = f.facts.d, rows = 2 * d;
+  const std::vector<Trajectory>& nt = f.units.trajectories;
   Candidate& best = f.cand[f.best];
-  nlohmann::json& rec = r.choices["whole_record"];
+  WholeRecordFit out;
+  nlohmann::json& rec = out.record;
   rec = {{"method",
           "multiple shooting over the whole record with q and p observed, each row weighted by "
           "its noise (errors in variables); segments linked by continuity"}};
-  const double spp = samples_per_period(f.nt);
+  const double spp = samples_per_period(nt);
   nlohmann::json tried = nlohmann::json::array();
   if (cut_segments(f.split.train_blocks, d, 10, rows).segs.size() == 0) {
     rec["skipped"] = "no training block has 10 samples in a row without a gap";
-    return false;
+    return out;
   }
   const Index len =
       segment_length(*best.inner.map, best.theta, f.split.train_blocks, d, spp, tried, rows);
@@ -123,36 +125,35 @@ bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHoo
                         {"validation_loss", seg.rep.val_loss},
                         {"message", seg.rep.message}};
   if (seg.rep.stopped) {
-    r.stopped = true;
-    return false;
+    out.stopped = true;
+    return out;
   }
   Vector theta = seg.theta;
   train = std::move(seg.train);
   val = std::move(seg.val);
 
-  RecordLayout layout = record_layout(f.nt, f.split);
+  RecordLayout layout = record_layout(nt, f.split);
   layout.observed_rows = rows;
   layout.row_weight = train.segs.row_weight;
   // Every sample's state: observed; the linking carries its own rollouts into it.
   std::vector<Matrix> states;
-  for (const Trajectory& t : f.nt) states.push_back(t.z);
-  LinkedFit linked = link_segments(*best.inner.map, theta, f.nt, layout, len, states, val.segs,
+  for (const Trajectory& t : nt) states.push_back(t.z);
+  LinkedFit linked = link_segments(*best.inner.map, theta, nt, layout, len, states, val.segs,
                                    val.z0, opt, seg.rep);
   rec["linking"] = linked.record;
   const bool terms_given = given.core.is_object() && given.core.contains("terms");
-  if (r.config.init == nullptr && !terms_given && !linked.report.stopped) {
+  if (f.config.init == nullptr && !terms_given && !linked.report.stopped) {
     best.theta = theta;
     Matrix q = training_positions(f.split, d);
-    if (judge_terms_on_chain(best, d, q, f.nt, layout, linked, val, opt, states,
+    if (judge_terms_on_chain(best, d, q, nt, layout, linked, val, opt, states,
                              given.dissipation == "auto", rec)) {
       theta = best.theta;
-      r.choices["core"] = best.core;
-      r.config.core = best.core;
+      out.core = best.core;
     }
   }
   if (linked.report.stopped) {
-    r.stopped = true;
-    return false;
+    out.stopped = true;
+    return out;
   }
   if (linked.chain.segs.size() > 0) {
     train.segs = std::move(linked.chain.segs);
@@ -161,17 +162,23 @@ bool fit_whole_record(CoreFit& f, const IdentifyConfig& given, const IdentifyHoo
   }
   const OneStepMap& map = *best.inner.map;
   best.theta = theta;
-  r.theta = theta;
-  r.gamma = map.damping_rate(theta).value_or(0.0) / r.normalization.time_scale;
+  out.theta = theta;
+  out.gamma = map.damping_rate(theta).value_or(0.0) / f.units.normalization.time_scale;
   // The held-out inflation compares the chain's losses per residual, as the positions route.
-  r.quality.train_loss =
-      linked.chain.segs.size() > 0 ? linked.report.final_loss : seg.rep.final_loss;
-  r.quality.val_loss = linked.chain.segs.size() > 0 ? linked.report.val_loss : seg.rep.val_loss;
-  segments_interval(map, train, f.split, map.n_params(), true, hooks, r);
+  out.train_loss = linked.chain.segs.size() > 0 ? linked.report.final_loss : seg.rep.final_loss;
+  out.val_loss = linked.chain.segs.size() > 0 ? linked.report.val_loss : seg.rep.val_loss;
+  const nlohmann::json& core = out.core ? *out.core : f.config.core;
+  out.interval =
+      segments_interval(map, interval_basis(f, theta, core, out.train_loss, out.val_loss), train,
+                        f.split, map.n_params(), true, hooks);
+  out.stopped = out.interval.stopped;
+  if (out.interval.degrees_of_freedom_factor)
+    rec["degrees_of_freedom_factor"] = *out.interval.degrees_of_freedom_factor;
   rec["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // Fitted: its interval, or the reason it has none, stands (the windows' interval at this θ
   // would be neither fit's).
-  return true;
+  out.fitted = true;
+  return out;
 }
 
 }  // namespace csympnet::detail

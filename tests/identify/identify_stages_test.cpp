@@ -1,5 +1,5 @@
 // The stages of identify() one by one (src/identify/identify_stages.hpp): each takes a
-// typed state and records its choice; identify_test.cpp runs them together.
+// typed state and returns what it found; identify_test.cpp runs them together.
 #include "../../src/identify/identify_stages.hpp"
 
 #include <gtest/gtest.h>
@@ -46,13 +46,12 @@ TEST(IdentifyStages, InspectDataSummarisesStepsAndRefusesSubnormalSteps) {
 TEST(IdentifyStages, SplitBlocksCutsALongTrajectoryAndHoldsOutWholeBlocksBySeed) {
   const auto one = random_trajectories(1, 401, 1, 4);
   IdentifyConfig c;
-  nlohmann::json choices;
-  const BlockSplit s = split_blocks(one, false, c, choices);
+  const BlockSplit s = split_blocks(one, false, c);
   EXPECT_EQ(static_cast<long>(s.blocks.size()), c.target_blocks);
   EXPECT_EQ(s.train_blocks.size() + s.val_blocks.size(), s.blocks.size());
   EXPECT_EQ(static_cast<long>(s.val_blocks.size()),
             std::lround(c.val_fraction * static_cast<double>(s.blocks.size())));
-  EXPECT_EQ(choices["blocks"]["kind"], "segments of trajectories");
+  EXPECT_EQ(s.summary["kind"], "segments of trajectories");
   // An automatic window starts at one step and may grow to 4 (adapt_windows).
   EXPECT_TRUE(s.adaptive);
   EXPECT_EQ(s.m, 1);
@@ -62,14 +61,13 @@ TEST(IdentifyStages, SplitBlocksCutsALongTrajectoryAndHoldsOutWholeBlocksBySeed)
   for (const Trajectory& b : s.train_blocks) train_starts.insert(b.t(0));
   for (const Trajectory& b : s.val_blocks) EXPECT_EQ(train_starts.count(b.t(0)), 0u);
   // Same seed, same split; another seed, another.
-  nlohmann::json again;
-  const BlockSplit s2 = split_blocks(one, false, c, again);
+  const BlockSplit s2 = split_blocks(one, false, c);
   ASSERT_EQ(s2.val_blocks.size(), s.val_blocks.size());
   for (std::size_t i = 0; i < s.val_blocks.size(); ++i)
     EXPECT_EQ(s2.val_blocks[i].t(0), s.val_blocks[i].t(0));
   IdentifyConfig other = c;
   other.seed = 7;
-  const BlockSplit s3 = split_blocks(one, false, other, again);
+  const BlockSplit s3 = split_blocks(one, false, other);
   bool differs = false;
   for (std::size_t i = 0; i < s.val_blocks.size(); ++i)
     differs = differs || s3.val_blocks[i].t(0) != s.val_blocks[i].t(0);
@@ -79,15 +77,14 @@ TEST(IdentifyStages, SplitBlocksCutsALongTrajectoryAndHoldsOutWholeBlocksBySeed)
 TEST(IdentifyStages, SplitBlocksTakesPairsAsOneStepBlocksAndRefusesLongerWindows) {
   const auto pairs = random_trajectories(30, 2, 1, 5);
   IdentifyConfig c;
-  nlohmann::json choices;
-  const BlockSplit s = split_blocks(pairs, true, c, choices);
+  const BlockSplit s = split_blocks(pairs, true, c);
   EXPECT_EQ(s.blocks.size(), 30u);
   EXPECT_FALSE(s.adaptive);
   EXPECT_EQ(s.m, 1);
-  EXPECT_EQ(choices["blocks"]["kind"], "pairs");
+  EXPECT_EQ(s.summary["kind"], "pairs");
   c.window = 3;
-  EXPECT_THROW(split_blocks(pairs, true, c, choices), OptionError);
-  EXPECT_THROW(split_blocks(random_trajectories(1, 8, 1, 6), false, IdentifyConfig{}, choices),
+  EXPECT_THROW(split_blocks(pairs, true, c), OptionError);
+  EXPECT_THROW(split_blocks(random_trajectories(1, 8, 1, 6), false, IdentifyConfig{}),
                Error);  // fewer than 3 blocks
 }
 
@@ -95,14 +92,13 @@ TEST(IdentifyStages, WarmStartChoosesDofScalesByDimensionAndStartsBetaAtGammaZer
   for (Index d : {1, 3}) {
     const auto trajs = random_trajectories(25, 12, d, 8);
     IdentifyConfig c;
-    IdentifyResult r;
-    r.config = c;
-    nlohmann::json choices;
-    const BlockSplit s = split_blocks(trajs, false, c, choices);
-    const double beta = warm_start(s, d, c, r);
-    EXPECT_EQ(r.config.dof_scales, d > 1 ? DofScales::kLearned : DofScales::kFixed);
-    if (r.warm_start)
-      EXPECT_EQ(beta, std::max(std::abs(r.warm_start->gamma), 1e-6));
+    const BlockSplit s = split_blocks(trajs, false, c);
+    const WarmStart w = warm_start(s, d, c);
+    const double beta = w.beta_init;
+    EXPECT_EQ(w.dof_scales, d > 1 ? DofScales::kLearned : DofScales::kFixed);
+    EXPECT_EQ(w.choices["dof_scales"], d > 1 ? "learned" : "fixed");
+    if (w.gamma)
+      EXPECT_EQ(beta, std::max(std::abs(w.gamma->gamma), 1e-6));
     else
       EXPECT_EQ(beta, 0.1);
     EXPECT_GT(beta, 0.0);
@@ -120,8 +116,8 @@ TEST(IdentifyStages, DefaultCoresShrinkWithDimensionAndGainStepPolynomialsWhenSt
   EXPECT_EQ(core_name(default_cores(16, false)[1]), "g:6:11");
 }
 
-IdentifyResult interval_result(double low, double high) {
-  IdentifyResult r;
+Evidence interval_result(double low, double high) {
+  Evidence r;
   r.gamma = 0.5 * (low + high);
   SandwichInterval s;
   s.low = low;
@@ -141,47 +137,47 @@ BlockSplit moving_split() {
 }
 
 TEST(IdentifyStages, VerdictPutsFailedChecksFirstAndNamesGrowthInsteadOfNoDamping) {
-  IdentifyResult ok = interval_result(0.09, 0.11);
-  verdict(moving_split(), 0.1, true, ok);
+  Evidence ok_in = interval_result(0.09, 0.11);
+  const Verdict ok = verdict(moving_split(), 0.1, true, ok_in);
   EXPECT_TRUE(ok.identified);
-  EXPECT_EQ(ok.verdict, "identified");
+  EXPECT_EQ(ok.text, "identified");
 
-  IdentifyResult zero = interval_result(-0.01, 0.02);
-  verdict(moving_split(), 0.1, true, zero);
+  Evidence zero_in = interval_result(-0.01, 0.02);
+  const Verdict zero = verdict(moving_split(), 0.1, true, zero_in);
   EXPECT_FALSE(zero.identified);
-  EXPECT_EQ(zero.verdict, "not identified");
+  EXPECT_EQ(zero.text, "not identified");
   ASSERT_EQ(zero.reasons.size(), 1u);
   EXPECT_NE(zero.reasons[0].find("no damping"), std::string::npos);
   EXPECT_EQ(zero.reasons[0].find("growth"), std::string::npos);
 
   // A signed rate that leans below 0 without the check's 99% confidence: the reason names
   // a slow growth as possible too, with the signed rate.
-  IdentifyResult leans = interval_result(-0.01, 0.02);
+  Evidence leans_in = interval_result(-0.01, 0.02);
   ModelCheck lean;
   lean.name = "dissipation";
   lean.details = {{"signed_rate", -0.003}, {"interval", {-0.006, -0.0002}}};
-  leans.checks = {lean};
-  verdict(moving_split(), 0.1, true, leans);
-  EXPECT_EQ(leans.verdict, "not identified");
+  leans_in.checks = {lean};
+  const Verdict leans = verdict(moving_split(), 0.1, true, leans_in);
+  EXPECT_EQ(leans.text, "not identified");
   ASSERT_EQ(leans.reasons.size(), 1u);
   EXPECT_NE(leans.reasons[0].find("or from a slow growth (signed rate -0.003"), std::string::npos)
       << leans.reasons[0];
 
-  IdentifyResult grows = interval_result(-0.01, 0.02);
+  Evidence grows_in = interval_result(-0.01, 0.02);
   ModelCheck g;
   g.name = "dissipation";
   g.assumption = "dissipation";
   g.passed = false;
   g.sentence = "the motion grows";
-  grows.checks = {g};
-  verdict(moving_split(), 0.1, true, grows);
+  grows_in.checks = {g};
+  const Verdict grows = verdict(moving_split(), 0.1, true, grows_in);
   EXPECT_FALSE(grows.identified);
   EXPECT_TRUE(grows.rejected);
-  EXPECT_EQ(grows.verdict, "model rejected");
+  EXPECT_EQ(grows.text, "model rejected");
   ASSERT_EQ(grows.reasons.size(), 1u);  // no "cannot tell from no damping" beside it
   EXPECT_NE(grows.reasons[0].find("the motion grows"), std::string::npos);
 
-  IdentifyResult modes = interval_result(0.09, 0.11);
+  Evidence modes_in = interval_result(0.09, 0.11);
   ModelCheck m;
   m.name = "one_rate";
   m.assumption = "one damping rate for every mode";
@@ -190,25 +186,25 @@ TEST(IdentifyStages, VerdictPutsFailedChecksFirstAndNamesGrowthInsteadOfNoDampin
   ModelCheck untestable;
   untestable.name = "linear_damping";
   untestable.applicable = false;
-  modes.checks = {untestable, m};
-  verdict(moving_split(), 0.1, true, modes);
-  EXPECT_EQ(modes.verdict, "model rejected");
+  modes_in.checks = {untestable, m};
+  const Verdict modes = verdict(moving_split(), 0.1, true, modes_in);
+  EXPECT_EQ(modes.text, "model rejected");
   EXPECT_EQ(modes.reasons.size(), 1u);
 }
 
 // A model that explains too little cannot test its assumptions: the check is kept, undecided,
 // and the verdict is "not identified" with the quality reason.
 TEST(IdentifyStages, VerdictLeavesChecksUndecidedWhenTheModelExplainsTooLittle) {
-  IdentifyResult poor = interval_result(0.09, 0.11);
-  poor.quality.val_relative_residual = 0.95;
+  Evidence poor_in = interval_result(0.09, 0.11);
+  poor_in.quality.val_relative_residual = 0.95;
   ModelCheck m;
   m.name = "one_rate";
   m.assumption = "one damping rate for every mode";
   m.passed = false;
   m.sentence = "the modes damp at different rates";
-  poor.checks = {m};
-  verdict(moving_split(), 0.1, true, poor);
-  EXPECT_EQ(poor.verdict, "not identified");
+  poor_in.checks = {m};
+  const Verdict poor = verdict(moving_split(), 0.1, true, poor_in);
+  EXPECT_EQ(poor.text, "not identified");
   EXPECT_FALSE(poor.rejected);
   EXPECT_TRUE(poor.checks[0].passed);
   EXPECT_FALSE(poor.checks[0].applicable);

@@ -183,42 +183,49 @@ def parse_args():
     return ap, ap.parse_args()
 
 
+def _subset(ap, text, known, what):
+    """the comma-separated names of `text`, each one of `known` (else a usage error)"""
+    names = [x.strip() for x in text.split(",") if x.strip()]
+    bad = [x for x in names if x not in known]
+    if bad or not names:
+        ap.error(f"unknown {what} {bad}; choose from {','.join(known)}")
+    return names
+
+
+def plan_size(ap, args):
+    """The plan's number of cases (--cases, else the plan's default) and its subset (strata or
+    systems; None for the main and violation plans); one plan at most."""
+    if sum(map(bool, (args.forced_plan, args.observed_plan, args.friction_plan,
+                      args.violations))) > 1:
+        ap.error("--forced-plan, --observed-plan, --friction-plan and --violations are plans "
+                 "of their own: give one")
+    if args.with_momenta and not args.observed_plan:
+        ap.error("--with-momenta: needs --observed-plan")
+    default, subset = (8, 120), None
+    if args.friction_plan:
+        default = (5, 20)
+        subset = _subset(ap, args.friction_strata, FRICTION_STRATA, "friction strata")
+    elif args.forced_plan:
+        default = (3, 6)
+        subset = _subset(ap, args.forced_systems, FORCED_SYSTEMS, "forced systems")
+    elif args.observed_plan:
+        default = (5, 10)
+        subset = _subset(ap, args.observed_strata, OBSERVED_STRATA, "observed strata")
+    elif args.violations:
+        default = (10, 60)
+    n = args.cases if args.cases is not None else default[0 if args.quick else 1]
+    if n < 1:
+        ap.error("--cases must be >= 1")
+    return n, subset
+
+
 def main():
     ap, args = parse_args()
     if args.seed < 0:
         ap.error("--seed must be >= 0")
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
-    if sum(map(bool, (args.forced_plan, args.observed_plan, args.friction_plan,
-                      args.violations))) > 1:
-        ap.error("--forced-plan, --observed-plan, --friction-plan and --violations are plans "
-                 "of their own: give one")
-    if args.friction_plan:
-        n = args.cases if args.cases is not None else (5 if args.quick else 20)
-        fstrata = [x.strip() for x in args.friction_strata.split(",") if x.strip()]
-        bad = [x for x in fstrata if x not in FRICTION_STRATA]
-        if bad or not fstrata:
-            ap.error(f"unknown friction strata {bad}; choose from {','.join(FRICTION_STRATA)}")
-    elif args.forced_plan:
-        n = args.cases if args.cases is not None else (3 if args.quick else 6)
-        fsys = [x.strip() for x in args.forced_systems.split(",") if x.strip()]
-        bad = [x for x in fsys if x not in FORCED_SYSTEMS]
-        if bad or not fsys:
-            ap.error(f"unknown forced systems {bad}; choose from {','.join(FORCED_SYSTEMS)}")
-    elif args.observed_plan:
-        n = args.cases if args.cases is not None else (5 if args.quick else 10)
-        strata = [x.strip() for x in args.observed_strata.split(",") if x.strip()]
-        bad = [x for x in strata if x not in OBSERVED_STRATA]
-        if bad or not strata:
-            ap.error(f"unknown observed strata {bad}; choose from {','.join(OBSERVED_STRATA)}")
-    elif args.with_momenta:
-        ap.error("--with-momenta: needs --observed-plan")
-    elif args.violations:
-        n = args.cases if args.cases is not None else (10 if args.quick else 60)
-    else:
-        n = args.cases if args.cases is not None else (8 if args.quick else 120)
-    if n < 1:
-        ap.error("--cases must be >= 1")
+    n, subset = plan_size(ap, args)
     systems = DEFAULT_SYSTEMS
     if args.systems and args.systems.strip() == "all":
         systems = SYSTEM_NAMES
@@ -256,16 +263,16 @@ def main():
                          "library_cap": LIBRARY_CAP}}
     run, write = None, write_outputs
     if args.friction_plan:
-        meta.update(friction_plan=True, friction_strata=fstrata)
-        cases = plan_friction(n, args.seed, fstrata)
+        meta.update(friction_plan=True, friction_strata=subset)
+        cases = plan_friction(n, args.seed, subset)
         run, write = run_friction_case, write_friction_outputs
     elif args.forced_plan:
-        meta.update(forced_plan=True, forced_systems=fsys)
-        cases = plan_forced(n, args.seed, fsys)
+        meta.update(forced_plan=True, forced_systems=subset)
+        cases = plan_forced(n, args.seed, subset)
         run, write = run_forced_case, write_forced_outputs
     elif args.observed_plan:
-        meta.update(observed_plan=True, observed_strata=strata)
-        cases = plan_observed(n, args.seed, strata)
+        meta.update(observed_plan=True, observed_strata=subset)
+        cases = plan_observed(n, args.seed, subset)
         run, write = run_observed_case, write_observed_outputs
     elif args.violations:
         try:

@@ -166,13 +166,14 @@ bool drop_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
                                const ShootingOptions& options, std::vector<Matrix>& states,
                                nlohmann::json& rec);
 
-// Dry friction and drag offered on the linked chain (identify_friction_on_chain.cpp): each
-// kind the core lacks, on every coordinate, is fitted over the chain (Coulomb friction from
-// three splits of the damping between γ and μ); the best enters when it lowers the information
-// criterion by more than 10 and the held-out loss does not rise by more than its standard error.
-// `lib`, `linked`'s start states and report, `val_z0` and `states` follow; the trials go into
-// rec["dissipation_added_on_positions"]. Returns whether a group entered; throws Error on a stop
-// request.
+// Dry friction offered on the linked chain (identify_friction_on_chain.cpp) when the core lacks
+// it: Coulomb friction on every coordinate, started from three splits of the damping between γ
+// and μ, is fitted over the chain; the best enters when it lowers the information criterion by
+// more than 10, the held-out loss does not rise by more than its standard error (both against
+// the current core fitted on as long as a trial) and its rate stands more than 3 standard
+// errors clear of 0. `lib`, `linked`'s start states and report, `val_z0` and `states` follow;
+// the trials go into rec["dissipation_added_on_positions"]. Returns whether it entered; throws
+// Error on a stop request.
 bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
                               const ShootingSegments& val, Matrix& val_z0,
                               const ShootingOptions& options, std::vector<Matrix>& states,

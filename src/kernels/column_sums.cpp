@@ -15,7 +15,8 @@
 
 namespace csympnet::kernels {
 
-ColumnSums::ColumnSums(Index columns, Isa isa) : isa_(isa) {
+ColumnSums::ColumnSums(Index columns, Isa isa)
+    : isa_(isa), row_(isa == Isa::kAvx512 ? kColumnSumsBlock : kColumnSumsBlockAvx2) {
   const Index cols8 = (columns + 7) / 8 * 8;  // whole groups of 8 lanes
   if (cols8 > 256) {
     sums_heap_.reset(new double[static_cast<std::size_t>(cols8 + 8)]);
@@ -29,15 +30,17 @@ ColumnSums::ColumnSums(Index columns, Isa isa) : isa_(isa) {
 namespace {
 
 constexpr Index B = kColumnSumsBlock;
+constexpr Index B2 = kColumnSumsBlockAvx2;
 constexpr Index kFlushColumns = ColumnSums::kFlushColumns;
 
-// The tile at rows t, t + B, t + 2B, t + 3B (four columns), samples j .. j + 3: x[s] holds the
-// four columns at sample j + s, in column order. unpacklo/hi pair the columns 0, 1 and 2, 3 at
-// samples (j, j + 2) and (j + 1, j + 3); the 128-bit halves are then exchanged.
+// The tile at rows t, t + R, t + 2R, t + 3R (four columns of R samples), samples j .. j + 3: x[s]
+// holds the four columns at sample j + s, in column order. unpacklo/hi pair the columns 0, 1 and 2,
+// 3 at samples (j, j + 2) and (j + 1, j + 3); the 128-bit halves are then exchanged.
+template <Index R = B>
 __attribute__((target("avx"), always_inline)) inline void transpose_tile(const double* t,
                                                                          __m256d (&x)[4]) {
-  const __m256d r0 = _mm256_load_pd(t), r1 = _mm256_load_pd(t + B);
-  const __m256d r2 = _mm256_load_pd(t + 2 * B), r3 = _mm256_load_pd(t + 3 * B);
+  const __m256d r0 = _mm256_load_pd(t), r1 = _mm256_load_pd(t + R);
+  const __m256d r2 = _mm256_load_pd(t + 2 * R), r3 = _mm256_load_pd(t + 3 * R);
   const __m256d e01 = _mm256_unpacklo_pd(r0, r1), o01 = _mm256_unpackhi_pd(r0, r1);
   const __m256d e23 = _mm256_unpacklo_pd(r2, r3), o23 = _mm256_unpackhi_pd(r2, r3);
   x[0] = _mm256_permute2f128_pd(e01, e23, 0x20);
@@ -102,7 +105,7 @@ __attribute__((target("avx512f,avx512vl"))) void sum_partial(Index tiles, bool f
 
 // The AVX2 form of sum_tiles, for machines without AVX-512: sixteen registers hold the sums of
 // four tiles and one tile's temporaries, so the tiles go four at a time (each tile's sums are
-// still one chain of adds in sample order).
+// still one chain of adds in sample order); rows of B2 samples.
 template <int kTiles, bool kFresh>
 __attribute__((target("avx2"))) void sum_tiles_avx2(const double* rows, double* sums) {
   __m256d acc[kTiles];
@@ -110,11 +113,11 @@ __attribute__((target("avx2"))) void sum_tiles_avx2(const double* rows, double* 
   for (int ti = 0; ti < kTiles; ++ti) {
     acc[ti] = kFresh ? _mm256_set1_pd(-0.0) : _mm256_load_pd(sums + 4 * ti);
   }
-  for (Index j = 0; j < B; j += 4) {
+  for (Index j = 0; j < B2; j += 4) {
 #pragma GCC unroll 4
     for (int ti = 0; ti < kTiles; ++ti) {
       __m256d x[4];
-      transpose_tile(rows + 4 * ti * B + j, x);
+      transpose_tile<B2>(rows + 4 * ti * B2 + j, x);
       acc[ti] = _mm256_add_pd(acc[ti], x[0]);
       acc[ti] = _mm256_add_pd(acc[ti], x[1]);
       acc[ti] = _mm256_add_pd(acc[ti], x[2]);
@@ -129,9 +132,9 @@ __attribute__((target("avx2"))) void sum_full_avx2(Index tiles, bool fresh, cons
                                                    double* sums) {
   Index ti = 0;
   for (; ti + 4 <= tiles; ti += 4) {
-    (fresh ? sum_tiles_avx2<4, true> : sum_tiles_avx2<4, false>)(rows + 4 * ti * B, sums + 4 * ti);
+    (fresh ? sum_tiles_avx2<4, true> : sum_tiles_avx2<4, false>)(rows + 4 * ti * B2, sums + 4 * ti);
   }
-  const double* rest = rows + 4 * ti * B;
+  const double* rest = rows + 4 * ti * B2;
   double* rest_sums = sums + 4 * ti;
   switch (tiles - ti) {
     case 3:
@@ -155,7 +158,7 @@ __attribute__((target("avx2"))) void sum_partial_avx2(Index tiles, bool fresh, c
     __m256d acc = fresh ? _mm256_set1_pd(-0.0) : _mm256_load_pd(sums + 4 * ti);
     for (Index j = 0; j < cnt; j += 4) {
       __m256d x[4];
-      transpose_tile(rows + 4 * ti * B + j, x);
+      transpose_tile<B2>(rows + 4 * ti * B2 + j, x);
       for (Index s = 0; s < 4 && j + s < cnt; ++s) acc = _mm256_add_pd(acc, x[s]);
     }
     _mm256_store_pd(sums + 4 * ti, acc);
@@ -174,7 +177,7 @@ __attribute__((target("avx512f,avx512vl"))) void flush_avx512(Index tiles, bool 
 
 __attribute__((target("avx2"))) void flush_avx2(Index tiles, bool fresh, const double* rows,
                                                 double* sums, Index cnt) {
-  if (cnt == B) {
+  if (cnt == B2) {
     sum_full_avx2(tiles, fresh, rows, sums);
   } else {
     sum_partial_avx2(tiles, fresh, rows, sums, cnt);
@@ -186,7 +189,7 @@ __attribute__((target("avx2"))) void flush_avx2(Index tiles, bool fresh, const d
 void ColumnSums::flush(Index cnt) {
   const Index tiles = (filled_ + 3) / 4;
   // Rows past the last column go to sums that are never read: zeros rather than stale values.
-  for (Index i = filled_ * B; i < tiles * 4 * B; ++i) products_[i] = 0.0;
+  for (Index i = filled_ * row_; i < tiles * 4 * row_; ++i) products_[i] = 0.0;
   if (isa_ == Isa::kAvx512) {
     flush_avx512(tiles, fresh_, products_, sums_ + first_, cnt);
   } else {

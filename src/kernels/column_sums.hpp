@@ -21,14 +21,17 @@
 
 namespace csympnet::kernels {
 
-// Samples per block: a row of the buffer.
+// Samples per block: a row of the buffer. 40 for the AVX-512 backward sweep; 20 for the AVX2 one,
+// whose rows of gradients (five registers each) then fit AVX2's sixteen registers.
 constexpr Index kColumnSumsBlock = 40;
+constexpr Index kColumnSumsBlockAvx2 = 20;
 
 class ColumnSums {
  public:
   static constexpr Index kFlushColumns = 48;  // twelve tiles of 4 columns
 
-  // The instruction set flush() uses.
+  // The instruction set flush() uses, and with it the block: kColumnSumsBlock samples (kAvx512)
+  // or kColumnSumsBlockAvx2 (kAvx2).
   enum class Isa { kAvx512, kAvx2 };
 
   // `columns` running sums, each starting at −0 (−0 + x = x for every x, so the first add
@@ -37,9 +40,9 @@ class ColumnSums {
   ColumnSums(const ColumnSums&) = delete;
   ColumnSums& operator=(const ColumnSums&) = delete;
 
-  // The row (kColumnSumsBlock values, 64-byte aligned) for the next column's products at the
-  // block's samples; columns come in the order 0, 1, ... in every block.
-  double* next_column() { return products_ + filled_ * kColumnSumsBlock; }
+  // The row (a block's values, 32-byte aligned) for the next column's products at the block's
+  // samples; columns come in the order 0, 1, ... in every block.
+  double* next_column() { return products_ + filled_ * row_; }
   // That row is written, with the block's first cnt samples live.
   void column_done(Index cnt) {
     if (++filled_ == kFlushColumns) flush(cnt);
@@ -61,6 +64,7 @@ class ColumnSums {
   double* sums_ = sums_local_;
   std::unique_ptr<double[]> sums_heap_;  // more than 256 columns
   Isa isa_;
+  Index row_;          // samples per block
   Index filled_ = 0;   // rows of products_ in use
   Index first_ = 0;    // the column of row 0
   bool fresh_ = true;  // in the first block: the sums are not yet stored

@@ -2,9 +2,10 @@
 // operations of d1_backward_avx512.cpp, in its order, four samples per register, and the
 // parameter gradients' running sums in ColumnSums' AVX2 form (the same order).
 //
-// Samples go in blocks of 40, the sums' row (kColumnSumsBlock): ten registers per row, so the
-// gradients of q and p (twenty registers) do not all stay in AVX2's sixteen; the compiler keeps
-// what it can and the rest lives in the L1 cache, as the portable loops' rows do.
+// Samples go in blocks of 20 (kColumnSumsBlockAvx2, the sums' row): five registers per row, so
+// that the gradients of q and p (ten registers) and a unit's temporaries fit AVX2's sixteen (in
+// blocks of 40, as the AVX-512 sweep's, they spilled to the stack in every unit). The steps are
+// read from memory.
 #include "d1_sweeps.hpp"
 
 #include "registry.hpp"
@@ -21,7 +22,7 @@ namespace {
 
 using namespace d1_block;
 
-constexpr Index kBlock = kColumnSumsBlock;           // samples per block
+constexpr Index kBlock = kColumnSumsBlockAvx2;       // samples per block
 constexpr int kRegs = static_cast<int>(kBlock / 4);  // registers per row
 
 template <bool kFull, bool kPoly>

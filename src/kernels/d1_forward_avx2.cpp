@@ -1,10 +1,10 @@
 // The AVX2 d = 1 LA-SympNet forward sweep of d1_sweeps.hpp, for machines without AVX-512: the
 // operations of d1_forward_avx512.cpp, in its order, four samples per register.
 //
-// Samples go in blocks of 16 (four registers per row): with sixteen registers, the block's q and
-// p take eight, and the rest hold a unit's temporaries (the steps are read from memory, where the
-// AVX-512 sweep holds them). σ is computed in registers as sigmoid_avx2.cpp computes it. Blocks
-// run last to first, as in the AVX-512 sweep.
+// Samples go in blocks of 20 (five registers per row; 80, s1's batch, is four blocks): with
+// sixteen registers, the block's q and p take ten, and the rest hold a unit's temporaries (the
+// steps are read from memory, where the AVX-512 sweep holds them). σ is computed in registers as
+// sigmoid_avx2.cpp computes it. Blocks run last to first, as in the AVX-512 sweep.
 #include "d1_sweeps.hpp"
 
 #include "registry.hpp"
@@ -22,7 +22,7 @@ namespace {
 
 using namespace d1_block;
 
-constexpr int kRegs = 4;             // registers per row
+constexpr int kRegs = 5;             // registers per row
 constexpr Index kBlock = 4 * kRegs;  // samples per block (even: see activation_forward)
 
 template <bool kFull, bool kPoly>

@@ -191,22 +191,28 @@ template <int kR, bool kFull, bool kPoly>
 struct Block256 {
   __m256i m[kR];
   const double* h;  // the block's first step
-  __attribute__((target("avx2"), always_inline)) Block256(const double* h_row, Index j0, Index cnt)
-      : h(h_row + j0) {
+  Index cnt;        // live samples
+  __attribute__((target("avx2"), always_inline)) Block256(const double* h_row, Index j0, Index live)
+      : h(h_row + j0), cnt(live) {
     const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
 #pragma GCC unroll 16
     for (int r = 0; r < kR; ++r) {
-      m[r] = _mm256_cmpgt_epi64(_mm256_set1_epi64x(static_cast<long long>(cnt - 4 * r)), lane);
+      m[r] = _mm256_cmpgt_epi64(_mm256_set1_epi64x(static_cast<long long>(live - 4 * r)), lane);
     }
   }
 };
 
+// In a partial block, only the register that straddles its end takes a masked move: on some AMD
+// cores (Zen 1 and 2 among them) a masked 256-bit store is microcoded, many times a plain one.
 template <int kR, bool kFull, bool kPoly>
 __attribute__((target("avx2"), always_inline)) inline __m256d load(
     const Block256<kR, kFull, kPoly>& b, int r, const double* x) {
   if constexpr (kFull) {
     return _mm256_loadu_pd(x + 4 * r);
   } else {
+    const Index live = b.cnt - 4 * r;
+    if (live >= 4) return _mm256_loadu_pd(x + 4 * r);
+    if (live <= 0) return _mm256_setzero_pd();
     return _mm256_maskload_pd(x + 4 * r, b.m[r]);
   }
 }
@@ -217,7 +223,12 @@ __attribute__((target("avx2"), always_inline)) inline void store(
   if constexpr (kFull) {
     _mm256_storeu_pd(x + 4 * r, v);
   } else {
-    _mm256_maskstore_pd(x + 4 * r, b.m[r], v);
+    const Index live = b.cnt - 4 * r;
+    if (live >= 4) {
+      _mm256_storeu_pd(x + 4 * r, v);
+    } else if (live > 0) {
+      _mm256_maskstore_pd(x + 4 * r, b.m[r], v);
+    }
   }
 }
 

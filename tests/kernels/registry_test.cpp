@@ -182,7 +182,9 @@ TEST(KernelsRegistry, AKernelRunsOnlyWhereTheCpuHasItsInstructions) {
   }
   if (!cpu.avx2) {
     for (const Family f : kAvx2Forms) {
-      if (f != Family::kProductAvx) EXPECT_FALSE(kernels::available(f));
+      if (f != Family::kProductAvx) {
+        EXPECT_FALSE(kernels::available(f)) << static_cast<int>(f);
+      }
     }
   }
   for (const Family f : kAvx2Forms) EXPECT_FALSE(kernels::needs_avx512(f));

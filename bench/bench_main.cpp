@@ -10,7 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "../src/kernels/product.hpp"  // which product kernels run, for the report
+#include "../src/kernels/product.hpp"   // which product kernels run, for the report
+#include "../src/kernels/registry.hpp"  // and which form of every family
 #include "bench_train.hpp"
 #include "csympnet/core/error.hpp"
 #include "peer_export.hpp"
@@ -64,6 +65,13 @@ int main(int argc, char** argv) {
   benchmark::Initialize(&rest_argc, rest.data());
   if (benchmark::ReportUnrecognizedArguments(rest_argc, rest.data())) return 2;
   benchmark::AddCustomContext("exact_product", csympnet::kernels::product_kernel_isa());
+  // Which form of each kernel family runs (CSYMPNET_KERNELS=avx2 makes an AVX-512 machine run
+  // those of a machine without it).
+  std::string forms;
+  for (const auto& f : csympnet::kernels::forms_in_use()) {
+    forms += (forms.empty() ? "" : ", ") + f.name + " " + f.isa;
+  }
+  benchmark::AddCustomContext("kernels", forms);
   csympnet::bench::register_benchmarks();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

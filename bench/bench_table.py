@@ -19,6 +19,10 @@ fma arithmetic (CSYMPNET_ARITHMETIC=fma, docs/architecture.md "Arithmetic of the
 and one line of MPI scaling: bench/mpi_scaling.py, `csympnet train` at 40,000 pairs in d = 100
 on 1 rank, 1 rank x 2 threads and 2 ranks, models compared bit for bit.
 
+--kernels avx2 runs csympnet capped at AVX2 (CSYMPNET_KERNELS=avx2: the kernel forms of a CPU
+without AVX-512, same bits), so that a machine with AVX-512 stands in for one without; the table
+names the forms that ran.
+
 Each row gives both sides the same number of threads (--threads, default 1,2: a row per preset
 and thread count). csympnet's threads are TrainOptions::threads (the epoch split over columns,
 docs/architecture.md); PyTorch's are its intra-op pool and OpenBLAS's.
@@ -66,6 +70,10 @@ def parse_args():
                     help="skip the column of csympnet's fma arithmetic (CSYMPNET_ARITHMETIC=fma)")
     ap.add_argument("--no-mpi", action="store_true",
                     help="skip the MPI line (bench/mpi_scaling.py: 1 and 2 ranks at 40,000 pairs)")
+    ap.add_argument("--kernels", choices=["widest", "avx2", "portable"], default=None,
+                    help="csympnet's kernels: the widest this CPU runs, capped at AVX2 (what a "
+                    "CPU without AVX-512 runs), or the portable code; sets CSYMPNET_KERNELS for "
+                    "every csympnet process (default: the environment's)")
     ap.add_argument("--json", help="also write every measurement to this file")
     return ap.parse_args()
 
@@ -218,6 +226,8 @@ def fmt_ms(seconds):
 
 def main():
     args = parse_args()
+    if args.kernels is not None:
+        os.environ["CSYMPNET_KERNELS"] = "" if args.kernels == "widest" else args.kernels
     presets = [p for p in args.presets.split(",") if p]
     try:
         thread_counts = [int(t) for t in args.threads.split(",") if t]
@@ -248,6 +258,7 @@ def main():
                                  "fma")
         record["micro_fma"] = micro_fma
     record["exact_product"] = context.get("exact_product", "?")
+    record["kernels"] = context.get("kernels", "?")
     workdir = tempfile.mkdtemp(prefix="csympnet-bench-")
     torch_env, torch_runs, rss = {}, {}, {}
     try:
@@ -284,6 +295,7 @@ def main():
     print(f"csympnet training epoch vs PyTorch {torch_version}, float64, full batch, AdamW")
     print(f"machine: {record['machine']}, {record['cores']} cores; csympnet products: "
           f"{record['exact_product']}; each row gives csympnet and PyTorch+OpenBLAS its threads")
+    print(f"csympnet kernels in use: {record['kernels']}")
     gemm_text = ", ".join(f"{t} thread{'s' if t > 1 else ''} {r / 1e9:.1f}"
                           for t, r in machine_gemm.items())
     print(f"dgemm (fastest of Eigen {REPRESENTATIVE_GEMM} on 1 thread and OpenBLAS "

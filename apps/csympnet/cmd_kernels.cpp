@@ -22,7 +22,9 @@ std::string kernels_summary() {
   if (kernels::portable_forced_by_environment()) {
     return "kernels: portable code only (CSYMPNET_KERNELS=portable)" + arithmetic;
   }
-  return "kernels: " + (running.empty() ? std::string("portable code only") : running) +
+  const std::string capped =
+      kernels::avx2_capped_by_environment() ? ", capped at avx2 (CSYMPNET_KERNELS=avx2)" : "";
+  return "kernels: " + (running.empty() ? std::string("portable code only") : running) + capped +
          " (`csympnet kernels` for each; CSYMPNET_KERNELS=portable forces the portable code)" +
          arithmetic;
 }
@@ -30,8 +32,9 @@ std::string kernels_summary() {
 void add_kernels(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "kernels",
-      "List the SIMD kernels and whether each runs here (CSYMPNET_KERNELS=portable forces the "
-      "portable code; both give the same bits)");
+      "List the SIMD kernels, whether each runs here and which form of each family is in use "
+      "(CSYMPNET_KERNELS=portable forces the portable code, CSYMPNET_KERNELS=avx2 the forms of "
+      "a CPU without AVX-512; all give the same bits)");
   cmd->callback([] {
     if (parse_only()) return;
     std::cout << kernels::report_text();

@@ -5,8 +5,8 @@
 // registers. Why not the expressions: Eigen's `.rowwise() * hᵀ` broadcasts have no packet
 // access and run element by element, and per column (10 rows at d = 10) the loop overhead
 // outweighs the arithmetic; the AVX-512 kernels of column_scaling_avx512.cpp handle a column in one
-// or two registers. Blocks must be whole columns of a column-major matrix (outer stride =
-// rows); others take the per-column Eigen loop.
+// or two registers (the AVX2 ones of column_scaling_avx2.cpp in two or three). Blocks must be whole
+// columns of a column-major matrix (outer stride = rows); others take the per-column Eigen loop.
 #pragma once
 
 #include <cstring>
@@ -22,6 +22,13 @@ bool columns_times_simd(Index m, Index n, const double* x, const double* h, doub
 bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* a, const double* h,
                                double* out, bool accumulate);
 bool add_outer_simd(Index m, Index n, const double* b, const double* h, double* out);
+
+// Their AVX2 forms, without asking the registry (only where Family::kColumnScalingAvx2 is
+// available()).
+void columns_times_avx2(Index m, Index n, const double* x, const double* h, double* out);
+void columns_times_scaled_avx2(Index m, Index n, const double* x, const double* a, const double* h,
+                               double* out, bool accumulate);
+void add_outer_avx2(Index m, Index n, const double* b, const double* h, double* out);
 
 template <typename M>
 bool whole_columns(const Eigen::MatrixBase<M>& x) {

@@ -135,11 +135,11 @@ __attribute__((target("avx512f"))) void outer_avx512(Index m, Index n, const dou
   sweep(m, n, Outer{m, b, h, out});
 }
 
-}  // namespace
-
-// The kernels against the formulas of the Eigen expressions they replace (column_scaling.hpp),
-// element by element, for every row count up to two registers and a tail of each width.
-bool column_scaling_self_check() {
+// A form's kernels against the formulas of the Eigen expressions they replace
+// (column_scaling.hpp), element by element, for every row count up to two registers and a tail
+// of each width.
+template <typename Times, typename TimesScaled, typename Outer>
+bool agrees_with_formulas(Times times, TimesScaled times_scaled, Outer outer) {
   constexpr Index kM = 23, kN = 3;
   double x[kM * kN], a[kM], h[kN], base[kM * kN];
   for (Index i = 0; i < kM * kN; ++i) {
@@ -153,10 +153,10 @@ bool column_scaling_self_check() {
     double t[kM * kN], s0[kM * kN], s1[kM * kN], o[kM * kN];
     std::memcpy(s1, base, sizeof(base));
     std::memcpy(o, base, sizeof(base));
-    times_avx512(m, kN, x, h, t);
-    times_scaled_avx512<false>(m, kN, x, a, h, s0);
-    times_scaled_avx512<true>(m, kN, x, a, h, s1);
-    outer_avx512(m, kN, a, h, o);
+    times(m, kN, x, h, t);
+    times_scaled(m, kN, x, a, h, s0, false);
+    times_scaled(m, kN, x, a, h, s1, true);
+    outer(m, kN, a, h, o);
     for (Index j = 0; j < kN; ++j) {
       for (Index i = 0; i < m; ++i) {
         const Index e = i + j * m;
@@ -171,25 +171,57 @@ bool column_scaling_self_check() {
   return true;
 }
 
+__attribute__((target("avx512f"))) void times_scaled_either_avx512(Index m, Index n,
+                                                                   const double* x, const double* a,
+                                                                   const double* h, double* out,
+                                                                   bool accumulate) {
+  if (accumulate) {
+    times_scaled_avx512<true>(m, n, x, a, h, out);
+  } else {
+    times_scaled_avx512<false>(m, n, x, a, h, out);
+  }
+}
+
+}  // namespace
+
+bool column_scaling_self_check() {
+  return agrees_with_formulas(times_avx512, times_scaled_either_avx512, outer_avx512);
+}
+
+bool column_scaling_avx2_self_check() {
+  return agrees_with_formulas(columns_times_avx2, columns_times_scaled_avx2, add_outer_avx2);
+}
+
 bool add_outer_simd(Index m, Index n, const double* b, const double* h, double* out) {
-  if (!use(Family::kColumnScaling)) return false;
-  outer_avx512(m, n, b, h, out);
+  if (use(Family::kColumnScaling)) {
+    outer_avx512(m, n, b, h, out);
+  } else if (use(Family::kColumnScalingAvx2)) {
+    add_outer_avx2(m, n, b, h, out);
+  } else {
+    return false;
+  }
   return true;
 }
 
 bool columns_times_simd(Index m, Index n, const double* x, const double* h, double* out) {
-  if (!use(Family::kColumnScaling)) return false;
-  times_avx512(m, n, x, h, out);
+  if (use(Family::kColumnScaling)) {
+    times_avx512(m, n, x, h, out);
+  } else if (use(Family::kColumnScalingAvx2)) {
+    columns_times_avx2(m, n, x, h, out);
+  } else {
+    return false;
+  }
   return true;
 }
 
 bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* a, const double* h,
                                double* out, bool accumulate) {
-  if (!use(Family::kColumnScaling)) return false;
-  if (accumulate) {
-    times_scaled_avx512<true>(m, n, x, a, h, out);
+  if (use(Family::kColumnScaling)) {
+    times_scaled_either_avx512(m, n, x, a, h, out, accumulate);
+  } else if (use(Family::kColumnScalingAvx2)) {
+    columns_times_scaled_avx2(m, n, x, a, h, out, accumulate);
   } else {
-    times_scaled_avx512<false>(m, n, x, a, h, out);
+    return false;
   }
   return true;
 }
@@ -197,6 +229,10 @@ bool columns_times_scaled_simd(Index m, Index n, const double* x, const double* 
 #else
 
 bool column_scaling_self_check() {
+  return false;
+}
+
+bool column_scaling_avx2_self_check() {
   return false;
 }
 

@@ -1,4 +1,5 @@
-// ColumnSums (column_sums.hpp): the 4 x 4 transposes and the running sums in 256-bit registers.
+// ColumnSums (column_sums.hpp): the 4 x 4 transposes and the running sums in 256-bit registers,
+// with AVX-512VL's 32 of them or AVX2's 16.
 //
 // 256-bit rather than 512-bit registers: on Zen 4 a 512-bit shuffle costs two 256-bit ones, and
 // an 8 x 8 tile needs three shuffle steps where a 4 x 4 tile needs two; the sums of 1920
@@ -14,7 +15,8 @@
 
 namespace csympnet::kernels {
 
-ColumnSums::ColumnSums(Index columns) {
+ColumnSums::ColumnSums(Index columns, Isa isa)
+    : isa_(isa), row_(isa == Isa::kAvx512 ? kColumnSumsBlock : kColumnSumsBlockAvx2) {
   const Index cols8 = (columns + 7) / 8 * 8;  // whole groups of 8 lanes
   if (cols8 > 256) {
     sums_heap_.reset(new double[static_cast<std::size_t>(cols8 + 8)]);
@@ -28,14 +30,17 @@ ColumnSums::ColumnSums(Index columns) {
 namespace {
 
 constexpr Index B = kColumnSumsBlock;
+constexpr Index B2 = kColumnSumsBlockAvx2;
+constexpr Index kFlushColumns = ColumnSums::kFlushColumns;
 
-// The tile at rows t, t + B, t + 2B, t + 3B (four columns), samples j .. j + 3: x[s] holds the
-// four columns at sample j + s, in column order. unpacklo/hi pair the columns 0, 1 and 2, 3 at
-// samples (j, j + 2) and (j + 1, j + 3); the 128-bit halves are then exchanged.
-__attribute__((target("avx512f,avx512vl"), always_inline)) inline void transpose_tile(
-    const double* t, __m256d (&x)[4]) {
-  const __m256d r0 = _mm256_load_pd(t), r1 = _mm256_load_pd(t + B);
-  const __m256d r2 = _mm256_load_pd(t + 2 * B), r3 = _mm256_load_pd(t + 3 * B);
+// The tile at rows t, t + R, t + 2R, t + 3R (four columns of R samples), samples j .. j + 3: x[s]
+// holds the four columns at sample j + s, in column order. unpacklo/hi pair the columns 0, 1 and 2,
+// 3 at samples (j, j + 2) and (j + 1, j + 3); the 128-bit halves are then exchanged.
+template <Index R = B>
+__attribute__((target("avx"), always_inline)) inline void transpose_tile(const double* t,
+                                                                         __m256d (&x)[4]) {
+  const __m256d r0 = _mm256_load_pd(t), r1 = _mm256_load_pd(t + R);
+  const __m256d r2 = _mm256_load_pd(t + 2 * R), r3 = _mm256_load_pd(t + 3 * R);
   const __m256d e01 = _mm256_unpacklo_pd(r0, r1), o01 = _mm256_unpackhi_pd(r0, r1);
   const __m256d e23 = _mm256_unpacklo_pd(r2, r3), o23 = _mm256_unpackhi_pd(r2, r3);
   x[0] = _mm256_permute2f128_pd(e01, e23, 0x20);
@@ -98,19 +103,97 @@ __attribute__((target("avx512f,avx512vl"))) void sum_partial(Index tiles, bool f
   }
 }
 
+// The AVX2 form of sum_tiles, for machines without AVX-512: sixteen registers hold the sums of
+// four tiles and one tile's temporaries, so the tiles go four at a time (each tile's sums are
+// still one chain of adds in sample order); rows of B2 samples.
+template <int kTiles, bool kFresh>
+__attribute__((target("avx2"))) void sum_tiles_avx2(const double* rows, double* sums) {
+  __m256d acc[kTiles];
+#pragma GCC unroll 4
+  for (int ti = 0; ti < kTiles; ++ti) {
+    acc[ti] = kFresh ? _mm256_set1_pd(-0.0) : _mm256_load_pd(sums + 4 * ti);
+  }
+  for (Index j = 0; j < B2; j += 4) {
+#pragma GCC unroll 4
+    for (int ti = 0; ti < kTiles; ++ti) {
+      __m256d x[4];
+      transpose_tile<B2>(rows + 4 * ti * B2 + j, x);
+      acc[ti] = _mm256_add_pd(acc[ti], x[0]);
+      acc[ti] = _mm256_add_pd(acc[ti], x[1]);
+      acc[ti] = _mm256_add_pd(acc[ti], x[2]);
+      acc[ti] = _mm256_add_pd(acc[ti], x[3]);
+    }
+  }
+#pragma GCC unroll 4
+  for (int ti = 0; ti < kTiles; ++ti) _mm256_store_pd(sums + 4 * ti, acc[ti]);
+}
+
+__attribute__((target("avx2"))) void sum_full_avx2(Index tiles, bool fresh, const double* rows,
+                                                   double* sums) {
+  Index ti = 0;
+  for (; ti + 4 <= tiles; ti += 4) {
+    (fresh ? sum_tiles_avx2<4, true> : sum_tiles_avx2<4, false>)(rows + 4 * ti * B2, sums + 4 * ti);
+  }
+  const double* rest = rows + 4 * ti * B2;
+  double* rest_sums = sums + 4 * ti;
+  switch (tiles - ti) {
+    case 3:
+      (fresh ? sum_tiles_avx2<3, true> : sum_tiles_avx2<3, false>)(rest, rest_sums);
+      break;
+    case 2:
+      (fresh ? sum_tiles_avx2<2, true> : sum_tiles_avx2<2, false>)(rest, rest_sums);
+      break;
+    case 1:
+      (fresh ? sum_tiles_avx2<1, true> : sum_tiles_avx2<1, false>)(rest, rest_sums);
+      break;
+    default:
+      break;
+  }
+}
+
+// sum_partial's AVX2 form.
+__attribute__((target("avx2"))) void sum_partial_avx2(Index tiles, bool fresh, const double* rows,
+                                                      double* sums, Index cnt) {
+  for (Index ti = 0; ti < tiles; ++ti) {
+    __m256d acc = fresh ? _mm256_set1_pd(-0.0) : _mm256_load_pd(sums + 4 * ti);
+    for (Index j = 0; j < cnt; j += 4) {
+      __m256d x[4];
+      transpose_tile<B2>(rows + 4 * ti * B2 + j, x);
+      for (Index s = 0; s < 4 && j + s < cnt; ++s) acc = _mm256_add_pd(acc, x[s]);
+    }
+    _mm256_store_pd(sums + 4 * ti, acc);
+  }
+}
+
+__attribute__((target("avx512f,avx512vl"))) void flush_avx512(Index tiles, bool fresh,
+                                                              const double* rows, double* sums,
+                                                              Index cnt) {
+  if (cnt == B) {
+    sum_full<kFlushColumns / 4>(static_cast<int>(tiles), fresh, rows, sums);
+  } else {
+    sum_partial(tiles, fresh, rows, sums, cnt);
+  }
+}
+
+__attribute__((target("avx2"))) void flush_avx2(Index tiles, bool fresh, const double* rows,
+                                                double* sums, Index cnt) {
+  if (cnt == B2) {
+    sum_full_avx2(tiles, fresh, rows, sums);
+  } else {
+    sum_partial_avx2(tiles, fresh, rows, sums, cnt);
+  }
+}
+
 }  // namespace
 
-__attribute__((target("avx512f,avx512vl"))) void ColumnSums::flush(Index cnt) {
+void ColumnSums::flush(Index cnt) {
   const Index tiles = (filled_ + 3) / 4;
-  // Rows past the last column go to sums that are never read: zeros rather than stale values
-  // (rows are whole registers: B is a multiple of 8).
-  for (Index i = filled_ * B; i < tiles * 4 * B; i += 8) {
-    _mm512_store_pd(products_ + i, _mm512_setzero_pd());
-  }
-  if (cnt == B) {
-    sum_full<kFlushColumns / 4>(static_cast<int>(tiles), fresh_, products_, sums_ + first_);
+  // Rows past the last column go to sums that are never read: zeros rather than stale values.
+  for (Index i = filled_ * row_; i < tiles * 4 * row_; ++i) products_[i] = 0.0;
+  if (isa_ == Isa::kAvx512) {
+    flush_avx512(tiles, fresh_, products_, sums_ + first_, cnt);
   } else {
-    sum_partial(tiles, fresh_, products_, sums_ + first_, cnt);
+    flush_avx2(tiles, fresh_, products_, sums_ + first_, cnt);
   }
   first_ += filled_;
   filled_ = 0;
@@ -118,7 +201,7 @@ __attribute__((target("avx512f,avx512vl"))) void ColumnSums::flush(Index cnt) {
 
 #else
 
-void ColumnSums::flush(Index) {}  // not reached: the backward sweep needs AVX-512
+void ColumnSums::flush(Index) {}  // not reached: the backward sweeps need AVX-512 or AVX2
 
 #endif
 

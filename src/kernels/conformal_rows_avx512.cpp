@@ -99,9 +99,10 @@ bool conformal_rows_built() {
   return true;
 }
 
-// The kernels against the portable loops' formulas (csympnet_id.cpp), element by element, for
-// every sample count up to three registers' worth (every masked tail).
-bool conformal_rows_self_check() {
+// A form's three kernels against the portable loops' formulas (csympnet_id.cpp), element by
+// element, for every sample count up to three registers' worth (every tail).
+template <typename Split, typename Join, typename Terms>
+bool agrees_with_portable(Split split_rows, Join join_rows, Terms damping_terms) {
   constexpr Index kMax = 27;
   double z[2 * kMax], a[kMax], h[kMax], pc[kMax], gp[kMax], pin[kMax];
   for (Index i = 0; i < 2 * kMax; ++i) z[i] = 0.37 * static_cast<double>(i % 11) - 1.3;
@@ -115,9 +116,9 @@ bool conformal_rows_self_check() {
   auto same = [](double x, double y) { return std::memcmp(&x, &y, sizeof(double)) == 0; };
   for (Index n = 1; n <= kMax; ++n) {
     double q[kMax], p[kMax], raw[kMax], out[2 * kMax], terms[kMax];
-    split_avx512(z, n, a, q, p, raw);
-    join_avx512(q, raw, a, n, out);
-    terms_avx512(z, pc, gp, pin, h, a, n, terms);
+    split_rows(z, n, a, q, p, raw);
+    join_rows(q, raw, a, n, out);
+    damping_terms(z, pc, gp, pin, h, a, n, terms);
     for (Index j = 0; j < n; ++j) {
       const double p_ref = z[2 * j + 1] * a[j];
       const double t_ref = ((z[2 * j + 1] * pc[j] + gp[j] * pin[j]) * h[j]) * a[j];
@@ -130,25 +131,48 @@ bool conformal_rows_self_check() {
   return true;
 }
 
+bool conformal_rows_self_check() {
+  return agrees_with_portable(split_avx512, join_avx512, terms_avx512);
+}
+
+bool conformal_rows_avx2_self_check() {
+  return agrees_with_portable(split_scaled_rows_avx2, join_scaled_rows_avx2, damping_terms_avx2);
+}
+
 bool split_scaled_rows_simd(const double* z, Index n, const double* a, double* q, double* p,
                             double* p_raw) {
-  if (!use(Family::kConformalRows)) return false;
-  split_avx512(z, n, a, q, p, p_raw);
+  if (use(Family::kConformalRows)) {
+    split_avx512(z, n, a, q, p, p_raw);
+  } else if (use(Family::kConformalRowsAvx2)) {
+    split_scaled_rows_avx2(z, n, a, q, p, p_raw);
+  } else {
+    return false;
+  }
   return true;
 }
 
 bool join_scaled_rows_simd(const double* q, const double* p, const double* a, Index n,
                            double* out) {
-  if (!use(Family::kConformalRows)) return false;
-  join_avx512(q, p, a, n, out);
+  if (use(Family::kConformalRows)) {
+    join_avx512(q, p, a, n, out);
+  } else if (use(Family::kConformalRowsAvx2)) {
+    join_scaled_rows_avx2(q, p, a, n, out);
+  } else {
+    return false;
+  }
   return true;
 }
 
 bool damping_terms_simd(const double* dz, const double* p_core, const double* gp,
                         const double* p_in, const double* h, const double* a, Index n,
                         double* terms) {
-  if (!use(Family::kConformalRows)) return false;
-  terms_avx512(dz, p_core, gp, p_in, h, a, n, terms);
+  if (use(Family::kConformalRows)) {
+    terms_avx512(dz, p_core, gp, p_in, h, a, n, terms);
+  } else if (use(Family::kConformalRowsAvx2)) {
+    damping_terms_avx2(dz, p_core, gp, p_in, h, a, n, terms);
+  } else {
+    return false;
+  }
   return true;
 }
 
@@ -159,6 +183,10 @@ bool conformal_rows_built() {
 }
 
 bool conformal_rows_self_check() {
+  return false;
+}
+
+bool conformal_rows_avx2_self_check() {
   return false;
 }
 

@@ -7,7 +7,6 @@
 // registers, and the sums' buffer of 48 columns of 40 stays in the L1 cache.
 #include "d1_sweeps.hpp"
 
-#include "column_sums.hpp"
 #include "registry.hpp"
 
 #include "sse2_order.hpp"
@@ -24,29 +23,6 @@ using namespace d1_block;
 
 constexpr Index kBlock = kColumnSumsBlock;           // samples per block
 constexpr int kRegs = static_cast<int>(kBlock / 8);  // registers per row
-
-using ConstRowMap = Eigen::Map<const RowVector>;
-
-// Columns of the gradient sums: per module, its activation (if any), b_p, b_q, its shears.
-Index n_columns(const D1Core& c) {
-  return n_units(c) + 2 * c.layers;
-}
-
-// Scratch of one backward call: the columns' running sums, and, with step polynomials, every
-// unit's upstream gradient row for the coefficient sums at the end.
-struct BackwardScratch {
-  ColumnSums sums;
-  Index ld = 0;  // row stride of `upstream`
-  double* upstream = nullptr;
-  std::unique_ptr<double[]> storage;
-
-  BackwardScratch(const D1Core& core, Index n) : sums(n_columns(core)) {
-    if (!core.poly) return;
-    ld = (n + 7) / 8 * 8;
-    storage.reset(new double[static_cast<std::size_t>(n_units(core) * ld)]);
-    upstream = storage.get();
-  }
-};
 
 template <bool kFull, bool kPoly>
 using BlockOf = Block<kRegs, kFull, kPoly>;
@@ -159,24 +135,22 @@ __attribute__((target("avx512f,avx512vl"))) void backward_block(
   }
 }
 
-// Σ_j g_j x_j h_j² as the portable code writes it (an Eigen reduction, whose order is Eigen's).
-double poly_sum(const double* g, const double* x, const Vector& h2, Index n) {
-  return (ConstRowMap(g, n).array() * ConstRowMap(x, n).array() * ConstRowMap(h2.data(), n).array())
-      .sum();
-}
-
 }  // namespace
 
 bool d1_backward_simd(const D1Core& core, const double* theta, const Matrix* steps, const double* h,
                       Index n, double* gq, double* gp, double* grad) {
-  if (n < 1 || !use(Family::kD1Sweeps)) return false;
-  return d1_backward_kernel(core, theta, steps, h, n, gq, gp, grad);
+  if (n < 1) return false;
+  if (use(Family::kD1Sweeps)) return d1_backward_kernel(core, theta, steps, h, n, gq, gp, grad);
+  if (use(Family::kD1SweepsAvx2)) {
+    return d1_backward_kernel_avx2(core, theta, steps, h, n, gq, gp, grad);
+  }
+  return false;
 }
 
 bool d1_backward_kernel(const D1Core& core, const double* theta, const Matrix* steps,
                         const double* h, Index n, double* gq, double* gp, double* grad) {
   if (n < 1) return false;
-  BackwardScratch scratch(core, n);
+  BackwardScratch scratch(core, n, ColumnSums::Isa::kAvx512);
   const Matrix* rec = steps;
   for (Index j0 = 0; j0 < n; j0 += kBlock) {
     const Index cnt = n - j0 < kBlock ? n - j0 : kBlock;
@@ -188,34 +162,7 @@ bool d1_backward_kernel(const D1Core& core, const double* theta, const Matrix* s
     }
     scratch.sums.end_block(cnt);
   }
-  // The sums in the sweep's column order; a shear's dA = M + Mᵀ = M + M.
-  const Index m = core.sublayers;
-  const double* sum = scratch.sums.sums();
-  for (Index k = core.layers - 1; k >= 0; --k) {
-    const Index base = module_offset(core, k);
-    if (k + 1 < core.layers) grad[base + m + 2] += *sum++;
-    grad[base + m] += *sum++;
-    grad[base + m + 1] += *sum++;
-    for (Index i = m - 1; i >= 0; --i, ++sum) grad[base + i] += *sum + *sum;
-  }
-  if (core.poly) {
-    // dc = (S or a) Σ_j h_j² g_dst,j src_j, from the recorded upstream rows.
-    const Vector h2 = Vector(Eigen::Map<const Vector>(h, n).array().square());
-    const Matrix* step = steps;
-    Index unit = 0;
-    for (Index k = 0; k < core.layers; ++k) {
-      const Index base = module_offset(core, k);
-      for (Index i = 0; i < m; ++i, ++unit) {
-        const double s = theta[base + i] + theta[base + i];
-        const double* g = scratch.upstream + unit * scratch.ld;
-        grad[shear_coef(core, k, i)] += s * poly_sum(g, (step++)->data(), h2, n);
-      }
-      if (k + 1 < core.layers) {
-        const double* g = scratch.upstream + unit++ * scratch.ld;
-        grad[act_coef(core, k)] += theta[base + m + 2] * poly_sum(g, (step++)->data(), h2, n);
-      }
-    }
-  }
+  add_parameter_gradients(core, theta, steps, h, n, scratch, grad);
   return true;
 }
 

@@ -8,8 +8,6 @@
 // is more likely still in the L1 cache.
 #include "d1_sweeps.hpp"
 
-#include <memory>
-
 #include "registry.hpp"
 #include "sigmoid.hpp"
 
@@ -27,29 +25,6 @@ using namespace d1_block;
 
 constexpr int kRegs = 10;            // registers per row
 constexpr Index kBlock = 8 * kRegs;  // samples per block
-
-// The record rows' data pointers (one per unit, in application order), gathered once per call:
-// the sweep reads one per unit and block, and the Matrix headers are cold after the records.
-class RecordRows {
- public:
-  explicit RecordRows(Index units) {
-    if (units > kLocal) heap_.reset(new double*[static_cast<std::size_t>(units)]);
-  }
-  double** data() { return heap_ ? heap_.get() : local_; }
-
-  // Prefetches the headers of rows[0, units): they are read one after the other, each a likely
-  // L1 miss, and the prefetches let the misses overlap.
-  static void prefetch(const Matrix* rows, Index units) {
-    const char* begin = reinterpret_cast<const char*>(rows);
-    const char* end = reinterpret_cast<const char*>(rows + units);
-    for (const char* line = begin; line < end; line += 64) __builtin_prefetch(line, 0, 3);
-  }
-
- private:
-  static constexpr Index kLocal = 256;
-  double* local_[kLocal];
-  std::unique_ptr<double*[]> heap_;
-};
 
 // Linear sublayer, forward: dst += (S src) τ, recording src at rec (when not null).
 template <bool kFull, bool kPoly>
@@ -178,24 +153,17 @@ __attribute__((target("avx512f,avx512vl"))) void flow_block(const D1Core& core, 
 
 bool d1_flow_simd(const D1Core& core, const double* theta, double* q, double* p, const double* h,
                   Index n, Matrix* steps) {
-  if (n < 1 || !use(Family::kD1Sweeps)) return false;
-  return d1_flow_kernel(core, theta, q, p, h, n, steps);
+  if (n < 1) return false;
+  if (use(Family::kD1Sweeps)) return d1_flow_kernel(core, theta, q, p, h, n, steps);
+  if (use(Family::kD1SweepsAvx2)) return d1_flow_kernel_avx2(core, theta, q, p, h, n, steps);
+  return false;
 }
 
 bool d1_flow_kernel(const D1Core& core, const double* theta, double* q, double* p, const double* h,
                     Index n, Matrix* steps) {
   if (n < 1) return false;
   RecordRows rows(steps != nullptr ? n_units(core) : 0);
-  double* const* rec = nullptr;
-  if (steps != nullptr) {
-    Matrix* row = steps;
-    RecordRows::prefetch(row, n_units(core));
-    for (Index u = 0; u < n_units(core); ++u) {
-      if (row[u].rows() != 1 || row[u].cols() != n) row[u].resize(1, n);
-      rows.data()[u] = row[u].data();
-    }
-    rec = rows.data();
-  }
+  double* const* rec = rows.gather(steps, n_units(core), n);
   for (Index j0 = (n - 1) / kBlock * kBlock; j0 >= 0; j0 -= kBlock) {
     const Index cnt = n - j0 < kBlock ? n - j0 : kBlock;
     auto run = [&](auto block) { block(core, theta, q, p, h, j0, cnt, rec); };

@@ -1,5 +1,5 @@
 // Internal to src: LA-SympNet's d = 1 sweeps (what LaSympNet::flow and flow_backward run at
-// d = 1) as AVX-512 kernels that give the portable code's results to the bit.
+// d = 1) as AVX-512 or AVX2 kernels that give the portable code's results to the bit.
 //
 // Why they can: at d = 1 every unit of the sweep is an elementwise update of 1 x N rows (kick
 // p += (s q) τ, drift, bias, activation), and the portable code evaluates each element with
@@ -11,9 +11,12 @@
 // the products, four columns are transposed so that one register holds four columns at one
 // sample, and the running sums advance one sample at a time (column_sums.hpp).
 //
-// Files: d1_forward_avx512.cpp (the forward sweep), d1_backward_avx512.cpp (the backward
-// sweep), d1_block.hpp (what both share); src/models/la_d1_check.cpp supplies the family's
-// self-check against LA-SympNet's portable d = 1 loops.
+// The AVX2 forms do the same four samples per instruction, for machines without AVX-512.
+//
+// Files: d1_forward_avx512.cpp and d1_forward_avx2.cpp (the forward sweep),
+// d1_backward_avx512.cpp and d1_backward_avx2.cpp (the backward sweep), d1_block.hpp (what they
+// share); src/models/la_d1_check.cpp supplies each form's self-check against LA-SympNet's
+// portable d = 1 loops.
 #pragma once
 
 #include "csympnet/core/types.hpp"
@@ -35,7 +38,7 @@ struct D1Core {
 // null it points to an array of one Matrix per recorded unit (layers · sublayers + layers − 1),
 // which receive (resized to 1 x n) the input of every linear sublayer and σ of every activation
 // module, in application order, as LaSympNet::flow records them. Returns false, writing
-// nothing, unless the d1_sweeps family runs now (registry.hpp) and n >= 1.
+// nothing, unless a d1_sweeps form runs now (registry.hpp; AVX-512 first, then AVX2) and n >= 1.
 bool d1_flow_simd(const D1Core& core, const double* theta, double* q, double* p, const double* h,
                   Index n, Matrix* steps);
 
@@ -52,5 +55,12 @@ bool d1_flow_kernel(const D1Core& core, const double* theta, double* q, double* 
                     Index n, Matrix* steps);
 bool d1_backward_kernel(const D1Core& core, const double* theta, const Matrix* steps,
                         const double* h, Index n, double* gq, double* gp, double* grad);
+
+// The AVX2 forms of the two, likewise for the AVX2 form's self-check: only where the CPU has AVX2
+// and Family::kSigmoidAvx2 is available; false where not built.
+bool d1_flow_kernel_avx2(const D1Core& core, const double* theta, double* q, double* p,
+                         const double* h, Index n, Matrix* steps);
+bool d1_backward_kernel_avx2(const D1Core& core, const double* theta, const Matrix* steps,
+                             const double* h, Index n, double* gq, double* gp, double* grad);
 
 }  // namespace csympnet::kernels

@@ -14,10 +14,15 @@ namespace csympnet::kernels {
 bool product_avx512_self_check();
 bool product_avx_self_check();
 bool sigmoid_self_check();
+bool sigmoid_avx2_self_check();
 bool scaled_exp_self_check();
+bool scaled_exp_avx2_self_check();
 bool conformal_rows_self_check();
+bool conformal_rows_avx2_self_check();
 bool column_scaling_self_check();
+bool column_scaling_avx2_self_check();
 bool adamw_self_check();
+bool adamw_avx2_self_check();
 bool conformal_rows_built();  // built on any x86 GCC or clang build (no Eigen order involved)
 bool fma_product_avx512_self_check();
 bool fma_product_avx2_self_check();
@@ -25,6 +30,7 @@ bool fma_kernels_built();  // built on any x86 GCC build (the order is Eigen's n
 
 namespace internal {
 std::atomic<int> g_forced{0};
+std::atomic<int> g_capped{0};
 std::atomic<signed char> g_state[static_cast<int>(Family::kCount)] = {};
 }  // namespace internal
 
@@ -37,6 +43,7 @@ struct Row {
   const char* isa;
   bool (*built)();
   bool (*cpu_has)(const CpuFeatures&);
+  int preferred;  // the family's wider form, chosen first where it runs (−1: none)
 };
 
 bool avx512f(const CpuFeatures& c) {
@@ -48,22 +55,35 @@ bool avx(const CpuFeatures& c) {
 bool avx512f_vl(const CpuFeatures& c) {
   return c.avx512f && c.avx512vl;
 }
+bool avx2(const CpuFeatures& c) {
+  return c.avx2;
+}
 bool avx2_fma(const CpuFeatures& c) {
   return c.avx2 && c.fma;
 }
 
+constexpr int of(Family f) {
+  return static_cast<int>(f);
+}
+
 // In Family order.
 const Row kRows[kFamilies] = {
-    {"product", "avx512f", kernels_built, avx512f},
-    {"product", "avx", kernels_built, avx},
-    {"sigmoid", "avx512f", kernels_built, avx512f},
-    {"scaled_exp", "avx512f", kernels_built, avx512f},
-    {"d1_sweeps", "avx512f+avx512vl", kernels_built, avx512f_vl},
-    {"conformal_rows", "avx512f", conformal_rows_built, avx512f},
-    {"column_scaling", "avx512f", kernels_built, avx512f},
-    {"adamw", "avx512f", kernels_built, avx512f},
-    {"fma_product", "avx512f", fma_kernels_built, avx512f},
-    {"fma_product", "avx2+fma", fma_kernels_built, avx2_fma},
+    {"product", "avx512f", kernels_built, avx512f, -1},
+    {"product", "avx", kernels_built, avx, of(Family::kProductAvx512)},
+    {"sigmoid", "avx512f", kernels_built, avx512f, -1},
+    {"sigmoid", "avx2", kernels_built, avx2, of(Family::kSigmoid)},
+    {"scaled_exp", "avx512f", kernels_built, avx512f, -1},
+    {"scaled_exp", "avx2", kernels_built, avx2, of(Family::kScaledExp)},
+    {"d1_sweeps", "avx512f+avx512vl", kernels_built, avx512f_vl, -1},
+    {"d1_sweeps", "avx2", kernels_built, avx2, of(Family::kD1Sweeps)},
+    {"conformal_rows", "avx512f", conformal_rows_built, avx512f, -1},
+    {"conformal_rows", "avx2", conformal_rows_built, avx2, of(Family::kConformalRows)},
+    {"column_scaling", "avx512f", kernels_built, avx512f, -1},
+    {"column_scaling", "avx2", kernels_built, avx2, of(Family::kColumnScaling)},
+    {"adamw", "avx512f", kernels_built, avx512f, -1},
+    {"adamw", "avx2", kernels_built, avx2, of(Family::kAdamW)},
+    {"fma_product", "avx512f", fma_kernels_built, avx512f, -1},
+    {"fma_product", "avx2+fma", fma_kernels_built, avx2_fma, of(Family::kFmaProductAvx512)},
 };
 
 std::atomic<bool (*)()> g_supplied[kFamilies] = {};
@@ -76,14 +96,24 @@ bool (*check_of(Family f))() {
       return product_avx_self_check;
     case Family::kSigmoid:
       return sigmoid_self_check;
+    case Family::kSigmoidAvx2:
+      return sigmoid_avx2_self_check;
     case Family::kScaledExp:
       return scaled_exp_self_check;
+    case Family::kScaledExpAvx2:
+      return scaled_exp_avx2_self_check;
     case Family::kConformalRows:
       return conformal_rows_self_check;
+    case Family::kConformalRowsAvx2:
+      return conformal_rows_avx2_self_check;
     case Family::kColumnScaling:
       return column_scaling_self_check;
+    case Family::kColumnScalingAvx2:
+      return column_scaling_avx2_self_check;
     case Family::kAdamW:
       return adamw_self_check;
+    case Family::kAdamWAvx2:
+      return adamw_avx2_self_check;
     case Family::kFmaProductAvx512:
       return fma_product_avx512_self_check;
     case Family::kFmaProductAvx2:
@@ -98,12 +128,15 @@ const char* g_why[kFamilies] = {};
 std::once_flag g_once[kFamilies];
 std::once_flag g_env_once;
 bool g_env_forced = false;
+bool g_env_capped = false;
 
 void read_environment() {
   std::call_once(g_env_once, [] {
     const char* v = std::getenv("CSYMPNET_KERNELS");
     g_env_forced = v != nullptr && std::strcmp(v, "portable") == 0;
+    g_env_capped = v != nullptr && std::strcmp(v, "avx2") == 0;
     if (g_env_forced) internal::g_forced.fetch_add(1, std::memory_order_relaxed);
+    if (g_env_capped) internal::g_capped.fetch_add(1, std::memory_order_relaxed);
   });
 }
 
@@ -134,8 +167,7 @@ namespace internal {
 bool settle(Family f) {
   read_environment();
   settle_once(f);
-  return g_state[static_cast<int>(f)].load(std::memory_order_acquire) > 0 &&
-         g_forced.load(std::memory_order_relaxed) == 0;
+  return use(f);
 }
 }  // namespace internal
 
@@ -153,6 +185,25 @@ bool portable_forced() {
 bool portable_forced_by_environment() {
   read_environment();
   return g_env_forced;
+}
+
+bool avx2_capped() {
+  read_environment();
+  return internal::g_capped.load(std::memory_order_relaxed) > 0;
+}
+
+bool avx2_capped_by_environment() {
+  read_environment();
+  return g_env_capped;
+}
+
+CapAtAvx2::CapAtAvx2() {
+  read_environment();
+  internal::g_capped.fetch_add(1, std::memory_order_relaxed);
+}
+
+CapAtAvx2::~CapAtAvx2() {
+  internal::g_capped.fetch_sub(1, std::memory_order_relaxed);
 }
 
 ForcePortable::ForcePortable() {
@@ -187,10 +238,14 @@ bool is_fma_product(Family f) {
 
 void check_kernels_environment() {
   const char* v = std::getenv("CSYMPNET_KERNELS");
-  if (v == nullptr || v[0] == '\0' || std::strcmp(v, "portable") == 0) return;
+  if (v == nullptr || v[0] == '\0' || std::strcmp(v, "portable") == 0 ||
+      std::strcmp(v, "avx2") == 0) {
+    return;
+  }
   throw Error("CSYMPNET_KERNELS = '" + printable(std::string(v).substr(0, 100)) +
-              "': unknown value; expected 'portable' (the portable kernels only) or the "
-              "variable unset (the fastest kernels this CPU runs)");
+              "': unknown value; expected 'portable' (the portable code only), 'avx2' (no "
+              "kernel that needs AVX-512: what a CPU without it runs) or the variable unset "
+              "(the fastest kernels this CPU runs)");
 }
 
 const char* to_string(Arithmetic a) {
@@ -253,7 +308,9 @@ std::vector<KernelStatus> report() {
     s.name = kRows[i].name;
     s.isa = kRows[i].isa;
     const bool ok = available(f);
-    s.runs = ok && !portable_forced();
+    const bool capped = needs_avx512(f) && avx2_capped();
+    s.runs = ok && !portable_forced() && !capped;
+    const int preferred = kRows[i].preferred;
     if (s.runs && is_product(f) && mode != Arithmetic::kSse2) {
       s.runs = false;
       s.why = std::string("not chosen: the arithmetic is ") + to_string(mode);
@@ -261,22 +318,31 @@ std::vector<KernelStatus> report() {
       s.runs = false;
       s.why = std::string("not chosen: the arithmetic is ") + to_string(mode) +
               " (CSYMPNET_ARITHMETIC=fma selects it)";
-    } else if (s.runs && f == Family::kProductAvx && use(Family::kProductAvx512)) {
-      s.runs = false;  // the products take the AVX-512 kernel first
-      s.why = "not chosen: the avx512f product kernel runs";
-    } else if (s.runs && f == Family::kFmaProductAvx2 && use(Family::kFmaProductAvx512)) {
-      s.runs = false;
-      s.why = "not chosen: the avx512f fma_product kernel runs";
+    } else if (s.runs && preferred >= 0 && use(static_cast<Family>(preferred))) {
+      s.runs = false;  // the family takes its wider form first
+      s.why =
+          std::string("not chosen: the ") + kRows[preferred].isa + " " + s.name + " kernel runs";
     } else if (s.runs) {
       s.why = "runs";
     } else if (!ok) {
       s.why = g_why[i];
-    } else if (portable_forced_by_environment()) {
-      s.why = "forced portable (CSYMPNET_KERNELS=portable)";
+    } else if (portable_forced()) {
+      s.why = portable_forced_by_environment() ? "forced portable (CSYMPNET_KERNELS=portable)"
+                                               : "forced portable (ForcePortable)";
     } else {
-      s.why = "forced portable (ForcePortable)";
+      s.why = avx2_capped_by_environment() ? "capped at avx2 (CSYMPNET_KERNELS=avx2)"
+                                           : "capped at avx2 (CapAtAvx2)";
     }
     out.push_back(std::move(s));
+  }
+  return out;
+}
+
+std::vector<FormInUse> forms_in_use() {
+  std::vector<FormInUse> out;
+  for (const KernelStatus& s : report()) {
+    if (out.empty() || out.back().name != s.name) out.push_back({s.name, "portable"});
+    if (s.runs) out.back().isa = s.isa;
   }
   return out;
 }
@@ -287,6 +353,11 @@ std::string report_text() {
     text += s.name + " " + s.isa + ": " + (s.runs ? std::string("runs") : "portable, " + s.why);
     text += '\n';
   }
+  std::string in_use;
+  for (const FormInUse& f : forms_in_use()) {
+    in_use += (in_use.empty() ? "" : ", ") + f.name + " " + f.isa;
+  }
+  text += "in use: " + in_use + '\n';
   const Arithmetic mode = arithmetic();
   text += std::string("arithmetic: ") + to_string(mode) +
           (arithmetic_from_environment() ? " (CSYMPNET_ARITHMETIC)"

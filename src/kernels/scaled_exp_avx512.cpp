@@ -23,13 +23,8 @@ namespace csympnet::kernels {
 
 #ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace {
-
-constexpr double kBound = 700.0;  // |x| beyond this (or NaN): Eigen's own routine
-
-// exp(c h) for the element pairs [i, i + count) with Eigen's own SSE2 packets, as the Eigen
-// expression evaluates them: the product c·h as one packet multiply, then pexp.
-void exp_pairs_eigen(double c, const double* h, double* out, Index i, Index count) {
+// The Eigen expression's evaluation: the product c·h as one packet multiply, then pexp.
+void scaled_exp_pairs_eigen(double c, const double* h, double* out, Index i, Index count) {
   namespace ei = Eigen::internal;
   using Packet = ei::packet_traits<double>::type;
   const Packet cv = ei::pset1<Packet>(c);
@@ -37,6 +32,10 @@ void exp_pairs_eigen(double c, const double* h, double* out, Index i, Index coun
     ei::pstoreu(out + j, ei::pexp(ei::pmul(cv, ei::ploadu<Packet>(h + j))));
   }
 }
+
+namespace {
+
+constexpr double kBound = 700.0;  // |x| beyond this (or NaN): Eigen's own routine
 
 // n2 is even: the pairs region of Eigen's loop.
 __attribute__((target("avx512f"))) void exp_avx512(double c, const double* h, double* out,
@@ -49,7 +48,7 @@ __attribute__((target("avx512f"))) void exp_avx512(double c, const double* h, do
     const __mmask8 above = _mm512_mask_cmp_pd_mask(live, x, _mm512_set1_pd(-kBound), _CMP_GE_OQ);
     const __mmask8 handled = _mm512_mask_cmp_pd_mask(above, x, _mm512_set1_pd(kBound), _CMP_LE_OQ);
     if (handled != live) {
-      exp_pairs_eigen(c, h, out, i, count);
+      scaled_exp_pairs_eigen(c, h, out, i, count);
       continue;
     }
     _mm512_mask_storeu_pd(out + i, live, cephes_exp512(x));
@@ -74,7 +73,7 @@ bool scaled_exp_self_check() {
   h[13] = -699.999;
   const double c = -0.999;
   exp_avx512(c, h, mine, kN);
-  exp_pairs_eigen(c, h, ref, 0, kN);
+  scaled_exp_pairs_eigen(c, h, ref, 0, kN);
   for (Index i = 0; i < kN; ++i) {
     if (std::memcmp(&mine[i], &ref[i], sizeof(double)) != 0) return false;
   }
@@ -82,11 +81,17 @@ bool scaled_exp_self_check() {
 }
 
 bool scaled_exp_simd(double c, const double* h, double* out, Index n) {
-  if (!use(Family::kScaledExp)) return false;
-  const Index n2 = n - n % 2;  // Eigen's packet region; an odd last element is scalar
-  exp_avx512(c, h, out, n2);
-  if (n2 < n) out[n2] = std::exp(c * h[n2]);
-  return true;
+  if (use(Family::kScaledExp)) {
+    const Index n2 = n - n % 2;  // Eigen's packet region; an odd last element is scalar
+    exp_avx512(c, h, out, n2);
+    if (n2 < n) out[n2] = std::exp(c * h[n2]);
+    return true;
+  }
+  if (use(Family::kScaledExpAvx2)) {
+    scaled_exp_kernel_avx2(c, h, out, n);
+    return true;
+  }
+  return false;
 }
 
 #else
@@ -98,6 +103,8 @@ bool scaled_exp_self_check() {
 bool scaled_exp_simd(double, const double*, double*, Index) {
   return false;
 }
+
+void scaled_exp_pairs_eigen(double, const double*, double*, Index, Index) {}
 
 #endif
 

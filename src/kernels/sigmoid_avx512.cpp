@@ -24,10 +24,6 @@ namespace csympnet::kernels {
 
 #ifdef CSYMPNET_SSE2_ORDER_KERNELS
 
-namespace {
-
-constexpr double kLowest = -700.0;  // below this, Eigen's clamp and scaling cases are handed back
-
 // σ for the element pairs [i, i + count) with Eigen's own SSE2 packet exp.
 void sigmoid_pairs_eigen(const double* x, double* out, Index i, Index count) {
   namespace ei = Eigen::internal;
@@ -40,6 +36,10 @@ void sigmoid_pairs_eigen(const double* x, double* out, Index i, Index count) {
     ei::pstoreu(out + j, ei::pdiv(num, ei::padd(one, e)));
   }
 }
+
+namespace {
+
+constexpr double kLowest = -700.0;  // below this, Eigen's clamp and scaling cases are handed back
 
 __attribute__((target("avx512f"))) void sigmoid_avx512(const double* x, double* out, Index n2) {
   const __m512d one = _mm512_set1_pd(1.0);
@@ -92,8 +92,13 @@ void sigmoid_kernel(const double* x, double* out, Index n) {
 }
 
 bool sigmoid_simd(const double* x, double* out, Index n) {
-  if (!use(Family::kSigmoid)) return false;
-  sigmoid_kernel(x, out, n);
+  if (use(Family::kSigmoid)) {
+    sigmoid_kernel(x, out, n);
+  } else if (use(Family::kSigmoidAvx2)) {
+    sigmoid_kernel_avx2(x, out, n);
+  } else {
+    return false;
+  }
   return true;
 }
 
@@ -104,6 +109,8 @@ bool sigmoid_self_check() {
 }
 
 void sigmoid_kernel(const double*, double*, Index) {}
+
+void sigmoid_pairs_eigen(const double*, double*, Index, Index) {}
 
 bool sigmoid_simd(const double*, double*, Index) {
   return false;

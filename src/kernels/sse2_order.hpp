@@ -1,5 +1,5 @@
-// What the AVX-512 kernels that reproduce the portable build to the bit share
-// (product.cpp, sigmoid_avx512.cpp, scaled_exp_avx512.cpp, d1_forward_avx512.cpp). Include it
+// What the AVX-512 and AVX2 kernels that reproduce the portable build to the bit share
+// (product.cpp, sigmoid_*.cpp, scaled_exp_*.cpp, d1_forward_*.cpp, …). Include it
 // first among a kernel file's own code: its pragma applies to everything that follows.
 //
 // The portable build is x86-64 with Eigen on SSE2 and no FMA. A kernel matches it only if it
@@ -56,6 +56,39 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d cephes_exp512(_
   __m512d e = _mm512_div_pd(px, _mm512_sub_pd(qx, px));
   e = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(2.0), e), _mm512_set1_pd(1.0));
   return _mm512_mask_scalef_pd(e, 0xFF, e, fx);  // e · 2^fx, exact: 2^fx and e·2^fx are normal
+}
+
+// The same, four lanes at a time with AVX2 (no FMA: the target leaves it out, and fp-contract is
+// off above). Without scalef, 2^fx is built from its bits: fx + (2^52 + 1023) holds the integer
+// fx + 1023 ∈ [13, 2033] in its low mantissa bits, which a shift by 52 moves into the exponent
+// field; the product e · 2^fx is then exact as above, so the bits are those of scalef.
+__attribute__((target("avx2"), always_inline)) inline __m256d cephes_exp256(__m256d x) {
+  constexpr double kLog2e = 1.4426950408889634073599;
+  constexpr double kP0 = 1.26177193074810590878e-4;
+  constexpr double kP1 = 3.02994407707441961300e-2;
+  constexpr double kP2 = 9.99999999999999999910e-1;
+  constexpr double kQ0 = 3.00198505138664455042e-6;
+  constexpr double kQ1 = 2.52448340349684104192e-3;
+  constexpr double kQ2 = 2.27265548208155028766e-1;
+  constexpr double kQ3 = 2.00000000000000000009e0;
+  constexpr double kC1 = 0.693145751953125;
+  constexpr double kC2 = 1.42860682030941723212e-6;
+  constexpr double kBiasShift = 4503599627370496.0 + 1023.0;  // 2^52 + the exponent bias
+  __m256d fx = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kLog2e), x), _mm256_set1_pd(0.5));
+  fx = _mm256_round_pd(fx, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
+  __m256d g = _mm256_sub_pd(x, _mm256_mul_pd(fx, _mm256_set1_pd(kC1)));
+  g = _mm256_sub_pd(g, _mm256_mul_pd(fx, _mm256_set1_pd(kC2)));
+  const __m256d g2 = _mm256_mul_pd(g, g);
+  __m256d px = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kP0), g2), _mm256_set1_pd(kP1));
+  px = _mm256_add_pd(_mm256_mul_pd(px, g2), _mm256_set1_pd(kP2));
+  px = _mm256_mul_pd(px, g);
+  __m256d qx = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kQ0), g2), _mm256_set1_pd(kQ1));
+  qx = _mm256_add_pd(_mm256_mul_pd(qx, g2), _mm256_set1_pd(kQ2));
+  qx = _mm256_add_pd(_mm256_mul_pd(qx, g2), _mm256_set1_pd(kQ3));
+  __m256d e = _mm256_div_pd(px, _mm256_sub_pd(qx, px));
+  e = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(2.0), e), _mm256_set1_pd(1.0));
+  const __m256i biased = _mm256_castpd_si256(_mm256_add_pd(fx, _mm256_set1_pd(kBiasShift)));
+  return _mm256_mul_pd(e, _mm256_castsi256_pd(_mm256_slli_epi64(biased, 52)));
 }
 
 }  // namespace csympnet::kernels

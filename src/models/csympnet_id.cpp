@@ -98,7 +98,7 @@ void join_rows(const Matrix& q, const Matrix& p, const Vector& a, Matrix& out) {
 }
 
 // a_j = exp(c h_j), c = −γ̂/2: the values of the Eigen expression `(c * h.array()).exp()`,
-// through the AVX-512 kernel where it runs (src/kernels/scaled_exp.hpp).
+// through the AVX-512 or AVX2 kernel where one runs (src/kernels/scaled_exp.hpp).
 void conformal_factors(double gamma, const Vector& h, Vector& a) {
   const double c = -0.5 * gamma;
   a.resize(h.size());

@@ -13,8 +13,22 @@
 namespace csympnet::detail {
 
 bool la_d1_kernels_agree() {
-  // σ's kernel is part of the forward sweep: without it the sweeps do not run.
-  if (!kernels::available(kernels::Family::kSigmoid)) return false;
+  return la_d1_form_agrees(kernels::Family::kD1Sweeps);
+}
+
+bool la_d1_avx2_kernels_agree() {
+  return la_d1_form_agrees(kernels::Family::kD1SweepsAvx2);
+}
+
+bool la_d1_form_agrees(kernels::Family form) {
+  const bool avx2 = form == kernels::Family::kD1SweepsAvx2;
+  const auto flow = avx2 ? kernels::d1_flow_kernel_avx2 : kernels::d1_flow_kernel;
+  const auto backward = avx2 ? kernels::d1_backward_kernel_avx2 : kernels::d1_backward_kernel;
+  // σ's kernel of the same instruction set is part of the forward sweep: without it the sweeps
+  // do not run.
+  if (!kernels::available(avx2 ? kernels::Family::kSigmoidAvx2 : kernels::Family::kSigmoid)) {
+    return false;
+  }
   // On random values, both sweeps with and without step polynomials.
   std::mt19937_64 gen(20261123);
   std::normal_distribution<double> normal;
@@ -42,8 +56,7 @@ bool la_d1_kernels_agree() {
     c1.steps.resize(net.recorded_steps());
     c2.steps.resize(net.recorded_steps());
     net.flow_d1_rows(theta, q, p, h, &c1);
-    if (!kernels::d1_flow_kernel(net.d1_core(), theta.data(), q2.data(), p2.data(), h.data(), kN,
-                                 c2.steps.data()) ||
+    if (!flow(net.d1_core(), theta.data(), q2.data(), p2.data(), h.data(), kN, c2.steps.data()) ||
         !same(q, q2) || !same(p, p2)) {
       return false;
     }
@@ -52,8 +65,8 @@ bool la_d1_kernels_agree() {
     }
     Vector g1 = Vector::Constant(net.n_params(), 0.25), g2 = g1;
     net.flow_backward_d1_rows(theta, c1, h, gq, gp, g1);
-    if (!kernels::d1_backward_kernel(net.d1_core(), theta.data(), c1.steps.data(), h.data(), kN,
-                                     gq2.data(), gp2.data(), g2.data()) ||
+    if (!backward(net.d1_core(), theta.data(), c1.steps.data(), h.data(), kN, gq2.data(),
+                  gp2.data(), g2.data()) ||
         !same(gq, gq2) || !same(gp, gp2) || !same(g1, g2)) {
       return false;
     }

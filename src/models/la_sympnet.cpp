@@ -15,6 +15,8 @@ namespace {
 // here (la_d1_check.cpp), supplied to the registry before main().
 [[maybe_unused]] const bool kD1CheckSupplied =
     kernels::supply_check(kernels::Family::kD1Sweeps, &detail::la_d1_kernels_agree);
+[[maybe_unused]] const bool kD1Avx2CheckSupplied =
+    kernels::supply_check(kernels::Family::kD1SweepsAvx2, &detail::la_d1_avx2_kernels_agree);
 
 using ConstMatrixMap = Eigen::Map<const Matrix>;
 using MatrixMap = Eigen::Map<Matrix>;

@@ -28,11 +28,16 @@
 namespace csympnet {
 
 namespace kernels {
-struct D1Core;  // src/kernels/d1_sweeps.hpp
-}
+struct D1Core;            // src/kernels/d1_sweeps.hpp
+enum class Family : int;  // src/kernels/registry.hpp
+}  // namespace kernels
 namespace detail {
-bool la_d1_kernels_agree();  // src/models/la_d1_check.cpp
-}
+// src/models/la_d1_check.cpp: the self-checks of the d = 1 sweeps' AVX-512 and AVX2 forms, and
+// what both run on the form they name.
+bool la_d1_kernels_agree();
+bool la_d1_avx2_kernels_agree();
+bool la_d1_form_agrees(kernels::Family form);
+}  // namespace detail
 
 class LaSympNet final : public SymplecticCore {
  public:
@@ -112,7 +117,7 @@ class LaSympNet final : public SymplecticCore {
   // core with as many steps recorded it.
   const FlowContext& recorded(const ForwardCache& flow_cache, const char* reader) const;
   kernels::D1Core d1_core() const;
-  friend bool detail::la_d1_kernels_agree();
+  friend bool detail::la_d1_form_agrees(kernels::Family form);
 
   // The backward sweep at d > 1 as a sequence of units (la_sympnet_sweeps.cpp): for k = L−1
   // … 0, the activation module after linear module k (k < L − 1), the biases of module k, then

@@ -1,6 +1,7 @@
 // The kernels switch from the command line: `csympnet kernels` lists every kernel family and
-// whether it runs; CSYMPNET_KERNELS=portable forces the portable code in the whole process, and
-// a run under it writes the same report and model, bit for bit, as a run with the kernels.
+// whether it runs; CSYMPNET_KERNELS=portable forces the portable code in the whole process,
+// CSYMPNET_KERNELS=avx2 the forms of a CPU without AVX-512, and a run under either writes the
+// same report and model, bit for bit, as a run with the widest kernels.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -32,15 +33,35 @@ TEST_F(KernelsCli, ListsEveryFamilyAndTheSwitchForcesThePortableCode) {
                            "column_scaling", "adamw", "fma_product"}) {
     EXPECT_NE(plain.out.find(name), std::string::npos) << name << "\n" << plain.out;
   }
-  EXPECT_EQ(count(plain.out, "\n"), 11) << plain.out;  // 10 families and the arithmetic
+  // 16 forms, the forms in use and the arithmetic.
+  EXPECT_EQ(count(plain.out, "\n"), 18) << plain.out;
+  EXPECT_NE(plain.out.find("\nin use: product "), std::string::npos) << plain.out;
   EXPECT_NE(plain.out.find(std::string("arithmetic: ") +
                            kernels::to_string(kernels::kDefaultArithmetic) + " (default)"),
             std::string::npos)
       << plain.out;
   const auto& cpu = kernels::cpu();
   if (kernels::kernels_built() && cpu.avx512f && cpu.avx512vl) {
-    // All but the AVX product kernel and the two fma kernels (not the arithmetic).
+    // All but the AVX and AVX2 forms and the two fma kernels (not the arithmetic).
     EXPECT_EQ(count(plain.out, ": runs"), 7) << plain.out;
+    EXPECT_NE(plain.out.find("in use: product avx512f, sigmoid avx512f, scaled_exp avx512f, "
+                             "d1_sweeps avx512f+avx512vl, conformal_rows avx512f, "
+                             "column_scaling avx512f, adamw avx512f, fma_product portable"),
+              std::string::npos)
+        << plain.out;
+    const CliResult capped = run("kernels", "CSYMPNET_KERNELS=avx2 CSYMPNET_ARITHMETIC=");
+    ASSERT_EQ(capped.code, 0) << capped.err;
+    EXPECT_EQ(count(capped.out, ": runs"), 7) << capped.out;
+    EXPECT_EQ(count(capped.out, "capped at avx2 (CSYMPNET_KERNELS=avx2)"), 8) << capped.out;
+    EXPECT_NE(capped.out.find("in use: product avx, sigmoid avx2, scaled_exp avx2, d1_sweeps "
+                              "avx2, conformal_rows avx2, column_scaling avx2, adamw avx2, "
+                              "fma_product portable"),
+              std::string::npos)
+        << capped.out;
+    const CliResult capped_version = run("--version", "CSYMPNET_KERNELS=avx2");
+    ASSERT_EQ(capped_version.code, 0);
+    EXPECT_NE(capped_version.out.find("sigmoid (avx2)"), std::string::npos) << capped_version.out;
+    EXPECT_NE(capped_version.out.find("capped at avx2"), std::string::npos) << capped_version.out;
     const CliResult fma = run("kernels", "CSYMPNET_KERNELS= CSYMPNET_ARITHMETIC=fma");
     ASSERT_EQ(fma.code, 0) << fma.err;
     EXPECT_NE(fma.out.find("fma_product avx512f: runs"), std::string::npos) << fma.out;
@@ -63,30 +84,32 @@ TEST_F(KernelsCli, ListsEveryFamilyAndTheSwitchForcesThePortableCode) {
   EXPECT_NE(version.out.find("portable code only"), std::string::npos) << version.out;
 }
 
-// A small training run of each core kind (d = 1 LA, d = 10 LA, d = 10 G) with the kernels and with
+// A small training run of each core kind (d = 1 LA, d = 10 LA, d = 10 G) with the widest
+// kernels, with CSYMPNET_KERNELS=avx2 (the forms of a CPU without AVX-512) and with
 // CSYMPNET_KERNELS=portable: the same report (timings aside) and the same model file, byte for
 // byte.
-TEST_F(KernelsCli, PortableRunsWriteTheKernelsBits) {
+TEST_F(KernelsCli, PortableAndAvx2RunsWriteTheKernelsBits) {
   for (const char* preset : {"s1", "s2", "s3"}) {
     for (const char* model : {"csympnet"}) {
       SCOPED_TRACE(std::string(preset) + " " + model);
       const std::string common = std::string("run --preset ") + preset + " --model " + model +
                                  " --seed 3 --epochs 40 --quiet --out ";
       const fs::path a = dir_ / (std::string(preset) + model + "_kernels");
-      const fs::path b = dir_ / (std::string(preset) + model + "_portable");
       const CliResult ra = run(common + a.string(), "CSYMPNET_KERNELS=");
       ASSERT_EQ(ra.code, 0) << ra.err;
-      const CliResult rb = run(common + b.string(), "CSYMPNET_KERNELS=portable");
-      ASSERT_EQ(rb.code, 0) << rb.err;
       auto ja = nlohmann::json::parse(slurp(a / "report.json"));
-      auto jb = nlohmann::json::parse(slurp(b / "report.json"));
-      for (const char* timing : {"train_seconds", "eval_seconds"}) {
-        ja.erase(timing);
-        jb.erase(timing);
+      for (const char* timing : {"train_seconds", "eval_seconds"}) ja.erase(timing);
+      for (const char* kernels : {"portable", "avx2"}) {
+        SCOPED_TRACE(kernels);
+        const fs::path b = dir_ / (std::string(preset) + model + "_" + kernels);
+        const CliResult rb = run(common + b.string(), std::string("CSYMPNET_KERNELS=") + kernels);
+        ASSERT_EQ(rb.code, 0) << rb.err;
+        auto jb = nlohmann::json::parse(slurp(b / "report.json"));
+        for (const char* timing : {"train_seconds", "eval_seconds"}) jb.erase(timing);
+        EXPECT_EQ(ja.dump(), jb.dump());
+        EXPECT_EQ(slurp(a / "model.json"), slurp(b / "model.json"));
+        EXPECT_EQ(slurp(a / "rollout.csv"), slurp(b / "rollout.csv"));
       }
-      EXPECT_EQ(ja.dump(), jb.dump());
-      EXPECT_EQ(slurp(a / "model.json"), slurp(b / "model.json"));
-      EXPECT_EQ(slurp(a / "rollout.csv"), slurp(b / "rollout.csv"));
     }
   }
 }

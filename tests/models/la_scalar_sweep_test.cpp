@@ -1,9 +1,10 @@
-// The AVX-512 d = 1 LA-SympNet sweeps (src/kernels/d1_*_avx512.cpp) must give the portable
-// d = 1 code's results to the bit (q, p, everything recorded in the cache, the input gradients
-// and dL/dθ), so that training with them reproduces earlier reports. Compared at random
-// parameters and batch sizes on both sides of the kernels' 80-sample blocks, with and without
-// step polynomials; on machines or builds where the kernels do not run, the dispatching
-// assertions hold trivially and the direct calls are skipped.
+// The AVX-512 and AVX2 d = 1 LA-SympNet sweeps (src/kernels/d1_*_avx512.cpp, d1_*_avx2.cpp) must
+// give the portable d = 1 code's results to the bit (q, p, everything recorded in the cache, the
+// input gradients and dL/dθ), so that training with them reproduces earlier reports. Each test
+// runs with the widest form and capped at AVX2 (kernels::CapAtAvx2). Compared at random
+// parameters and batch sizes on both sides of the kernels' blocks (80 and 40 samples, 16 and 40
+// in the AVX2 form), with and without step polynomials; on machines or builds where the kernels
+// do not run, the dispatching assertions hold trivially and the direct calls are skipped.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -15,6 +16,7 @@
 #include "../src/kernels/registry.hpp"
 #include "../src/kernels/targets.hpp"
 #include "../src/models/la_sympnet.hpp"
+#include "support/kernel_caps.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
@@ -124,7 +126,9 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
     EXPECT_TRUE(same_bits(p2, p_ref));
   }
 
-  if (!kernels::use(kernels::Family::kD1Sweeps)) return;
+  if (!kernels::use(kernels::Family::kD1Sweeps) && !kernels::use(kernels::Family::kD1SweepsAvx2)) {
+    return;
+  }
   const kernels::D1Core core{c.layers, c.sublayers, c.step_terms == 2,
                              c.layers * (c.sublayers + 3) - 1};
   Matrix q = pr.q, p = pr.p, gq = pr.gq, gp = pr.gp;
@@ -142,15 +146,22 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
   EXPECT_TRUE(same_bits(grad, grad_ref));
 }
 
-TEST(LaScalarSweep, RunsWhereTheProductKernelsRun) {
-  // Both need AVX-512F and the portable (SSE2, no FMA) build; the sweeps (AVX-512VL too) must
-  // also have passed their own check, or flow() would silently fall back to the portable code.
-  if (std::string(kernels::product_kernel_isa()) == "avx512" && kernels::cpu().avx512vl) {
-    EXPECT_TRUE(kernels::use(kernels::Family::kD1Sweeps));
+class LaScalarSweep : public KernelCapTest {};
+
+INSTANTIATE_TEST_SUITE_P(Caps, LaScalarSweep, ::testing::Values(KernelCap::kNone, KernelCap::kAvx2),
+                         kernel_cap_name);
+
+TEST_P(LaScalarSweep, RunsWhereTheProductKernelsRun) {
+  // Both need AVX-512F (or, capped, AVX2) and the portable (SSE2, no FMA) build; the sweeps
+  // (AVX-512VL too) must also have passed their own check, or flow() would silently fall back to
+  // the portable code.
+  if (kernels_expected_here()) {
+    EXPECT_TRUE(kernels::use(
+        expected_form(kernels::Family::kD1Sweeps, kernels::Family::kD1SweepsAvx2, cap())));
   }
 }
 
-TEST(LaScalarSweep, EqualsThePortableSweepsToTheBit) {
+TEST_P(LaScalarSweep, EqualsThePortableSweepsToTheBit) {
   std::mt19937_64 gen(42);
   for (const Index terms : {Index{1}, Index{2}}) {
     for (const Index n : {1, 2, 7, 8, 13, 64, 79, 80, 81, 95, 160, 173}) {
@@ -163,14 +174,14 @@ TEST(LaScalarSweep, EqualsThePortableSweepsToTheBit) {
   }
 }
 
-TEST(LaScalarSweep, EqualsThePortableSweepsAtEveryBatchSize) {
+TEST_P(LaScalarSweep, EqualsThePortableSweepsAtEveryBatchSize) {
   // Every N: the forward's blocks of 80 and the backward's of 40 (with its column sums'
   // partial last block), odd and even, with and without step polynomials.
   std::mt19937_64 gen(3);
   for (Index n = 1; n <= 250; ++n) expect_same_as_portable({5, 20, 1 + n % 2, n}, gen);
 }
 
-TEST(LaScalarSweep, EqualsThePortableSweepsWithSpecialValues) {
+TEST_P(LaScalarSweep, EqualsThePortableSweepsWithSpecialValues) {
   // ±0, denormals, ±∞ and huge values among the states: the forward's σ in registers must hand
   // the groups the σ kernel does not treat itself to it, and ∞ and the NaNs it makes must travel
   // as in the portable code.
@@ -183,7 +194,7 @@ TEST(LaScalarSweep, EqualsThePortableSweepsWithSpecialValues) {
   }
 }
 
-TEST(LaScalarSweep, EqualsThePortableSweepsAtRandomShapes) {
+TEST_P(LaScalarSweep, EqualsThePortableSweepsAtRandomShapes) {
   std::mt19937_64 gen(7);
   std::uniform_int_distribution<int> layers(1, 6), sublayers(1, 24), samples(1, 250);
   for (int rep = 0; rep < 60; ++rep) {
@@ -191,7 +202,7 @@ TEST(LaScalarSweep, EqualsThePortableSweepsAtRandomShapes) {
   }
 }
 
-TEST(LaScalarSweep, EqualsThePortableSweepsWithSaturatedSigmoids) {
+TEST_P(LaScalarSweep, EqualsThePortableSweepsWithSaturatedSigmoids) {
   std::mt19937_64 gen(11);
   for (const Index terms : {Index{1}, Index{2}}) {
     for (const Index n : {3, 80, 99}) expect_same_as_portable({5, 20, terms, n}, gen, 2000.0);

@@ -1,6 +1,7 @@
-// AdamW::step()'s AVX-512 kernel (src/kernels/adamw_update.cpp) must give the portable update's
-// results (the Eigen expressions, forced by kernels::ForcePortable) to the bit: θ, and the moments
-// through later steps. Compared over every length 1 … 250 (whole registers and masked tails), with
+// AdamW::step()'s AVX-512 and AVX2 kernels (src/kernels/adamw_update.cpp) must give the portable
+// update's results (the Eigen expressions, forced by kernels::ForcePortable) to the bit: θ, and the
+// moments through later steps. Each test runs with the widest form and capped at AVX2
+// (kernels::CapAtAvx2). Compared over every length 1 … 250 (whole registers and tails), with
 // the damping parameter excluded from the decay at positions across lane boundaries, and on edge
 // values: zeros of both signs, denormals, huge and tiny gradients, and a zero gradient history (√v
 // = 0, the eps guard).
@@ -15,6 +16,7 @@
 #include "../src/kernels/product.hpp"
 #include "../src/kernels/registry.hpp"
 #include "csympnet/train/adamw.hpp"
+#include "support/kernel_caps.hpp"
 #include "support/same_bits.hpp"
 
 namespace csympnet::testing {
@@ -50,15 +52,22 @@ void expect_same_steps(Index n, const AdamWOptions& o, std::optional<Index> damp
   EXPECT_EQ(kernel.steps_taken(), portable.steps_taken());
 }
 
-TEST(AdamWKernel, RunsOnAvx512Machines) {
-  // The kernel needs AVX-512F and the portable (SSE2, no FMA) build, as the product kernels
-  // do; there it must also have passed its own check, or step() would silently fall back.
-  if (std::string(kernels::product_kernel_isa()) == "avx512") {
-    EXPECT_TRUE(kernels::use(kernels::Family::kAdamW));
+class AdamWKernel : public KernelCapTest {};
+
+INSTANTIATE_TEST_SUITE_P(Caps, AdamWKernel, ::testing::Values(KernelCap::kNone, KernelCap::kAvx2),
+                         kernel_cap_name);
+
+TEST_P(AdamWKernel, RunsOnAvx512Machines) {
+  // The kernel needs AVX-512F (or, capped, AVX2) and the portable (SSE2, no FMA) build, as the
+  // product kernels do; there it must also have passed its own check, or step() would silently
+  // fall back.
+  if (kernels_expected_here()) {
+    EXPECT_TRUE(
+        kernels::use(expected_form(kernels::Family::kAdamW, kernels::Family::kAdamWAvx2, cap())));
   }
 }
 
-TEST(AdamWKernel, EqualsThePortableStepToTheBitAtEveryLength) {
+TEST_P(AdamWKernel, EqualsThePortableStepToTheBitAtEveryLength) {
   std::mt19937_64 gen(20261124);
   AdamWOptions o;
   o.lr = 2e-3;
@@ -69,7 +78,7 @@ TEST(AdamWKernel, EqualsThePortableStepToTheBitAtEveryLength) {
   }
 }
 
-TEST(AdamWKernel, EqualsThePortableStepWithTheDampingParameterAnywhere) {
+TEST_P(AdamWKernel, EqualsThePortableStepWithTheDampingParameterAnywhere) {
   std::mt19937_64 gen(5);
   AdamWOptions o;
   o.decay_damping = false;
@@ -79,7 +88,7 @@ TEST(AdamWKernel, EqualsThePortableStepWithTheDampingParameterAnywhere) {
   expect_same_steps(115, o, std::nullopt, gen, 3, true);  // no damping parameter at all
 }
 
-TEST(AdamWKernel, EqualsThePortableStepOverManySteps) {
+TEST_P(AdamWKernel, EqualsThePortableStepOverManySteps) {
   // The bias corrections 1 − βᵗ approach 1; the moments carry every earlier step.
   std::mt19937_64 gen(99);
   AdamWOptions o;
@@ -90,7 +99,7 @@ TEST(AdamWKernel, EqualsThePortableStepOverManySteps) {
   expect_same_steps(37, o, Index{3}, gen, 300, true);
 }
 
-TEST(AdamWKernel, ZeroGradientsKeepTheEpsGuard) {
+TEST_P(AdamWKernel, ZeroGradientsKeepTheEpsGuard) {
   // v = 0: √v / √(1 − β2ᵗ) + eps = eps, and m = 0 gives a zero update of either sign.
   AdamWOptions o;
   AdamW kernel(19, o, Index{0}), portable(19, o, Index{0});

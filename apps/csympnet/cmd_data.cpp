@@ -8,8 +8,8 @@
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
-#include "csympnet/paper/run.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/paper/run.hpp"
 #include "system_options.hpp"
 
 namespace csympnet::cli {

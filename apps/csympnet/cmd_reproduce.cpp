@@ -21,10 +21,10 @@
 
 #include "commands.hpp"
 #include "csympnet/core/error.hpp"
+#include "csympnet/io/files.hpp"
 #include "csympnet/paper/outputs.hpp"
 #include "csympnet/paper/reproduce.hpp"
 #include "csympnet/paper/summary.hpp"
-#include "csympnet/io/files.hpp"
 #include "interrupt.hpp"
 #include "system_options.hpp"
 

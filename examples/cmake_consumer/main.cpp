@@ -9,9 +9,9 @@
 
 #include <csympnet/core/rng.hpp>
 #include <csympnet/core/types.hpp>
+#include <csympnet/models/model.hpp>
 #include <csympnet/paper/preset.hpp>
 #include <csympnet/paper/run.hpp>
-#include <csympnet/models/model.hpp>
 #include <csympnet/train/trainer.hpp>
 
 int main(int argc, char** argv) try {

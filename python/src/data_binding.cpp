@@ -8,9 +8,9 @@
 #include "convert.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/data/generate.hpp"
-#include "csympnet/paper/run.hpp"
 #include "csympnet/integrators/reference.hpp"
 #include "csympnet/models/model.hpp"
+#include "csympnet/paper/run.hpp"
 #include "model_binding.hpp"
 
 namespace csympnet::py_binding {

@@ -10,10 +10,10 @@
 #include <pybind11/stl.h>
 
 #include "convert.hpp"
-#include "csympnet/paper/fit.hpp"
 #include "csympnet/identify/identify.hpp"
-#include "csympnet/paper/run.hpp"
 #include "csympnet/identify/time_unit.hpp"
+#include "csympnet/paper/fit.hpp"
+#include "csympnet/paper/run.hpp"
 #include "model_binding.hpp"
 
 namespace csympnet::py_binding {

@@ -13,8 +13,8 @@
 #include "csympnet/core/rng.hpp"
 #include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
-#include "csympnet/paper/outputs.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/paper/outputs.hpp"
 
 namespace csympnet {
 

@@ -9,10 +9,10 @@
 #include <nlohmann/json.hpp>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/io/files.hpp"
 #include "csympnet/paper/reproduce.hpp"
 #include "csympnet/paper/suite.hpp"
 #include "csympnet/paper/summary.hpp"
-#include "csympnet/io/files.hpp"
 
 namespace csympnet {
 namespace {

@@ -9,8 +9,8 @@
 
 #include <string>
 
-#include "csympnet/paper/run.hpp"
 #include "csympnet/io/files.hpp"
+#include "csympnet/paper/run.hpp"
 
 namespace csympnet {
 

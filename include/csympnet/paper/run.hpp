@@ -11,9 +11,9 @@
 #include <nlohmann/json.hpp>
 
 #include "csympnet/diagnostics/diagnostics.hpp"
-#include "csympnet/paper/preset.hpp"
 #include "csympnet/integrators/dopri5.hpp"
 #include "csympnet/models/model.hpp"
+#include "csympnet/paper/preset.hpp"
 #include "csympnet/train/gamma_warm_start.hpp"
 #include "csympnet/train/refine.hpp"
 #include "csympnet/train/trainer.hpp"

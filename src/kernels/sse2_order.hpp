@@ -28,20 +28,26 @@
 
 namespace csympnet::kernels {
 
+// The constants of Eigen's pexp_double (Cephes): log2(e), the rational approximation's
+// coefficients and the two-part ln 2; one copy for the AVX-512 and AVX2 forms below.
+namespace cephes {
+inline constexpr double kLog2e = 1.4426950408889634073599;
+inline constexpr double kP0 = 1.26177193074810590878e-4;
+inline constexpr double kP1 = 3.02994407707441961300e-2;
+inline constexpr double kP2 = 9.99999999999999999910e-1;
+inline constexpr double kQ0 = 3.00198505138664455042e-6;
+inline constexpr double kQ1 = 2.52448340349684104192e-3;
+inline constexpr double kQ2 = 2.27265548208155028766e-1;
+inline constexpr double kQ3 = 2.00000000000000000009e0;
+inline constexpr double kC1 = 0.693145751953125;
+inline constexpr double kC2 = 1.42860682030941723212e-6;
+}  // namespace cephes
+
 // e^x in every lane, with the operations of Eigen's pexp_double (the Cephes approximation),
 // in its order, eight lanes at a time. Valid for lanes in [−700, 700]; callers hand other
 // lanes (and NaN) to Eigen, whose clamping and scaling cases this leaves out.
 __attribute__((target("avx512f"), always_inline)) inline __m512d cephes_exp512(__m512d x) {
-  constexpr double kLog2e = 1.4426950408889634073599;
-  constexpr double kP0 = 1.26177193074810590878e-4;
-  constexpr double kP1 = 3.02994407707441961300e-2;
-  constexpr double kP2 = 9.99999999999999999910e-1;
-  constexpr double kQ0 = 3.00198505138664455042e-6;
-  constexpr double kQ1 = 2.52448340349684104192e-3;
-  constexpr double kQ2 = 2.27265548208155028766e-1;
-  constexpr double kQ3 = 2.00000000000000000009e0;
-  constexpr double kC1 = 0.693145751953125;
-  constexpr double kC2 = 1.42860682030941723212e-6;
+  using namespace cephes;
   __m512d fx = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kLog2e), x), _mm512_set1_pd(0.5));
   fx = _mm512_mask_roundscale_pd(fx, 0xFF, fx, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
   __m512d g = _mm512_sub_pd(x, _mm512_mul_pd(fx, _mm512_set1_pd(kC1)));
@@ -63,16 +69,7 @@ __attribute__((target("avx512f"), always_inline)) inline __m512d cephes_exp512(_
 // fx + 1023 ∈ [13, 2033] in its low mantissa bits, which a shift by 52 moves into the exponent
 // field; the product e · 2^fx is then exact as above, so the bits are those of scalef.
 __attribute__((target("avx2"), always_inline)) inline __m256d cephes_exp256(__m256d x) {
-  constexpr double kLog2e = 1.4426950408889634073599;
-  constexpr double kP0 = 1.26177193074810590878e-4;
-  constexpr double kP1 = 3.02994407707441961300e-2;
-  constexpr double kP2 = 9.99999999999999999910e-1;
-  constexpr double kQ0 = 3.00198505138664455042e-6;
-  constexpr double kQ1 = 2.52448340349684104192e-3;
-  constexpr double kQ2 = 2.27265548208155028766e-1;
-  constexpr double kQ3 = 2.00000000000000000009e0;
-  constexpr double kC1 = 0.693145751953125;
-  constexpr double kC2 = 1.42860682030941723212e-6;
+  using namespace cephes;
   constexpr double kBiasShift = 4503599627370496.0 + 1023.0;  // 2^52 + the exponent bias
   __m256d fx = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(kLog2e), x), _mm256_set1_pd(0.5));
   fx = _mm256_round_pd(fx, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);

@@ -61,9 +61,11 @@ def progress(i, n, c):
           + ", ".join(parts), file=sys.stderr, flush=True)
 
 
-def progress_observed(i, n, c):
+def _gamma_parts(c, methods, extra=lambda r: ""):
+    """each method's progress: its relative error of gamma, whether its interval covers, what
+    `extra` adds, and its CPU seconds; or its status"""
     parts = []
-    for m in OBSERVED_METHODS:
+    for m in methods:
         r = c["methods"].get(m)
         if r is None or r.get("status") == "skipped":
             continue
@@ -71,9 +73,14 @@ def progress_observed(i, n, c):
         cpu = "" if cpu is None else f" {cpu:.1f} CPU s"
         if r.get("status") == "ok":
             cov = {True: ", covers", False: ", misses"}.get(r.get("covers"), "")
-            parts.append(f"{m} {r['rel_err']:.1e}{cov}{cpu}")
+            parts.append(f"{m} {r['rel_err']:.1e}{cov}{extra(r)}{cpu}")
         else:
             parts.append(f"{m} {r.get('status')}{cpu}")
+    return parts
+
+
+def progress_observed(i, n, c):
+    parts = _gamma_parts(c, OBSERVED_METHODS)
     print(f"[{i}/{n}] {c['id']} d={c['d']} samples={c['samples']}: " + ", ".join(parts),
           file=sys.stderr, flush=True)
 
@@ -94,21 +101,11 @@ def progress_forced(i, n, c):
 
 
 def progress_friction(i, n, c):
-    parts = []
-    for m in FRICTION_METHODS:
-        r = c["methods"].get(m)
-        if r is None or r.get("status") == "skipped":
-            continue
-        cpu = r.get("cpu_seconds")
-        cpu = "" if cpu is None else f" {cpu:.1f} CPU s"
-        if r.get("status") == "ok":
-            cov = {True: " covers", False: " misses"}.get(r.get("covers"), "")
-            rate = r.get("rate_rel_err")
-            rate = "" if rate is None else f", rate {rate:.1e}"
-            kinds = f" [{','.join(r['kinds']) or 'viscous'}]" if "kinds" in r else ""
-            parts.append(f"{m} {r['rel_err']:.1e}{cov}{rate}{kinds}{cpu}")
-        else:
-            parts.append(f"{m} {r.get('status')}{cpu}")
+    def rate_and_kinds(r):
+        rate = r.get("rate_rel_err")
+        rate = "" if rate is None else f", rate {rate:.1e}"
+        return rate + (f" [{','.join(r['kinds']) or 'viscous'}]" if "kinds" in r else "")
+    parts = _gamma_parts(c, FRICTION_METHODS, rate_and_kinds)
     print(f"[{i}/{n}] {c['id']}: " + ", ".join(parts), file=sys.stderr, flush=True)
 
 

@@ -43,10 +43,7 @@ nlohmann::json library_core(const std::vector<LibraryTerm>& terms,
       {"substeps", substeps},
       {"mass", scales.size() <= 4 ? "full" : "diagonal"},
       {"coordinate_scales", std::vector<double>(scales.data(), scales.data() + scales.size())}};
-  if (!dissipation.empty()) {
-    core["dissipation"] = nlohmann::json::array();
-    for (const DissipationTerm& t : dissipation) core["dissipation"].push_back(dissipation_name(t));
-  }
+  set_dissipation_spec(core, dissipation);
   return core;
 }
 
@@ -595,7 +592,7 @@ class LibrarySelection {
       const double g1 = *finer.inner.map->damping_rate(finer.theta);
       rec_["gamma_change_at_twice_the_substeps"] = std::isfinite(g1) ? std::abs(g1 - g0) : 0.0;
       // The same for each dissipation term, relative (its value in the user's units is a fixed
-      // multiple of W_ii μ or c / W_ii): the reversals' first-order error is the integrator's
+      // multiple of W_ii μ or c / W_ii): the integrator's error in it is the integrator's
       // share of its interval (docs/derivations.md, "Dry friction and drag").
       nlohmann::json changes = nlohmann::json::array();
       const HamiltonianLibraryMap& a = library_of(x);

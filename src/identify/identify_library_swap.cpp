@@ -247,12 +247,7 @@ Candidate library_with(const Candidate& lib, Index d, const std::vector<LibraryT
   c.pretrained = lib.pretrained;
   c.core["terms"] = nlohmann::json::array();
   for (const LibraryTerm& t : next) c.core["terms"].push_back(term_name(t));
-  c.core.erase("dissipation");
-  if (!next_dissipation.empty()) {
-    c.core["dissipation"] = nlohmann::json::array();
-    for (const DissipationTerm& t : next_dissipation)
-      c.core["dissipation"].push_back(dissipation_name(t));
-  }
+  set_dissipation_spec(c.core, next_dissipation);
   c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
   const auto* nm = dynamic_cast<const HamiltonianLibraryMap*>(c.inner.map.get());
   require(nm != nullptr, "library: the changed candidate is not a library map");

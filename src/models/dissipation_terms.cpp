@@ -71,4 +71,60 @@ FlowStep dissipation_flow(DissipationKind kind, double p, double rate, double ta
   return out;
 }
 
+namespace {
+
+// ṗ = c − m sign(p) over T ≥ 0; m < 0 (the backward flow's anti-friction) never sticks.
+KickStep kick_forward(double x, double c, double m, double T) {
+  KickStep out;
+  if (x == 0.0) {
+    if (std::abs(c) <= m) {  // at rest, and the friction holds it
+      out.p = out.dp = 0.0;
+      return out;
+    }
+    const double s = c > 0.0 ? 1.0 : -1.0;
+    out.p = (c - m * s) * T;
+    out.dforce = T;
+    out.drate = -s * T;
+    return out;
+  }
+  const double s = x > 0.0 ? 1.0 : -1.0;
+  const double v = c - m * s;  // the rate of p on its side
+  // Away from 0, or not reaching it within T: one linear piece.
+  if (v * s >= 0.0 || std::abs(v) * T <= std::abs(x)) {
+    out.p = x + v * T;
+    out.dforce = T;
+    out.drate = -s * T;
+    return out;
+  }
+  // p reaches 0 at t0 = −x/v < T: it sticks there, or goes on with the other sign.
+  if (std::abs(c) <= m) {
+    out.p = out.dp = 0.0;
+    return out;
+  }
+  const double rest = T + x / v;  // T − t0
+  const double w = c + m * s;     // the rate on the other side
+  out.p = w * rest;
+  out.dp = w / v;
+  out.dforce = rest - w * x / (v * v);
+  out.drate = s * rest + w * x * s / (v * v);
+  return out;
+}
+
+}  // namespace
+
+KickStep coulomb_kick(double p, double force, double rate, double tau) {
+  if (rate == 0.0) {  // the plain kick, to the bit
+    KickStep out;
+    out.p = p + force * tau;
+    out.dforce = tau;
+    out.drate = 0.0;  // one-sided at 0; the map takes |θ|, whose derivative there is 0
+    return out;
+  }
+  if (tau >= 0.0) return kick_forward(p, force, rate, tau);
+  KickStep out = kick_forward(p, -force, -rate, -tau);
+  out.dforce = -out.dforce;
+  out.drate = -out.drate;
+  return out;
+}
+
 }  // namespace csympnet

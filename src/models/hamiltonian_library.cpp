@@ -62,7 +62,7 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
                                              Index substeps, bool full_mass, double beta_init,
                                              Vector scales,
                                              std::vector<DissipationTerm> dissipation,
-                                             InputSpec inputs)
+                                             InputSpec inputs, bool coulomb_in_kicks)
     : d_(d),
       terms_(std::move(terms)),
       order_(order),
@@ -70,6 +70,7 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
       full_mass_(full_mass),
       beta_init_(beta_init),
       dissipation_(std::move(dissipation)),
+      coulomb_in_kicks_(coulomb_in_kicks),
       inputs_(inputs) {
   require(d >= 1, "hamiltonian library: d must be >= 1");
   require(!terms_.empty(), "hamiltonian library: at least one term is needed");
@@ -125,6 +126,7 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     }
   }
   sigma_.back() = 1.0;
+  coulomb_of_.assign(static_cast<std::size_t>(d), -1);
   for (std::size_t k = 0; k < dissipation_.size(); ++k) {
     const DissipationTerm& t = dissipation_[k];
     require(t.i >= 0 && t.i < d, [&] {
@@ -135,6 +137,8 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
       require(!(dissipation_[l] == t), [&] {
         return "hamiltonian library: dissipation term '" + dissipation_name(t) + "' appears twice";
       });
+    if (t.kind == DissipationKind::kCoulomb && coulomb_in_kicks_)
+      coulomb_of_[static_cast<std::size_t>(t.i)] = static_cast<Index>(k);
   }
 }
 
@@ -145,6 +149,7 @@ void HamiltonianLibraryMap::dissipate(ConstParams theta, double half_tau, bool c
     const Index k = closing ? nk - 1 - n : n;
     const DissipationTerm& t = dissipation_[static_cast<std::size_t>(k)];
     if (starts != nullptr) starts[n] = p[t.i];
+    if (in_kicks(k)) continue;
     p[t.i] = dissipation_flow(t.kind, p[t.i], std::abs(theta(dissipation_index(k))), half_tau).p;
   }
 }
@@ -156,6 +161,7 @@ void HamiltonianLibraryMap::dissipate_backward(ConstParams theta, double half_ta
   for (Index n = nk - 1; n >= 0; --n) {
     const Index k = closing ? nk - 1 - n : n;
     const DissipationTerm& t = dissipation_[static_cast<std::size_t>(k)];
+    if (in_kicks(k)) continue;
     const double th = theta(dissipation_index(k));
     const FlowStep f = dissipation_flow(t.kind, starts[n], std::abs(th), half_tau);
     grad(dissipation_index(k)) += abs_derivative(th) * f.drate * pb[t.i];
@@ -376,13 +382,21 @@ Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z,
       if (s == stages) break;
       poll_within_step(s);
       const double a = std::exp(-0.5 * gamma * tau);
-      for (Index r = 0; r < d; ++r) p[r] = a * p[r] - 0.5 * tau * g[r];
+      for (Index r = 0; r < d; ++r) {
+        const double mu = coulomb_rate(theta, r);
+        p[r] =
+            mu > 0.0 ? coulomb_kick(a * p[r], -g[r], mu, 0.5 * tau).p : a * p[r] - 0.5 * tau * g[r];
+      }
       mass_times(theta, p.data(), wp.data());
       for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
       gradient(theta, q.data(), g.data());
       if (driven)
         add_force(theta, ucol, sigma_[static_cast<std::size_t>(s + 1)], g.data(), work.data());
-      for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
+      for (Index r = 0; r < d; ++r) {
+        const double mu = coulomb_rate(theta, r);
+        p[r] = mu > 0.0 ? a * coulomb_kick(p[r], -g[r], mu, 0.5 * tau).p
+                        : a * (p[r] - 0.5 * tau * g[r]);
+      }
       if (nk > 0)
         dissipate(theta, 0.5 * tau, true, p.data(), starts != nullptr ? starts + nk : nullptr);
     }
@@ -394,6 +408,48 @@ Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z,
   return out;
 }
 
+void HamiltonianLibraryMap::kick_backward(ConstParams theta, const std::vector<KickStep>& kicks,
+                                          bool fused, const double* q, double sigma,
+                                          const double* ucol, double tau, double* pb, double* qb,
+                                          KickScratch& w, ParamsRef grad) const {
+  const Index d = d_;
+  const double* plain = pb;
+  if (fused) {
+    // The coordinates with friction: their force's adjoint f̄ = ∂p/∂f · p̄ (ḡ = −f̄) and their
+    // rate's, apart; the plain kick's path below sees them as 0.
+    for (Index r = 0; r < d; ++r) {
+      const KickStep& k = kicks[static_cast<std::size_t>(r)];
+      const Index t = coulomb_of_[static_cast<std::size_t>(r)];
+      if (t < 0 || coulomb_rate(theta, r) == 0.0) {
+        w.plain[r] = pb[r];
+        w.force[r] = 0.0;
+        continue;
+      }
+      w.plain[r] = 0.0;
+      w.force[r] = k.dforce * pb[r];
+      const double th = theta(dissipation_index(t));
+      grad(dissipation_index(t)) += abs_derivative(th) * k.drate * pb[r];
+    }
+    plain = w.plain.data();
+  }
+  const bool driven = ucol != nullptr;
+  if (driven) add_input_gradient(ucol, sigma, plain, 0.5 * tau, w.work.data(), grad);
+  add_gradient_params(theta, q, plain, -0.5 * tau, grad);
+  for (Index r = 0; r < d; ++r) w.tmp[r] = 0.0;
+  hessian_times(theta, q, plain, w.tmp.data());
+  for (Index r = 0; r < d; ++r) qb[r] -= 0.5 * tau * w.tmp[r];
+  if (!fused) return;
+  if (driven) add_input_gradient(ucol, sigma, w.force.data(), 1.0, w.work.data(), grad);
+  add_gradient_params(theta, q, w.force.data(), -1.0, grad);
+  for (Index r = 0; r < d; ++r) w.tmp[r] = 0.0;
+  hessian_times(theta, q, w.force.data(), w.tmp.data());
+  for (Index r = 0; r < d; ++r) {
+    qb[r] -= w.tmp[r];
+    if (coulomb_of_[static_cast<std::size_t>(r)] >= 0 && coulomb_rate(theta, r) > 0.0)
+      pb[r] *= kicks[static_cast<std::size_t>(r)].dp;
+  }
+}
+
 void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cache,
                                      const Matrix& dZout, ParamsRef grad, Matrix* dZin) const {
   const Context& ctx = cache.context<Context>("hamiltonian library backward");
@@ -402,7 +458,9 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
   check_backward_args(*this, theta, n, dZout, grad);
   const double beta = theta(beta_index_), gamma = std::abs(beta);
   if (dZin != nullptr) dZin->resize(dim(), n);
-  std::vector<double> qb(d), pb(d), p2(d), wq(d), tmp(d), work(static_cast<std::size_t>(inputs_.m));
+  std::vector<double> qb(d), pb(d), p2(d), wq(d);
+  std::vector<KickStep> k1(d), k2(d);
+  KickScratch scratch(d, inputs_.m);
   const Index nw = static_cast<Index>(weights_.size());
   const bool driven = ctx.u.rows() > 0;
   double gamma_bar = 0.0;
@@ -425,22 +483,27 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
           weights_[static_cast<std::size_t>(s % nw)] * ctx.h(col) / static_cast<double>(substeps_);
       const double a = std::exp(-0.5 * gamma * tau);
       if (nk > 0) dissipate_backward(theta, 0.5 * tau, true, starts + nk, pb.data(), grad);
-      // p2 = a p0 − (τ/2) g0, p3 = p2 − (τ/2) g1, output p4 = a p3.
+      // p2 = a p0 − (τ/2) g0, p3 = p2 − (τ/2) g1, output p4 = a p3; on a coordinate with
+      // Coulomb friction each kick is its exact flow with the friction (coulomb_kick).
       double a_bar = 0.0;
+      bool fused = false;
       for (Index r = 0; r < d; ++r) {
-        p2[r] = a * p0[r] - 0.5 * tau * g0[r];
-        a_bar += pb[r] * (p2[r] - 0.5 * tau * g1[r]);
-        pb[r] *= a;  // now p̄3 = p̄2
+        const double mu = coulomb_rate(theta, r);
+        if (mu > 0.0) {
+          k1[r] = coulomb_kick(a * p0[r], -g0[r], mu, 0.5 * tau);
+          k2[r] = coulomb_kick(k1[r].p, -g1[r], mu, 0.5 * tau);
+          p2[r] = k1[r].p;
+          a_bar += pb[r] * k2[r].p;
+          fused = true;
+        } else {
+          p2[r] = a * p0[r] - 0.5 * tau * g0[r];
+          a_bar += pb[r] * (p2[r] - 0.5 * tau * g1[r]);
+        }
+        pb[r] *= a;  // now p̄3
       }
-      // The force B u at the stage's end enters p3 with weight τ/2.
-      if (driven)
-        add_input_gradient(ucol, sigma_[static_cast<std::size_t>(s + 1)], pb.data(), 0.5 * tau,
-                           work.data(), grad);
-      // p3 = p2 − (τ/2)∇V(q1).
-      add_gradient_params(theta, q1, pb.data(), -0.5 * tau, grad);
-      for (Index r = 0; r < d; ++r) tmp[r] = 0.0;
-      hessian_times(theta, q1, pb.data(), tmp.data());
-      for (Index r = 0; r < d; ++r) qb[r] -= 0.5 * tau * tmp[r];
+      // p3 = p2 − (τ/2)(∇V(q1) − B u(σ_{s+1})); p̄2 = p̄3 but through a friction kick.
+      kick_backward(theta, k2, fused, q1, sigma_[static_cast<std::size_t>(s + 1)], ucol, tau,
+                    pb.data(), qb.data(), scratch, grad);
       // q1 = q0 + τ W p2.
       mass_times(theta, qb.data(), wq.data());
       for (Index r = 0; r < d; ++r) pb[r] += tau * wq[r];
@@ -453,14 +516,9 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
         for (Index r = 0; r < d; ++r) grad(r) += tau * qb[r] * p2[r];
       }
       // p2 = a p0 − (τ/2)(∇V(q0) − B u(σ_s)).
-      if (driven)
-        add_input_gradient(ucol, sigma_[static_cast<std::size_t>(s)], pb.data(), 0.5 * tau,
-                           work.data(), grad);
-      add_gradient_params(theta, q0, pb.data(), -0.5 * tau, grad);
-      for (Index r = 0; r < d; ++r) tmp[r] = 0.0;
-      hessian_times(theta, q0, pb.data(), tmp.data());
+      kick_backward(theta, k1, fused, q0, sigma_[static_cast<std::size_t>(s)], ucol, tau, pb.data(),
+                    qb.data(), scratch, grad);
       for (Index r = 0; r < d; ++r) {
-        qb[r] -= 0.5 * tau * tmp[r];
         a_bar += pb[r] * p0[r];
         pb[r] *= a;
       }
@@ -501,14 +559,30 @@ Matrix HamiltonianLibraryMap::jacobian_driven(ConstParams theta, const Vector& z
   tp.rightCols(d).setIdentity();
   const Matrix w = inverse_mass(theta);
   std::vector<double> col(d), hv(d);
-  const auto kick_tangent = [&](double step) {  // tp −= step H(q) tq
+  // tp −= step H(q) tq; a row with Coulomb friction (kick[r] of its coulomb_kick) instead
+  // tp_r ← ∂p/∂p tp_r − ∂p/∂f (H tq)_r, as f = −∇V.
+  std::vector<KickStep> kick(d);
+  std::vector<char> fused(d, 0);
+  const auto kick_tangent = [&](double step) {
     for (Index c = 0; c < 2 * d; ++c) {
       for (Index r = 0; r < d; ++r) {
         col[r] = tq(r, c);
         hv[r] = 0.0;
       }
       hessian_times(theta, q.data(), col.data(), hv.data());
-      for (Index r = 0; r < d; ++r) tp(r, c) -= step * hv[r];
+      for (Index r = 0; r < d; ++r)
+        if (fused[r])
+          tp(r, c) = kick[r].dp * tp(r, c) - kick[r].dforce * hv[r];
+        else
+          tp(r, c) -= step * hv[r];
+    }
+  };
+  // The kick's friction flows from p (after the momentum scaling `scale`), at q's force g.
+  const auto friction_kicks = [&](double scale, double half_tau) {
+    for (Index r = 0; r < d; ++r) {
+      const double mu = coulomb_rate(theta, r);
+      fused[r] = mu > 0.0;
+      if (fused[r]) kick[r] = coulomb_kick(scale * p[r], -g[r], mu, half_tau);
     }
   };
   // Each flow scales its momentum's row of the tangent by ∂p_new/∂p.
@@ -517,6 +591,7 @@ Matrix HamiltonianLibraryMap::jacobian_driven(ConstParams theta, const Vector& z
     for (Index n = 0; n < nk; ++n) {
       const Index k = closing ? nk - 1 - n : n;
       const DissipationTerm& t = dissipation_[static_cast<std::size_t>(k)];
+      if (in_kicks(k)) continue;
       tp.row(t.i) *= dissipation_flow(t.kind, starts[static_cast<std::size_t>(n)],
                                       std::abs(theta(dissipation_index(k))), half_tau)
                          .dp;
@@ -530,18 +605,20 @@ Matrix HamiltonianLibraryMap::jacobian_driven(ConstParams theta, const Vector& z
         weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
     const double a = std::exp(-0.5 * gamma * tau);
     if (nk > 0) dissipate_tangent(0.5 * tau, false);
+    friction_kicks(a, 0.5 * tau);
     tp *= a;
     kick_tangent(0.5 * tau);
-    for (Index r = 0; r < d; ++r) p[r] = a * p[r] - 0.5 * tau * g[r];
+    for (Index r = 0; r < d; ++r) p[r] = fused[r] ? kick[r].p : a * p[r] - 0.5 * tau * g[r];
     tq += tau * w * tp;
     mass_times(theta, p.data(), wp.data());
     for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
     gradient(theta, q.data(), g.data());
     if (driven)
       add_force(theta, u.data(), sigma_[static_cast<std::size_t>(s + 1)], g.data(), work.data());
+    friction_kicks(1.0, 0.5 * tau);
     kick_tangent(0.5 * tau);
     tp *= a;
-    for (Index r = 0; r < d; ++r) p[r] = a * (p[r] - 0.5 * tau * g[r]);
+    for (Index r = 0; r < d; ++r) p[r] = fused[r] ? a * kick[r].p : a * (p[r] - 0.5 * tau * g[r]);
     if (nk > 0) dissipate_tangent(0.5 * tau, true);
   }
   Matrix jac(2 * d, 2 * d);
@@ -561,13 +638,22 @@ nlohmann::json HamiltonianLibraryMap::hyperparams() const {
       {"mass", full_mass_ ? "full" : "diagonal"},
       {"coordinate_scales", std::vector<double>(scales_.data(), scales_.data() + d_)}};
   // Written only when present: a model without them keeps the spec (and file) it had before.
-  if (!dissipation_.empty()) {
-    nlohmann::json dis = nlohmann::json::array();
-    for (const DissipationTerm& t : dissipation_) dis.push_back(dissipation_name(t));
-    core["dissipation"] = dis;
-  }
+  set_dissipation_spec(core, dissipation_, coulomb_in_kicks_);
   if (inputs_.m > 0) core["inputs"] = input_spec_json(inputs_);
   return {{"type", "csympnet"}, {"d", d_}, {"core", core}, {"beta_init", beta_init_}};
+}
+
+void set_dissipation_spec(nlohmann::json& core, const std::vector<DissipationTerm>& terms,
+                          bool coulomb_in_kicks) {
+  core.erase("dissipation");
+  core.erase("friction");
+  if (terms.empty()) return;
+  nlohmann::json names = nlohmann::json::array();
+  for (const DissipationTerm& t : terms) names.push_back(dissipation_name(t));
+  core["dissipation"] = names;
+  if (std::any_of(terms.begin(), terms.end(),
+                  [](const DissipationTerm& t) { return t.kind == DissipationKind::kCoulomb; }))
+    core["friction"] = coulomb_in_kicks ? "in_kicks" : "split";
 }
 
 }  // namespace csympnet

@@ -62,9 +62,9 @@ std::unique_ptr<OneStepMap> make_library_map(const json& spec, Index d, double b
                                              const std::string& where) {
   LibrarySpec s = read_library_spec(spec, d, where);
   require(!s.terms.empty(), [&] { return where + ": " + kTermsExpected; });
-  return std::make_unique<HamiltonianLibraryMap>(d, std::move(s.terms), s.order, s.substeps,
-                                                 s.full_mass, beta_init, std::move(s.scales),
-                                                 std::move(s.dissipation), s.inputs);
+  return std::make_unique<HamiltonianLibraryMap>(
+      d, std::move(s.terms), s.order, s.substeps, s.full_mass, beta_init, std::move(s.scales),
+      std::move(s.dissipation), s.inputs, s.coulomb_in_kicks);
 }
 
 // `d` comes from the enclosing spec; a core spec may repeat it only if it agrees.
@@ -101,7 +101,7 @@ LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::st
   require_object(spec, where);
   reject_unknown_keys(spec, where,
                       {"type", "d", "terms", "order", "substeps", "mass", "coordinate_scales",
-                       "dissipation", "inputs"});
+                       "dissipation", "friction", "inputs"});
   if (spec.contains("d"))
     require(spec.at("d") == d, [&] {
       return where + ": key 'd' disagrees with the model's d = " + std::to_string(d);
@@ -166,6 +166,14 @@ LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::st
               [&] { return at + ": '" + dissipation_name(t) + "' appears twice"; });
       out.dissipation.push_back(t);
     }
+  }
+  if (spec.contains("friction")) {
+    require(spec.at("friction") == "in_kicks" || spec.at("friction") == "split", [&] {
+      return where + ": key 'friction' = " + short_dump(spec.at("friction")) +
+             ", expected \"in_kicks\" (Coulomb friction inside the kicks) or \"split\" (beside "
+             "them, as in model files written before 2026-11-29)";
+    });
+    out.coulomb_in_kicks = spec.at("friction") == "in_kicks";
   }
   if (spec.contains("inputs")) out.inputs = read_input_spec(spec.at("inputs"), where);
   return out;

@@ -17,11 +17,15 @@
 // A difference term's argument weighs its coordinates by fixed scales (constructor).
 //
 // Dissipation terms beyond γ (models/dissipation_terms.hpp: Coulomb friction and quadratic
-// drag on one momentum each) enter every stage of length τ as their exact flows over τ/2 on
-// each side of the conformal Strang step, in term order before it and in reverse order after
+// drag on one momentum each). Drag enters every stage of length τ as its exact flows over τ/2
+// on each side of the conformal Strang step, in term order before it and in reverse order after
 // it (a palindrome, so the stage stays symmetric):
 //
 //   F_{τ/2} = f_K ∘ … ∘ f_1 (each over τ/2),   stage = F_{τ/2}ᵀ ∘ (conformal Strang step) ∘ F_{τ/2}
+//
+// Coulomb friction on p_i enters each kick instead: the kick's p_i is the exact flow over τ/2 of
+// ṗ_i = −∂V/∂q_i − μ_i sign(p_i) with q fixed (coulomb_kick), so that a reversal or a stop
+// inside a kick is resolved exactly and the map stays second order across reversals.
 //
 // With them the map is no longer conformally symplectic (docs/derivations.md, "Dry friction
 // and drag"); without them (none given, or all rates 0) it is the map above to the bit.
@@ -71,7 +75,8 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // `dissipation`: terms repeated are refused, as are coordinates out of range.
   HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> terms, int order, Index substeps,
                         bool full_mass, double beta_init, Vector scales = {},
-                        std::vector<DissipationTerm> dissipation = {}, InputSpec inputs = {});
+                        std::vector<DissipationTerm> dissipation = {}, InputSpec inputs = {},
+                        bool coulomb_in_kicks = true);
 
   // A dissipation rate's start (init_params): nonzero, since |θ| has no slope at 0.
   static constexpr double kDissipationInit = 1e-3;
@@ -133,6 +138,10 @@ class HamiltonianLibraryMap final : public OneStepMap {
   Matrix input_matrix(ConstParams theta) const;
   // The stage weights b_s of one substep (they sum to 1).
   const std::vector<double>& stage_weights() const { return weights_; }
+  // Whether Coulomb friction runs inside the kicks (core key "friction": "in_kicks", the
+  // default) or as separate flows beside them, as drag ("split": model files written before
+  // 2026-11-29, which carry no key, run so).
+  bool coulomb_in_kicks() const { return coulomb_in_kicks_; }
 
   struct Context final : ForwardContext {
     const char* owner() const override { return "hamiltonian library"; }
@@ -156,6 +165,15 @@ class HamiltonianLibraryMap final : public OneStepMap {
   void mass_times(ConstParams theta, const double* x, double* out) const;
   Index stages_per_step() const { return substeps_ * static_cast<Index>(weights_.size()); }
   Index record_size() const { return 3 * d_ + 2 * static_cast<Index>(dissipation_.size()); }
+  // Whether dissipation term k runs inside the kicks.
+  bool in_kicks(Index k) const {
+    return coulomb_of_[static_cast<std::size_t>(dissipation_[static_cast<std::size_t>(k)].i)] == k;
+  }
+  // μ_i of coordinate i's Coulomb friction when it runs inside the kicks, else 0.
+  double coulomb_rate(ConstParams theta, Index i) const {
+    const Index k = coulomb_of_[static_cast<std::size_t>(i)];
+    return k < 0 ? 0.0 : std::abs(theta(dissipation_index(k)));
+  }
   // The dissipation flows over τ/2 opening a stage (closing: false, the reverse order), on p;
   // `starts` (K values, may be null) receives the p_i each flow started from.
   void dissipate(ConstParams theta, double half_tau, bool closing, double* p, double* starts) const;
@@ -164,6 +182,22 @@ class HamiltonianLibraryMap final : public OneStepMap {
   void dissipate_backward(ConstParams theta, double half_tau, bool closing, const double* starts,
                           double* pb, ParamsRef grad) const;
 
+  // Work space of kick_backward.
+  struct KickScratch {
+    KickScratch(Index d, Index m)
+        : plain(static_cast<std::size_t>(d)),
+          force(static_cast<std::size_t>(d)),
+          tmp(static_cast<std::size_t>(d)),
+          work(static_cast<std::size_t>(m)) {}
+    std::vector<double> plain, force, tmp, work;
+  };
+  // The reverse mode of one kick at q (time σ of the step, input column ucol or null): pb, the
+  // adjoint of p after it, becomes the adjoint before it; qb and grad collect the force's
+  // (∇V(q) and B u) and, with `fused`, each Coulomb rate's. `kicks` are the kicks' coulomb_kick
+  // results on the coordinates with friction (the others are plain kicks of τ/2).
+  void kick_backward(ConstParams theta, const std::vector<KickStep>& kicks, bool fused,
+                     const double* q, double sigma, const double* ucol, double tau, double* pb,
+                     double* qb, KickScratch& w, ParamsRef grad) const;
   // g −= B u(t₀ + σh) for one step's input column `u` (2m values); `work` holds m values.
   void add_force(ConstParams theta, const double* u, double sigma, double* g, double* work) const;
   // grad(B) += s · v u(t₀ + σh)ᵀ.
@@ -184,6 +218,9 @@ class HamiltonianLibraryMap final : public OneStepMap {
   // Per term: ∂u/∂q_i and ∂u/∂q_j (0 for a single coordinate).
   std::vector<double> wi_, wj_;
   std::vector<DissipationTerm> dissipation_;
+  bool coulomb_in_kicks_ = true;
+  // Per coordinate: the index k of its Coulomb term in dissipation_, or −1.
+  std::vector<Index> coulomb_of_;
   InputSpec inputs_;
   // Per stage boundary s = 0 … stages of one step: its time as a share σ_s of h (σ_0 = 0,
   // σ_stages = 1); a stage of weight b runs from σ_s to σ_{s+1} = σ_s + b/n.
@@ -203,9 +240,16 @@ struct LibrarySpec {
   Vector scales;  // empty: all 1
   // "dissipation": ["coulomb(p1)", "drag(p1)", ...]; absent: none.
   std::vector<DissipationTerm> dissipation;
+  // "friction": "in_kicks" | "split" (absent: "split", what files without the key ran).
+  bool coulomb_in_kicks = false;
   // "inputs": {"m": m, "hold": "foh"|"zoh", "B": "row-major"}; absent: none (m = 0).
   InputSpec inputs;
 };
 LibrarySpec read_library_spec(const nlohmann::json& spec, Index d, const std::string& where);
+
+// A core spec's "dissipation" (the terms' names) and, with a Coulomb term, "friction": both
+// erased first, written only when there are terms (a spec without them stays as it was).
+void set_dissipation_spec(nlohmann::json& core, const std::vector<DissipationTerm>& terms,
+                          bool coulomb_in_kicks = true);
 
 }  // namespace csympnet

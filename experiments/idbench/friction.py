@@ -24,6 +24,8 @@ Strata (the plan takes them in turn; a case's draws come from its own seed):
                         damping over the first decay (share U(0.35, 0.65)), two decays of 40 s
                         from 0.6-1.2 rad; positions only, in counts with an offset of
                         1,000-30,000 counts, no other noise
+    coulomb-2dof        two masses in a chain, each with its own dry friction, with velocities
+    coulomb-2dof-positions   the same, positions alone (idbench/friction_chain.py)
 
 Records are exact: the oscillators in closed form between reversals (Coulomb) or RK4 at 400
 substeps a sample (drag); the pendulum by RK4 at 40 substeps a sample, each reversal located by
@@ -34,7 +36,9 @@ import math
 
 import numpy as np
 
-FRICTION_STRATA = ["viscous", "coulomb", "drag", "coulomb-positions", "encoder-pendulum"]
+from .friction_chain import CHAIN_STRATA, generate_chain
+
+FRICTION_STRATA = ["viscous", "coulomb", "drag", "coulomb-positions", "encoder-pendulum"] + CHAIN_STRATA
 ENCODER_COUNTS = 1024
 
 
@@ -197,6 +201,8 @@ def generate_friction(case, quick=False):
     offset, noise)."""
     rng = np.random.default_rng(case["seed"])
     st = case["stratum"]
+    if st in CHAIN_STRATA:
+        return generate_chain(case, rng, quick)
     span = 20.0 if quick else 40.0
     if st == "encoder-pendulum":
         truth = _pendulum_truth(rng)
@@ -235,11 +241,16 @@ def generate_friction(case, quick=False):
 
 
 def write_friction_csv(path, rec):
-    cols = ["traj", "t", "q1"] + ([] if rec["p"] is None else ["p1"])
+    q = rec["q"].reshape(rec["t"].size, -1)
+    p = None if rec["p"] is None else rec["p"].reshape(rec["t"].size, -1)
+    d = q.shape[1]
+    cols = (["traj", "t"] + [f"q{i + 1}" for i in range(d)]
+            + ([] if p is None else [f"p{i + 1}" for i in range(d)]))
     with open(path, "w") as f:
         f.write(",".join(cols) + "\n")
         for k in range(rec["t"].size):
-            row = [f"{int(rec['traj'][k])}", f"{rec['t'][k]:.17g}", f"{rec['q'][k]:.17g}"]
-            if rec["p"] is not None:
-                row.append(f"{rec['p'][k]:.17g}")
+            row = [f"{int(rec['traj'][k])}", f"{rec['t'][k]:.17g}"]
+            row += [f"{x:.17g}" for x in q[k]]
+            if p is not None:
+                row += [f"{x:.17g}" for x in p[k]]
             f.write(",".join(row) + "\n")

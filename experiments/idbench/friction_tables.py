@@ -96,12 +96,18 @@ def _cell(r):
     g = f"{r['gamma_hat']:.4g}"
     if r.get("ci_low") is not None:
         g += f" [{r['ci_low']:.4g}, {r['ci_high']:.4g}]"
-    rate = r.get("rate")
-    if rate and rate.get("value") is not None:
-        g += f"; {rate['kind']} {rate['value']:.4g}"
+    for rate in r.get("rates") or ([r["rate"]] if r.get("rate") else []):
+        if rate.get("value") is None:
+            continue
+        g += f"; {rate['kind']}" + (f" {rate['dof']}" if rate.get("dof") else "")
+        g += f" {rate['value']:.4g}"
         if rate.get("low") is not None:
             g += f" [{rate['low']:.4g}, {rate['high']:.4g}]"
     return g
+
+
+def _rates(x):
+    return "; ".join(f"{v:.4g}" for v in x) if isinstance(x, list) else f"{x:.4g}"
 
 
 def case_table(cases):
@@ -112,7 +118,7 @@ def case_table(cases):
         t = c["truth"]
         cs = c["methods"].get("csympnet", {})
         lines.append(f"| {c['id']} | {t['kind']} | {t['gamma']:.4g} | "
-                     f"{t['rate_in_units']:.4g} | {_cell(cs)} | "
+                     f"{_rates(t['rate_in_units'])} | {_cell(cs)} | "
                      f"{','.join(cs.get('kinds', [])) or '-'} | "
                      f"{_cell(c['methods'].get('oracle'))} | "
                      f"{_cell(c['methods'].get('envelope'))} |")

@@ -20,7 +20,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "..", "experiments"))
 
 from idbench import friction  # noqa: E402
-from idbench.friction_plan import csympnet_dissipation  # noqa: E402
+from idbench import friction_chain  # noqa: E402
+from idbench.friction_plan import csympnet_dissipation, score_rate  # noqa: E402
 from idbench.peers.friction_oracle import friction_oracle  # noqa: E402
 from idbench.peers.friction_textbook import envelope_fit  # noqa: E402
 
@@ -124,9 +125,49 @@ def test_csympnet_dissipation_terms_are_read_beyond_the_viscous_one():
         {"kind": "coulomb", "dof": 0, "value": 0.3, "low": 0.28, "high": 0.32, "unit": "x"}]}}
     with open(os.path.join(tmp, "report.json"), "w") as f:
         json.dump(rep, f)
-    assert csympnet_dissipation(tmp) == [{"kind": "coulomb", "value": 0.3, "low": 0.28,
-                                          "high": 0.32}]
+    assert csympnet_dissipation(tmp) == [{"kind": "coulomb", "dof": 0, "value": 0.3,
+                                          "low": 0.28, "high": 0.32}]
     assert csympnet_dissipation(os.path.join(tmp, "absent")) is None
+
+
+def test_the_two_mass_chain_decoupled_is_the_one_dof_closed_form_on_each_mass():
+    h, g = 2 * math.pi / 2.9 / 30, 0.08
+    k = np.diag([2.1 ** 2, 2.9 ** 2])
+    z = friction_chain.simulate_chain(k, g, [0.2, 0.1], [1.4, -1.1], [0.3, 0.5], h, 600)
+    a = friction.simulate("coulomb", 2.1, g, 0.2, 1.4, 0.3, h, 600)
+    b = friction.simulate("coulomb", 2.9, g, 0.1, -1.1, 0.5, h, 600)
+    assert np.max(np.abs(z[:, [0, 2]] - a)) < 1e-12, np.max(np.abs(z[:, [0, 2]] - a))
+    assert np.max(np.abs(z[:, [1, 3]] - b)) < 1e-12, np.max(np.abs(z[:, [1, 3]] - b))
+    assert a[-1, 1] == 0.0 and z[-1, 2] == 0.0  # both at rest for good by the end
+
+
+def test_the_coupled_chain_loses_energy_sticks_in_its_dead_band_and_converges():
+    # coupled masses: the energy 1/2 v.v + 1/2 q.K q never rises; at a sample where a mass is
+    # at rest its spring force is within its friction (it sticks); the record ends at rest with
+    # both in their dead bands; and the event location is exact: halving the step agrees
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        t = friction_chain.chain_truth(rng)
+        k, mu = np.array(t["k"]), np.array(t["rate"])
+        h = 2 * math.pi / max(t["omega"]) / 30
+        z = friction_chain.simulate_chain(k, t["gamma"], mu, [1.5, -0.9], [0.2, -0.4], h, 1500)
+        q, v = z[:, :2], z[:, 2:]
+        energy = 0.5 * np.sum(v * v, axis=1) + 0.5 * np.einsum("ni,ij,nj->n", q, k, q)
+        assert np.all(np.diff(energy) <= 1e-12 * energy[0]), np.max(np.diff(energy))
+        assert np.all(v[-1] == 0.0) and np.all(np.abs(k @ q[-1]) <= mu * (1 + 1e-12))
+        fine = friction_chain.simulate_chain(k, t["gamma"], mu, [1.5, -0.9], [0.2, -0.4],
+                                             h / 2, 2999)[::2]
+        assert np.max(np.abs(fine - z)) < 1e-9, np.max(np.abs(fine - z))
+
+
+def test_rates_of_two_masses_are_scored_by_their_worst():
+    truth = {"kind": "coulomb", "rate_in_units": [0.1, 0.2]}
+    res = {"status": "ok", "rate": {"kind": "coulomb", "dof": 1, "value": 0.105},
+           "rates": [{"kind": "coulomb", "dof": 1, "value": 0.105, "low": 0.1, "high": 0.11},
+                     {"kind": "coulomb", "dof": 2, "value": 0.22, "low": 0.21, "high": 0.23}]}
+    r = score_rate(res, truth)
+    assert abs(r["rate_rel_err"] - 0.1) < 1e-12 and r["rate_covers"] is False
+    assert r["rate_dofs_covered"] == 1
 
 
 def test_friction_plan_runs_from_the_command_line_and_is_deterministic():

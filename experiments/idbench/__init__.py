@@ -10,7 +10,7 @@ long, encoder counts, decays into the noise) with its own tables in observed_tab
 forced case: linear ARX, polynomial NARX, the shooting oracle and csympnet, in peers/arx.py,
 peers/narx.py, peers/forced_oracle.py, peers/csympnet.py) and forced_tables; friction (the
 friction plan's exact decays with dry friction or drag, and an encoder-read pendulum with dry
-friction), friction_plan (one case: csympnet, the oracle of peers/friction_oracle.py and the
+friction), friction_chain (its two-mass records with dry friction on each mass), friction_plan (one case: csympnet, the oracle of peers/friction_oracle.py and the
 envelope fit of peers/friction_textbook.py) and friction_tables.
 
 Command (from the repository root; needs only /usr/bin/python3 with NumPy):
@@ -52,8 +52,8 @@ inputs and idbench/forced_plan.py for the methods and the free-run score). With 
 csympnet is `csympnet fit` on the training file then `csympnet evaluate --warmup 100` on each
 test file; a binary that refuses the input columns is recorded "unsupported" and the peers'
 tables are written all the same. --friction-plan (the friction plan instead: --cases in all,
-default 20, 5 with --quick; the strata viscous, coulomb, drag, coulomb-positions and
-encoder-pendulum taken in turn, --friction-strata a,b,... a subset; see idbench/friction.py for
+default 20, 5 with --quick; the strata viscous, coulomb, drag, coulomb-positions,
+encoder-pendulum, coulomb-2dof and coulomb-2dof-positions taken in turn, --friction-strata a,b,... a subset; see idbench/friction.py for
 the records and idbench/friction_plan.py for the methods and the scores).
 
 Systems (dq/dt = M^-1 p, dp/dt = -grad V(q) - gamma p, unit masses, unless stated):

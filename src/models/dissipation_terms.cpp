@@ -73,11 +73,14 @@ FlowStep dissipation_flow(DissipationKind kind, double p, double rate, double ta
 
 namespace {
 
-// ṗ = c − m sign(p) over T ≥ 0; m < 0 (the backward flow's anti-friction) never sticks.
+// ṗ = c − m sign(p) over T ≥ 0. m < 0 is the backward flow's anti-friction: a moving p never
+// stops under it, and a p at rest with |c| ≤ |m| stays at rest (one of the backward
+// solutions; the one that undoes a forward stop, so that the triple jump's negative stage keeps
+// a mass at rest where it is).
 KickStep kick_forward(double x, double c, double m, double T) {
   KickStep out;
   if (x == 0.0) {
-    if (std::abs(c) <= m) {  // at rest, and the friction holds it
+    if (std::abs(c) <= std::abs(m)) {  // at rest, and the friction holds it
       out.p = out.dp = 0.0;
       return out;
     }

@@ -590,8 +590,10 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
   require(z0.rows() == dim && z0.cols() == train.size(), "shooting: z0 must be 2d x segments");
   const double scale = 1.0 / std::sqrt(static_cast<double>(train.n_residuals()));
   const auto stop = [&] { return options.should_stop && options.should_stop(); };
+  // The held-out loss is compared at its standard error: its start states to kScoringTolerance.
   const auto val_loss = [&](ConstParams th, Matrix& vz) {
-    return val.size() > 0 ? fit_start_states(map, th, val, vz, 30, false, options.max_abs_state)
+    return val.size() > 0 ? fit_start_states(map, th, val, vz, 30, false, options.max_abs_state,
+                                             kScoringTolerance)
                           : 0.0;
   };
 

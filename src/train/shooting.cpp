@@ -376,9 +376,9 @@ NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams the
 namespace {
 
 // One segment's start state by Levenberg–Marquardt on its 2d unknowns, θ fixed, from z (updated
-// in place), until an accepted step lowers ‖r‖² by at most `tolerance` of itself. Returns ‖r‖²
-// after (infinite when no start gives a finite rollout). B is recomputed only when another step
-// is taken, from the rollout the accepted trial already ran.
+// in place), until an accepted step, or the Gauss–Newton step predicted, lowers ‖r‖² by at most
+// `tolerance` of itself. Returns ‖r‖² after (infinite when no start gives a finite rollout). B is
+// recomputed only when another step is taken, from the rollout the accepted trial already ran.
 double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
                      const Vector& w, const Vector& rw, Eigen::Ref<Vector> z, long iterations,
                      double max_abs, const Matrix& inputs, double tolerance) {
@@ -397,6 +397,9 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
     b_current = true;
     const Matrix u = b.transpose() * b;
     const Vector gb = b.transpose() * r;
+    // The Gauss–Newton step would lower ‖r‖² by gbᵀU⁻¹gb: below the tolerance, no step is tried
+    // (at rounding level a trial only fails, and λ climbs through a dozen more rollouts).
+    if (gb.dot(small_factor(u).solve(gb)) <= tolerance * cost) break;
     Matrix ul = u;
     ul.diagonal() += lambda * marquardt_diagonal(u);
     const Vector trial = z - small_factor(ul).solve(gb);

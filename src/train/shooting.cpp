@@ -475,6 +475,7 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
                         Matrix& z0, long iterations, bool several_starts, double max_abs,
                         double tolerance) {
   const Index d = segs.d;
+  double sum = 0.0;
   for (Index s = 0; s < segs.size(); ++s) {
     throw_if_stop_requested("the fit of the hidden start states");
     const auto i = static_cast<std::size_t>(s);
@@ -488,6 +489,7 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
         fit_one_start(map, theta, q, h, w, rw, best, iterations, max_abs, u, tolerance);
     if (!several_starts) {
       z0.col(s) = best;
+      sum += best_cost;
       continue;
     }
     // The given start, then p = 0 and the p that carries q[0] to q[1] in one step, each from
@@ -510,7 +512,12 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
       }
     }
     z0.col(s) = best;
+    sum += best_cost;
   }
+  // Each segment's ‖r‖² was computed at its start state by its last rollout; only where one is
+  // not finite (no finite rollout, or a start beyond max_abs) is the loss rolled out again.
+  const Index n = segs.n_residuals();
+  if (std::isfinite(sum)) return n > 0 ? sum / static_cast<double>(n) : 0.0;
   return shooting_loss(map, theta, z0, segs);
 }
 

@@ -419,7 +419,8 @@ DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& n
   first_positions(cut.train, z0);
   first_positions(cut.val, vz0);
   fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
-  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState);
+  // Held out: scored only (fit_shooting refits them at once).
+  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState, kScoringTolerance);
   ShootingOptions opt;
   opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
                                             : max_iterations;

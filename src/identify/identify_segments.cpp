@@ -116,7 +116,8 @@ Index segment_length(const OneStepMap& map, ConstParams theta,
   for (Index len = 10; len <= longest;
        len = len * 2 > longest && len < longest ? longest : 2 * len) {
     Cut c = cut_segments(blocks, d, len, rows);
-    const double loss = fit_start_states(map, theta, c.segs, c.z0, 30, true, kMaxAbsState);
+    const double loss =
+        fit_start_states(map, theta, c.segs, c.z0, 30, true, kMaxAbsState, kScoringTolerance);
     const double corrected = loss * static_cast<double>(len) / static_cast<double>(len - 2);
     const double growth = largest_sensitivity(map, theta, c);
     // A length over which the rollout amplifies perturbations beyond 1e3 is not a candidate.
@@ -220,7 +221,9 @@ SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& t
                         const Cut& val, const ShootingOptions& opt) {
   SegmentFit out{theta, train, val, {}};
   fit_start_states(map, out.theta, out.train.segs, out.train.z0, 30, true, kMaxAbsState);
-  fit_start_states(map, out.theta, out.val.segs, out.val.z0, 30, true, kMaxAbsState);
+  // Held out: scored only (fit_shooting refits them at once).
+  fit_start_states(map, out.theta, out.val.segs, out.val.z0, 30, true, kMaxAbsState,
+                   kScoringTolerance);
   out.rep = fit_shooting(map, out.theta, out.train.z0, out.train.segs, out.val.z0, out.val.segs,
                          detail::watching_damping(map, opt));
   return out;

@@ -63,7 +63,8 @@ void estimate_row_weights(const OneStepMap& map, ConstParams theta, Index d, Cut
   train.segs.row_weight = Vector::Ones(2 * d);
   Vector sigma;
   for (int round = 0; round < 2; ++round) {
-    fit_start_states(map, theta, train.segs, train.z0, 30, round == 0, kMaxAbsState);
+    fit_start_states(map, theta, train.segs, train.z0, 30, round == 0, kMaxAbsState,
+                     kScoringTolerance);
     sigma = row_noise(map, theta, train);
     train.segs.row_weight = weights_from_noise(sigma, d);
   }

@@ -144,13 +144,11 @@ void driven_step_rows(const OneStepMap& map, ConstParams theta, const Matrix& z,
   }
 }
 
-// B = ∂r/∂z0 along one segment (the T recursion alone), with its residuals.
-void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
+// B = ∂r/∂z0 along one segment (the T recursion alone), from its rollout z (2d × L).
+void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Matrix& z,
                           const Matrix& q, const Vector& h, const Vector& w, const Vector& rw,
-                          Matrix& b, Vector& r, const Matrix& u = Matrix()) {
-  const Index o = q.rows(), len = q.cols(), dim = z0.size();
-  const Matrix z = shooting_states(map, theta, z0, h, u);
-  r = position_residuals(z, q, w, rw);
+                          Matrix& b, const Matrix& u) {
+  const Index o = q.rows(), len = q.cols(), dim = z.rows();
   b.resize(len * o, dim);
   Matrix t = Matrix::Identity(dim, dim);
   for (Index k = 0; k < len; ++k) {
@@ -378,36 +376,50 @@ NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams the
 namespace {
 
 // One segment's start state by Levenberg–Marquardt on its 2d unknowns, θ fixed, from z (updated
-// in place). Returns ‖r‖² after (infinite when no start gives a finite rollout).
+// in place), until an accepted step, or the Gauss–Newton step predicted, lowers ‖r‖² by at most
+// `tolerance` of itself. Returns ‖r‖² after (infinite when no start gives a finite rollout). B is
+// recomputed only when another step is taken, from the rollout the accepted trial already ran.
 double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
                      const Vector& w, const Vector& rw, Eigen::Ref<Vector> z, long iterations,
-                     double max_abs, const Matrix& inputs) {
-  Matrix b;
-  Vector r, r_try;
+                     double max_abs, const Matrix& inputs, double tolerance) {
+  Matrix states = shooting_states(map, theta, z, h, inputs), b;
+  Vector r = position_residuals(states, q, w, rw);
   double lambda = 1e-3;
-  start_state_jacobian(map, theta, z, q, h, w, rw, b, r, inputs);
-  double cost = r.allFinite() && b.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs
-                    ? r.squaredNorm()
-                    : std::numeric_limits<double>::infinity();
+  double cost = std::numeric_limits<double>::infinity();
+  if (r.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs) {
+    start_state_jacobian(map, theta, states, q, h, w, rw, b, inputs);
+    if (b.allFinite()) cost = r.squaredNorm();
+  }
+  bool b_current = true;  // b is B at z
   for (long it = 0; it < iterations && std::isfinite(cost); ++it) {
     throw_if_stop_requested("the fit of a hidden start state");
+    if (!b_current) start_state_jacobian(map, theta, states, q, h, w, rw, b, inputs);
+    b_current = true;
     const Matrix u = b.transpose() * b;
     const Vector gb = b.transpose() * r;
+    // The Gauss–Newton step would lower ‖r‖² by gbᵀU⁻¹gb: below the tolerance, no step is tried
+    // (at rounding level a trial only fails, and λ climbs through a dozen more rollouts).
+    if (gb.dot(small_factor(u).solve(gb)) <= tolerance * cost) break;
     Matrix ul = u;
     ul.diagonal() += lambda * marquardt_diagonal(u);
     const Vector trial = z - small_factor(ul).solve(gb);
     // A start state beyond the bound is a run along a direction the positions do not fix.
-    const double c_try =
-        trial.cwiseAbs().maxCoeff() <= max_abs
-            ? position_residuals(shooting_states(map, theta, trial, h, inputs), q, w, rw)
-                  .squaredNorm()
-            : std::numeric_limits<double>::infinity();
+    Matrix trial_states;
+    Vector r_try;
+    double c_try = std::numeric_limits<double>::infinity();
+    if (trial.cwiseAbs().maxCoeff() <= max_abs) {
+      trial_states = shooting_states(map, theta, trial, h, inputs);
+      r_try = position_residuals(trial_states, q, w, rw);
+      c_try = r_try.squaredNorm();
+    }
     if (std::isfinite(c_try) && c_try < cost) {
       z = trial;
-      const bool done = cost - c_try <= 1e-14 * cost;
+      states = std::move(trial_states);
+      r = std::move(r_try);
+      const bool done = cost - c_try <= tolerance * cost;
       lambda = std::max(lambda / 3.0, 1e-12);
-      start_state_jacobian(map, theta, z, q, h, w, rw, b, r, inputs);
-      cost = r.squaredNorm();
+      b_current = false;
+      cost = c_try;
       if (done) break;
     } else {
       lambda *= 4.0;
@@ -460,8 +472,10 @@ Vector one_step_momentum(const OneStepMap& map, ConstParams theta, const Vector&
 }  // namespace
 
 double fit_start_states(const OneStepMap& map, ConstParams theta, const ShootingSegments& segs,
-                        Matrix& z0, long iterations, bool several_starts, double max_abs) {
+                        Matrix& z0, long iterations, bool several_starts, double max_abs,
+                        double tolerance) {
   const Index d = segs.d;
+  double sum = 0.0;
   for (Index s = 0; s < segs.size(); ++s) {
     throw_if_stop_requested("the fit of the hidden start states");
     const auto i = static_cast<std::size_t>(s);
@@ -471,9 +485,11 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
     const Matrix& u = segs.inputs(s);
     Vector best = z0.col(s);
     const Vector& rw = segs.row_weight;
-    double best_cost = fit_one_start(map, theta, q, h, w, rw, best, iterations, max_abs, u);
+    double best_cost =
+        fit_one_start(map, theta, q, h, w, rw, best, iterations, max_abs, u, tolerance);
     if (!several_starts) {
       z0.col(s) = best;
+      sum += best_cost;
       continue;
     }
     // The given start, then p = 0 and the p that carries q[0] to q[1] in one step, each from
@@ -489,14 +505,19 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
         z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
                            : one_step_momentum(map, theta, q.col(0), q.col(1), h(0), u);
       }
-      const double c = fit_one_start(map, theta, q, h, w, rw, z, iterations, max_abs, u);
+      const double c = fit_one_start(map, theta, q, h, w, rw, z, iterations, max_abs, u, tolerance);
       if (c < best_cost) {
         best_cost = c;
         best = z;
       }
     }
     z0.col(s) = best;
+    sum += best_cost;
   }
+  // Each segment's ‖r‖² was computed at its start state by its last rollout; only where one is
+  // not finite (no finite rollout, or a start beyond max_abs) is the loss rolled out again.
+  const Index n = segs.n_residuals();
+  if (std::isfinite(sum)) return n > 0 ? sum / static_cast<double>(n) : 0.0;
   return shooting_loss(map, theta, z0, segs);
 }
 
@@ -579,8 +600,10 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
   require(z0.rows() == dim && z0.cols() == train.size(), "shooting: z0 must be 2d x segments");
   const double scale = 1.0 / std::sqrt(static_cast<double>(train.n_residuals()));
   const auto stop = [&] { return options.should_stop && options.should_stop(); };
+  // The held-out loss is compared at its standard error: its start states to kScoringTolerance.
   const auto val_loss = [&](ConstParams th, Matrix& vz) {
-    return val.size() > 0 ? fit_start_states(map, th, val, vz, 30, false, options.max_abs_state)
+    return val.size() > 0 ? fit_start_states(map, th, val, vz, 30, false, options.max_abs_state,
+                                             kScoringTolerance)
                           : 0.0;
   };
 

@@ -1,7 +1,8 @@
 // Multiple shooting on positions (train/shooting.hpp): the segment Jacobians in θ and in the
 // start state against central differences, the eliminated normal equations against the Schur
 // complement of the explicit JᵀJ, and the fits: start states recovered from exact positions,
-// and a joint fit from perturbed parameters that returns to the positions' noise floor.
+// held-out start states to kScoringTolerance against those to rounding, and a joint fit from
+// perturbed parameters that returns to the positions' noise floor.
 #include "csympnet/train/shooting.hpp"
 
 #include <cmath>
@@ -283,6 +284,42 @@ TEST_P(ShootingTest, FitsRecoverExactPositions) {
   EXPECT_LT(rep.final_loss, 1e-6 * before) << rep.message;
   EXPECT_LT(rep.val_loss, 1e-6 * before) << rep.message;
   EXPECT_LE(rep.best_iteration, rep.iterations);
+}
+
+// Noisy positions: a fit of the start states to kScoringTolerance (held-out segments) ends at
+// the loss of the fit to rounding within a millionth of it, and the loss either returns is the
+// loss of the start states it leaves (each segment's cost summed, not rolled out again).
+TEST_P(ShootingTest, ScoringToleranceReachesTheConvergedLoss) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2;
+  Rng rng(37, GetParam());
+  const Vector theta = random_theta(*map, rng, 0.3, 0.3);
+  ShootingSegments segs;
+  segs.d = d;
+  const int count = 8;
+  Matrix z_true(2 * d, count);
+  for (int k = 0; k < count; ++k) {
+    z_true.col(k) = rng.normal_matrix(2 * d, 1, 0.6);
+    const Vector h = Vector::Constant(15, 0.1);
+    segs.q.push_back(shooting_states(*map, theta, z_true.col(k), h).topRows(d) +
+                     rng.normal_matrix(d, 16, 0.01));
+    segs.h.push_back(h);
+    segs.block.push_back(k % 4);
+  }
+  const Matrix guess = z_true + 0.3 * rng.normal_matrix(2 * d, count, 1.0);
+  Matrix tight = guess, loose = guess;
+  const double tight_loss = fit_start_states(*map, theta, segs, tight);
+  const double loose_loss =
+      fit_start_states(*map, theta, segs, loose, 30, false, std::numeric_limits<double>::infinity(),
+                       kScoringTolerance);
+  ASSERT_GT(tight_loss, 1e-6);  // the noise floor, not an exact fit
+  EXPECT_NEAR(tight_loss, shooting_loss(*map, theta, tight, segs), 1e-13 * tight_loss);
+  EXPECT_NEAR(loose_loss, shooting_loss(*map, theta, loose, segs), 1e-13 * loose_loss);
+  EXPECT_GE(loose_loss, tight_loss * (1.0 - 1e-12));
+  EXPECT_LE(loose_loss, tight_loss * (1.0 + 1e-6));
+  // Already converged, a refit to either tolerance keeps the loss.
+  Matrix again = tight;
+  EXPECT_LE(fit_start_states(*map, theta, segs, again), tight_loss * (1.0 + 1e-14));
 }
 
 // A rollout from positions alone: the state at the window's end, from positions the map made,

@@ -115,9 +115,18 @@ NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams the
 // from the motion, or in another basin, is then not final). Returns the loss after.
 // max_abs: a bound on every component of a start state (a trial step beyond it is refused): in
 // a direction the positions do not fix (a saturated core), the fit would otherwise run off.
+// tolerance: a segment's fit ends after an accepted step that lowers its ‖r‖² by at most this
+// fraction of itself (the default, to rounding; kScoringTolerance where only the loss is used).
 double fit_start_states(const OneStepMap& map, ConstParams theta, const ShootingSegments& segs,
                         Matrix& z0, long iterations = 30, bool several_starts = false,
-                        double max_abs = std::numeric_limits<double>::infinity());
+                        double max_abs = std::numeric_limits<double>::infinity(),
+                        double tolerance = 1e-14);
+
+// fit_start_states' tolerance where the loss only scores θ (held-out segments, a comparison of
+// segment lengths): that loss is compared at the level of its standard error, loss · √(2/n),
+// above 1e-3 of itself for up to 10⁶ residuals, so a start state converged further than 1e-8
+// of ‖r‖² only repeats rollouts.
+inline constexpr double kScoringTolerance = 1e-8;
 
 struct ShootingOptions {
   long iterations = 100;  // trial steps at most

@@ -539,8 +539,10 @@ IntervalBasis interval_basis(const CoreFit& f, const Vector& theta, const nlohma
   at.balanced = f.config.balanced;
   at.train_loss = train_loss;
   at.val_loss = val_loss;
-  if (core.is_object() && core.value("type", nlohmann::json()) == "library")
+  if (core.is_object() && core.value("type", nlohmann::json()) == "library") {
     at.library = f.choices.value("library", nlohmann::json::object());
+    at.library_core = core;
+  }
   return at;
 }
 

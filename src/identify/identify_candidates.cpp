@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 
+#include <Eigen/Cholesky>
+
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "identify_evaluators.hpp"
@@ -203,6 +205,26 @@ void CandidateFit::lm(Candidate& x, long budget, const std::string& label) {
   x.lm = rep;
   x.lm_best_iteration = monitor.best_iteration();
   x.lm_seconds += seconds_since(t0);
+}
+
+Vector CandidateFit::gauss_newton_step(const Candidate& x) const {
+  const WindowSet& train = split_->train;
+  const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
+  const auto stop = [this] { return stop_requested(); };
+  const NormalEquations ne = normal_equations_over_ranks(*x.inner.map, x.theta, train, c_->balanced,
+                                                         sc, false, stop, *comm_);
+  if (ne.stopped) return {};
+  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+  const Vector diag = a.diagonal().cwiseMax(1e-300);
+  for (double mu = 1e-9; mu < 1e3; mu *= 100.0) {
+    Matrix lhs = a;
+    lhs.diagonal() += mu * diag;
+    const Eigen::LDLT<Matrix> f(lhs);
+    if (f.info() != Eigen::Success) continue;
+    Vector step = -f.solve(ne.g);
+    if (step.allFinite()) return step;
+  }
+  return Vector::Zero(x.theta.size());
 }
 
 namespace {

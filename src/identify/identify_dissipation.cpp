@@ -101,6 +101,20 @@ double user_value(const HamiltonianLibraryMap& map, const Vector& theta, const N
 
 }  // namespace
 
+std::vector<double> dissipation_relative_changes(const OneStepMap& any_map, const Vector& theta,
+                                                 const Vector& moved) {
+  std::vector<double> out;
+  const auto* map = dynamic_cast<const HamiltonianLibraryMap*>(&any_map);
+  if (map == nullptr) return out;
+  const Normalization none;
+  for (Index k = 0; k < static_cast<Index>(map->dissipation().size()); ++k) {
+    const double v0 = user_value(*map, theta, none, k), v1 = user_value(*map, moved, none, k);
+    const double rel = std::abs(v1 - v0) / std::max(std::abs(v0), 1e-300);
+    out.push_back(std::isfinite(rel) ? rel : 0.0);
+  }
+  return out;
+}
+
 nlohmann::json dissipation_terms_report(const OneStepMap& any_map, const Vector& theta,
                                         const Normalization& units,
                                         const HamiltonianIntervalInput& in,
@@ -122,9 +136,9 @@ nlohmann::json dissipation_terms_report(const OneStepMap& any_map, const Vector&
         tm(j) -= step;
         grad(j) = (user_value(*map, tp, units, k) - user_value(*map, tm, units, k)) / (2.0 * step);
       }
-      SandwichInterval iv =
-          sandwich_interval_of(in.ne->a, in.ne->g, in.ne->scores, grad, value, in.n_residuals,
-                               in.ne->cost, in.residual_scale, 0.0, in.level);
+      SandwichInterval iv = sandwich_interval_of(in.ne->a, in.ne->g, in.ne->scores, grad, value,
+                                                 in.n_residuals, in.ne->cost, in.residual_scale,
+                                                 0.0, in.level, &in.ne->block_information);
       inflate_interval(iv, in.inflation);
       if (static_cast<std::size_t>(k) < integrator.size())
         add_integrator(iv, integrator[static_cast<std::size_t>(k)] * std::abs(value));

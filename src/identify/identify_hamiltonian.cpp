@@ -194,9 +194,9 @@ nlohmann::json hamiltonian_report(const OneStepMap& any_map, const Vector& theta
     }
   const auto interval_of = [&](Index k) -> nlohmann::json {
     if (in.ne == nullptr) return nullptr;
-    SandwichInterval iv = sandwich_interval_of(in.ne->a, in.ne->g, in.ne->scores, grad.col(k),
-                                               v[static_cast<std::size_t>(k)], in.n_residuals,
-                                               in.ne->cost, in.residual_scale, 0.0, in.level);
+    SandwichInterval iv = sandwich_interval_of(
+        in.ne->a, in.ne->g, in.ne->scores, grad.col(k), v[static_cast<std::size_t>(k)],
+        in.n_residuals, in.ne->cost, in.residual_scale, 0.0, in.level, &in.ne->block_information);
     inflate_interval(iv, in.inflation);
     return nlohmann::json::array({iv.low, iv.high});
   };

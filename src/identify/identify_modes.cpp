@@ -147,8 +147,9 @@ Modes modal_analysis(const OneStepMap& map, ConstParams theta_fitted, const Wind
   const NormalEquations& ne = *in.ne;
   const auto interval_of = [&](const Vector& grad, double value, double unit) {
     if (!(grad.squaredNorm() > 0.0)) return std::optional<SandwichInterval>();
-    SandwichInterval iv = sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals,
-                                               ne.cost, in.residual_scale, in.data_scale, level);
+    SandwichInterval iv =
+        sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, in.n_residuals, ne.cost,
+                             in.residual_scale, in.data_scale, level, &ne.block_information);
     inflate_interval(iv, in.inflation);
     for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich, &iv.model_based,
                       &iv.optimisation, &iv.rounding})

@@ -4,12 +4,18 @@
 // library core's terms judged on the linked chain (identify_segments.hpp).
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include <Eigen/Cholesky>
+
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
+#include "csympnet/models/model.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "identify_chain.hpp"
@@ -147,7 +153,104 @@ NormalEquations embedded(const NormalEquations& ne, Index p) {
   out.cost = ne.cost;
   out.scores = Matrix::Zero(p, ne.scores.cols());
   out.scores.topRows(nf) = ne.scores;
+  for (const Matrix& info : ne.block_information) {
+    out.block_information.push_back(Matrix::Zero(p, p));
+    out.block_information.back().topLeftCorner(nf, nf) = info;
+  }
   return out;
+}
+
+// One Gauss–Newton step of the reduced shooting problem (start states eliminated) from θ:
+// −(Ã + μD)⁻¹ g̃, μ a ridge at 1e-9 of the diagonal; empty when stopped.
+Vector shooting_gauss_newton_step(const OneStepMap& map, const Vector& theta, const Cut& train,
+                                  Index n_free, const std::function<bool()>& stop) {
+  const double scale = 1.0 / std::sqrt(static_cast<double>(train.segs.n_residuals()));
+  const NormalEquations ne =
+      shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, false, stop);
+  if (ne.stopped) return {};
+  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+  const Vector diag = a.diagonal().cwiseMax(1e-300);
+  for (double mu = 1e-9; mu < 1e3; mu *= 100.0) {
+    Matrix lhs = a;
+    lhs.diagonal() += mu * diag;
+    const Eigen::LDLT<Matrix> f(lhs);
+    if (f.info() != Eigen::Success) continue;
+    Vector step = Vector::Zero(theta.size());
+    step.head(n_free) = -f.solve(ne.g);
+    if (step.allFinite()) return step;
+  }
+  return Vector::Zero(theta.size());
+}
+
+// Where the library core's fit over these segments moves when its integrator takes twice the
+// substeps: one Gauss–Newton step at 2n less the step at n (what the fit's own optimisation
+// left is in both), so the integrator's share is measured on the fit the interval is formed
+// from, not on the one-step windows (which fix γ too loosely for the difference to mean
+// anything). θ moved by that difference; empty for any other core, or when stopped.
+std::optional<Vector> integrator_moved(const OneStepMap& map, const nlohmann::json& core,
+                                       const Vector& theta, const Cut& train, Index n_free,
+                                       const std::function<bool()>& stop) {
+  if (!core.is_object() || core.value("type", "") != "library" || !core.contains("substeps"))
+    return std::nullopt;
+  nlohmann::json fine = core;
+  fine["substeps"] = 2 * core["substeps"].get<Index>();
+  const Model finer =
+      make_model({{"type", "csympnet"}, {"d", train.segs.d}, {"core", fine}, {"beta_init", 1.0}});
+  if (!finer.is_map() || finer.n_params() != map.n_params()) return std::nullopt;
+  const Vector step2 = shooting_gauss_newton_step(*finer.map, theta, train, n_free, stop);
+  const Vector step1 = shooting_gauss_newton_step(map, theta, train, n_free, stop);
+  if (step2.size() != theta.size() || step1.size() != theta.size()) return std::nullopt;
+  return Vector(theta + step2 - step1);
+}
+
+// The interval's clusters are the blocks; when γ̂'s information sits in fewer than this many of
+// them (effective blocks, gamma_sandwich.hpp), they are cut into runs of about a period.
+constexpr double kMinEffectiveBlocks = 8.0;
+// The shortest run of positions that is a cluster of its own.
+constexpr Index kMinClusterRun = 10;
+
+// The normal equations over the interval's clusters and γ̂'s sandwich interval from them (before
+// the held-out inflation and the integrator's share): over the blocks, or over runs of a period
+// inside them when γ̂'s information sits in fewer than kMinEffectiveBlocks blocks and the runs
+// spread it wider (a decay that stops, or fades into the noise, in the first block of each
+// trajectory). Throws Error when the matrix cannot be factored.
+struct ClusterInterval {
+  NormalEquations ne;
+  SandwichInterval s;
+  Index run = 0;  // 0: the blocks
+  double dof_factor = 1.0;
+};
+ClusterInterval cluster_interval(const OneStepMap& map, const Vector& theta, const Cut& train,
+                                 Index n_free, double spp, double data_scale, double level,
+                                 const std::function<bool()>& stop) {
+  const Index d = train.segs.d, n_res = train.segs.n_residuals();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  const Index bi = *map.damping_param_index();
+  const double gamma_n = map.damping_rate(theta).value_or(0.0);
+  // The residuals have also fitted 2d unknowns per segment: their spread understates the
+  // noise by that many degrees of freedom (docs/derivations.md, "Positions only").
+  const double hidden = static_cast<double>(2 * d * train.segs.size());
+  const double dof_factor =
+      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
+  const auto over = [&](const ShootingSegments& segs, Index run) {
+    ClusterInterval c;
+    c.run = run;
+    c.dof_factor = dof_factor;
+    c.ne = shooting_block_equations(map, theta, train.z0, segs, n_free, scale, stop);
+    if (c.ne.stopped) return c;
+    c.ne.scores *= dof_factor;
+    c.s = sandwich_interval(c.ne.a, c.ne.g, c.ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0,
+                            n_res, c.ne.cost, scale, data_scale, level, &c.ne.block_information);
+    return c;
+  };
+  ClusterInterval blocks = over(train.segs, 0);
+  const Index run = std::max<Index>(kMinClusterRun, static_cast<Index>(std::lround(spp)));
+  if (blocks.ne.stopped || blocks.s.effective_blocks <= 0.0 ||
+      blocks.s.effective_blocks >= kMinEffectiveBlocks)
+    return blocks;
+  ClusterInterval runs = over(split_blocks_into_runs(train.segs, run), run);
+  if (runs.ne.stopped) return runs;
+  return runs.s.effective_blocks > blocks.s.effective_blocks ? runs : blocks;
 }
 
 GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, const Cut& train,
@@ -156,29 +259,16 @@ GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, 
   if (hooks.stage) hooks.stage("interval");
   GammaInterval out;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
-  const Index d = train.segs.d, p = map.n_params();
+  const Index p = map.n_params();
   const Vector& theta = at.theta;
   const double tau = at.units.time_scale;
   const double gamma_n = map.damping_rate(theta).value_or(0.0);
   const Index n_res = train.segs.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-  NormalEquations ne =
-      shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, true, stop);
-  if (ne.stopped) {
-    out.stopped = true;
-    return out;
-  }
-  // The residuals have also fitted 2d unknowns per segment: their spread understates the
-  // noise by that many degrees of freedom (docs/derivations.md, "Positions only").
-  const double hidden = static_cast<double>(2 * d * train.segs.size());
-  const double dof_factor =
-      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
-  ne.scores *= dof_factor;
-  const Index bi = *map.damping_param_index();
-  SandwichInterval s;
+  ClusterInterval c;
   try {
-    s = sandwich_interval(ne.a, ne.g, ne.scores, bi, gamma_n, theta(bi) >= 0.0 ? 1.0 : -1.0, n_res,
-                          ne.cost, scale, detail::data_scale(split.blocks), at.level);
+    c = cluster_interval(map, theta, train, n_free, samples_per_period(split.blocks),
+                         detail::data_scale(split.blocks), at.level, stop);
   } catch (const Error&) {
     // A property of the data (too few positions per hidden start), not an internal failure.
     out.reasons.push_back(
@@ -188,21 +278,31 @@ GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, 
         "few samples per segment for its start state and the dynamics)");
     return out;
   }
+  if (c.ne.stopped) {
+    out.stopped = true;
+    return out;
+  }
+  const NormalEquations& ne = c.ne;
+  SandwichInterval s = c.s;
   const double ratio =
       at.train_loss > 0.0 && std::isfinite(at.val_loss) ? at.val_loss / at.train_loss : 1.0;
   const double inflation = std::sqrt(std::max(1.0, ratio));
   inflate_interval(s, inflation);
-  // With the momenta observed the library core's integrator share is added, as interval() does.
-  const nlohmann::json& lib = at.library;
-  if (momenta_observed && lib.contains("gamma_change_at_twice_the_substeps"))
-    add_integrator(s, lib["gamma_change_at_twice_the_substeps"].get<double>());
+  // The library core's integrator share, measured on this fit (integrator_moved).
+  std::vector<double> dissipation_integrator;
+  if (const auto moved = integrator_moved(map, at.library_core, theta, train, n_free, stop)) {
+    const double g1 = map.damping_rate(*moved).value_or(gamma_n);
+    add_integrator(s, std::isfinite(g1) ? std::abs(g1 - gamma_n) : 0.0);
+    dissipation_integrator = dissipation_relative_changes(map, theta, *moved);
+  }
   for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
                     &s.optimisation, &s.rounding, &s.integrator})
     *v /= tau;
+  if (c.run > 0) s.method += " (runs of " + std::to_string(c.run) + " positions inside them)";
   s.method += momenta_observed ? " of the whole-record fit (q and p observed)"
                                : " over hidden start states (positions only)";
   out.interval = s;
-  out.degrees_of_freedom_factor = dof_factor;
+  out.degrees_of_freedom_factor = c.dof_factor;
   const NormalEquations all = embedded(ne, p);
   out.modes =
       modal_analysis(map, theta, split.train, tau, at.level,
@@ -213,7 +313,8 @@ GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, 
   // observed the Hamiltonian's terms get theirs too.
   const HamiltonianIntervalInput shared = {&all, n_res, scale, inflation, at.level};
   if (momenta_observed) out.hamiltonian = hamiltonian_report(map, theta, at.units, shared);
-  out.dissipation = detail::dissipation_terms_report(map, theta, at.units, shared);
+  out.dissipation =
+      detail::dissipation_terms_report(map, theta, at.units, shared, dissipation_integrator);
   return out;
 }
 

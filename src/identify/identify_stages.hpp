@@ -125,6 +125,11 @@ class CandidateFit {
   long lm_budget(const Candidate& x, double target, long floor = 5) const;
   void adamw(Candidate& x, const std::string& label) const;
   void lm(Candidate& x, long budget, const std::string& label);
+  // One Gauss–Newton step on the training windows from x.theta, −(A + μD)⁻¹g with μ a ridge at
+  // 1e-9 of the diagonal (grown only if A + μD cannot be factored); empty when stopped. It
+  // measures how far a small change of the model moves the fit, where an LM run kept to the
+  // best validation loss would report no move.
+  Vector gauss_newton_step(const Candidate& x) const;
   double loss(const Candidate& x, const WindowSet& w) const;
   bool stop_requested() const;
   // Remembers a stop requested now (polled between stages).
@@ -231,6 +236,11 @@ nlohmann::json hamiltonian_report(const OneStepMap& map, const Vector& theta,
 // an empty list for any other map.
 // `integrator`: per term, the relative change of its value at twice the substeps, added in
 // quadrature to its standard error (as gamma's integrator share); empty: none.
+// Per dissipation term of a library map, |value at `moved` − value at `theta`| / |value at
+// theta| (its value in the user's units is a fixed multiple of W_ii μ or c / W_ii, so the ratio
+// needs no units); empty for any other map.
+std::vector<double> dissipation_relative_changes(const OneStepMap& map, const Vector& theta,
+                                                 const Vector& moved);
 nlohmann::json dissipation_terms_report(const OneStepMap& map, const Vector& theta,
                                         const Normalization& units,
                                         const HamiltonianIntervalInput& in,
@@ -256,6 +266,9 @@ struct IntervalBasis {
   double train_loss = 0.0, val_loss = 0.0;
   // choices.library when the core is the library core (its integrator's shares), else null.
   nlohmann::json library;
+  // The library core's spec (with its substeps) when the core is the library core, else null:
+  // the shooting routes measure the integrator's share on their own fit (identify_segments).
+  nlohmann::json library_core;
 };
 // γ̂'s interval in the user's time units, with what shares its normal equations: the modes',
 // the Hamiltonian's and the friction's.

@@ -20,6 +20,7 @@ void to_json(nlohmann::json& j, const SandwichInterval& s) {
        {"rounding", s.rounding},
        {"integrator", s.integrator},
        {"dof", s.dof},
+       {"effective_blocks", s.effective_blocks},
        {"quantile", s.quantile},
        {"blocks", s.blocks},
        {"regularisation_ratio", s.regularisation_ratio},
@@ -115,7 +116,8 @@ double student_t_quantile(double p, double dof) {
 SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,
                                       const Vector& gradient, double value, Index n_residuals,
                                       double cost, double residual_scale, double data_scale,
-                                      double level) {
+                                      double level,
+                                      const std::vector<Matrix>* block_information) {
   const Index p = a.rows();
   require(a.cols() == p && g.size() == p && scores.rows() == p && gradient.size() == p,
           "interval: inconsistent normal equations");
@@ -162,6 +164,18 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
   s.method = "cluster-robust sandwich over blocks";
   s.std_error = std::sqrt(main * main + s.optimisation * s.optimisation + s.rounding * s.rounding);
   s.dof = std::max(1.0, static_cast<double>(s.blocks - 1));
+  if (block_information != nullptr && !block_information->empty()) {
+    double sum = 0.0, sum_sq = 0.0;
+    for (const Matrix& info : *block_information) {
+      const double w = std::max(0.0, u.dot(info * u));
+      sum += w;
+      sum_sq += w * w;
+    }
+    if (sum_sq > 0.0 && std::isfinite(sum * sum / sum_sq)) {
+      s.effective_blocks = sum * sum / sum_sq;
+      s.dof = std::clamp(s.effective_blocks - 1.0, 1.0, s.dof);
+    }
+  }
   s.quantile = student_t_quantile(0.5 * (1.0 + level), s.dof);
   s.low = value - s.quantile * s.std_error;
   s.high = value + s.quantile * s.std_error;
@@ -171,12 +185,13 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
 SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matrix& scores,
                                    Index gamma_index, double gamma, double gamma_sign,
                                    Index n_residuals, double cost, double residual_scale,
-                                   double data_scale, double level) {
+                                   double data_scale, double level,
+                                   const std::vector<Matrix>* block_information) {
   require(gamma_index >= 0 && gamma_index < a.rows(), "interval: bad damping index");
   Vector gradient = Vector::Zero(a.rows());
   gradient(gamma_index) = gamma_sign != 0.0 ? gamma_sign : 1.0;  // dγ̂/dθ
   return sandwich_interval_of(a, g, scores, gradient, gamma, n_residuals, cost, residual_scale,
-                              data_scale, level);
+                              data_scale, level, block_information);
 }
 
 }  // namespace csympnet

@@ -3,9 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <string>
+#include <utility>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/QR>
 
 #include "csympnet/core/error.hpp"
@@ -252,6 +255,17 @@ struct SegmentTerms {
   std::vector<std::pair<Index, Vector>> gb_by_block;
 };
 
+// For each block's information (block_information): what the rows of one block inside one
+// segment contribute (A_bᵀB_b, B_bᵀB_b), and per block its Σ A_bᵀA_b.
+struct BlockPiece {
+  Index segment = 0, block = 0;
+  Matrix w, u;
+};
+struct BlockPieces {
+  std::vector<Matrix> gram;  // per block, n_free × n_free (full)
+  std::vector<BlockPiece> pieces;
+};
+
 // Rows [k·d, (k+1)·d) of a segment belong to position k: the runs of positions in one block.
 template <class F>
 void for_each_block_run(const ShootingSegments& segs, Index s, Index len, F f) {
@@ -269,7 +283,7 @@ void for_each_block_run(const ShootingSegments& segs, Index s, Index len, F f) {
 NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                            const ShootingSegments& segs, Index n_free, double scale,
                            bool with_scores, const std::function<bool()>& should_stop,
-                           std::vector<SegmentTerms>& terms) {
+                           std::vector<SegmentTerms>& terms, BlockPieces* jk = nullptr) {
   NormalEquations ne;
   ne.a.setZero(n_free, n_free);
   ne.g.setZero(n_free);
@@ -278,6 +292,10 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
   for (const auto& cb : segs.column_block)
     for (Index b : cb) blocks = std::max(blocks, b + 1);
   if (with_scores) ne.scores.setZero(n_free, blocks);
+  if (jk != nullptr) {
+    jk->gram.assign(static_cast<std::size_t>(blocks), Matrix::Zero(n_free, n_free));
+    jk->pieces.clear();
+  }
   terms.assign(static_cast<std::size_t>(segs.size()), {});
   const lapack::SingleThreaded one_thread;
   RowMajorMatrix a;
@@ -303,6 +321,20 @@ NormalEquations accumulate(const OneStepMap& map, ConstParams theta, const Matri
     x.u = b.transpose() * b;
     x.w.noalias() = a.transpose() * b;
     x.gb = b.transpose() * r;
+    if (jk != nullptr) {
+      const Index o = segs.observed_rows(), len = segs.q[i].cols();
+      const auto add_piece = [&](Index blk, Index k0, Index k1) {
+        const Index r0 = k0 * o, rows = (k1 - k0) * o;
+        const auto ab = a.middleRows(r0, rows);
+        const auto bb = b.middleRows(r0, rows);
+        jk->gram[static_cast<std::size_t>(blk)].noalias() += ab.transpose() * ab;
+        jk->pieces.push_back({s, blk, ab.transpose() * bb, bb.transpose() * bb});
+      };
+      if (segs.column_block.empty())
+        add_piece(segs.block[i], 0, len);
+      else
+        for_each_block_run(segs, s, len, add_piece);
+    }
     if (with_scores && segs.column_block.empty()) {
       ne.scores.col(segs.block[i]) += ar;
     } else if (with_scores) {
@@ -354,7 +386,90 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
   }
 }
 
+// The Moore–Penrose inverse of a small symmetric positive semi-definite U: eigenvalues below
+// 1e-10 of the largest count as 0. Rows too few to fix a start state then carry no information
+// on θ (A_kᵀ(I − P_B)A_k = 0), as they would once that start state is fitted to them.
+Matrix small_pseudo_inverse(const Matrix& u) {
+  const Eigen::SelfAdjointEigenSolver<Matrix> e(u);
+  const Vector& l = e.eigenvalues();
+  const double top = std::max(l.maxCoeff(), 0.0);
+  Vector inv = Vector::Zero(l.size());
+  for (Index k = 0; k < l.size(); ++k)
+    if (l(k) > 1e-10 * top) inv(k) = 1.0 / l(k);
+  return e.eigenvectors() * inv.asDiagonal() * e.eigenvectors().transpose();
+}
+
+// Per block b, the information on θ in its rows once every segment's start state is eliminated
+// (the efficient Jacobian J̃_b = A_b − B_b U_s⁻¹ W_sᵀ over the segment's rows in the block):
+//   E_b = Σ_{s∋b} (A_bᵀA_b − W_b U_s⁻¹ W_sᵀ − W_s U_s⁻¹ W_bᵀ + W_s U_s⁻¹ U_b U_s⁻¹ W_sᵀ),
+// with W_b = A_bᵀB_b and U_b = B_bᵀB_b. Σ_b E_b is the reduced matrix Ã, and with independent
+// noise of one variance block b's score has variance in proportion to uᵀE_b u
+// (docs/derivations.md, "How many blocks an interval rests on").
+std::vector<Matrix> block_information(const std::vector<SegmentTerms>& terms,
+                                      const BlockPieces& jk) {
+  std::vector<Matrix> e(jk.gram);
+  std::vector<Matrix> u_inv(terms.size());
+  for (std::size_t s = 0; s < terms.size(); ++s) u_inv[s] = small_pseudo_inverse(terms[s].u);
+  for (const BlockPiece& p : jk.pieces) {
+    const auto s = static_cast<std::size_t>(p.segment);
+    const SegmentTerms& x = terms[s];
+    const Matrix v = x.w * u_inv[s];  // W_s U_s⁻¹
+    const Matrix cross = p.w * v.transpose();
+    e[static_cast<std::size_t>(p.block)].noalias() +=
+        v * p.u * v.transpose() - cross - cross.transpose();
+  }
+  return e;
+}
+
 }  // namespace
+
+ShootingSegments split_blocks_into_runs(const ShootingSegments& segs, Index run) {
+  require(run >= 1, "split_blocks_into_runs: run must be >= 1");
+  ShootingSegments out = segs;
+  std::map<Index, Index> seen;                  // per block, its positions so far
+  std::map<std::pair<Index, Index>, Index> id;  // (block, run) → cluster
+  out.column_block.assign(static_cast<std::size_t>(segs.size()), {});
+  for (Index s = 0; s < segs.size(); ++s) {
+    const auto i = static_cast<std::size_t>(s);
+    const Index len = segs.q[i].cols();
+    out.column_block[i].resize(static_cast<std::size_t>(len));
+    for (Index k = 0; k < len; ++k) {
+      const Index b = segs.block_of(s, k);
+      const auto key = std::make_pair(b, seen[b]++ / run);
+      const auto it = id.emplace(key, static_cast<Index>(id.size())).first;
+      out.column_block[i][static_cast<std::size_t>(k)] = it->second;
+    }
+    out.block[i] = out.column_block[i].front();
+  }
+  return out;
+}
+
+NormalEquations shooting_block_equations(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                                         const ShootingSegments& segs, Index n_free, double scale,
+                                         const std::function<bool()>& should_stop) {
+  segs.validate("shooting");
+  Index blocks = 0;
+  for (Index b : segs.block) blocks = std::max(blocks, b + 1);
+  for (const auto& cb : segs.column_block)
+    for (Index b : cb) blocks = std::max(blocks, b + 1);
+  const bool feasible =
+      static_cast<double>(blocks) * static_cast<double>(n_free) * static_cast<double>(n_free) <=
+      kBlockInformationMaxNumbers;
+  if (!feasible)
+    return shooting_normal_equations(map, theta, z0, segs, n_free, scale, true, should_stop);
+  std::vector<SegmentTerms> terms;
+  BlockPieces jk;
+  NormalEquations ne =
+      accumulate(map, theta, z0, segs, n_free, scale, true, should_stop, terms, &jk);
+  if (ne.stopped) return ne;
+  Matrix a;
+  Vector g;
+  reduce(ne, terms, segs, 0.0, a, g);
+  ne.a = std::move(a);
+  ne.g = std::move(g);
+  ne.block_information = block_information(terms, jk);
+  return ne;
+}
 
 NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams theta,
                                           const Matrix& z0, const ShootingSegments& segs,

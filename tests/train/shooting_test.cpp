@@ -239,6 +239,51 @@ TEST_P(ShootingTest, WeightedSegmentsAcrossBlocksGiveEachBlockItsEfficientScore)
     EXPECT_LE((ne.scores.col(b) - efficient).norm(), 1e-9 * (1.0 + efficient.norm()))
         << "block " << b;
   }
+  // Each block's information is that of its rows of the efficient Jacobian (the start states
+  // eliminated over every segment's rows), J̃ = J_θ − J_z (J_zᵀJ_z)⁻¹ J_zᵀJ_θ; they add up to the
+  // reduced matrix, and the rest of the normal equations is shooting_normal_equations'.
+  const NormalEquations nb = shooting_block_equations(*map, theta, z0, segs, p, scale);
+  EXPECT_EQ((nb.a - ne.a).norm(), 0.0);
+  EXPECT_EQ((nb.scores - ne.scores).norm(), 0.0);
+  ASSERT_EQ(static_cast<Index>(nb.block_information.size()), blocks);
+  const Matrix efficient_j = j.leftCols(p) - j.rightCols(cols - p) * f.solve(tz.transpose());
+  Matrix sum = Matrix::Zero(p, p);
+  for (Index b = 0; b < blocks; ++b) {
+    Matrix expected = Matrix::Zero(p, p);
+    for (Index k = 0; k < n; ++k)
+      if (row_block[static_cast<std::size_t>(k)] == b)
+        expected += efficient_j.row(k).transpose() * efficient_j.row(k);
+    const Matrix& got = nb.block_information[static_cast<std::size_t>(b)];
+    EXPECT_LE((got - expected).norm(), 1e-8 * (1.0 + full.norm())) << "block " << b;
+    sum += got;
+  }
+  EXPECT_LE((sum - schur).norm(), 1e-8 * full.norm());
+}
+
+// Runs inside blocks: every run lies in one block, runs follow the record's order, each has
+// `run` positions but a block's last, and the segments' positions and steps are untouched.
+TEST(ShootingRuns, SplitBlocksIntoRunsCutsEachBlockInOrder) {
+  ShootingSegments segs;
+  segs.d = 1;
+  // Block 0: segments 0 and 1 (5 + 4 positions); segment 2 spans blocks 0 (2) and 1 (6).
+  for (Index len : {5, 4, 8}) {
+    segs.q.push_back(Matrix::Zero(1, len));
+    segs.h.push_back(Vector::Constant(len - 1, 0.1));
+  }
+  segs.block = {0, 0, 0};
+  segs.column_block = {{0, 0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 1, 1, 1, 1, 1, 1}};
+  const ShootingSegments runs = split_blocks_into_runs(segs, 4);
+  runs.validate();
+  // Block 0 has 11 positions: runs 4, 4, 3; block 1 has 6: runs 4, 2.
+  const std::vector<std::vector<Index>> expected = {
+      {0, 0, 0, 0, 1}, {1, 1, 1, 2}, {2, 2, 3, 3, 3, 3, 4, 4}};
+  EXPECT_EQ(runs.column_block, expected);
+  EXPECT_EQ(runs.block, (std::vector<Index>{0, 1, 2}));
+  for (std::size_t s = 0; s < segs.q.size(); ++s) {
+    EXPECT_EQ(runs.q[s], segs.q[s]);
+    EXPECT_EQ(runs.h[s], segs.h[s]);
+  }
+  EXPECT_THROW(split_blocks_into_runs(segs, 0), Error);
 }
 
 // Positions made by the map itself: the start states are recovered from positions alone, and

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -38,6 +39,9 @@ struct SandwichInterval {
   double rounding = 0.0;      // the data's rounding, propagated
   double integrator = 0.0;  // a library core's: |γ̂ at twice the substeps − γ̂| (add_integrator)
   double dof = 0.0;         // degrees of freedom of the t quantile
+  // (Σ w_b)² / Σ w_b², w_b = uᵀ I_b u the share of block b in the information on the estimate,
+  // when the blocks' information is given (else 0): the blocks the interval rests on.
+  double effective_blocks = 0.0;
   double quantile = 0.0;  // t_{dof}((1 + level)/2)
   long blocks = 0;
   double regularisation_ratio = 1.0;  // std error at 100 μ over that at μ
@@ -50,10 +54,18 @@ void to_json(nlohmann::json& j, const SandwichInterval& s);
 // a: A (lower triangle, P × P); g: Jᵀr; scores: P × B; gamma_index: the damping parameter and
 // gamma_sign = dγ̂/dβ there; n_residuals and cost = ½‖r‖² (scaled like A) for the model-based
 // error; data_scale: the rms of the data, in the units of the residuals, for the rounding term.
+//
+// block_information (optional, one P × P matrix per block: the information its rows add to the
+// rest, shooting_block_equations): the t quantile then takes (Σ w_b)² / Σ w_b² − 1 degrees of
+// freedom instead of B − 1, w_b = uᵀ I_b u (Satterthwaite's approximation for a sum of B
+// squares whose expectations are in proportion to w_b). A record whose information sits in a
+// few blocks (motion that stops, a decay into the noise) has a variance estimated from those
+// few, and its interval says so.
 SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matrix& scores,
                                    Index gamma_index, double gamma, double gamma_sign,
                                    Index n_residuals, double cost, double residual_scale,
-                                   double data_scale, double level);
+                                   double data_scale, double level,
+                                   const std::vector<Matrix>* block_information = nullptr);
 
 // The same interval for any smooth function f(θ̂) of the parameters, given its value and
 // gradient ∇f (u = (A + μD)⁻¹ ∇f): the modal frequencies and damping ratios. `gamma` of the
@@ -61,7 +73,8 @@ SandwichInterval sandwich_interval(const Matrix& a, const Vector& g, const Matri
 SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,
                                       const Vector& gradient, double value, Index n_residuals,
                                       double cost, double residual_scale, double data_scale,
-                                      double level);
+                                      double level,
+                                      const std::vector<Matrix>* block_information = nullptr);
 
 // Scales the standard error and the half-widths by `factor` (≥ 1), keeping the centre, and
 // records it: the held-out inflation of identify() (training residuals understate the error).

@@ -108,6 +108,22 @@ NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams the
                                           Index n_free, double scale, bool with_scores,
                                           const std::function<bool()>& should_stop = {});
 
+// `segs` with each block's positions cut, in record order, into runs of `run` positions (the
+// last run of a block may be shorter), each run a resampling block of its own (column_block),
+// numbered 0 … B' − 1 in order of first appearance; a run never spans two blocks. Segments
+// must list each block's positions in record order (as cut from a record).
+ShootingSegments split_blocks_into_runs(const ShootingSegments& segs, Index run);
+
+// The same normal equations with, per block, the information on θ that its rows add to the
+// rest of the record (`block_information`: Ã − Ã_(−b), Ã_(−b) the reduced matrix without the
+// block's rows, each segment they touch keeping its other rows and its start state). The
+// intervals read from it how many blocks they rest on (gamma_sandwich.hpp). Beyond
+// kBlockInformationMaxNumbers (blocks × n_free²) it is left empty.
+inline constexpr double kBlockInformationMaxNumbers = 4e6;
+NormalEquations shooting_block_equations(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                                         const ShootingSegments& segs, Index n_free, double scale,
+                                         const std::function<bool()>& should_stop = {});
+
 // The start states alone fitted, θ fixed: Levenberg–Marquardt per segment on its 2d unknowns
 // (held-out segments, the start of the joint fit, a rollout from observed positions).
 // several_starts: each segment is also fitted from its first position with p = 0 and with the

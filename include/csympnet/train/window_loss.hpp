@@ -86,6 +86,9 @@ struct NormalEquations {
   double cost = 0.0;
   Matrix scores;  // P × B when asked for, else empty
   bool stopped = false;
+  // Per block, the information on the parameters its rows add to the rest (P × P each), when
+  // computed (shooting_block_equations); the intervals' degrees of freedom come from it.
+  std::vector<Matrix> block_information;
 };
 NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta,
                                         const WindowSet& w, bool balanced, double scale,

@@ -16,6 +16,7 @@
 //      the verdict; the model in the user's units.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -30,6 +31,7 @@
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "csympnet/train/shooting.hpp"
+#include "identify_driven_link.hpp"
 #include "identify_stages.hpp"
 
 namespace csympnet {
@@ -40,6 +42,8 @@ namespace {
 constexpr Index kSegment = 20;
 // Additions the selection of a driven record's terms may make.
 constexpr int kDrivenAdditions = 3;
+// LM iterations of a driven fit (of each stage of the linking too).
+constexpr long kDrivenIterations = 200;
 // LM iterations of each trial fit of the selection (the chosen terms are fitted in full).
 constexpr long kSelectionIterations = 50;
 // Every kHoldOut-th segment is held out.
@@ -92,7 +96,7 @@ DrivenData check_driven(const std::vector<Trajectory>& trajs, bool positions_onl
   return out;
 }
 
-// q̂ = (q − mean) / spread per dof, t̂ = t / median step; β = c / α with c = the geometric mean
+// q̂ = (q − mean) / spread (one for every dof), t̂ = t / median step; β = c / α with c = the geometric mean
 // of α² / τ (the momenta are hidden: their unit is a convention).
 Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
   Vector sum = Vector::Zero(d), sq = Vector::Zero(d);
@@ -114,6 +118,10 @@ Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
       return "column 'q" + std::to_string(i + 1) +
              "' does not vary; expected a coordinate that moves";
     });
+  // One spread for every dof (their root mean square): a difference term (qi - qj)^k of the
+  // library is then the bond's own difference in the data's units, up to a shift; with a spread
+  // per dof it would be (qi/si - qj/sj), which a bond's force does not have.
+  u.q_scale.setConstant(std::sqrt(u.q_scale.squaredNorm() / static_cast<double>(d)));
   std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
   u.time_scale = steps[steps.size() / 2];
   const double c = std::exp(u.q_scale.array().log().mean() * 2.0) / u.time_scale;
@@ -124,6 +132,7 @@ Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
 
 struct DrivenCut {
   ShootingSegments train, val;
+  std::vector<detail::SegmentPlace> places;  // every segment, in the record's order
 };
 
 // Segments of kSegment positions (the last of a trajectory joined to the one before when
@@ -132,19 +141,19 @@ DrivenCut cut_driven(const std::vector<Trajectory>& nt, Index d) {
   DrivenCut c;
   c.train.d = c.val.d = d;
   Index count = 0;
-  for (const Trajectory& t : nt) {
+  for (std::size_t j = 0; j < nt.size(); ++j) {
+    const Trajectory& t = nt[j];
     const Index n = t.t.size();
     for (Index first = 0; first + 3 <= n;) {
       Index len = std::min(kSegment, n - first);
       if (n - (first + len) < kSegment / 2) len = n - first;
-      ShootingSegments& s = (count % kHoldOut == kHoldOut - 1) ? c.val : c.train;
+      const bool held_out = count % kHoldOut == kHoldOut - 1;
+      ShootingSegments& s = held_out ? c.val : c.train;
       s.q.push_back(t.z.middleCols(first, len));
       s.h.push_back(t.t.segment(first + 1, len - 1) - t.t.segment(first, len - 1));
-      Matrix u(2 * t.u.rows(), len - 1);
-      u.topRows(t.u.rows()) = t.u.middleCols(first, len - 1);
-      u.bottomRows(t.u.rows()) = t.u.middleCols(first + 1, len - 1);
-      s.u.push_back(std::move(u));
+      s.u.push_back(detail::step_inputs(t, first, len));
       s.block.push_back(static_cast<Index>(s.q.size()) - 1);
+      c.places.push_back({static_cast<Index>(j), first, len, held_out});
       ++count;
       first += len;
     }
@@ -265,11 +274,66 @@ struct DrivenInterval {
   nlohmann::json gain;  // {"B", "B_ci_low", "B_ci_high"}: the gain on the acceleration
 };
 
+// The normal equations over the training segments with their start states eliminated, scaled
+// by 1/√n, the scores per block corrected for the 2d unknowns of every segment's start state
+// (the degrees-of-freedom correction of the positions route).
+NormalEquations driven_normal_equations(const HamiltonianLibraryMap& map, const Vector& theta,
+                                        const Matrix& z0, const ShootingSegments& train,
+                                        const std::function<bool()>& stop) {
+  const Index n_res = train.n_residuals();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  NormalEquations ne =
+      shooting_normal_equations(map, theta, z0, train, map.n_params(), scale, true, stop);
+  const double hidden = static_cast<double>(2 * map.d() * train.size());
+  ne.scores *=
+      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
+  return ne;
+}
+
+// γ̂'s interval (user's units) from `ne` over n_res residuals, inflated by `inflation`; throws
+// Error when the Gauss–Newton matrix cannot be factored even regularised.
+SandwichInterval driven_gamma_interval(const HamiltonianLibraryMap& map, const Vector& theta,
+                                       const NormalEquations& ne, Index n_res, double tau,
+                                       double level, double inflation) {
+  const Index bi = *map.damping_param_index();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  SandwichInterval s =
+      sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
+                        theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
+  inflate_interval(s, inflation);
+  for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
+                    &s.optimisation, &s.rounding})
+    *v /= tau;
+  s.method += " over hidden start states (positions with known inputs)";
+  return s;
+}
+
+// The interval widened to span the estimate moved by `shift` (what the first-order hold's straight
+// lines cost, hold_shift) with its own half-widths: whether the input between samples was
+// straight (as the hold assumes) or smooth (as a sampled signal usually is), the interval is
+// the one that estimate would have. `shift`'s size is recorded as the integrator share.
+void span_the_hold(SandwichInterval& s, double shift) {
+  s.integrator = std::abs(shift);
+  s.low = std::min(s.gamma, s.gamma + shift) - (s.gamma - s.low);
+  s.high = std::max(s.gamma, s.gamma + shift) + (s.high - s.gamma);
+}
+
+// The held-out inflation of a fit: √(held-out over training loss), at least 1.
+double held_out_inflation(const ShootingReport& rep) {
+  const double ratio =
+      rep.final_loss > 0.0 && std::isfinite(rep.val_loss) ? rep.val_loss / rep.final_loss : 1.0;
+  return std::sqrt(std::max(1.0, ratio));
+}
+
 // γ̂'s interval, the input gain's and the modes', from the training segments' normal
-// equations with the start states eliminated (as segments_interval of identify_segments).
+// equations with the start states eliminated (as segments_interval of identify_segments): the
+// linked chain's segments, each position clustered in its training block. `starts`: the states
+// the modes' mean state is taken over; `hold`: how far θ moves with the inputs' curvature
+// between samples (hold_shift), which γ̂'s and the gain's intervals are widened to span.
 DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& theta,
                                const Normalization& units, double level, const Matrix& z0,
                                const ShootingSegments& train, double inflation,
+                               const WindowSet& starts, const Vector& hold,
                                const IdentifyHooks& hooks) {
   if (hooks.stage) hooks.stage("interval");
   DrivenInterval out;
@@ -278,25 +342,15 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
   const double tau = units.time_scale;
   const Index n_res = train.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-  NormalEquations ne = shooting_normal_equations(map, theta, z0, train, p, scale, true, stop);
+  const NormalEquations ne = driven_normal_equations(map, theta, z0, train, stop);
   if (ne.stopped) {
     out.gamma.stopped = true;
     return out;
   }
-  const double hidden = static_cast<double>(2 * d * train.size());
-  const double dof_factor =
-      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
-  ne.scores *= dof_factor;
-  const Index bi = *map.damping_param_index();
   try {
-    SandwichInterval s =
-        sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
-                          theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
-    inflate_interval(s, inflation);
-    for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
-                      &s.optimisation, &s.rounding})
-      *v /= tau;
-    s.method += " over hidden start states (positions with known inputs)";
+    SandwichInterval s = driven_gamma_interval(map, theta, ne, n_res, tau, level, inflation);
+    const Index bi = *map.damping_param_index();
+    span_the_hold(s, (std::abs(theta(bi) + hold(bi)) - std::abs(theta(bi))) / tau);
     out.gamma.interval = s;
   } catch (const Error&) {
     out.gamma.reasons.push_back(
@@ -316,8 +370,9 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
       grad(i) = b;
       grad(map.input_index(i, j)) = w;
       const double unit = units.q_scale(i) / (tau * tau);
-      const SandwichInterval iv =
-          interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
+      SandwichInterval iv = interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
+      const double shifted = (w + hold(i)) * (b + hold(map.input_index(i, j)));
+      span_the_hold(iv, (shifted - w * b) * unit);
       g_row.push_back(iv.gamma);
       l_row.push_back(iv.low);
       h_row.push_back(iv.high);
@@ -329,17 +384,6 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
   out.gain = {{"B", gain}, {"B_ci_low", low}, {"B_ci_high", high}};
   out.gamma.hamiltonian =
       detail::hamiltonian_report(map, theta, units, {&ne, n_res, scale, inflation, level});
-  WindowSet starts;
-  starts.m = 1;
-  starts.z0 = z0;
-  starts.zm.resize(2 * d, train.size());
-  starts.h.resize(1, train.size());
-  for (Index s = 0; s < train.size(); ++s) {
-    const Matrix z = shooting_states(map, theta, z0.col(s), train.h[static_cast<std::size_t>(s)],
-                                     train.inputs(s));
-    starts.zm.col(s) = z.col(1);
-    starts.h(0, s) = train.h[static_cast<std::size_t>(s)](0);
-  }
   out.gamma.modes = detail::modal_analysis(map, theta, starts, tau, level,
                                            {&ne, n_res, scale, 1.0, inflation, stop});
   out.gamma.stopped = out.gamma.modes.stopped;
@@ -404,9 +448,21 @@ struct DrivenFit {
   ShootingReport rep;
 };
 
+// The options of a driven fit: the configured LM budget, at most max_iterations.
+ShootingOptions driven_options(const IdentifyConfig& config, const IdentifyHooks& hooks,
+                               long max_iterations) {
+  ShootingOptions opt;
+  opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
+                                            : max_iterations;
+  opt.max_abs_state = kMaxAbsState;
+  opt.should_stop = hooks.should_stop;
+  opt.converged_chi2 = 1e-3;
+  return opt;
+}
+
 DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& nt,
                      const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
-                     long max_iterations = 200) {
+                     long max_iterations = kDrivenIterations) {
   const Index d = map.d();
   Vector theta = driven_start(map, nt);
   Matrix z0(2 * d, cut.train.size()), vz0(2 * d, cut.val.size());
@@ -421,14 +477,96 @@ DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& n
   fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
   // Held out: scored only (fit_shooting refits them at once).
   fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState, kScoringTolerance);
-  ShootingOptions opt;
-  opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
-                                            : max_iterations;
-  opt.max_abs_state = kMaxAbsState;
-  opt.should_stop = hooks.should_stop;
-  opt.converged_chi2 = 1e-3;
+  const ShootingOptions opt = driven_options(config, hooks, max_iterations);
   ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
   return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep};
+}
+
+// The segment fit's segments linked into chains over whole stretches of the record
+// (identify_driven_link.hpp): the training segments and start states the interval is formed
+// over, and the states of the training positions (the modes' mean state).
+struct DrivenChain {
+  ShootingSegments train;
+  Matrix z0;
+  WindowSet starts;
+  Index per_piece = 0;         // training positions per linked segment (0: not linked)
+  std::vector<Matrix> states;  // per trajectory, the state at every sample
+};
+
+// `fit` (θ, the held-out start states, the report) becomes the linked fit's; linking ends at a
+// stop request (then the segments stay as they are). The stages go into record["linking"].
+// γ̂'s interval from the segment fit, before the linking (the independent segments, each its
+// own start state), for comparison with the linked fit's: {gamma_hat, low, high} in the user's
+// units, null when it cannot be formed.
+nlohmann::json segment_fit_interval(const DrivenFit& fit, const ShootingSegments& train,
+                                    const Normalization& units, double level,
+                                    const IdentifyHooks& hooks) {
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  const NormalEquations ne = driven_normal_equations(fit.map, fit.theta, fit.z0, train, stop);
+  if (ne.stopped) return nullptr;
+  try {
+    const SandwichInterval s =
+        driven_gamma_interval(fit.map, fit.theta, ne, train.n_residuals(), units.time_scale, level,
+                              held_out_inflation(fit.rep));
+    return {{"gamma_hat", s.gamma}, {"low", s.low}, {"high", s.high}};
+  } catch (const Error&) {
+    return nullptr;
+  }
+}
+
+DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const DrivenCut& cut,
+                        const Normalization& units, const IdentifyConfig& config,
+                        const IdentifyHooks& hooks, nlohmann::json& record) {
+  const detail::DrivenRecord rec = detail::driven_record(nt, cut.places);
+  const detail::DrivenSegments segments{cut.train, fit.z0, cut.val, fit.rep};
+  DrivenChain out{cut.train, fit.z0, {}, 0, {}};
+  std::vector<Matrix> states;
+  if (fit.rep.stopped) {
+    states = detail::driven_states(fit.map, fit.theta, rec, cut.places, segments, fit.vz0);
+    out.starts = detail::training_state_windows(rec, states);
+    return out;
+  }
+  record["segment_fit_interval"] = segment_fit_interval(fit, cut.train, units, config.level, hooks);
+  if (hooks.stage) hooks.stage("linking the segments");
+  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+  opt.converged_se = detail::kDampingConvergedSe;
+  detail::LinkedFit linked = detail::link_driven_segments(fit.map, fit.theta, rec, cut.places,
+                                                          segments, kSegment, fit.vz0, opt, states);
+  record["linking"] = linked.record;
+  out.starts = detail::training_state_windows(rec, states);
+  if (linked.chain.segs.size() > 0) {
+    out.train = std::move(linked.chain.segs);
+    out.z0 = std::move(linked.chain.z0);
+    out.per_piece = linked.per_piece;
+    fit.rep = linked.report;
+  }
+  out.states = std::move(states);
+  fit.rep.stopped = fit.rep.stopped || linked.report.stopped;
+  return out;
+}
+
+// How far θ moves when the linked fit is refitted, from itself, with the inputs' curvature
+// between samples folded in (detail::curved_inputs): what the first-order hold's straight lines
+// cost, which the intervals are widened to span (span_the_hold). Zero when nothing
+// was linked, on a stop request, or when the refit fails.
+Vector hold_shift(const DrivenFit& fit, const std::vector<Trajectory>& nt, const DrivenChain& chain,
+                  const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  const Vector none = Vector::Zero(fit.theta.size());
+  if (chain.per_piece == 0 || fit.rep.stopped) return none;
+  if (hooks.stage) hooks.stage("the input hold's share");
+  const std::vector<Trajectory> curved = detail::curved_inputs(nt);
+  const DrivenCut cut = cut_driven(curved, fit.map.d());
+  const detail::DrivenRecord rec = detail::driven_record(curved, cut.places);
+  detail::Chain c = detail::cut_chain(rec.states, rec.layout, chain.per_piece, chain.states);
+  if (c.segs.size() != chain.train.size()) return none;
+  Vector theta = fit.theta;
+  Matrix val_z0 = fit.vz0;
+  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+  opt.converged_se = detail::kDampingConvergedSe;
+  const ShootingReport rep = fit_shooting(fit.map, theta, c.z0, c.segs, val_z0, cut.val,
+                                          detail::watching_damping(fit.map, opt));
+  if (rep.stopped || !theta.allFinite()) return none;
+  return theta - fit.theta;
 }
 
 // The Bayesian information criterion of a fit over the training segments (the same segments,
@@ -672,14 +810,22 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   }
   record["terms_fitted"] = nlohmann::json::array();
   for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
+  const DrivenChain chain = link_driven(fit, nt, cut, units, config, hooks, record);
+  const Vector hold = hold_shift(fit, nt, chain, config, hooks);
+  const Index bi = *fit.map.damping_param_index();
+  record["input_hold"] = {
+      {"gamma_change",
+       (std::abs(fit.theta(bi) + hold(bi)) - std::abs(fit.theta(bi))) / units.time_scale},
+      {"about",
+       "the change of gamma_hat when the fit is repeated with the inputs' curvature between "
+       "samples folded in (u_k - h^2 u''_k / 12 held first-order); gamma_hat's and B's "
+       "intervals are widened to span that fit's too (their 'integrator' share)"}};
   const ShootingReport& rep = fit.rep;
   bool stopped = rep.stopped;
-  const double ratio =
-      rep.final_loss > 0.0 && std::isfinite(rep.val_loss) ? rep.val_loss / rep.final_loss : 1.0;
   DrivenInterval iv;
   if (!stopped) {
-    iv = driven_interval(fit.map, fit.theta, units, config.level, fit.z0, cut.train,
-                         std::sqrt(std::max(1.0, ratio)), hooks);
+    iv = driven_interval(fit.map, fit.theta, units, config.level, chain.z0, chain.train,
+                         held_out_inflation(rep), chain.starts, hold, hooks);
     stopped = stopped || iv.gamma.stopped;
   }
   choices["driven"] = record;

@@ -96,8 +96,8 @@ DrivenData check_driven(const std::vector<Trajectory>& trajs, bool positions_onl
   return out;
 }
 
-// q̂ = (q − mean) / spread (one for every dof), t̂ = t / median step; β = c / α with c = the geometric mean
-// of α² / τ (the momenta are hidden: their unit is a convention).
+// q̂ = (q − mean) / spread (one for every dof), t̂ = t / median step; β = c / α with c = the
+// geometric mean of α² / τ (the momenta are hidden: their unit is a convention).
 Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
   Vector sum = Vector::Zero(d), sq = Vector::Zero(d);
   double n = 0.0;
@@ -545,13 +545,19 @@ DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const
   return out;
 }
 
-// How far θ moves when the linked fit is refitted, from itself, with the inputs' curvature
-// between samples folded in (detail::curved_inputs): what the first-order hold's straight lines
-// cost, which the intervals are widened to span (span_the_hold). Zero when nothing
-// was linked, on a stop request, or when the refit fails.
-Vector hold_shift(const DrivenFit& fit, const std::vector<Trajectory>& nt, const DrivenChain& chain,
-                  const IdentifyConfig& config, const IdentifyHooks& hooks) {
-  const Vector none = Vector::Zero(fit.theta.size());
+// The linked fit refitted, from itself, with the inputs' curvature between samples folded in
+// (detail::curved_inputs): how far θ moves (what the first-order hold's straight lines cost if
+// the input was smooth) and the refit's training loss.
+struct HoldRefit {
+  Vector shift;                                            // zero: no refit
+  double loss = std::numeric_limits<double>::quiet_NaN();  // NaN: no refit
+};
+
+// The refit; none when nothing was linked, on a stop request, or when the refit fails.
+HoldRefit hold_refit(const DrivenFit& fit, const std::vector<Trajectory>& nt,
+                     const DrivenChain& chain, const IdentifyConfig& config,
+                     const IdentifyHooks& hooks) {
+  const HoldRefit none{Vector::Zero(fit.theta.size())};
   if (chain.per_piece == 0 || fit.rep.stopped) return none;
   if (hooks.stage) hooks.stage("the input hold's share");
   const std::vector<Trajectory> curved = detail::curved_inputs(nt);
@@ -566,7 +572,24 @@ Vector hold_shift(const DrivenFit& fit, const std::vector<Trajectory>& nt, const
   const ShootingReport rep = fit_shooting(fit.map, theta, c.z0, c.segs, val_z0, cut.val,
                                           detail::watching_damping(fit.map, opt));
   if (rep.stopped || !theta.allFinite()) return none;
-  return theta - fit.theta;
+  return {theta - fit.theta, rep.final_loss};
+}
+
+// The evidence of the positions for the straight-line hold over the curved one, n log(loss of
+// the curved refit / loss of the linked fit) over the n training residuals: the two fits have
+// the same parameters, so this is their log-likelihood ratio (twice it, Gaussian noise).
+// Above kHoldEvidence the input was straight between samples, as the model holds it, and the
+// intervals are not widened; else they span the curved refit's estimate (span_the_hold).
+constexpr double kHoldEvidence = 10.0;
+Vector hold_shift(const HoldRefit& refit, const ShootingReport& linked, Index n,
+                  nlohmann::json& record) {
+  const double evidence = static_cast<double>(n) * std::log(refit.loss / linked.final_loss);
+  record["evidence_for_the_straight_line"] =
+      std::isfinite(evidence) ? nlohmann::json(evidence) : nlohmann::json(nullptr);
+  record["widened"] = std::isfinite(evidence) && evidence <= kHoldEvidence;
+  return std::isfinite(evidence) && evidence <= kHoldEvidence
+             ? refit.shift
+             : Vector(Vector::Zero(refit.shift.size()));
 }
 
 // The Bayesian information criterion of a fit over the training segments (the same segments,
@@ -811,15 +834,19 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   record["terms_fitted"] = nlohmann::json::array();
   for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
   const DrivenChain chain = link_driven(fit, nt, cut, units, config, hooks, record);
-  const Vector hold = hold_shift(fit, nt, chain, config, hooks);
+  const HoldRefit refit = hold_refit(fit, nt, chain, config, hooks);
   const Index bi = *fit.map.damping_param_index();
-  record["input_hold"] = {
-      {"gamma_change",
-       (std::abs(fit.theta(bi) + hold(bi)) - std::abs(fit.theta(bi))) / units.time_scale},
-      {"about",
-       "the change of gamma_hat when the fit is repeated with the inputs' curvature between "
-       "samples folded in (u_k - h^2 u''_k / 12 held first-order); gamma_hat's and B's "
-       "intervals are widened to span that fit's too (their 'integrator' share)"}};
+  nlohmann::json& held = record["input_hold"];
+  held = {{"gamma_change", (std::abs(fit.theta(bi) + refit.shift(bi)) - std::abs(fit.theta(bi))) /
+                               units.time_scale},
+          {"about",
+           "the change of gamma_hat when the fit is repeated with the inputs' curvature between "
+           "samples folded in (u_k - h^2 u''_k / 12 held first-order); unless the positions "
+           "favour the straight line between samples by more than " +
+               detail::significant(kHoldEvidence) +
+               " in n log(loss ratio), gamma_hat's and B's intervals are widened to span that "
+               "fit's too (their 'integrator' share)"}};
+  const Vector hold = hold_shift(refit, fit.rep, chain.train.n_residuals(), held);
   const ShootingReport& rep = fit.rep;
   bool stopped = rep.stopped;
   DrivenInterval iv;

@@ -98,6 +98,31 @@ TEST(IdentifyDriven, LinkedSegmentsNarrowGammasIntervalAndCoverGammaAndB) {
   EXPECT_GE(gain_covered, 8);
 }
 
+// The input hold's share (choices.driven.input_hold): a smooth input sampled, which the
+// first-order hold is O(h²) off, widens the intervals to span the fit with the curvature folded
+// in; an input that is the straight line between its samples, as the model holds it, is told
+// apart by the positions (its evidence above 10) and leaves them alone.
+TEST(IdentifyDriven, TheHoldWidensTheIntervalsForASmoothInputAndNotForAStraightOne) {
+  for (const bool straight : {false, true}) {
+    Trajectory pos = driven_record(2000, 0.1, 0.002, 3, kGamma, 0.0, straight);
+    pos.z = Matrix(pos.z.topRows(1));
+    const IdentifyResult r =
+        identify_driven({pos}, true, make_identify_config(nlohmann::json::object()));
+    ASSERT_TRUE(r.interval.has_value()) << identify_report(r).dump(2);
+    const nlohmann::json& hold = r.choices["driven"]["input_hold"];
+    std::cout << "  straight " << straight << ": " << hold.dump() << "\n";
+    EXPECT_EQ(hold["widened"].get<bool>(), !straight) << hold.dump(1);
+    if (straight) {
+      EXPECT_GT(hold["evidence_for_the_straight_line"].get<double>(), 10.0);
+      EXPECT_EQ(r.interval->integrator, 0.0);
+    } else {
+      EXPECT_NEAR(r.interval->integrator, std::abs(hold["gamma_change"].get<double>()), 1e-15);
+    }
+    const double half = 0.5 * (r.interval->high - r.interval->low);
+    EXPECT_LE(std::abs(r.gamma - kGamma), 1.5 * half);
+  }
+}
+
 TEST(IdentifyDriven, ARecordWithMomentaGoesThePositionsRoute) {
   const Trajectory full = driven_record(1000, 0.05, 0.005, 4);
   const IdentifyResult r =

@@ -1,18 +1,24 @@
 // identify_driven(): records driven by known inputs u(t) (docs/identification.md, "Driven
 // records"; docs/derivations.md, "Known inputs").
 //
-//   1. units: q shifted by its mean and scaled by its spread per dof, time by the median step
-//      (the inputs keep theirs: B absorbs them);
-//   2. each trajectory is cut into segments of kSegment positions; every fifth is held out;
+//   1. units: q shifted by its mean per dof and scaled by one spread for every dof, time by the
+//      median step (the inputs keep theirs: B absorbs them);
+//   2. each trajectory is cut into segments of kSegment positions; every fifth is held out
+//      (identify_driven_fit.cpp);
 //   3. a start for θ by equation error: accelerations and velocities from three-point
 //      differences of the positions, regressed on the terms' forces, the velocity and the
 //      inputs (a start only);
 //   4. multiple shooting on the positions with the inputs (train/shooting.hpp): the segments'
-//      hidden start states and θ (W, the coefficients, β, B) jointly;
-//   5. γ̂'s interval and the input gain's from the sandwich over the training segments (each a
-//      block), with the degrees-of-freedom correction for the hidden start states and the
-//      held-out inflation, as for positions alone;
-//   6. checks (the held-out fit; the dissipation check is not applicable: u supplies energy) and
+//      hidden start states and θ (W, the coefficients, β, B) jointly; the terms selected by BIC
+//      over the training segments unless given (identify_driven_terms.cpp);
+//   5. the segments linked by continuity over whole stretches of the record
+//      (identify_driven_link.cpp → identify_chain.cpp), and the linked fit repeated with the
+//      inputs' curvature between samples folded in (the input hold's share);
+//   6. γ̂'s interval and the input gain's from the sandwich over the linked segments (each
+//      position clustered in its training segment), with the degrees-of-freedom correction for
+//      the hidden start states and the held-out inflation, as for positions alone, widened for
+//      the input hold unless the positions favour the straight line between samples;
+//   7. checks (the held-out fit; the dissipation check is not applicable: u supplies energy) and
 //      the verdict; the model in the user's units.
 #include <algorithm>
 #include <cmath>
@@ -31,6 +37,7 @@
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "csympnet/train/shooting.hpp"
+#include "identify_driven.hpp"
 #include "identify_driven_link.hpp"
 #include "identify_stages.hpp"
 
@@ -38,18 +45,16 @@ namespace csympnet {
 
 namespace {
 
-// Positions per shooting segment: its hidden start takes 2 of them per coordinate.
-constexpr Index kSegment = 20;
-// Additions the selection of a driven record's terms may make.
-constexpr int kDrivenAdditions = 3;
-// LM iterations of a driven fit (of each stage of the linking too).
-constexpr long kDrivenIterations = 200;
-// LM iterations of each trial fit of the selection (the chosen terms are fitted in full).
-constexpr long kSelectionIterations = 50;
-// Every kHoldOut-th segment is held out.
-constexpr Index kHoldOut = 5;
-// A bound on the hidden start states in the fit's units (the data have unit spread).
-constexpr double kMaxAbsState = 1e3;
+using detail::cut_driven;
+using detail::driven_map;
+using detail::driven_options;
+using detail::DrivenCut;
+using detail::DrivenFit;
+using detail::fit_driven;
+using detail::kDrivenIterations;
+using detail::kSegment;
+using detail::select_driven_terms;
+
 // The held-out loss over the training loss beyond which the model does not explain new
 // segments as it explains its own.
 constexpr double kHeldOutRatioMax = 2.0;
@@ -130,41 +135,6 @@ Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
   return u;
 }
 
-struct DrivenCut {
-  ShootingSegments train, val;
-  std::vector<detail::SegmentPlace> places;  // every segment, in the record's order
-};
-
-// Segments of kSegment positions (the last of a trajectory joined to the one before when
-// shorter than half); per step the input at its start and at its end.
-DrivenCut cut_driven(const std::vector<Trajectory>& nt, Index d) {
-  DrivenCut c;
-  c.train.d = c.val.d = d;
-  Index count = 0;
-  for (std::size_t j = 0; j < nt.size(); ++j) {
-    const Trajectory& t = nt[j];
-    const Index n = t.t.size();
-    for (Index first = 0; first + 3 <= n;) {
-      Index len = std::min(kSegment, n - first);
-      if (n - (first + len) < kSegment / 2) len = n - first;
-      const bool held_out = count % kHoldOut == kHoldOut - 1;
-      ShootingSegments& s = held_out ? c.val : c.train;
-      s.q.push_back(t.z.middleCols(first, len));
-      s.h.push_back(t.t.segment(first + 1, len - 1) - t.t.segment(first, len - 1));
-      s.u.push_back(detail::step_inputs(t, first, len));
-      s.block.push_back(static_cast<Index>(s.q.size()) - 1);
-      c.places.push_back({static_cast<Index>(j), first, len, held_out});
-      ++count;
-      first += len;
-    }
-  }
-  require(c.train.size() >= 3, [&] {
-    return "a record with inputs needs at least 4 segments of " + std::to_string(kSegment) +
-           " samples (3 to fit, 1 held out); it gives " + std::to_string(count);
-  });
-  return c;
-}
-
 // The given core's spec, or the quadratic terms (a linear system) to start the selection from;
 // the inputs' count checked against the record's.
 LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann::json& record) {
@@ -194,65 +164,6 @@ LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann
     return std::string("core: friction and drag terms are not supported with inputs yet");
   });
   return s;
-}
-
-// The library map of `terms` with the spec's order, substeps and hold (first order by default);
-// a diagonal mass.
-HamiltonianLibraryMap driven_map(const LibrarySpec& s, const std::vector<LibraryTerm>& terms,
-                                 Index d, Index m) {
-  return HamiltonianLibraryMap(d, terms, s.order, s.substeps, false, 0.1, {}, {},
-                               InputSpec{m, s.inputs.m != 0 ? s.inputs.hold : InputHold::kFirst});
-}
-
-// The equation-error start: with W = 1, per interior sample and dof i,
-//   q̈_i ≈ −Σ_k c_k ∂_iφ_k(q) − γ q̇_i + Σ_j B_ij u_j,
-// q̇ and q̈ from the three-point differences, solved by least squares for c, γ and B.
-Vector driven_start(const HamiltonianLibraryMap& map, const std::vector<Trajectory>& nt) {
-  const Index d = map.d(), m = map.n_inputs(), nt_terms = static_cast<Index>(map.terms().size());
-  const Index cols = nt_terms + 1 + d * m;
-  Vector theta(map.n_params());
-  Rng unused(1, "unused");
-  map.init_params(unused, theta);
-  std::vector<Vector> unit_thetas;
-  for (Index k = 0; k < nt_terms; ++k) {
-    Vector t = theta;
-    for (Index j = 0; j < nt_terms; ++j) t(map.coefficient_index(j)) = j == k ? 1.0 : 0.0;
-    unit_thetas.push_back(std::move(t));
-  }
-  std::vector<double> rows_a, rows_b;
-  Vector g(d);
-  for (const Trajectory& t : nt)
-    for (Index k = 1; k + 1 < t.t.size(); ++k) {
-      if (k % 65536 == 0) throw_if_stop_requested("the equation-error start of a driven fit");
-      const double h1 = t.t(k) - t.t(k - 1), h2 = t.t(k + 1) - t.t(k);
-      const Vector dq1 = t.z.col(k) - t.z.col(k - 1), dq2 = t.z.col(k + 1) - t.z.col(k);
-      const Vector acc = 2.0 * (dq2 / h2 - dq1 / h1) / (h1 + h2);
-      const Vector vel = (dq2 * (h1 / h2) + dq1 * (h2 / h1)) / (h1 + h2);
-      std::vector<Vector> forces;
-      for (Index c = 0; c < nt_terms; ++c) {
-        map.gradient(unit_thetas[static_cast<std::size_t>(c)], t.z.col(k).data(), g.data());
-        forces.push_back(g);
-      }
-      for (Index i = 0; i < d; ++i) {
-        for (Index c = 0; c < nt_terms; ++c)
-          rows_a.push_back(-forces[static_cast<std::size_t>(c)](i));
-        rows_a.push_back(-vel(i));
-        for (Index r = 0; r < d; ++r)
-          for (Index j = 0; j < m; ++j) rows_a.push_back(r == i ? t.u(j, k) : 0.0);
-        rows_b.push_back(acc(i));
-      }
-    }
-  const auto n = static_cast<Index>(rows_b.size());
-  const Matrix a = Eigen::Map<const RowMajorMatrix>(rows_a.data(), n, cols);
-  const Vector b = Eigen::Map<const Vector>(rows_b.data(), n);
-  const Vector x = a.colPivHouseholderQr().solve(b);
-  if (!x.allFinite()) return theta;
-  for (Index c = 0; c < nt_terms; ++c) theta(map.coefficient_index(c)) = x(c);
-  // β must be nonzero (γ̂ = |β| has no slope at 0); a negative start is a noisy one.
-  theta(*map.damping_param_index()) = std::max(x(nt_terms), 0.05);
-  for (Index r = 0; r < d; ++r)
-    for (Index j = 0; j < m; ++j) theta(map.input_index(r, j)) = x(nt_terms + 1 + r * m + j);
-  return theta;
 }
 
 // The interval of a function f(θ) with gradient `grad`, in the user's units (value × unit).
@@ -440,48 +351,6 @@ detail::Verdict driven_verdict(const ShootingReport& rep, const IdentifyQuality&
   return v;
 }
 
-// One driven fit: the equation-error start, the segments' start states, LM on the positions.
-struct DrivenFit {
-  HamiltonianLibraryMap map;
-  Vector theta;
-  Matrix z0, vz0;
-  ShootingReport rep;
-};
-
-// The options of a driven fit: the configured LM budget, at most max_iterations.
-ShootingOptions driven_options(const IdentifyConfig& config, const IdentifyHooks& hooks,
-                               long max_iterations) {
-  ShootingOptions opt;
-  opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
-                                            : max_iterations;
-  opt.max_abs_state = kMaxAbsState;
-  opt.should_stop = hooks.should_stop;
-  opt.converged_chi2 = 1e-3;
-  return opt;
-}
-
-DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& nt,
-                     const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
-                     long max_iterations = kDrivenIterations) {
-  const Index d = map.d();
-  Vector theta = driven_start(map, nt);
-  Matrix z0(2 * d, cut.train.size()), vz0(2 * d, cut.val.size());
-  const auto first_positions = [&](const ShootingSegments& s, Matrix& z) {
-    for (Index k = 0; k < s.size(); ++k) {
-      z.col(k).head(d) = s.q[static_cast<std::size_t>(k)].col(0);
-      z.col(k).tail(d).setZero();
-    }
-  };
-  first_positions(cut.train, z0);
-  first_positions(cut.val, vz0);
-  fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
-  // Held out: scored only (fit_shooting refits them at once).
-  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState, kScoringTolerance);
-  const ShootingOptions opt = driven_options(config, hooks, max_iterations);
-  ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
-  return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep};
-}
-
 // The segment fit's segments linked into chains over whole stretches of the record
 // (identify_driven_link.hpp): the training segments and start states the interval is formed
 // over, and the states of the training positions (the modes' mean state).
@@ -493,8 +362,6 @@ struct DrivenChain {
   std::vector<Matrix> states;  // per trajectory, the state at every sample
 };
 
-// `fit` (θ, the held-out start states, the report) becomes the linked fit's; linking ends at a
-// stop request (then the segments stay as they are). The stages go into record["linking"].
 // γ̂'s interval from the segment fit, before the linking (the independent segments, each its
 // own start state), for comparison with the linked fit's: {gamma_hat, low, high} in the user's
 // units, null when it cannot be formed.
@@ -514,6 +381,8 @@ nlohmann::json segment_fit_interval(const DrivenFit& fit, const ShootingSegments
   }
 }
 
+// `fit` (θ, the held-out start states, the report) becomes the linked fit's; linking ends at a
+// stop request (then the segments stay as they are). The stages go into record["linking"].
 DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const DrivenCut& cut,
                         const Normalization& units, const IdentifyConfig& config,
                         const IdentifyHooks& hooks, nlohmann::json& record) {
@@ -590,133 +459,6 @@ Vector hold_shift(const HoldRefit& refit, const ShootingReport& linked, Index n,
   return std::isfinite(evidence) && evidence <= kHoldEvidence
              ? refit.shift
              : Vector(Vector::Zero(refit.shift.size()));
-}
-
-// The Bayesian information criterion of a fit over the training segments (the same segments,
-// hence the same hidden start states, for every candidate): n log(loss) + parameters x log n.
-double driven_bic(const DrivenFit& f, Index n) {
-  const double nn = static_cast<double>(n);
-  return f.rep.final_loss > 0.0 && std::isfinite(f.rep.final_loss)
-             ? nn * std::log(f.rep.final_loss) +
-                   static_cast<double>(f.map.n_params()) * std::log(nn)
-             : std::numeric_limits<double>::infinity();
-}
-
-// The additions offered to `terms`: per coordinate its missing powers 3 and 4, and its sin/cos
-// pair when it has no sinusoid yet; per pair of coordinates (up to d = 4, neighbours beyond)
-// the missing powers 3 and 4 of their difference.
-std::vector<std::pair<std::string, std::vector<LibraryTerm>>> driven_additions(
-    const std::vector<LibraryTerm>& terms, Index d) {
-  std::vector<std::pair<std::string, std::vector<LibraryTerm>>> out;
-  const auto has = [&terms](const LibraryTerm& t) {
-    return std::find(terms.begin(), terms.end(), t) != terms.end();
-  };
-  const auto offer = [&](const std::vector<std::string>& names) {
-    std::vector<LibraryTerm> next = terms;
-    std::string added;
-    for (const std::string& n : names)
-      if (const LibraryTerm t = parse_term(n, d, "core"); !has(t)) {
-        next.push_back(t);
-        added += (added.empty() ? "" : ", ") + n;
-      }
-    if (!added.empty()) out.emplace_back(added, std::move(next));
-  };
-  for (Index i = 0; i < d; ++i) {
-    const std::string q = "q" + std::to_string(i + 1);
-    offer({q + "^3", q + "^4"});
-    const bool periodic = std::any_of(terms.begin(), terms.end(), [i](const LibraryTerm& t) {
-      return t.i == i && t.j < 0 && t.has_wavenumber();
-    });
-    if (!periodic) offer({"sin(" + q + ")", "cos(" + q + ")"});
-  }
-  for (Index i = 0; i < d; ++i)
-    for (Index j = i + 1; j < d; ++j) {
-      if (d > 4 && j != i + 1) continue;
-      const std::string x = "(q" + std::to_string(i + 1) + "-q" + std::to_string(j + 1) + ")";
-      offer({x + "^3", x + "^4"});
-    }
-  return out;
-}
-
-// Forward selection by BIC over the training segments, a few additions at most, then each
-// power of degree 3 or 4 or sin/cos pair dropped while that lowers the criterion. The velocity-free
-// analogue of the free route's selection: the input excites the record's whole range of amplitudes,
-// and the positions judge the force law. Every trial in record["selection"].
-DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
-                              const std::vector<Trajectory>& nt, const DrivenCut& cut,
-                              const IdentifyConfig& config, const IdentifyHooks& hooks,
-                              nlohmann::json& record) {
-  const Index d = fit.map.d();
-  const Index n = cut.train.n_residuals();
-  nlohmann::json trials = nlohmann::json::array();
-  const auto names = [](const std::vector<LibraryTerm>& ts) {
-    std::string out;
-    for (const LibraryTerm& t : ts) out += (out.empty() ? "" : ", ") + term_name(t);
-    return out;
-  };
-  const auto try_terms = [&](const std::string& what, const std::vector<LibraryTerm>& terms) {
-    throw_if_stop_requested("the selection of a driven record's terms");
-    DrivenFit x =
-        fit_driven(driven_map(spec, terms, d, m), nt, cut, config, hooks, kSelectionIterations);
-    const double change = driven_bic(x, n) - driven_bic(fit, n);
-    trials.push_back({{"change", what},
-                      {"terms", names(terms)},
-                      {"loss", x.rep.final_loss},
-                      {"bic_change", change}});
-    return std::make_pair(change, std::move(x));
-  };
-  for (int round = 0; round < kDrivenAdditions; ++round) {
-    std::optional<std::pair<double, DrivenFit>> best;
-    for (const auto& [what, terms] : driven_additions(fit.map.terms(), d)) {
-      auto t = try_terms("add " + what, terms);
-      if (t.first < 0.0 && (!best || t.first < best->first)) best = std::move(t);
-    }
-    if (!best) break;
-    fit = std::move(best->second);
-    trials.push_back({{"made", names(fit.map.terms())}});
-  }
-  for (bool dropped = true; dropped;) {
-    dropped = false;
-    const std::vector<LibraryTerm> terms = fit.map.terms();
-    for (std::size_t k = 0; k < terms.size(); ++k) {
-      // A power of degree 3 or 4, or a coordinate's sin/cos pair (at its sin): a sinusoid
-      // taken first can mimic the powers added after it.
-      const bool power = terms[k].shape == TermShape::kPower && terms[k].power >= 3;
-      if (!power && terms[k].shape != TermShape::kSin) continue;
-      std::vector<LibraryTerm> next;
-      std::string what;
-      for (const LibraryTerm& t : terms) {
-        const bool goes = power ? t == terms[k]
-                                : t.i == terms[k].i && t.j == terms[k].j &&
-                                      (t.shape == TermShape::kSin || t.shape == TermShape::kCos);
-        if (goes)
-          what += (what.empty() ? "" : ", ") + term_name(t);
-        else
-          next.push_back(t);
-      }
-      auto t = try_terms("drop " + what, next);
-      if (t.first >= 0.0) continue;
-      fit = std::move(t.second);
-      trials.push_back({{"made", names(fit.map.terms())}});
-      dropped = true;
-      break;
-    }
-  }
-  // The terms chosen, fitted in full from their equation-error start.
-  fit = fit_driven(driven_map(spec, fit.map.terms(), d, m), nt, cut, config, hooks);
-  record["selection"] = {
-      {"rule",
-       "from the quadratic terms, the addition (a coordinate's or a difference's powers 3 and 4, "
-       "or a coordinate's sin/cos pair) that lowers the Bayesian information criterion of the "
-       "training segments most, n log(loss) + parameters x log n, while one does (at most " +
-           std::to_string(kDrivenAdditions) +
-           "); then each power of degree 3 or 4, or sin/cos pair, dropped while that lowers it; "
-           "trial fits take at most " +
-           std::to_string(kSelectionIterations) +
-           " LM iterations, the terms chosen are fitted again in full"},
-      {"residuals", n},
-      {"trials", trials}};
-  return fit;
 }
 
 // The input's record in the report (r.input): the gain B on the acceleration with its interval

@@ -391,8 +391,8 @@ DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const
   DrivenChain out{cut.train, fit.z0, {}, 0, {}};
   std::vector<Matrix> states;
   if (fit.rep.stopped) {
-    states = detail::driven_states(fit.map, fit.theta, rec, cut.places, segments, fit.vz0);
-    out.starts = detail::training_state_windows(rec, states);
+    out.states = detail::driven_states(fit.map, fit.theta, rec, cut.places, segments, fit.vz0);
+    out.starts = detail::training_state_windows(rec, out.states);
     return out;
   }
   record["segment_fit_interval"] = segment_fit_interval(fit, cut.train, units, config.level, hooks);
@@ -414,6 +414,71 @@ DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const
   return out;
 }
 
+// γ̂'s standard error at `fit` over the linked segments (the fit's units); NaN when the
+// Gauss–Newton matrix cannot be factored or on a stop request.
+double gamma_standard_error(const DrivenFit& fit, const DrivenChain& chain, double level,
+                            const IdentifyHooks& hooks) {
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  const NormalEquations ne =
+      driven_normal_equations(fit.map, fit.theta, chain.z0, chain.train, stop);
+  if (ne.stopped) return std::numeric_limits<double>::quiet_NaN();
+  try {
+    return driven_gamma_interval(fit.map, fit.theta, ne, chain.train.n_residuals(), 1.0, level,
+                                 held_out_inflation(fit.rep))
+        .std_error;
+  } catch (const Error&) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+// The map's substeps doubled, the linked fit refitted from itself each time, while that moves
+// γ̂ by more than kSubstepShare of its standard error (at most kMaxSubstepDoublings times):
+// over linked segments the integrator's error of one substep (order 4) shows in γ̂ (on a
+// two-mass Duffing chain at 20 to 40 samples per period, one standard error). Each fit at
+// twice the substeps that moved γ̂ so is kept; every round goes into record["substeps"]. Not when
+// the core names its substeps, nothing was linked, or on a stop.
+constexpr double kSubstepShare = 0.1;
+constexpr int kMaxSubstepDoublings = 3;
+void refine_substeps(DrivenFit& fit, DrivenChain& chain, LibrarySpec spec, Index m,
+                     const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
+                     double tau, nlohmann::json& record) {
+  if (config.core.is_object() && config.core.contains("substeps")) return;
+  if (chain.per_piece == 0 || fit.rep.stopped) return;
+  nlohmann::json rounds = nlohmann::json::array();
+  const Index bi = *fit.map.damping_param_index();
+  for (int round = 0; round < kMaxSubstepDoublings; ++round) {
+    if (hooks.stage) hooks.stage("the integrator's substeps");
+    spec.substeps = 2 * fit.map.substeps();
+    HamiltonianLibraryMap map = driven_map(spec, fit.map.terms(), fit.map.d(), m);
+    Vector theta = fit.theta;
+    Matrix z0 = chain.z0, val_z0 = fit.vz0;
+    ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+    opt.converged_se = detail::kDampingConvergedSe;
+    const ShootingReport rep = fit_shooting(map, theta, z0, chain.train, val_z0, cut.val,
+                                            detail::watching_damping(map, opt));
+    if (rep.stopped || !theta.allFinite()) break;
+    const double change = std::abs(theta(bi)) - std::abs(fit.theta(bi));
+    DrivenFit finer{std::move(map), std::move(theta), fit.z0, std::move(val_z0), rep};
+    DrivenChain at = chain;
+    at.z0 = std::move(z0);
+    const double se = gamma_standard_error(finer, at, config.level, hooks);
+    const bool moved = std::abs(change) > kSubstepShare * se;
+    rounds.push_back({{"substeps", spec.substeps},
+                      {"gamma_change", change / tau},
+                      {"std_error", se / tau},
+                      {"kept", moved}});
+    if (!moved) break;
+    fit = std::move(finer);
+    chain = std::move(at);
+  }
+  record["substeps"] = {
+      {"rule", "doubled, the linked fit refitted, while that moves gamma_hat by more than " +
+                   detail::significant(kSubstepShare) + " of its standard error (at most " +
+                   std::to_string(kMaxSubstepDoublings) + " times)"},
+      {"fitted", fit.map.substeps()},
+      {"rounds", rounds}};
+}
+
 // The linked fit refitted, from itself, with the inputs' curvature between samples folded in
 // (detail::curved_inputs): how far θ moves (what the first-order hold's straight lines cost if
 // the input was smooth) and the refit's training loss.
@@ -433,6 +498,7 @@ HoldRefit hold_refit(const DrivenFit& fit, const std::vector<Trajectory>& nt,
   const DrivenCut cut = cut_driven(curved, fit.map.d());
   const detail::DrivenRecord rec = detail::driven_record(curved, cut.places);
   detail::Chain c = detail::cut_chain(rec.states, rec.layout, chain.per_piece, chain.states);
+  c.z0 = chain.z0;  // the linked fit's start states (its states are its rollouts)
   if (c.segs.size() != chain.train.size()) return none;
   Vector theta = fit.theta;
   Matrix val_z0 = fit.vz0;
@@ -575,7 +641,8 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   }
   record["terms_fitted"] = nlohmann::json::array();
   for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
-  const DrivenChain chain = link_driven(fit, nt, cut, units, config, hooks, record);
+  DrivenChain chain = link_driven(fit, nt, cut, units, config, hooks, record);
+  refine_substeps(fit, chain, spec, data.m, cut, config, hooks, units.time_scale, record);
   const HoldRefit refit = hold_refit(fit, nt, chain, config, hooks);
   const Index bi = *fit.map.damping_param_index();
   nlohmann::json& held = record["input_hold"];

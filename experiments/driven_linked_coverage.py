@@ -82,13 +82,14 @@ def summary(rows):
     width = np.median([r["high"] - r["low"] for r in ok]) if ok else float("nan")
     seg = [r["segments_high"] - r["segments_low"] for r in rows if r["segments_low"] is not None]
     err = np.array([r["gamma_hat"] - GAMMA for r in rows])
+    sd = err.std(ddof=1) if len(err) > 1 else float("nan")
     print(f"records {len(rows)}, with an interval {len(ok)}, identified "
           f"{sum(r['verdict'] == 'identified' for r in rows)}")
     print(f"gamma covered {cov}/{len(ok)}, b covered {covb}/{len(rows)}")
     print(f"median width of gamma's interval {width:.3g}; the independent segments' "
           f"{np.median(seg) if seg else float('nan'):.3g}")
-    print(f"gamma_hat - gamma: mean {err.mean():.3g}, sd {err.std(ddof=1):.3g} "
-          f"(standard error of the mean {err.std(ddof=1) / np.sqrt(len(err)):.3g})")
+    print(f"gamma_hat - gamma: mean {err.mean():.3g}, sd {sd:.3g} "
+          f"(standard error of the mean {sd / np.sqrt(len(err)):.3g})")
 
 
 def main():

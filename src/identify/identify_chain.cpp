@@ -47,9 +47,18 @@ RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& 
   return out;
 }
 
+Matrix step_inputs(const Trajectory& t, Index first, Index len) {
+  const Index m = t.u.rows();
+  if (m == 0) return Matrix();
+  Matrix u(2 * m, len - 1);
+  u.topRows(m) = t.u.middleCols(first, len - 1);
+  u.bottomRows(m) = t.u.middleCols(first + 1, len - 1);
+  return u;
+}
+
 namespace {
 
-// One segment of trajectory j over samples [first, end).
+// One segment of trajectory j over samples [first, end), with its inputs when t has any.
 void add_piece(const Trajectory& t, const RecordLayout& layout, std::size_t j, Index first,
                Index end, const std::vector<Matrix>& states, Chain& c,
                std::vector<Vector>& starts) {
@@ -57,6 +66,7 @@ void add_piece(const Trajectory& t, const RecordLayout& layout, std::size_t j, I
   const Index rows = layout.observed_rows > 0 ? layout.observed_rows : c.segs.d;
   c.segs.q.push_back(t.z.block(0, first, rows, len));
   c.segs.h.push_back(t.t.segment(first + 1, len - 1) - t.t.segment(first, len - 1));
+  if (t.u.rows() > 0) c.segs.u.push_back(step_inputs(t, first, len));
   const Vector w = layout.observed[j].segment(first, len);
   const auto& blocks = layout.block[j];
   std::vector<Index> cb(blocks.begin() + first, blocks.begin() + end);
@@ -119,7 +129,7 @@ void write_chain_states(const OneStepMap& map, ConstParams theta, const Chain& c
   for (Index s = 0; s < c.segs.size(); ++s) {
     const auto i = static_cast<std::size_t>(s);
     const auto [j, first] = c.span[i];
-    const Matrix z = shooting_states(map, theta, c.z0.col(s), c.segs.h[i]);
+    const Matrix z = shooting_states(map, theta, c.z0.col(s), c.segs.h[i], c.segs.inputs(s));
     states[static_cast<std::size_t>(j)].middleCols(first, z.cols()) = z;
   }
 }

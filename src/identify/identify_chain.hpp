@@ -1,6 +1,8 @@
 // Multiple shooting with continuity (Bock): the segments of a positions-only record linked
 // into chains over whole stretches of the record (docs/derivations.md, "Positions only: linked
-// segments"; docs/identification.md, "Positions only").
+// segments"; docs/identification.md, "Positions only"). A record with known inputs (its
+// trajectories' u) is linked the same way, each segment carrying its steps' inputs
+// (identify_driven_link.cpp).
 //
 // The segment fit of identify_positions.cpp gives every segment its own start state, so the
 // decay from one segment to the next, where γ lives, is thrown away. Here the segments are
@@ -54,9 +56,15 @@ struct RecordLayout {
 };
 RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& split);
 
+// The known inputs of trajectory t's steps from sample `first` over `len` samples, per step its
+// input at its start, then at its end (2m × (len − 1), ShootingSegments::u); empty when t has no
+// inputs.
+Matrix step_inputs(const Trajectory& t, Index first, Index len);
+
 // Segments over the stretches of the record, each holding at least `per_piece` training
 // positions (a shorter rest joins the one before), starts read from `states` (per trajectory,
-// 2d × n: the current estimate of the state at every sample).
+// 2d × n: the current estimate of the state at every sample). `nt`'s z has 2d rows (the first d
+// or all 2d observed: layout.observed_rows); a trajectory with inputs gives its segments theirs.
 struct Chain {
   ShootingSegments segs;
   Matrix z0;

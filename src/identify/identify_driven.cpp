@@ -1,21 +1,28 @@
 // identify_driven(): records driven by known inputs u(t) (docs/identification.md, "Driven
 // records"; docs/derivations.md, "Known inputs").
 //
-//   1. units: q shifted by its mean and scaled by its spread per dof, time by the median step
-//      (the inputs keep theirs: B absorbs them);
-//   2. each trajectory is cut into segments of kSegment positions; every fifth is held out;
+//   1. units: q shifted by its mean per dof and scaled by one spread for every dof, time by the
+//      median step (the inputs keep theirs: B absorbs them);
+//   2. each trajectory is cut into segments of kSegment positions; every fifth is held out
+//      (identify_driven_fit.cpp);
 //   3. a start for θ by equation error: accelerations and velocities from three-point
 //      differences of the positions, regressed on the terms' forces, the velocity and the
 //      inputs (a start only);
 //   4. multiple shooting on the positions with the inputs (train/shooting.hpp): the segments'
-//      hidden start states and θ (W, the coefficients, β, B) jointly;
-//   5. γ̂'s interval and the input gain's from the sandwich over the training segments (each a
-//      block), with the degrees-of-freedom correction for the hidden start states and the
-//      held-out inflation, as for positions alone;
-//   6. checks (the held-out fit; the dissipation check is not applicable: u supplies energy) and
+//      hidden start states and θ (W, the coefficients, β, B) jointly; the terms selected by BIC
+//      over the training segments unless given (identify_driven_terms.cpp);
+//   5. the segments linked by continuity over whole stretches of the record
+//      (identify_driven_link.cpp → identify_chain.cpp), and the linked fit repeated with the
+//      inputs' curvature between samples folded in (the input hold's share);
+//   6. γ̂'s interval and the input gain's from the sandwich over the linked segments (each
+//      position clustered in its training segment), with the degrees-of-freedom correction for
+//      the hidden start states and the held-out inflation, as for positions alone, widened for
+//      the input hold unless the positions favour the straight line between samples;
+//   7. checks (the held-out fit; the dissipation check is not applicable: u supplies energy) and
 //      the verdict; the model in the user's units.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -30,22 +37,24 @@
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "csympnet/train/shooting.hpp"
+#include "identify_driven.hpp"
+#include "identify_driven_link.hpp"
 #include "identify_stages.hpp"
 
 namespace csympnet {
 
 namespace {
 
-// Positions per shooting segment: its hidden start takes 2 of them per coordinate.
-constexpr Index kSegment = 20;
-// Additions the selection of a driven record's terms may make.
-constexpr int kDrivenAdditions = 3;
-// LM iterations of each trial fit of the selection (the chosen terms are fitted in full).
-constexpr long kSelectionIterations = 50;
-// Every kHoldOut-th segment is held out.
-constexpr Index kHoldOut = 5;
-// A bound on the hidden start states in the fit's units (the data have unit spread).
-constexpr double kMaxAbsState = 1e3;
+using detail::cut_driven;
+using detail::driven_map;
+using detail::driven_options;
+using detail::DrivenCut;
+using detail::DrivenFit;
+using detail::fit_driven;
+using detail::kDrivenIterations;
+using detail::kSegment;
+using detail::select_driven_terms;
+
 // The held-out loss over the training loss beyond which the model does not explain new
 // segments as it explains its own.
 constexpr double kHeldOutRatioMax = 2.0;
@@ -92,8 +101,8 @@ DrivenData check_driven(const std::vector<Trajectory>& trajs, bool positions_onl
   return out;
 }
 
-// q̂ = (q − mean) / spread per dof, t̂ = t / median step; β = c / α with c = the geometric mean
-// of α² / τ (the momenta are hidden: their unit is a convention).
+// q̂ = (q − mean) / spread (one for every dof), t̂ = t / median step; β = c / α with c = the
+// geometric mean of α² / τ (the momenta are hidden: their unit is a convention).
 Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
   Vector sum = Vector::Zero(d), sq = Vector::Zero(d);
   double n = 0.0;
@@ -114,46 +123,16 @@ Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
       return "column 'q" + std::to_string(i + 1) +
              "' does not vary; expected a coordinate that moves";
     });
+  // One spread for every dof (their root mean square): a difference term (qi - qj)^k of the
+  // library is then the bond's own difference in the data's units, up to a shift; with a spread
+  // per dof it would be (qi/si - qj/sj), which a bond's force does not have.
+  u.q_scale.setConstant(std::sqrt(u.q_scale.squaredNorm() / static_cast<double>(d)));
   std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
   u.time_scale = steps[steps.size() / 2];
   const double c = std::exp(u.q_scale.array().log().mean() * 2.0) / u.time_scale;
   u.p_scale = c * u.q_scale.cwiseInverse();
   u.validate("driven record units");
   return u;
-}
-
-struct DrivenCut {
-  ShootingSegments train, val;
-};
-
-// Segments of kSegment positions (the last of a trajectory joined to the one before when
-// shorter than half); per step the input at its start and at its end.
-DrivenCut cut_driven(const std::vector<Trajectory>& nt, Index d) {
-  DrivenCut c;
-  c.train.d = c.val.d = d;
-  Index count = 0;
-  for (const Trajectory& t : nt) {
-    const Index n = t.t.size();
-    for (Index first = 0; first + 3 <= n;) {
-      Index len = std::min(kSegment, n - first);
-      if (n - (first + len) < kSegment / 2) len = n - first;
-      ShootingSegments& s = (count % kHoldOut == kHoldOut - 1) ? c.val : c.train;
-      s.q.push_back(t.z.middleCols(first, len));
-      s.h.push_back(t.t.segment(first + 1, len - 1) - t.t.segment(first, len - 1));
-      Matrix u(2 * t.u.rows(), len - 1);
-      u.topRows(t.u.rows()) = t.u.middleCols(first, len - 1);
-      u.bottomRows(t.u.rows()) = t.u.middleCols(first + 1, len - 1);
-      s.u.push_back(std::move(u));
-      s.block.push_back(static_cast<Index>(s.q.size()) - 1);
-      ++count;
-      first += len;
-    }
-  }
-  require(c.train.size() >= 3, [&] {
-    return "a record with inputs needs at least 4 segments of " + std::to_string(kSegment) +
-           " samples (3 to fit, 1 held out); it gives " + std::to_string(count);
-  });
-  return c;
 }
 
 // The given core's spec, or the quadratic terms (a linear system) to start the selection from;
@@ -187,65 +166,6 @@ LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann
   return s;
 }
 
-// The library map of `terms` with the spec's order, substeps and hold (first order by default);
-// a diagonal mass.
-HamiltonianLibraryMap driven_map(const LibrarySpec& s, const std::vector<LibraryTerm>& terms,
-                                 Index d, Index m) {
-  return HamiltonianLibraryMap(d, terms, s.order, s.substeps, false, 0.1, {}, {},
-                               InputSpec{m, s.inputs.m != 0 ? s.inputs.hold : InputHold::kFirst});
-}
-
-// The equation-error start: with W = 1, per interior sample and dof i,
-//   q̈_i ≈ −Σ_k c_k ∂_iφ_k(q) − γ q̇_i + Σ_j B_ij u_j,
-// q̇ and q̈ from the three-point differences, solved by least squares for c, γ and B.
-Vector driven_start(const HamiltonianLibraryMap& map, const std::vector<Trajectory>& nt) {
-  const Index d = map.d(), m = map.n_inputs(), nt_terms = static_cast<Index>(map.terms().size());
-  const Index cols = nt_terms + 1 + d * m;
-  Vector theta(map.n_params());
-  Rng unused(1, "unused");
-  map.init_params(unused, theta);
-  std::vector<Vector> unit_thetas;
-  for (Index k = 0; k < nt_terms; ++k) {
-    Vector t = theta;
-    for (Index j = 0; j < nt_terms; ++j) t(map.coefficient_index(j)) = j == k ? 1.0 : 0.0;
-    unit_thetas.push_back(std::move(t));
-  }
-  std::vector<double> rows_a, rows_b;
-  Vector g(d);
-  for (const Trajectory& t : nt)
-    for (Index k = 1; k + 1 < t.t.size(); ++k) {
-      if (k % 65536 == 0) throw_if_stop_requested("the equation-error start of a driven fit");
-      const double h1 = t.t(k) - t.t(k - 1), h2 = t.t(k + 1) - t.t(k);
-      const Vector dq1 = t.z.col(k) - t.z.col(k - 1), dq2 = t.z.col(k + 1) - t.z.col(k);
-      const Vector acc = 2.0 * (dq2 / h2 - dq1 / h1) / (h1 + h2);
-      const Vector vel = (dq2 * (h1 / h2) + dq1 * (h2 / h1)) / (h1 + h2);
-      std::vector<Vector> forces;
-      for (Index c = 0; c < nt_terms; ++c) {
-        map.gradient(unit_thetas[static_cast<std::size_t>(c)], t.z.col(k).data(), g.data());
-        forces.push_back(g);
-      }
-      for (Index i = 0; i < d; ++i) {
-        for (Index c = 0; c < nt_terms; ++c)
-          rows_a.push_back(-forces[static_cast<std::size_t>(c)](i));
-        rows_a.push_back(-vel(i));
-        for (Index r = 0; r < d; ++r)
-          for (Index j = 0; j < m; ++j) rows_a.push_back(r == i ? t.u(j, k) : 0.0);
-        rows_b.push_back(acc(i));
-      }
-    }
-  const auto n = static_cast<Index>(rows_b.size());
-  const Matrix a = Eigen::Map<const RowMajorMatrix>(rows_a.data(), n, cols);
-  const Vector b = Eigen::Map<const Vector>(rows_b.data(), n);
-  const Vector x = a.colPivHouseholderQr().solve(b);
-  if (!x.allFinite()) return theta;
-  for (Index c = 0; c < nt_terms; ++c) theta(map.coefficient_index(c)) = x(c);
-  // β must be nonzero (γ̂ = |β| has no slope at 0); a negative start is a noisy one.
-  theta(*map.damping_param_index()) = std::max(x(nt_terms), 0.05);
-  for (Index r = 0; r < d; ++r)
-    for (Index j = 0; j < m; ++j) theta(map.input_index(r, j)) = x(nt_terms + 1 + r * m + j);
-  return theta;
-}
-
 // The interval of a function f(θ) with gradient `grad`, in the user's units (value × unit).
 SandwichInterval interval_of(const NormalEquations& ne, const Vector& grad, double value,
                              Index n_res, double scale, double inflation, double unit,
@@ -265,11 +185,66 @@ struct DrivenInterval {
   nlohmann::json gain;  // {"B", "B_ci_low", "B_ci_high"}: the gain on the acceleration
 };
 
+// The normal equations over the training segments with their start states eliminated, scaled
+// by 1/√n, the scores per block corrected for the 2d unknowns of every segment's start state
+// (the degrees-of-freedom correction of the positions route).
+NormalEquations driven_normal_equations(const HamiltonianLibraryMap& map, const Vector& theta,
+                                        const Matrix& z0, const ShootingSegments& train,
+                                        const std::function<bool()>& stop) {
+  const Index n_res = train.n_residuals();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  NormalEquations ne =
+      shooting_normal_equations(map, theta, z0, train, map.n_params(), scale, true, stop);
+  const double hidden = static_cast<double>(2 * map.d() * train.size());
+  ne.scores *=
+      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
+  return ne;
+}
+
+// γ̂'s interval (user's units) from `ne` over n_res residuals, inflated by `inflation`; throws
+// Error when the Gauss–Newton matrix cannot be factored even regularised.
+SandwichInterval driven_gamma_interval(const HamiltonianLibraryMap& map, const Vector& theta,
+                                       const NormalEquations& ne, Index n_res, double tau,
+                                       double level, double inflation) {
+  const Index bi = *map.damping_param_index();
+  const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
+  SandwichInterval s =
+      sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
+                        theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
+  inflate_interval(s, inflation);
+  for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
+                    &s.optimisation, &s.rounding})
+    *v /= tau;
+  s.method += " over hidden start states (positions with known inputs)";
+  return s;
+}
+
+// The interval widened to span the estimate moved by `shift` (what the first-order hold's straight
+// lines cost, hold_shift) with its own half-widths: whether the input between samples was
+// straight (as the hold assumes) or smooth (as a sampled signal usually is), the interval is
+// the one that estimate would have. `shift`'s size is recorded as the integrator share.
+void span_the_hold(SandwichInterval& s, double shift) {
+  s.integrator = std::abs(shift);
+  s.low = std::min(s.gamma, s.gamma + shift) - (s.gamma - s.low);
+  s.high = std::max(s.gamma, s.gamma + shift) + (s.high - s.gamma);
+}
+
+// The held-out inflation of a fit: √(held-out over training loss), at least 1.
+double held_out_inflation(const ShootingReport& rep) {
+  const double ratio =
+      rep.final_loss > 0.0 && std::isfinite(rep.val_loss) ? rep.val_loss / rep.final_loss : 1.0;
+  return std::sqrt(std::max(1.0, ratio));
+}
+
 // γ̂'s interval, the input gain's and the modes', from the training segments' normal
-// equations with the start states eliminated (as segments_interval of identify_segments).
+// equations with the start states eliminated (as segments_interval of identify_segments): the
+// linked chain's segments, each position clustered in its training block. `starts`: the states
+// the modes' mean state is taken over; `hold`: how far θ moves with the inputs' curvature
+// between samples (hold_shift), which γ̂'s and the gain's intervals are widened to span.
 DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& theta,
                                const Normalization& units, double level, const Matrix& z0,
                                const ShootingSegments& train, double inflation,
+                               const WindowSet& starts, const Vector& hold,
                                const IdentifyHooks& hooks) {
   if (hooks.stage) hooks.stage("interval");
   DrivenInterval out;
@@ -278,25 +253,15 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
   const double tau = units.time_scale;
   const Index n_res = train.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-  NormalEquations ne = shooting_normal_equations(map, theta, z0, train, p, scale, true, stop);
+  const NormalEquations ne = driven_normal_equations(map, theta, z0, train, stop);
   if (ne.stopped) {
     out.gamma.stopped = true;
     return out;
   }
-  const double hidden = static_cast<double>(2 * d * train.size());
-  const double dof_factor =
-      std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
-  ne.scores *= dof_factor;
-  const Index bi = *map.damping_param_index();
   try {
-    SandwichInterval s =
-        sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
-                          theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
-    inflate_interval(s, inflation);
-    for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
-                      &s.optimisation, &s.rounding})
-      *v /= tau;
-    s.method += " over hidden start states (positions with known inputs)";
+    SandwichInterval s = driven_gamma_interval(map, theta, ne, n_res, tau, level, inflation);
+    const Index bi = *map.damping_param_index();
+    span_the_hold(s, (std::abs(theta(bi) + hold(bi)) - std::abs(theta(bi))) / tau);
     out.gamma.interval = s;
   } catch (const Error&) {
     out.gamma.reasons.push_back(
@@ -316,8 +281,9 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
       grad(i) = b;
       grad(map.input_index(i, j)) = w;
       const double unit = units.q_scale(i) / (tau * tau);
-      const SandwichInterval iv =
-          interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
+      SandwichInterval iv = interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
+      const double shifted = (w + hold(i)) * (b + hold(map.input_index(i, j)));
+      span_the_hold(iv, (shifted - w * b) * unit);
       g_row.push_back(iv.gamma);
       l_row.push_back(iv.low);
       h_row.push_back(iv.high);
@@ -329,17 +295,6 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
   out.gain = {{"B", gain}, {"B_ci_low", low}, {"B_ci_high", high}};
   out.gamma.hamiltonian =
       detail::hamiltonian_report(map, theta, units, {&ne, n_res, scale, inflation, level});
-  WindowSet starts;
-  starts.m = 1;
-  starts.z0 = z0;
-  starts.zm.resize(2 * d, train.size());
-  starts.h.resize(1, train.size());
-  for (Index s = 0; s < train.size(); ++s) {
-    const Matrix z = shooting_states(map, theta, z0.col(s), train.h[static_cast<std::size_t>(s)],
-                                     train.inputs(s));
-    starts.zm.col(s) = z.col(1);
-    starts.h(0, s) = train.h[static_cast<std::size_t>(s)](0);
-  }
   out.gamma.modes = detail::modal_analysis(map, theta, starts, tau, level,
                                            {&ne, n_res, scale, 1.0, inflation, stop});
   out.gamma.stopped = out.gamma.modes.stopped;
@@ -396,166 +351,180 @@ detail::Verdict driven_verdict(const ShootingReport& rep, const IdentifyQuality&
   return v;
 }
 
-// One driven fit: the equation-error start, the segments' start states, LM on the positions.
-struct DrivenFit {
-  HamiltonianLibraryMap map;
-  Vector theta;
-  Matrix z0, vz0;
-  ShootingReport rep;
+// The segment fit's segments linked into chains over whole stretches of the record
+// (identify_driven_link.hpp): the training segments and start states the interval is formed
+// over, and the states of the training positions (the modes' mean state).
+struct DrivenChain {
+  ShootingSegments train;
+  Matrix z0;
+  WindowSet starts;
+  Index per_piece = 0;         // training positions per linked segment (0: not linked)
+  std::vector<Matrix> states;  // per trajectory, the state at every sample
 };
 
-DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& nt,
-                     const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
-                     long max_iterations = 200) {
-  const Index d = map.d();
-  Vector theta = driven_start(map, nt);
-  Matrix z0(2 * d, cut.train.size()), vz0(2 * d, cut.val.size());
-  const auto first_positions = [&](const ShootingSegments& s, Matrix& z) {
-    for (Index k = 0; k < s.size(); ++k) {
-      z.col(k).head(d) = s.q[static_cast<std::size_t>(k)].col(0);
-      z.col(k).tail(d).setZero();
-    }
-  };
-  first_positions(cut.train, z0);
-  first_positions(cut.val, vz0);
-  fit_start_states(map, theta, cut.train, z0, 30, true, kMaxAbsState);
-  // Held out: scored only (fit_shooting refits them at once).
-  fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState, kScoringTolerance);
-  ShootingOptions opt;
-  opt.iterations = config.lm_iterations > 0 ? std::min<long>(config.lm_iterations, max_iterations)
-                                            : max_iterations;
-  opt.max_abs_state = kMaxAbsState;
-  opt.should_stop = hooks.should_stop;
-  opt.converged_chi2 = 1e-3;
-  ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
-  return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep};
-}
-
-// The Bayesian information criterion of a fit over the training segments (the same segments,
-// hence the same hidden start states, for every candidate): n log(loss) + parameters x log n.
-double driven_bic(const DrivenFit& f, Index n) {
-  const double nn = static_cast<double>(n);
-  return f.rep.final_loss > 0.0 && std::isfinite(f.rep.final_loss)
-             ? nn * std::log(f.rep.final_loss) +
-                   static_cast<double>(f.map.n_params()) * std::log(nn)
-             : std::numeric_limits<double>::infinity();
-}
-
-// The additions offered to `terms`: per coordinate its missing powers 3 and 4, and its sin/cos
-// pair when it has no sinusoid yet; per pair of coordinates (up to d = 4, neighbours beyond)
-// the missing powers 3 and 4 of their difference.
-std::vector<std::pair<std::string, std::vector<LibraryTerm>>> driven_additions(
-    const std::vector<LibraryTerm>& terms, Index d) {
-  std::vector<std::pair<std::string, std::vector<LibraryTerm>>> out;
-  const auto has = [&terms](const LibraryTerm& t) {
-    return std::find(terms.begin(), terms.end(), t) != terms.end();
-  };
-  const auto offer = [&](const std::vector<std::string>& names) {
-    std::vector<LibraryTerm> next = terms;
-    std::string added;
-    for (const std::string& n : names)
-      if (const LibraryTerm t = parse_term(n, d, "core"); !has(t)) {
-        next.push_back(t);
-        added += (added.empty() ? "" : ", ") + n;
-      }
-    if (!added.empty()) out.emplace_back(added, std::move(next));
-  };
-  for (Index i = 0; i < d; ++i) {
-    const std::string q = "q" + std::to_string(i + 1);
-    offer({q + "^3", q + "^4"});
-    const bool periodic = std::any_of(terms.begin(), terms.end(), [i](const LibraryTerm& t) {
-      return t.i == i && t.j < 0 && t.has_wavenumber();
-    });
-    if (!periodic) offer({"sin(" + q + ")", "cos(" + q + ")"});
+// γ̂'s interval from the segment fit, before the linking (the independent segments, each its
+// own start state), for comparison with the linked fit's: {gamma_hat, low, high} in the user's
+// units, null when it cannot be formed.
+nlohmann::json segment_fit_interval(const DrivenFit& fit, const ShootingSegments& train,
+                                    const Normalization& units, double level,
+                                    const IdentifyHooks& hooks) {
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  const NormalEquations ne = driven_normal_equations(fit.map, fit.theta, fit.z0, train, stop);
+  if (ne.stopped) return nullptr;
+  try {
+    const SandwichInterval s =
+        driven_gamma_interval(fit.map, fit.theta, ne, train.n_residuals(), units.time_scale, level,
+                              held_out_inflation(fit.rep));
+    return {{"gamma_hat", s.gamma}, {"low", s.low}, {"high", s.high}};
+  } catch (const Error&) {
+    return nullptr;
   }
-  for (Index i = 0; i < d; ++i)
-    for (Index j = i + 1; j < d; ++j) {
-      if (d > 4 && j != i + 1) continue;
-      const std::string x = "(q" + std::to_string(i + 1) + "-q" + std::to_string(j + 1) + ")";
-      offer({x + "^3", x + "^4"});
-    }
+}
+
+// `fit` (θ, the held-out start states, the report) becomes the linked fit's; linking ends at a
+// stop request (then the segments stay as they are). The stages go into record["linking"].
+DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const DrivenCut& cut,
+                        const Normalization& units, const IdentifyConfig& config,
+                        const IdentifyHooks& hooks, nlohmann::json& record) {
+  const detail::DrivenRecord rec = detail::driven_record(nt, cut.places);
+  const detail::DrivenSegments segments{cut.train, fit.z0, cut.val, fit.rep};
+  DrivenChain out{cut.train, fit.z0, {}, 0, {}};
+  std::vector<Matrix> states;
+  if (fit.rep.stopped) {
+    out.states = detail::driven_states(fit.map, fit.theta, rec, cut.places, segments, fit.vz0);
+    out.starts = detail::training_state_windows(rec, out.states);
+    return out;
+  }
+  record["segment_fit_interval"] = segment_fit_interval(fit, cut.train, units, config.level, hooks);
+  if (hooks.stage) hooks.stage("linking the segments");
+  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+  opt.converged_se = detail::kDampingConvergedSe;
+  detail::LinkedFit linked = detail::link_driven_segments(fit.map, fit.theta, rec, cut.places,
+                                                          segments, kSegment, fit.vz0, opt, states);
+  record["linking"] = linked.record;
+  out.starts = detail::training_state_windows(rec, states);
+  if (linked.chain.segs.size() > 0) {
+    out.train = std::move(linked.chain.segs);
+    out.z0 = std::move(linked.chain.z0);
+    out.per_piece = linked.per_piece;
+    fit.rep = linked.report;
+  }
+  out.states = std::move(states);
+  fit.rep.stopped = fit.rep.stopped || linked.report.stopped;
   return out;
 }
 
-// Forward selection by BIC over the training segments, a few additions at most, then each
-// power of degree 3 or 4 or sin/cos pair dropped while that lowers the criterion. The velocity-free
-// analogue of the free route's selection: the input excites the record's whole range of amplitudes,
-// and the positions judge the force law. Every trial in record["selection"].
-DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
-                              const std::vector<Trajectory>& nt, const DrivenCut& cut,
-                              const IdentifyConfig& config, const IdentifyHooks& hooks,
-                              nlohmann::json& record) {
-  const Index d = fit.map.d();
-  const Index n = cut.train.n_residuals();
-  nlohmann::json trials = nlohmann::json::array();
-  const auto names = [](const std::vector<LibraryTerm>& ts) {
-    std::string out;
-    for (const LibraryTerm& t : ts) out += (out.empty() ? "" : ", ") + term_name(t);
-    return out;
-  };
-  const auto try_terms = [&](const std::string& what, const std::vector<LibraryTerm>& terms) {
-    throw_if_stop_requested("the selection of a driven record's terms");
-    DrivenFit x =
-        fit_driven(driven_map(spec, terms, d, m), nt, cut, config, hooks, kSelectionIterations);
-    const double change = driven_bic(x, n) - driven_bic(fit, n);
-    trials.push_back({{"change", what},
-                      {"terms", names(terms)},
-                      {"loss", x.rep.final_loss},
-                      {"bic_change", change}});
-    return std::make_pair(change, std::move(x));
-  };
-  for (int round = 0; round < kDrivenAdditions; ++round) {
-    std::optional<std::pair<double, DrivenFit>> best;
-    for (const auto& [what, terms] : driven_additions(fit.map.terms(), d)) {
-      auto t = try_terms("add " + what, terms);
-      if (t.first < 0.0 && (!best || t.first < best->first)) best = std::move(t);
-    }
-    if (!best) break;
-    fit = std::move(best->second);
-    trials.push_back({{"made", names(fit.map.terms())}});
+// γ̂'s standard error at `fit` over the linked segments (the fit's units); NaN when the
+// Gauss–Newton matrix cannot be factored or on a stop request.
+double gamma_standard_error(const DrivenFit& fit, const DrivenChain& chain, double level,
+                            const IdentifyHooks& hooks) {
+  const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
+  const NormalEquations ne =
+      driven_normal_equations(fit.map, fit.theta, chain.z0, chain.train, stop);
+  if (ne.stopped) return std::numeric_limits<double>::quiet_NaN();
+  try {
+    return driven_gamma_interval(fit.map, fit.theta, ne, chain.train.n_residuals(), 1.0, level,
+                                 held_out_inflation(fit.rep))
+        .std_error;
+  } catch (const Error&) {
+    return std::numeric_limits<double>::quiet_NaN();
   }
-  for (bool dropped = true; dropped;) {
-    dropped = false;
-    const std::vector<LibraryTerm> terms = fit.map.terms();
-    for (std::size_t k = 0; k < terms.size(); ++k) {
-      // A power of degree 3 or 4, or a coordinate's sin/cos pair (at its sin): a sinusoid
-      // taken first can mimic the powers added after it.
-      const bool power = terms[k].shape == TermShape::kPower && terms[k].power >= 3;
-      if (!power && terms[k].shape != TermShape::kSin) continue;
-      std::vector<LibraryTerm> next;
-      std::string what;
-      for (const LibraryTerm& t : terms) {
-        const bool goes = power ? t == terms[k]
-                                : t.i == terms[k].i && t.j == terms[k].j &&
-                                      (t.shape == TermShape::kSin || t.shape == TermShape::kCos);
-        if (goes)
-          what += (what.empty() ? "" : ", ") + term_name(t);
-        else
-          next.push_back(t);
-      }
-      auto t = try_terms("drop " + what, next);
-      if (t.first >= 0.0) continue;
-      fit = std::move(t.second);
-      trials.push_back({{"made", names(fit.map.terms())}});
-      dropped = true;
-      break;
-    }
+}
+
+// The map's substeps doubled, the linked fit refitted from itself each time, while that moves
+// γ̂ by more than kSubstepShare of its standard error (at most kMaxSubstepDoublings times):
+// over linked segments the integrator's error of one substep (order 4) shows in γ̂ (on a
+// two-mass Duffing chain at 20 to 40 samples per period, one standard error). Each fit at
+// twice the substeps that moved γ̂ so is kept; every round goes into record["substeps"]. Not when
+// the core names its substeps, nothing was linked, or on a stop.
+constexpr double kSubstepShare = 0.1;
+constexpr int kMaxSubstepDoublings = 3;
+void refine_substeps(DrivenFit& fit, DrivenChain& chain, LibrarySpec spec, Index m,
+                     const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
+                     double tau, nlohmann::json& record) {
+  if (config.core.is_object() && config.core.contains("substeps")) return;
+  if (chain.per_piece == 0 || fit.rep.stopped) return;
+  nlohmann::json rounds = nlohmann::json::array();
+  const Index bi = *fit.map.damping_param_index();
+  for (int round = 0; round < kMaxSubstepDoublings; ++round) {
+    if (hooks.stage) hooks.stage("the integrator's substeps");
+    spec.substeps = 2 * fit.map.substeps();
+    HamiltonianLibraryMap map = driven_map(spec, fit.map.terms(), fit.map.d(), m);
+    Vector theta = fit.theta;
+    Matrix z0 = chain.z0, val_z0 = fit.vz0;
+    ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+    opt.converged_se = detail::kDampingConvergedSe;
+    const ShootingReport rep = fit_shooting(map, theta, z0, chain.train, val_z0, cut.val,
+                                            detail::watching_damping(map, opt));
+    if (rep.stopped || !theta.allFinite()) break;
+    const double change = std::abs(theta(bi)) - std::abs(fit.theta(bi));
+    DrivenFit finer{std::move(map), std::move(theta), fit.z0, std::move(val_z0), rep};
+    DrivenChain at = chain;
+    at.z0 = std::move(z0);
+    const double se = gamma_standard_error(finer, at, config.level, hooks);
+    const bool moved = std::abs(change) > kSubstepShare * se;
+    rounds.push_back({{"substeps", spec.substeps},
+                      {"gamma_change", change / tau},
+                      {"std_error", se / tau},
+                      {"kept", moved}});
+    if (!moved) break;
+    fit = std::move(finer);
+    chain = std::move(at);
   }
-  // The terms chosen, fitted in full from their equation-error start.
-  fit = fit_driven(driven_map(spec, fit.map.terms(), d, m), nt, cut, config, hooks);
-  record["selection"] = {
-      {"rule",
-       "from the quadratic terms, the addition (a coordinate's or a difference's powers 3 and 4, "
-       "or a coordinate's sin/cos pair) that lowers the Bayesian information criterion of the "
-       "training segments most, n log(loss) + parameters x log n, while one does (at most " +
-           std::to_string(kDrivenAdditions) +
-           "); then each power of degree 3 or 4, or sin/cos pair, dropped while that lowers it; "
-           "trial fits take at most " +
-           std::to_string(kSelectionIterations) +
-           " LM iterations, the terms chosen are fitted again in full"},
-      {"residuals", n},
-      {"trials", trials}};
-  return fit;
+  record["substeps"] = {
+      {"rule", "doubled, the linked fit refitted, while that moves gamma_hat by more than " +
+                   detail::significant(kSubstepShare) + " of its standard error (at most " +
+                   std::to_string(kMaxSubstepDoublings) + " times)"},
+      {"fitted", fit.map.substeps()},
+      {"rounds", rounds}};
+}
+
+// The linked fit refitted, from itself, with the inputs' curvature between samples folded in
+// (detail::curved_inputs): how far θ moves (what the first-order hold's straight lines cost if
+// the input was smooth) and the refit's training loss.
+struct HoldRefit {
+  Vector shift;                                            // zero: no refit
+  double loss = std::numeric_limits<double>::quiet_NaN();  // NaN: no refit
+};
+
+// The refit; none when nothing was linked, on a stop request, or when the refit fails.
+HoldRefit hold_refit(const DrivenFit& fit, const std::vector<Trajectory>& nt,
+                     const DrivenChain& chain, const IdentifyConfig& config,
+                     const IdentifyHooks& hooks) {
+  const HoldRefit none{Vector::Zero(fit.theta.size())};
+  if (chain.per_piece == 0 || fit.rep.stopped) return none;
+  if (hooks.stage) hooks.stage("the input hold's share");
+  const std::vector<Trajectory> curved = detail::curved_inputs(nt);
+  const DrivenCut cut = cut_driven(curved, fit.map.d());
+  const detail::DrivenRecord rec = detail::driven_record(curved, cut.places);
+  detail::Chain c = detail::cut_chain(rec.states, rec.layout, chain.per_piece, chain.states);
+  c.z0 = chain.z0;  // the linked fit's start states (its states are its rollouts)
+  if (c.segs.size() != chain.train.size()) return none;
+  Vector theta = fit.theta;
+  Matrix val_z0 = fit.vz0;
+  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+  opt.converged_se = detail::kDampingConvergedSe;
+  const ShootingReport rep = fit_shooting(fit.map, theta, c.z0, c.segs, val_z0, cut.val,
+                                          detail::watching_damping(fit.map, opt));
+  if (rep.stopped || !theta.allFinite()) return none;
+  return {theta - fit.theta, rep.final_loss};
+}
+
+// The evidence of the positions for the straight-line hold over the curved one, n log(loss of
+// the curved refit / loss of the linked fit) over the n training residuals: the two fits have
+// the same parameters, so this is their log-likelihood ratio (twice it, Gaussian noise).
+// Above kHoldEvidence the input was straight between samples, as the model holds it, and the
+// intervals are not widened; else they span the curved refit's estimate (span_the_hold).
+constexpr double kHoldEvidence = 10.0;
+Vector hold_shift(const HoldRefit& refit, const ShootingReport& linked, Index n,
+                  nlohmann::json& record) {
+  const double evidence = static_cast<double>(n) * std::log(refit.loss / linked.final_loss);
+  record["evidence_for_the_straight_line"] =
+      std::isfinite(evidence) ? nlohmann::json(evidence) : nlohmann::json(nullptr);
+  record["widened"] = std::isfinite(evidence) && evidence <= kHoldEvidence;
+  return std::isfinite(evidence) && evidence <= kHoldEvidence
+             ? refit.shift
+             : Vector(Vector::Zero(refit.shift.size()));
 }
 
 // The input's record in the report (r.input): the gain B on the acceleration with its interval
@@ -672,14 +641,27 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   }
   record["terms_fitted"] = nlohmann::json::array();
   for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
+  DrivenChain chain = link_driven(fit, nt, cut, units, config, hooks, record);
+  refine_substeps(fit, chain, spec, data.m, cut, config, hooks, units.time_scale, record);
+  const HoldRefit refit = hold_refit(fit, nt, chain, config, hooks);
+  const Index bi = *fit.map.damping_param_index();
+  nlohmann::json& held = record["input_hold"];
+  held = {{"gamma_change", (std::abs(fit.theta(bi) + refit.shift(bi)) - std::abs(fit.theta(bi))) /
+                               units.time_scale},
+          {"about",
+           "the change of gamma_hat when the fit is repeated with the inputs' curvature between "
+           "samples folded in (u_k - h^2 u''_k / 12 held first-order); unless the positions "
+           "favour the straight line between samples by more than " +
+               detail::significant(kHoldEvidence) +
+               " in n log(loss ratio), gamma_hat's and B's intervals are widened to span that "
+               "fit's too (their 'integrator' share)"}};
+  const Vector hold = hold_shift(refit, fit.rep, chain.train.n_residuals(), held);
   const ShootingReport& rep = fit.rep;
   bool stopped = rep.stopped;
-  const double ratio =
-      rep.final_loss > 0.0 && std::isfinite(rep.val_loss) ? rep.val_loss / rep.final_loss : 1.0;
   DrivenInterval iv;
   if (!stopped) {
-    iv = driven_interval(fit.map, fit.theta, units, config.level, fit.z0, cut.train,
-                         std::sqrt(std::max(1.0, ratio)), hooks);
+    iv = driven_interval(fit.map, fit.theta, units, config.level, chain.z0, chain.train,
+                         held_out_inflation(rep), chain.starts, hold, hooks);
     stopped = stopped || iv.gamma.stopped;
   }
   choices["driven"] = record;

@@ -25,18 +25,27 @@ struct Multisine {
 // The oscillator by classic RK4, 20 steps per sample, u evaluated where RK4 asks; positions
 // with noise of `noise` times their spread; momenta p = q' exactly.
 // `gamma`: the damping rate of the record (kDrivenGamma unless given); `cubic`: a hardening
-// force −cubic·q³ beside the spring (a Duffing oscillator, V = ω²q²/2 + cubic·q⁴/4).
+// force −cubic·q³ beside the spring (a Duffing oscillator, V = ω²q²/2 + cubic·q⁴/4);
+// `straight`: the input is the straight line between its samples (a first-order hold, as a
+// generator that interpolates linearly gives it) instead of the smooth multisine.
 inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed,
-                                double gamma = kDrivenGamma, double cubic = 0.0) {
+                                double gamma = kDrivenGamma, double cubic = 0.0,
+                                bool straight = false) {
   Rng rng(seed, "driven-record");
   Multisine u;
   for (int k = 0; k < 8; ++k) {
     u.freq.push_back(0.3 + 0.45 * k);  // 0.3 … 3.45 rad per time unit, around ω = 2
     u.phase.push_back(rng.uniform(0.0, 2.0 * M_PI));
   }
+  double t0 = 0.0;  // the current sample's time (for the straight input)
+  const auto input = [&](double t) {
+    if (!straight) return u(t);
+    const double s = (t - t0) / h;
+    return (1.0 - s) * u(t0) + s * u(t0 + h);
+  };
   const auto field = [&](double q, double v, double t, double& dq, double& dv) {
     dq = v;
-    dv = -kDrivenOmega * kDrivenOmega * q - cubic * q * q * q - gamma * v + kDrivenGain * u(t);
+    dv = -kDrivenOmega * kDrivenOmega * q - cubic * q * q * q - gamma * v + kDrivenGain * input(t);
   };
   Trajectory tr;
   tr.t.resize(n);
@@ -46,6 +55,7 @@ inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t s
   const int sub = 20;
   for (Index k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * h;
+    t0 = t;
     tr.t(k) = t;
     tr.z(0, k) = q;
     tr.z(1, k) = v;

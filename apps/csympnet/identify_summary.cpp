@@ -32,10 +32,15 @@ bool has_interval(const nlohmann::json& j) {
 
 void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
   const SandwichInterval& s = *r.interval;
+  // The effective blocks, when measured: how many the interval's variance really rests on.
+  char effective[64] = "";
+  if (s.effective_blocks > 0.0)
+    std::snprintf(effective, sizeof effective, ", %.2g effective", s.effective_blocks);
   std::printf(
-      "gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per %s (%g%% interval, %s, %ld training blocks)\n",
+      "gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per %s (%g%% interval, %s, %ld training "
+      "blocks%s)\n",
       r.gamma, s.quantile * s.std_error, s.low, s.high, per(unit).c_str(), 100.0 * s.level,
-      s.method.c_str(), s.blocks);
+      s.method.c_str(), s.blocks, effective);
   // γ is the energy's decay rate; amplitudes decay as e^{-γt/2}.
   if (unit && unit->name != "s")
     std::printf(

@@ -4,8 +4,6 @@
 #include <chrono>
 #include <cmath>
 
-#include <Eigen/Cholesky>
-
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "identify_evaluators.hpp"
@@ -214,17 +212,7 @@ Vector CandidateFit::gauss_newton_step(const Candidate& x) const {
   const NormalEquations ne = normal_equations_over_ranks(*x.inner.map, x.theta, train, c_->balanced,
                                                          sc, false, stop, *comm_);
   if (ne.stopped) return {};
-  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
-  const Vector diag = a.diagonal().cwiseMax(1e-300);
-  for (double mu = 1e-9; mu < 1e3; mu *= 100.0) {
-    Matrix lhs = a;
-    lhs.diagonal() += mu * diag;
-    const Eigen::LDLT<Matrix> f(lhs);
-    if (f.info() != Eigen::Success) continue;
-    Vector step = -f.solve(ne.g);
-    if (step.allFinite()) return step;
-  }
-  return Vector::Zero(x.theta.size());
+  return csympnet::gauss_newton_step(ne);
 }
 
 namespace {

@@ -11,8 +11,6 @@
 #include <utility>
 #include <vector>
 
-#include <Eigen/Cholesky>
-
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/dof_scaled_map.hpp"
 #include "csympnet/models/model.hpp"
@@ -168,18 +166,9 @@ Vector shooting_gauss_newton_step(const OneStepMap& map, const Vector& theta, co
   const NormalEquations ne =
       shooting_normal_equations(map, theta, train.z0, train.segs, n_free, scale, false, stop);
   if (ne.stopped) return {};
-  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
-  const Vector diag = a.diagonal().cwiseMax(1e-300);
-  for (double mu = 1e-9; mu < 1e3; mu *= 100.0) {
-    Matrix lhs = a;
-    lhs.diagonal() += mu * diag;
-    const Eigen::LDLT<Matrix> f(lhs);
-    if (f.info() != Eigen::Success) continue;
-    Vector step = Vector::Zero(theta.size());
-    step.head(n_free) = -f.solve(ne.g);
-    if (step.allFinite()) return step;
-  }
-  return Vector::Zero(theta.size());
+  Vector step = Vector::Zero(theta.size());
+  step.head(n_free) = gauss_newton_step(ne);
+  return step;
 }
 
 // Where the library core's fit over these segments moves when its integrator takes twice the

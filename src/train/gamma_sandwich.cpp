@@ -116,8 +116,7 @@ double student_t_quantile(double p, double dof) {
 SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,
                                       const Vector& gradient, double value, Index n_residuals,
                                       double cost, double residual_scale, double data_scale,
-                                      double level,
-                                      const std::vector<Matrix>* block_information) {
+                                      double level, const std::vector<Matrix>* block_information) {
   const Index p = a.rows();
   require(a.cols() == p && g.size() == p && scores.rows() == p && gradient.size() == p,
           "interval: inconsistent normal equations");

@@ -1,5 +1,7 @@
 #include "csympnet/train/window_loss.hpp"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -279,6 +281,20 @@ NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta
       }
   }
   return ne;
+}
+
+Vector gauss_newton_step(const NormalEquations& ne) {
+  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+  const Vector diag = a.diagonal().cwiseMax(1e-300);
+  for (double mu = 1e-9; mu < 1e3; mu *= 100.0) {
+    Matrix lhs = a;
+    lhs.diagonal() += mu * diag;
+    const Eigen::LDLT<Matrix> f(lhs);
+    if (f.info() != Eigen::Success) continue;
+    Vector step = -f.solve(ne.g);
+    if (step.allFinite()) return step;
+  }
+  return Vector::Zero(ne.g.size());
 }
 
 }  // namespace csympnet

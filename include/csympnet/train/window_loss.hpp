@@ -90,6 +90,10 @@ struct NormalEquations {
   // computed (shooting_block_equations); the intervals' degrees of freedom come from it.
   std::vector<Matrix> block_information;
 };
+// One Gauss–Newton step from these normal equations, −(A + μD)⁻¹ g with D = diag A and μ a
+// ridge at 1e-9 (raised a hundredfold while A + μD cannot be factored); zero when it never can.
+Vector gauss_newton_step(const NormalEquations& ne);
+
 NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta,
                                         const WindowSet& w, bool balanced, double scale,
                                         bool with_scores = false,

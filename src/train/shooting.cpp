@@ -399,6 +399,23 @@ Matrix small_pseudo_inverse(const Matrix& u) {
   return e.eigenvectors() * inv.asDiagonal() * e.eigenvectors().transpose();
 }
 
+// The normal equations with the start states eliminated (accumulate, then reduce at λ = 0);
+// `terms` keeps the segments' terms, `jk` (optional) each block's pieces.
+NormalEquations reduced_equations(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                                  const ShootingSegments& segs, Index n_free, double scale,
+                                  bool with_scores, const std::function<bool()>& should_stop,
+                                  std::vector<SegmentTerms>& terms, BlockPieces* jk = nullptr) {
+  NormalEquations ne =
+      accumulate(map, theta, z0, segs, n_free, scale, with_scores, should_stop, terms, jk);
+  if (ne.stopped) return ne;
+  Matrix a;
+  Vector g;
+  reduce(ne, terms, segs, 0.0, a, g);
+  ne.a = std::move(a);
+  ne.g = std::move(g);
+  return ne;
+}
+
 // Per block b, the information on θ in its rows once every segment's start state is eliminated
 // (the efficient Jacobian J̃_b = A_b − B_b U_s⁻¹ W_sᵀ over the segment's rows in the block):
 //   E_b = Σ_{s∋b} (A_bᵀA_b − W_b U_s⁻¹ W_sᵀ − W_s U_s⁻¹ W_bᵀ + W_s U_s⁻¹ U_b U_s⁻¹ W_sᵀ),
@@ -457,17 +474,11 @@ NormalEquations shooting_block_equations(const OneStepMap& map, ConstParams thet
       kBlockInformationMaxNumbers;
   if (!feasible)
     return shooting_normal_equations(map, theta, z0, segs, n_free, scale, true, should_stop);
-  std::vector<SegmentTerms> terms;
   BlockPieces jk;
+  std::vector<SegmentTerms> terms;
   NormalEquations ne =
-      accumulate(map, theta, z0, segs, n_free, scale, true, should_stop, terms, &jk);
-  if (ne.stopped) return ne;
-  Matrix a;
-  Vector g;
-  reduce(ne, terms, segs, 0.0, a, g);
-  ne.a = std::move(a);
-  ne.g = std::move(g);
-  ne.block_information = block_information(terms, jk);
+      reduced_equations(map, theta, z0, segs, n_free, scale, true, should_stop, terms, &jk);
+  if (!ne.stopped) ne.block_information = block_information(terms, jk);
   return ne;
 }
 
@@ -477,15 +488,7 @@ NormalEquations shooting_normal_equations(const OneStepMap& map, ConstParams the
                                           const std::function<bool()>& should_stop) {
   segs.validate("shooting");
   std::vector<SegmentTerms> terms;
-  NormalEquations ne =
-      accumulate(map, theta, z0, segs, n_free, scale, with_scores, should_stop, terms);
-  if (ne.stopped) return ne;
-  Matrix a;
-  Vector g;
-  reduce(ne, terms, segs, 0.0, a, g);
-  ne.a = std::move(a);
-  ne.g = std::move(g);
-  return ne;
+  return reduced_equations(map, theta, z0, segs, n_free, scale, with_scores, should_stop, terms);
 }
 
 namespace {

@@ -25,6 +25,7 @@
 #include "identify_summary.hpp"
 #include "interrupt.hpp"
 #include "progress.hpp"
+#include "stage_clock.hpp"
 #include "system_options.hpp"
 
 namespace csympnet::cli {
@@ -370,7 +371,8 @@ FitRecord read_fit_record(const CsvInput& input) {
 // What fit tells as it works: the stages on stderr, AdamW on the progress line, LM one line a
 // second at most (on a terminal, redrawn in place) and the last one; every poll of the stop
 // request and of the progress an agreement over MPI ranks.
-IdentifyHooks fit_hooks(const Communicator& comm, bool talk, const ProgressCallback& adamw_line) {
+IdentifyHooks fit_hooks(const Communicator& comm, bool talk, const ProgressCallback& adamw_line,
+                        StageClock& clock) {
   IdentifyHooks hooks;
   hooks.should_stop = [] { return interrupted(); };
   if (comm.size() > 1) {
@@ -378,7 +380,8 @@ IdentifyHooks fit_hooks(const Communicator& comm, bool talk, const ProgressCallb
     hooks.communicator = &comm;
     hooks.should_stop = [&comm] { return comm.any(interrupted()); };
   }
-  hooks.stage = [talk](const std::string& s) {
+  hooks.stage = [talk, &clock](const std::string& s) {
+    clock.enter(s);
     if (talk)
       std::fprintf(stderr, "%sfit: %s\n", isatty(STDERR_FILENO) == 1 ? "\n" : "", s.c_str());
   };
@@ -404,16 +407,21 @@ IdentifyHooks fit_hooks(const Communicator& comm, bool talk, const ProgressCallb
 // report.json, timings.json and model.json as one set in OUT; a figure of an earlier fit there
 // is removed, since it would not show this one.
 void write_fit_outputs(const FitArgs& a, const IdentifyResult& r,
-                       const std::optional<TimeUnit>& unit, OutputDir& out_dir) {
+                       const std::optional<TimeUnit>& unit, const StageClock& clock,
+                       OutputDir& out_dir) {
   nlohmann::json report = identify_report(r);
   report["data"]["file"] = a.data;
   if (!a.columns.empty()) report["data"]["columns"] = a.columns;
   report["time_unit"] = time_unit_report(unit, report);
   out_dir.commit(
       {{"report.json", json_file_text(report)},
-       {"timings.json", json_file_text({{"train_seconds", r.adamw_seconds},
-                                        {"lm_seconds", r.lm_seconds},
-                                        {"interval_seconds", r.interval_seconds}})},
+       {"timings.json", json_file_text([&] {
+          nlohmann::json t = clock.report();
+          t["train_seconds"] = r.adamw_seconds;
+          t["lm_seconds"] = r.lm_seconds;
+          t["interval_seconds"] = r.interval_seconds;
+          return t;
+        }())},
        {"model.json", model_file_text(r.model, r.theta, [&] {
           nlohmann::json meta = {{"data", a.data}, {"seed", r.config.seed}, {"recipe", "identify"}};
           if (r.config.init) meta["init"] = r.config.init->file;
@@ -470,9 +478,11 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     if (canonical == "t" && !unit) unit = time_unit_of_column(own);
   const FitRecord rec = read_fit_record(read_csv_input(a.data, columns));  // once: a pipe works
   IdentifyResult r;
+  StageClock clock;  // where the fit's time goes (timings.json)
   {
     ProgressLine progress(a.quiet || !lead);
-    const IdentifyHooks hooks = fit_hooks(comm, !a.quiet && lead, progress.callback());
+    clock.enter("preparing the data");
+    const IdentifyHooks hooks = fit_hooks(comm, !a.quiet && lead, progress.callback(), clock);
     try {
       r = rec.driven           ? identify_driven(rec.trajs, rec.positions_only, c, hooks)
           : rec.positions_only ? identify_positions(rec.trajs, c, hooks)
@@ -484,6 +494,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
     } catch (const Error& e) {
       throw Error(a.data + ": " + e.what());  // what the data lack: name the file
     }
+    clock.finish();
   }
   if (!lead) {  // the same result as rank 0's, which reports it
     if (r.stopped)
@@ -491,7 +502,7 @@ void run_identify(const FitArgs& a, const CLI::App& cmd) {
                         " stopped with the others; rank 0 saved the best parameters in " + a.out);
     return;
   }
-  write_fit_outputs(a, r, unit, *out_dir);
+  write_fit_outputs(a, r, unit, clock, *out_dir);
   if (r.identified) {
     print_gamma(r, unit);
     print_dissipation(r);

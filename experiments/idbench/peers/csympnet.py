@@ -117,6 +117,18 @@ def core_type(rep):
     return None
 
 
+def stage_cpu_seconds(path):
+    """timings.json's CPU seconds per stage name ("by_stage"), or None"""
+    try:
+        with open(path) as f:
+            by = json.load(f).get("by_stage")
+    except (OSError, ValueError):
+        return None
+    if not isinstance(by, dict):
+        return None
+    return {k: v.get("cpu_seconds") for k, v in by.items() if isinstance(v, dict)}
+
+
 def run_csympnet(exe, data, outdir, extra, timeout, cpu=False):
     """`csympnet fit` on data; cpu: also the child's CPU seconds (cpu_seconds)."""
     cmd = [exe, "fit", data, "--out", outdir, "-q", "--no-figures", *extra]
@@ -129,6 +141,9 @@ def run_csympnet(exe, data, outdir, extra, timeout, cpu=False):
            "stdout_tail": out.strip().splitlines()[-1] if out.strip() else ""}
     if cpu:
         res["cpu_seconds"] = cpu_s
+    stages = stage_cpu_seconds(os.path.join(outdir, "timings.json"))
+    if stages:
+        res["stage_cpu_seconds"] = stages
     last_err = err.strip().splitlines()[-1] if err.strip() else ""
     if timed_out:
         res.update(status="failed", reason=f"timeout after {timeout} s")

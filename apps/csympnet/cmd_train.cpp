@@ -420,6 +420,7 @@ void write_fit_outputs(const FitArgs& a, const IdentifyResult& r,
           t["train_seconds"] = r.adamw_seconds;
           t["lm_seconds"] = r.lm_seconds;
           t["interval_seconds"] = r.interval_seconds;
+          t["choices_seconds"] = identify_wall_seconds(r);
           return t;
         }())},
        {"model.json", model_file_text(r.model, r.theta, [&] {

@@ -1,4 +1,5 @@
 #include "csympnet/identify/identify.hpp"
+#include "../train/lapack.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -305,6 +306,7 @@ void check_init_start(const detail::Candidate& x, const detail::CandidateFit& fi
 
 IdentifyResult identify(const std::vector<Trajectory>& trajs, bool pairs_only,
                         const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  const lapack::SingleThreaded one_thread;  // the same bits on every core count (lapack.hpp)
   // Momenta computed from noisy positions would hand the damping rate their differenced noise
   // and the filter's bias: they are set aside, and the positions fitted alone.
   if (!pairs_only) {
@@ -752,6 +754,26 @@ std::string dissipation_sentence(const IdentifyResult& r) {
   return s;
 }
 
+namespace {
+
+// Removes every "seconds" key below `x` (a stage's wall time in the choices' records), keeping
+// each in `out` (when given) under its path, e.g. "choices.positions.linking.stages[1].seconds".
+void take_wall_seconds(nlohmann::json& x, const std::string& path, nlohmann::json* out) {
+  if (x.is_object()) {
+    if (x.contains("seconds") && x["seconds"].is_number()) {
+      if (out != nullptr) (*out)[path + ".seconds"] = x["seconds"];
+      x.erase("seconds");
+    }
+    for (auto it = x.begin(); it != x.end(); ++it)
+      take_wall_seconds(*it, path + "." + it.key(), out);
+  } else if (x.is_array()) {
+    for (std::size_t i = 0; i < x.size(); ++i)
+      take_wall_seconds(x[i], path + "[" + std::to_string(i) + "]", out);
+  }
+}
+
+}  // namespace
+
 nlohmann::json identify_report(const IdentifyResult& r) {
   nlohmann::json j = {
       {"model", "csympnet"},
@@ -808,7 +830,15 @@ nlohmann::json identify_report(const IdentifyResult& r) {
   // As a run's configuration records it (run.cpp): only when not the default.
   if (kernels::arithmetic() != kernels::kDefaultArithmetic)
     j["arithmetic"] = kernels::to_string(kernels::arithmetic());
+  // The stages' wall times (identify_wall_seconds) stay out: the report is the same run to run.
+  take_wall_seconds(j["choices"], "choices", nullptr);
   return j;
+}
+
+nlohmann::json identify_wall_seconds(const IdentifyResult& r) {
+  nlohmann::json choices = r.choices, out = nlohmann::json::object();
+  take_wall_seconds(choices, "choices", &out);
+  return out;
 }
 
 }  // namespace csympnet

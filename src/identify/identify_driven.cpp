@@ -30,6 +30,7 @@
 
 #include <Eigen/QR>
 
+#include "../train/lapack.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/stop.hpp"
@@ -601,6 +602,7 @@ IdentifyResult assemble_driven(const DrivenFit& fit, const DrivenData& data,
 
 IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positions_only,
                                const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  const lapack::SingleThreaded one_thread;  // the same bits on every core count (lapack.hpp)
   config.validate();
   DrivenData data = check_driven(trajs, positions_only, config);
   nlohmann::json choices = nlohmann::json::object();

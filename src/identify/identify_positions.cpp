@@ -18,6 +18,7 @@
 
 #include <Eigen/QR>
 
+#include "../train/lapack.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/stop.hpp"
 #include "csympnet/diagnostics/diagnostics.hpp"
@@ -440,6 +441,7 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
 
 IdentifyResult identify_positions(const std::vector<Trajectory>& positions,
                                   const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  const lapack::SingleThreaded one_thread;  // the same bits on every core count (lapack.hpp)
   return positions_once(positions, config, hooks, true);
 }
 

@@ -2,6 +2,7 @@
 // identical files apart from wall-clock fields. (`run` twice is checked in cli_test.cpp.)
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -60,6 +61,41 @@ TEST_F(Determinism, GenerateAndFitTwiceGiveIdenticalFiles) {
   const json ra = json::parse(slurp(dir_ / "a" / "report.json"));
   EXPECT_TRUE(ra["gamma_hat"].is_number());
   EXPECT_TRUE(ra["identified"].is_boolean());
+}
+
+// A positions-only record fitted with OpenBLAS on one thread and on two: the same model and
+// report, byte for byte (the fit runs OpenBLAS on one thread, whose threaded dsyrk and dpotrf
+// would round differently), and the report holds no wall time at all (the stages' records keep
+// theirs in timings.json, "choices_seconds").
+TEST_F(Determinism, APositionsFitIsTheSameWhateverOpenBlasThreadCount) {
+  const fs::path data = dir_ / "positions.csv";
+  {
+    std::ofstream f(data);
+    f << "t,q1\n";
+    for (int k = 0; k < 300; ++k) {
+      const double t = 0.1 * k;
+      // A damped oscillator with a deterministic wobble of 0.5 % in place of noise.
+      f << t << "," << std::exp(-0.05 * t) * std::cos(2.0 * t) + 0.005 * std::sin(12.345 * k * k)
+        << "\n";
+    }
+  }
+  for (const char* threads : {"1", "2"}) {
+    // A G core: its positions fit factors a matrix large enough for OpenBLAS to thread (before
+    // the fit held OpenBLAS to one thread, the two reports differed from the 12th digit).
+    const CliResult r = run("fit " + data.string() +
+                                " -q --no-figures --core g:4:32 --epochs 100 --lm-iterations 10 "
+                                "--out " +
+                                (dir_ / (std::string("b") + threads)).string(),
+                            std::string("OPENBLAS_NUM_THREADS=") + threads);
+    ASSERT_TRUE(r.code == 0 || r.code == 4) << r.code << ": " << r.err;
+  }
+  EXPECT_EQ(slurp(dir_ / "b1" / "model.json"), slurp(dir_ / "b2" / "model.json"));
+  const std::string report = slurp(dir_ / "b1" / "report.json");
+  EXPECT_EQ(report, slurp(dir_ / "b2" / "report.json"));
+  EXPECT_EQ(report.find("\"seconds\""), std::string::npos);
+  const json timings = json::parse(slurp(dir_ / "b1" / "timings.json"));
+  EXPECT_TRUE(timings["choices_seconds"].contains("choices.positions.seconds")) << timings.dump(1);
+  EXPECT_GT(timings["stages"].size(), 3u) << timings.dump(1);
 }
 
 // `reproduce --jobs 1` and `--jobs 2` on a small suite: the same run records (apart from their

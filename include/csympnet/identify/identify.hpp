@@ -248,7 +248,11 @@ std::string dissipation_sentence(const IdentifyResult& r);
 // none was recorded). Report key "model_selection"; read from the stages' records in r.choices.
 nlohmann::json model_selection(const IdentifyResult& r);
 
-// The report of an identification (report.json of `csympnet fit`).
+// The report of an identification (report.json of `csympnet fit`): the same run to run, so
+// without the stages' wall times.
 nlohmann::json identify_report(const IdentifyResult& r);
+// The wall seconds the stages recorded in r.choices, by their path there (e.g.
+// "choices.positions.seconds"): what identify_report leaves out (timings.json of `fit`).
+nlohmann::json identify_wall_seconds(const IdentifyResult& r);
 
 }  // namespace csympnet

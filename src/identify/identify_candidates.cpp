@@ -194,6 +194,7 @@ void CandidateFit::lm(Candidate& x, long budget, const std::string& label) {
   const auto t0 = std::chrono::steady_clock::now();
   LmSettings ls;
   ls.max_iterations = budget;
+  ls.chi2_tolerance = kLmChi2Tolerance;
   Vector th = x.theta;
   LmReport rep = levenberg_marquardt(prob, th, ls, lm_hooks(monitor));
   x.theta = monitor.best();
@@ -222,7 +223,8 @@ long continue_winner(Candidate& best, CandidateFit& fit, std::size_t n_cand,
                      const IdentifyConfig& given) {
   long lm_total = n_cand > 1 ? fit.lm_budget(best, 10.0, 2) : fit.lm_budget(best, 25.0);
   const long more = n_cand > 1 && given.lm_iterations == 0 && best.lm.iterations > 0 &&
-                            best.lm.message.rfind("no better", 0) != 0 && !fit.stopped()
+                            best.lm.message.rfind("no better", 0) != 0 &&
+                            best.lm.message.rfind("converged", 0) != 0 && !fit.stopped()
                         ? fit.lm_budget(best, 12.0, 0)
                         : 0;
   if (more > 0) {

@@ -150,6 +150,10 @@ class CandidateFit {
 };
 
 inline constexpr long kLmPatience = 100;
+// The one-step LMs end once the Gauss–Newton step left would lower χ² by less than this
+// (LmSettings::chi2_tolerance): θ is then within about 0.032 standard errors of where the LM
+// would go on to, and further iterations cost seconds for nothing the interval can see.
+inline constexpr double kLmChi2Tolerance = 1e-3;
 
 // Every candidate trained; the lowest validation loss wins and continues LM.
 struct CoreChoice {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "csympnet/core/error.hpp"
@@ -64,6 +65,21 @@ lapack::Factor factor(Matrix& lhs, const std::function<bool()>& should_stop) {
     return lapack::cholesky(lhs.data(), lhs.rows()) ? lapack::Factor::kDone
                                                     : lapack::Factor::kNotPositiveDefinite;
   return lapack::cholesky_blocked(lhs.data(), lhs.rows(), should_stop);
+}
+
+// χ²'s fall that the full Gauss–Newton step from here predicts, m·½gᵀA⁻¹g / F (σ̂² = 2F/m),
+// with a ridge of 1e-12 of A's diagonal; infinite when A cannot be factored even so. `work`
+// is scratch space (n × n).
+double gauss_newton_chi2_fall(const Matrix& a, const Vector& g, double cost, Index m,
+                              Matrix& work) {
+  if (!(cost > 0.0)) return std::numeric_limits<double>::infinity();
+  const Index n = a.rows();
+  work = a;
+  work.diagonal() += 1e-12 * a.diagonal().cwiseMax(kMinDiagonal);
+  if (!lapack::cholesky(work.data(), n)) return std::numeric_limits<double>::infinity();
+  Vector x = g;
+  lapack::cholesky_solve(work.data(), n, x.data());
+  return static_cast<double>(m) * 0.5 * g.dot(x) / cost;
 }
 
 }  // namespace
@@ -155,6 +171,11 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
         accepted = rho > kMinRelativeDecrease;
         if (accepted) {
           const double relative = (cost - new_cost) / cost;
+          // The step's predicted fall of χ² (2·predicted / σ̂², σ̂² = 2·cost / m): no more than
+          // the Gauss–Newton step's, so only a small one calls for that test below.
+          const bool small_step =
+              settings.chi2_tolerance > 0.0 && cost > 0.0 &&
+              static_cast<double>(m) * predicted < settings.chi2_tolerance * cost;
           theta = trial;
           r.swap(r_trial);
           cost = new_cost;
@@ -169,6 +190,15 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
             report.message = problem.should_stop && problem.should_stop()
                                  ? "stopped by the caller"
                                  : "the Jacobian became non-finite";
+            break;
+          }
+          // At the new iterate: the whole decrease the local model has left.
+          if (small_step &&
+              gauss_newton_chi2_fall(ne.a, ne.g, cost, m, lhs) < settings.chi2_tolerance) {
+            std::ostringstream msg;
+            msg << "converged: the Gauss-Newton step left would lower chi-square by less than "
+                << settings.chi2_tolerance;
+            report.message = msg.str();
             break;
           }
         }

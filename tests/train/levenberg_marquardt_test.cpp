@@ -5,6 +5,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <cmath>
+#include <iostream>
 #include <vector>
 
 #include "../../src/train/lapack.hpp"
@@ -215,6 +216,100 @@ TEST(LevenbergMarquardt, StopsAtAZeroGradientAndAtTheBudget) {
   r = levenberg_marquardt(rosenbrock(), x, s);
   EXPECT_EQ(r.iterations, 3);
   EXPECT_EQ(r.message, "maximum number of iterations reached");
+}
+
+// A damped cosine y = a e^(−b t) cos(ω t + φ) sampled with noise: a nonlinear regression with
+// an ill-conditioned corner (a and b trade off), at random parameters and noise.
+struct DampedCosine {
+  Vector t, y;
+  LeastSquaresProblem problem() const {
+    LeastSquaresProblem p;
+    p.n_residuals = t.size();
+    p.n_params = 4;
+    p.residuals = [this](ConstParams x, Eigen::Ref<Vector> r) {
+      for (Index i = 0; i < t.size(); ++i)
+        r(i) = x(0) * std::exp(-x(1) * t(i)) * std::cos(x(2) * t(i) + x(3)) - y(i);
+      return true;
+    };
+    p.jacobian = [this](ConstParams x, Eigen::Ref<RowMajorMatrix> j) {
+      for (Index i = 0; i < t.size(); ++i) {
+        const double e = std::exp(-x(1) * t(i)), c = std::cos(x(2) * t(i) + x(3)),
+                     s = std::sin(x(2) * t(i) + x(3));
+        j(i, 0) = e * c;
+        j(i, 1) = -t(i) * x(0) * e * c;
+        j(i, 2) = -t(i) * x(0) * e * s;
+        j(i, 3) = -x(0) * e * s;
+      }
+    };
+    return p;
+  }
+};
+
+// LmSettings::chi2_tolerance ends the solve once the Gauss–Newton steps left are worth less
+// than 1e-3 of χ²; the parameters are then within 0.05 of their standard errors of the fully
+// converged fit (0.032 is the local model's bound), at 20 random problems, in no more
+// iterations; off (0, the default), the solve is unchanged. The noise (10–30% of the amplitude)
+// makes Gauss–Newton converge slowly enough for the tolerance to matter: at 3 instead of 1e-3,
+// 17 of the 80 parameter checks fail.
+TEST(LevenbergMarquardt, TheChiSquareRuleStopsWithinAFewHundredthsOfAStandardError) {
+  Rng rng(43, "chi2");
+  long saved = 0;
+  for (int draw = 0; draw < 20; ++draw) {
+    DampedCosine data;
+    const Index n = 200;
+    const Vector truth = (Vector(4) << 1.0 + rng.uniform(), 0.05 + 0.2 * rng.uniform(),
+                          1.0 + 2.0 * rng.uniform(), rng.uniform() - 0.5)
+                             .finished();
+    const double noise = std::pow(10.0, -1.0 + 0.5 * rng.uniform());
+    data.t = Vector::LinSpaced(n, 0.0, 20.0);
+    data.y.resize(n);
+    for (Index i = 0; i < n; ++i)
+      data.y(i) =
+          truth(0) * std::exp(-truth(1) * data.t(i)) * std::cos(truth(2) * data.t(i) + truth(3)) +
+          noise * rng.normal();
+    const LeastSquaresProblem p = data.problem();
+    Vector start = truth;
+    start(0) *= 1.3;
+    start(1) *= 0.6;
+    start(2) *= 1.02;
+    start(3) += 0.2;
+    LmSettings full;
+    full.max_iterations = 500;
+    Vector best = start;
+    const LmReport ref = levenberg_marquardt(p, best, full);
+    LmSettings quick = full;
+    quick.chi2_tolerance = 1e-3;
+    Vector x = start;
+    const LmReport r = levenberg_marquardt(p, x, quick);
+    EXPECT_EQ(r.message.rfind("converged", 0), 0u) << r.message;
+    EXPECT_LE(r.iterations, ref.iterations) << ref.message;
+    saved += ref.iterations - r.iterations;
+    // Where it stopped, the full Gauss–Newton step predicts a fall of χ² below the tolerance.
+    RowMajorMatrix jx(n, 4);
+    Vector rx(n);
+    p.jacobian(x, jx);
+    p.residuals(x, rx);
+    const Vector gx = Matrix(jx).transpose() * rx;
+    const Vector dx = (Matrix(jx).transpose() * Matrix(jx)).ldlt().solve(gx);
+    EXPECT_LT(static_cast<double>(n) * 0.5 * gx.dot(dx) / (0.5 * rx.squaredNorm()), 1e-3)
+        << "draw " << draw;
+    // Standard errors at the converged fit: σ̂² (JᵀJ)⁻¹, σ̂² = ‖r‖² / (n − 4).
+    RowMajorMatrix j(n, 4);
+    p.jacobian(best, j);
+    const Matrix cov = (Matrix(j).transpose() * Matrix(j)).inverse() * 2.0 * ref.final_cost /
+                       static_cast<double>(n - 4);
+    for (Index k = 0; k < 4; ++k)
+      EXPECT_LE(std::abs(x(k) - best(k)), 0.05 * std::sqrt(cov(k, k)))
+          << "draw " << draw << " parameter " << k << ": " << r.message;
+  }
+  std::cout << "  iterations saved over 20 problems: " << saved << "\n";
+  // Off: the same iterates as before the rule existed (no "converged" message).
+  DampedCosine data;
+  data.t = Vector::LinSpaced(50, 0.0, 10.0);
+  data.y = (data.t.array() * -0.1).exp() * (2.0 * data.t.array()).cos();
+  Vector x = (Vector(4) << 1.2, 0.2, 2.1, 0.1).finished();
+  const LmReport r = levenberg_marquardt(data.problem(), x, LmSettings{});
+  EXPECT_NE(r.message.rfind("converged", 0), 0u) << r.message;
 }
 
 TEST(LevenbergMarquardt, LeavesThetaAloneWhenTheStartIsNotFinite) {

@@ -47,6 +47,13 @@ struct LmSettings {
   double function_tolerance = 1e-15;   // stop when |ΔF| / F of an accepted step is below
   double gradient_tolerance = 1e-20;   // stop when ‖Jᵀr‖∞ is below
   double parameter_tolerance = 1e-15;  // stop when ‖δ‖ ≤ tol (‖θ‖ + tol)
+  // Converged in the data's own measure (0: off): stop at an accepted step that was predicted
+  // to lower χ² = ‖r‖² / σ̂² (σ̂² = ‖r‖² / n_residuals) by less than this, when the full
+  // Gauss–Newton step from the new iterate is predicted to lower it by less than this too. That
+  // fall is the step's squared length in standard errors, so below 1e-3 every parameter is
+  // within √(1e-3) ≈ 0.032 standard errors of the local model's minimum (docs/derivations.md,
+  // "When a Levenberg–Marquardt fit has converged").
+  double chi2_tolerance = 0.0;
 };
 
 struct LmReport {

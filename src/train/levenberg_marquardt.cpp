@@ -68,15 +68,17 @@ lapack::Factor factor(Matrix& lhs, const std::function<bool()>& should_stop) {
 }
 
 // χ²'s fall that the full Gauss–Newton step from here predicts, m·½gᵀA⁻¹g / F (σ̂² = 2F/m),
-// with a ridge of 1e-12 of A's diagonal; infinite when A cannot be factored even so. `work`
-// is scratch space (n × n).
-double gauss_newton_chi2_fall(const Matrix& a, const Vector& g, double cost, Index m,
-                              Matrix& work) {
+// with a ridge of 1e-12 of A's diagonal; infinite when A cannot be factored even so, or when
+// `should_stop` ends the factoring (factor(): polled as the damped system's). `work` is
+// scratch space (n × n).
+double gauss_newton_chi2_fall(const Matrix& a, const Vector& g, double cost, Index m, Matrix& work,
+                              const std::function<bool()>& should_stop) {
   if (!(cost > 0.0)) return std::numeric_limits<double>::infinity();
   const Index n = a.rows();
   work = a;
   work.diagonal() += 1e-12 * a.diagonal().cwiseMax(kMinDiagonal);
-  if (!lapack::cholesky(work.data(), n)) return std::numeric_limits<double>::infinity();
+  if (factor(work, should_stop) != lapack::Factor::kDone)
+    return std::numeric_limits<double>::infinity();
   Vector x = g;
   lapack::cholesky_solve(work.data(), n, x.data());
   return static_cast<double>(m) * 0.5 * g.dot(x) / cost;
@@ -193,8 +195,8 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
             break;
           }
           // At the new iterate: the whole decrease the local model has left.
-          if (small_step &&
-              gauss_newton_chi2_fall(ne.a, ne.g, cost, m, lhs) < settings.chi2_tolerance) {
+          if (small_step && gauss_newton_chi2_fall(ne.a, ne.g, cost, m, lhs, problem.should_stop) <
+                                settings.chi2_tolerance) {
             std::ostringstream msg;
             msg << "converged: the Gauss-Newton step left would lower chi-square by less than "
                 << settings.chi2_tolerance;

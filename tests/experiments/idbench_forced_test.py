@@ -181,6 +181,34 @@ def test_csympnet_forced_reads_the_contract_and_records_a_refusal_as_unsupported
     assert t["command"][t["command"].index("--warmup") + 1] == "100"
 
 
+def test_forced_long_record_writes_the_asked_samples_and_refuses_to_overwrite(tmp_path=None):
+    """experiments/forced_long_record.py: a short record of the same kind, its truth beside it,
+    the same bits for the same seed, and an existing file left alone"""
+    import json
+    import subprocess
+    import tempfile
+    tmp = str(tmp_path) if tmp_path else tempfile.mkdtemp()
+    script = os.path.join(HERE, "..", "..", "experiments", "forced_long_record.py")
+    outs = [os.path.join(tmp, n) for n in ("a.csv", "b.csv")]
+    for out in outs:
+        r = subprocess.run(["/usr/bin/python3", script, "--out", out, "--samples", "600",
+                            "--period", "256", "--seed", "4"], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    with open(outs[0]) as f:
+        lines = f.read().splitlines()
+    assert lines[0] == "t,q1,u1" and len(lines) == 601, (lines[0], len(lines))
+    with open(outs[1]) as f:
+        assert f.read().splitlines() == lines
+    with open(outs[0] + ".json") as f:
+        truth = json.load(f)
+    assert truth["samples"] == 600 and truth["system"] == "duffing" and truth["gamma"] > 0
+    r = subprocess.run(["/usr/bin/python3", script, "--out", outs[0], "--samples", "600",
+                        "--period", "256"], capture_output=True, text=True)
+    assert r.returncode != 0 and "exists" in r.stderr, r.stderr
+    with open(outs[0]) as f:
+        assert f.read().splitlines() == lines
+
+
 if __name__ == "__main__":
     import time
     failed = 0

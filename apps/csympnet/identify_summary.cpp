@@ -35,7 +35,10 @@ void print_gamma(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
   // The effective blocks, when measured: how many the interval's variance really rests on.
   char effective[64] = "";
   if (s.effective_blocks > 0.0)
-    std::snprintf(effective, sizeof effective, ", %.2g effective", s.effective_blocks);
+    // Two significant digits below 100 ("6.7", "11"), whole numbers above ("150", not "1.5e+02").
+    std::snprintf(effective, sizeof effective,
+                  s.effective_blocks < 99.5 ? ", %.2g effective" : ", %.0f effective",
+                  s.effective_blocks);
   std::printf(
       "gamma_hat = %.10g ± %.2g  [%.10g, %.10g] per %s (%g%% interval, %s, %ld training "
       "blocks%s)\n",

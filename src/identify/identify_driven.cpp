@@ -167,12 +167,18 @@ LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann
   return s;
 }
 
+// Each block's information for the effective number of blocks (gamma_sandwich.hpp), when the
+// normal equations carry it (shooting_block_equations leaves it out past its size limit).
+const std::vector<Matrix>* blocks_information(const NormalEquations& ne) {
+  return ne.block_information.empty() ? nullptr : &ne.block_information;
+}
+
 // The interval of a function f(θ) with gradient `grad`, in the user's units (value × unit).
 SandwichInterval interval_of(const NormalEquations& ne, const Vector& grad, double value,
                              Index n_res, double scale, double inflation, double unit,
                              double level) {
-  SandwichInterval iv =
-      sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, n_res, ne.cost, scale, 1.0, level);
+  SandwichInterval iv = sandwich_interval_of(ne.a, ne.g, ne.scores, grad, value, n_res, ne.cost,
+                                             scale, 1.0, level, blocks_information(ne));
   inflate_interval(iv, inflation);
   for (double* v : {&iv.gamma, &iv.low, &iv.high, &iv.std_error, &iv.sandwich, &iv.model_based,
                     &iv.optimisation, &iv.rounding})
@@ -188,14 +194,14 @@ struct DrivenInterval {
 
 // The normal equations over the training segments with their start states eliminated, scaled
 // by 1/√n, the scores per block corrected for the 2d unknowns of every segment's start state
-// (the degrees-of-freedom correction of the positions route).
+// (the degrees-of-freedom correction of the positions route), with each block's information
+// (shooting_block_equations), from which the intervals count the blocks they rest on.
 NormalEquations driven_normal_equations(const HamiltonianLibraryMap& map, const Vector& theta,
                                         const Matrix& z0, const ShootingSegments& train,
                                         const std::function<bool()>& stop) {
   const Index n_res = train.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-  NormalEquations ne =
-      shooting_normal_equations(map, theta, z0, train, map.n_params(), scale, true, stop);
+  NormalEquations ne = shooting_block_equations(map, theta, z0, train, map.n_params(), scale, stop);
   const double hidden = static_cast<double>(2 * map.d() * train.size());
   ne.scores *=
       std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
@@ -209,9 +215,9 @@ SandwichInterval driven_gamma_interval(const HamiltonianLibraryMap& map, const V
                                        double level, double inflation) {
   const Index bi = *map.damping_param_index();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
-  SandwichInterval s =
-      sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
-                        theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0, level);
+  SandwichInterval s = sandwich_interval(ne.a, ne.g, ne.scores, bi, std::abs(theta(bi)),
+                                         theta(bi) >= 0.0 ? 1.0 : -1.0, n_res, ne.cost, scale, 1.0,
+                                         level, blocks_information(ne));
   inflate_interval(s, inflation);
   for (double* v : {&s.gamma, &s.low, &s.high, &s.std_error, &s.sandwich, &s.model_based,
                     &s.optimisation, &s.rounding})

@@ -49,6 +49,13 @@ TEST(IdentifyDriven, RecoversDampingAndGainFromPositionsWithAnInput) {
   const double half = 0.5 * (r.interval->high - r.interval->low);
   EXPECT_LE(std::abs(r.gamma - kGamma), 1.5 * half);
   EXPECT_LT(r.interval->high - r.interval->low, 0.5 * kGamma);  // an interval that says something
+  // The interval counts the blocks it rests on (each block's information, start states
+  // eliminated), and its t quantile takes that many less one degrees of freedom.
+  const double blocks = static_cast<double>(r.interval->blocks);
+  EXPECT_GE(r.interval->effective_blocks, 2.0);
+  EXPECT_LE(r.interval->effective_blocks, blocks);
+  EXPECT_DOUBLE_EQ(r.interval->dof,
+                   std::clamp(r.interval->effective_blocks - 1.0, 1.0, blocks - 1.0));
   const double b = r.input["B"][0][0].get<double>();
   EXPECT_LE(r.input["B_ci_low"][0][0].get<double>(), kGain) << b;
   EXPECT_GE(r.input["B_ci_high"][0][0].get<double>(), kGain) << b;

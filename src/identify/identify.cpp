@@ -1,5 +1,4 @@
 #include "csympnet/identify/identify.hpp"
-#include "../train/lapack.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +9,7 @@
 #include <sstream>
 
 #include "../kernels/registry.hpp"
+#include "../train/lapack.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/stop.hpp"

@@ -61,16 +61,22 @@ void check_positions_window(const Matrix& q, const Vector& t, const std::string&
                   "); expected a window without gaps: keep the positions after the gap");
 }
 
-void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what) {
+void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what,
+                     const Matrix* white_residuals) {
   const double spread = spread_of(q);
   // A window where the motion has decayed to a few times the noise: a state that misses it by
   // the noise explains it (a 2-cart record's last 10 s, 0.35 px rms of 0.4 px noise in a
   // spread of 2.6 px, was refused).
   const double noise = noise_from_differences(q);
   const bool finite_state = z.allFinite();
-  const double limit =
-      std::min(kStateFitNoiseCap * spread,
-               std::max(kStateFitMaxRelativeRms * spread, kStateFitMaxNoiseMultiple * noise));
+  const double near_noise =
+      std::max(kStateFitMaxRelativeRms * spread, kStateFitMaxNoiseMultiple * noise);
+  // Residuals that look like white noise: their own fourth differences see as much noise as
+  // their rms (a smooth misfit is suppressed by differencing and shows far less).
+  const bool white = white_residuals != nullptr && white_residuals->cols() >= 5 &&
+                     std::isfinite(rms) &&
+                     kStateFitMaxNoiseMultiple * noise_from_differences(*white_residuals) >= rms;
+  const double limit = white ? near_noise : std::min(kStateFitNoiseCap * spread, near_noise);
   if (!std::isfinite(rms) || !finite_state || rms > limit)
     throw Error(
         what + ": the model does not explain this window of positions: the fitted motion " +
@@ -94,8 +100,9 @@ Vector checked_state_from_positions(const OneStepMap& map, ConstParams theta, co
                                     const Matrix& u) {
   check_positions_window(q, t, what);
   double r = 0.0;
-  const Vector z = state_from_positions(map, theta, q, t, &r, u);
-  check_state_fit(q, z, r, what);
+  Matrix residuals;
+  const Vector z = state_from_positions(map, theta, q, t, &r, u, &residuals);
+  check_state_fit(q, z, r, what, u.rows() > 0 ? &residuals : nullptr);
   if (rms != nullptr) *rms = r;
   return z;
 }

@@ -858,7 +858,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
 namespace csympnet {
 
 Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
-                            const Vector& t, double* rms, const Matrix& u) {
+                            const Vector& t, double* rms, const Matrix& u, Matrix* residuals) {
   const Index d = q.rows(), len = q.cols();
   require(2 * d == map.dim(), [&] {
     return "positions: " + std::to_string(d) +
@@ -879,7 +879,9 @@ Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matr
   const double best_loss = fit_start_states(map, theta, segs, best, 100, true);
   require(std::isfinite(best_loss), "positions: no start state gives a finite rollout");
   if (rms != nullptr) *rms = std::sqrt(best_loss);
-  return shooting_states(map, theta, best.col(0), segs.h[0], u).col(len - 1);
+  const Matrix states = shooting_states(map, theta, best.col(0), segs.h[0], u);
+  if (residuals != nullptr) *residuals = states.topRows(d) - q;
+  return states.col(len - 1);
 }
 
 }  // namespace csympnet

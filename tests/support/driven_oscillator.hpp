@@ -2,6 +2,7 @@
 // with its input: the driven-record fixture of the identification and CLI tests.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -28,15 +29,22 @@ struct Multisine {
 // force −cubic·q³ beside the spring (a Duffing oscillator, V = ω²q²/2 + cubic·q⁴/4);
 // `straight`: the input is the straight line between its samples (a first-order hold, as a
 // generator that interpolates linearly gives it) instead of the smooth multisine.
+// `rest_until` > 0: the oscillator starts at rest and the input is 0 until that time, then
+// rises smoothly to the multisine over 2 time units (a record that starts before the drive).
 inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed,
                                 double gamma = kDrivenGamma, double cubic = 0.0,
-                                bool straight = false) {
+                                bool straight = false, double rest_until = 0.0) {
   Rng rng(seed, "driven-record");
-  Multisine u;
+  Multisine sines;
   for (int k = 0; k < 8; ++k) {
-    u.freq.push_back(0.3 + 0.45 * k);  // 0.3 … 3.45 rad per time unit, around ω = 2
-    u.phase.push_back(rng.uniform(0.0, 2.0 * M_PI));
+    sines.freq.push_back(0.3 + 0.45 * k);  // 0.3 … 3.45 rad per time unit, around ω = 2
+    sines.phase.push_back(rng.uniform(0.0, 2.0 * M_PI));
   }
+  const auto u = [&](double t) {
+    if (rest_until <= 0.0) return sines(t);
+    const double s = std::clamp((t - rest_until) / 2.0, 0.0, 1.0);
+    return std::pow(std::sin(0.5 * M_PI * s), 2) * sines(t);
+  };
   double t0 = 0.0;  // the current sample's time (for the straight input)
   const auto input = [&](double t) {
     if (!straight) return u(t);
@@ -51,7 +59,7 @@ inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t s
   tr.t.resize(n);
   tr.z.resize(2, n);
   tr.u.resize(1, n);
-  double q = 0.3, v = 0.0;
+  double q = rest_until > 0.0 ? 0.0 : 0.3, v = 0.0;
   const int sub = 20;
   for (Index k = 0; k < n; ++k) {
     const double t = static_cast<double>(k) * h;

@@ -68,5 +68,35 @@ TEST(PositionsState, AWindowNearTheNoiseIsExplainedByAFitAtTheNoise) {
   EXPECT_NE(refusal([&] { check_state_fit(zigzag, z, 0.9, "w"); }), "");
 }
 
+// A driven record's warm-up from rest: positions that are noise alone about a state at rest.
+// Without inputs nothing in such a window is explained (refused, as above); with inputs the
+// state is a start like any other when the residuals look like white noise, and a smooth misfit
+// of a window whose fourth differences are inflated by fast motion is still refused.
+TEST(PositionsState, ADrivenWarmUpAtRestIsAStartWhenItsResidualsAreNoise) {
+  Rng rng(4, "state-rest");
+  const Index n = 100;
+  Matrix q(1, n);
+  for (Index k = 0; k < n; ++k) q(0, k) = 0.01 * rng.normal();
+  const Vector z = Vector::Zero(2);
+  const Matrix at_rest = -q;  // the fitted motion is rest: the residuals are the noise
+  const double rms = std::sqrt(at_rest.squaredNorm() / static_cast<double>(n));
+  const std::string free_why = refusal([&] { check_state_fit(q, z, rms, "w"); });
+  EXPECT_NE(free_why.find("does not explain"), std::string::npos) << free_why;
+  EXPECT_EQ(refusal([&] { check_state_fit(q, z, rms, "w", &at_rest); }), "");
+  // Twice the noise left unexplained is refused, white or not.
+  const Matrix twice = 2.0 * at_rest;
+  EXPECT_NE(refusal([&] { check_state_fit(q, z, 2.0 * rms, "w", &twice); }), "");
+  // Fast motion (a zigzag at the sampling rate) makes the positions' fourth differences large;
+  // a smooth misfit of it is not noise and is refused.
+  Matrix zigzag(1, 40), smooth(1, 40);
+  for (Index k = 0; k < 40; ++k) {
+    zigzag(0, k) = k % 2 == 0 ? 1.0 : -1.0;
+    smooth(0, k) = 0.9 * std::sin(0.05 * static_cast<double>(k));
+  }
+  const double smooth_rms = std::sqrt(smooth.squaredNorm() / 40.0);
+  EXPECT_GT(smooth_rms, 0.5);  // beyond the cap, within 1.5 times the zigzag's "noise"
+  EXPECT_NE(refusal([&] { check_state_fit(zigzag, z, smooth_rms, "w", &smooth); }), "");
+}
+
 }  // namespace
 }  // namespace csympnet

@@ -30,11 +30,19 @@ inline constexpr double kStateFitNoiseCap = 0.5;
 void check_positions_window(const Matrix& q, const Vector& t, const std::string& what);
 // Refuses a fitted state that is not finite, or whose rms position residual is not finite or
 // beyond both kStateFitMaxRelativeRms of the window's spread and kStateFitMaxNoiseMultiple of
-// its noise (and always beyond kStateFitNoiseCap of the spread).
-void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what);
+// its noise (and beyond kStateFitNoiseCap of the spread, unless `white_residuals` are given and
+// look like noise: a driven system's warm-up at rest, see checked_state_from_positions).
+void check_state_fit(const Matrix& q, const Vector& z, double rms, const std::string& what,
+                     const Matrix* white_residuals = nullptr);
 
 // check_positions_window, state_from_positions, check_state_fit; u: the window's inputs per
-// step (2m × (L − 1), start then end; empty: none).
+// step (2m × (L − 1), start then end; empty: none). With inputs, a window whose positions are
+// within the noise of rest (a driven record's first samples) is a start like any other: the
+// input, not the state, carries the motion that follows, so the cap on the share of the spread
+// left unexplained is lifted when the residuals look like white noise (their fourth
+// differences' noise at least 1/kStateFitMaxNoiseMultiple of their rms; a smooth misfit, which
+// differencing suppresses, is still refused). Without inputs such a window is still refused:
+// there is nothing in it to forecast from.
 Vector checked_state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
                                     const Vector& t, double* rms, const std::string& what,
                                     const Matrix& u = Matrix());

@@ -197,8 +197,10 @@ namespace csympnet {
 // For a prediction or a rollout from positions alone (fit_start_states with several starts
 // from p = 0). `rms` receives the
 // root-mean-square position residual of that fit. u: the window's inputs (2m × (L − 1), per
-// step start and end; empty: none).
+// step start and end; empty: none). `residuals` receives the fitted motion's positions less q
+// (d × L).
 Vector state_from_positions(const OneStepMap& map, ConstParams theta, const Matrix& q,
-                            const Vector& t, double* rms = nullptr, const Matrix& u = Matrix());
+                            const Vector& t, double* rms = nullptr, const Matrix& u = Matrix(),
+                            Matrix* residuals = nullptr);
 
 }  // namespace csympnet

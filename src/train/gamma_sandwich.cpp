@@ -129,21 +129,21 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
   s.blocks = scores.cols();
   // A is only the lower triangle: symmetrise once.
   Matrix full = a.selfadjointView<Eigen::Lower>();
-  auto block_std = [&](const Vector& u) {
+  // Σ_b (uᵀs_b − mean)²: the spread of the blocks' scores, before the small-sample factor.
+  auto block_sum_sq = [&](const Vector& u) {
     const Index b = scores.cols();
     if (b < 2) return 0.0;
     Vector v = scores.transpose() * u;
     const double mean = v.mean();
-    return std::sqrt(static_cast<double>(b) / static_cast<double>(b - 1) *
-                     (v.array() - mean).square().sum());
+    return (v.array() - mean).square().sum();
   };
   Vector u;
   const double mu = solve_regularised(full, gradient, 1e-9, u);
   Vector u100;
   solve_regularised(full, gradient, 100.0 * mu, u100);
-  s.sandwich = block_std(u);
-  const double sandwich100 = block_std(u100);
-  s.regularisation_ratio = s.sandwich > 0.0 ? sandwich100 / s.sandwich : 1.0;
+  const double sum_sq = block_sum_sq(u);
+  const double sum_sq100 = block_sum_sq(u100);
+  s.regularisation_ratio = sum_sq > 0.0 ? std::sqrt(sum_sq100 / sum_sq) : 1.0;
   // A smaller interval at more regularisation is expected (it suppresses weak directions);
   // one that changes by more than 2× means the estimate leans on directions the data barely
   // fix.
@@ -159,9 +159,7 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
   // The model-based error assumes independent residuals; overlapping windows make them
   // correlated (negatively at lag m), so it is reported but not used. Few blocks estimate the
   // variance poorly, which the t quantile with B − 1 degrees of freedom accounts for.
-  const double main = s.sandwich;
   s.method = "cluster-robust sandwich over blocks";
-  s.std_error = std::sqrt(main * main + s.optimisation * s.optimisation + s.rounding * s.rounding);
   s.dof = std::max(1.0, static_cast<double>(s.blocks - 1));
   if (block_information != nullptr && !block_information->empty()) {
     double sum = 0.0, sum_sq = 0.0;
@@ -175,6 +173,14 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
       s.dof = std::clamp(s.effective_blocks - 1.0, 1.0, s.dof);
     }
   }
+  // Each block's score is built from residuals the estimate has fitted, block b's in the share
+  // w_b / Σw of the information: E Σ_b (uᵀs_b)² = (1 − Σ_b (w_b / Σw)²) var(γ̂) in the one-
+  // parameter case, and 1 − Σ_b (w_b / Σw)² is 1 / (effective blocks) of the t quantile's count
+  // (docs/derivations.md, "How many blocks an interval rests on"). The factor (dof + 1) / dof
+  // undoes it, B / (B − 1) when every block carries the same share.
+  s.sandwich = s.blocks >= 2 ? std::sqrt((s.dof + 1.0) / s.dof * sum_sq) : 0.0;
+  s.std_error = std::sqrt(s.sandwich * s.sandwich + s.optimisation * s.optimisation +
+                          s.rounding * s.rounding);
   s.quantile = student_t_quantile(0.5 * (1.0 + level), s.dof);
   s.low = value - s.quantile * s.std_error;
   s.high = value + s.quantile * s.std_error;

@@ -19,9 +19,9 @@ event is stepped over. At an event the mass sticks when |(K q)_i| <= mu_i (stati
 to kinetic) and otherwise slips the other way. With K diagonal it is the one-dof closed form
 (idbench/friction.py's coulomb_advance) to rounding: tests/experiments/idbench_friction_test.py.
 
-No oracle or envelope fit runs on these records (the oracle's least squares with finite
-differences over 22 unknowns would take minutes a case): the scores are csympnet's against the
-truth.
+The oracle on these records is the true form given to `csympnet fit`
+(peers/chain_oracle.py); no envelope fit runs on them. An independent least squares through the
+exact simulator above, with finite differences over 22 unknowns, would take minutes a case.
 """
 import math
 

@@ -5,7 +5,8 @@ file, and every method on it in one run, with each method's CPU seconds:
                gamma_hat and its interval, and the report's "dissipation" terms beyond the
                viscous one: which kinds were selected, and the true kind's value and interval
     oracle     peers/friction_oracle.py: the true form, its kind given, by least squares on
-               the whole record
+               the whole record; on two masses (friction_chain.py) peers/chain_oracle.py,
+               the true form given to `csympnet fit`
     envelope   peers/friction_textbook.py: the extremes' envelope regressed on the true kind's
                form ("viscous plus a constant loss" for dry friction)
 
@@ -26,6 +27,7 @@ import numpy as np
 from .common import Interrupted, check_stop
 from .friction import generate_friction, write_friction_csv
 from .peers.csympnet import run_csympnet
+from .peers.chain_oracle import chain_oracle_arguments
 from .peers.friction_oracle import friction_oracle
 from .peers.friction_textbook import envelope_fit
 from .runner import score
@@ -102,6 +104,26 @@ def _score_rates(res, true):
     return res
 
 
+def _csympnet_on(exe, path, outdir, extra, timeout, truth):
+    """`csympnet fit` on the record with these options: its result, the kinds of dissipation
+    it selected and the true kind's terms"""
+    if os.path.isdir(outdir):
+        shutil.rmtree(outdir)
+    r = run_csympnet(exe, path, outdir, extra, timeout, cpu=True)
+    terms = csympnet_dissipation(outdir) if r.get("status") in ("ok", "rejected",
+                                                                  "not_identified") else None
+    if terms is not None:
+        kinds = sorted({t["kind"] for t in terms})
+        r["kinds"] = kinds
+        r["kinds_as_true"] = kinds == true_kinds(truth)
+        r["wrong_kind"] = any(k not in true_kinds(truth) for k in kinds)
+        mine = [t for t in terms if t["kind"] in true_kinds(truth)]
+        if mine:
+            r["rate"] = mine[0]
+            r["rates"] = mine
+    return r
+
+
 def run_friction_case(case, args, exe, extra):
     check_stop()
     cdir = os.path.join(args.out, "cases", case["id"])
@@ -117,27 +139,18 @@ def run_friction_case(case, args, exe, extra):
     if truth.get("d", 1) == 1:
         methods = {"oracle": _timed(lambda: friction_oracle(rec, truth, rng)),
                    "envelope": _timed(lambda: envelope_fit(rec, truth["kind"]))}
-    else:  # idbench/friction_chain.py: neither peer runs on two degrees of freedom
-        methods = {"oracle": {"status": "skipped"}, "envelope": {"status": "skipped"}}
+    else:  # idbench/friction_chain.py: the true form given to csympnet; no envelope fit
+        methods = {"envelope": {"status": "skipped"}}
+        if args.only_peers:
+            methods["oracle"] = {"status": "skipped"}
+        else:
+            methods["oracle"] = _csympnet_on(exe, path, os.path.join(cdir, "oracle"),
+                                             chain_oracle_arguments(extra), args.timeout, truth)
     if args.only_peers:
         methods["csympnet"] = {"status": "skipped"}
     else:
-        outdir = os.path.join(cdir, "csympnet")
-        if os.path.isdir(outdir):
-            shutil.rmtree(outdir)
-        r = run_csympnet(exe, path, outdir, extra, args.timeout, cpu=True)
-        terms = csympnet_dissipation(outdir) if r.get("status") in ("ok", "rejected",
-                                                                      "not_identified") else None
-        if terms is not None:
-            kinds = sorted({t["kind"] for t in terms})
-            r["kinds"] = kinds
-            r["kinds_as_true"] = kinds == true_kinds(truth)
-            r["wrong_kind"] = any(k not in true_kinds(truth) for k in kinds)
-            mine = [t for t in terms if t["kind"] in true_kinds(truth)]
-            if mine:
-                r["rate"] = mine[0]
-                r["rates"] = mine
-        methods["csympnet"] = r
+        methods["csympnet"] = _csympnet_on(exe, path, os.path.join(cdir, "csympnet"), extra,
+                                           args.timeout, truth)
     for r in methods.values():
         if r.get("gamma_hat") is not None and r.get("status") == "ok":
             score(r, truth["gamma"])

@@ -130,7 +130,8 @@ def write_friction_outputs(args, meta, cases, interrupted=False):
     summary = summarize_friction(done)
     notes = ("Notes: one run, every method on the same records. Rates in the record's units: "
              "mu in q units per s^2 (counts for the encoder), c per q unit. The oracle is the "
-             "true form with its kind known, given the true units and started near the truth; "
+             "true form with its kind known, given the true units and started near the truth "
+             "(on two masses: the true form given to csympnet fit, peers/chain_oracle.py); "
              "the envelope is the user's regression of consecutive extremes on the true kind's "
              "form; csympnet runs with its defaults and chooses the dissipation itself. CPU "
              "seconds: process_time of the Python peers (exact with --jobs 1), wait4 of "

@@ -22,6 +22,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "..", "experiments"))
 from idbench import friction  # noqa: E402
 from idbench import friction_chain  # noqa: E402
 from idbench.friction_plan import csympnet_dissipation, score_rate  # noqa: E402
+from idbench.peers.chain_oracle import chain_oracle_arguments  # noqa: E402
 from idbench.peers.friction_oracle import friction_oracle  # noqa: E402
 from idbench.peers.friction_textbook import envelope_fit  # noqa: E402
 
@@ -168,6 +169,18 @@ def test_rates_of_two_masses_are_scored_by_their_worst():
     r = score_rate(res, truth)
     assert abs(r["rate_rel_err"] - 0.1) < 1e-12 and r["rate_covers"] is False
     assert r["rate_dofs_covered"] == 1
+
+
+def test_the_chain_oracle_gives_the_true_form_in_place_of_the_callers_core():
+    args = chain_oracle_arguments(["--core", "la:4:8", "--dissipation=auto", "--seed", "3",
+                                   "--dissipation", "viscous"])
+    assert args[:2] == ["--seed", "3"] and args[2] == "--core" and len(args) == 4
+    core = json.loads(args[3])
+    assert core["type"] == "library"
+    # a quadratic potential in two coordinates (every quadratic form, and the linear terms
+    # because the library's terms are centred on the data's mean) and dry friction on each mass
+    assert sorted(core["terms"]) == sorted(["q1", "q2", "q1^2", "q2^2", "(q1-q2)^2"])
+    assert core["dissipation"] == ["coulomb(p1)", "coulomb(p2)"]
 
 
 def test_friction_plan_runs_from_the_command_line_and_is_deterministic():

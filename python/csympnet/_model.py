@@ -129,7 +129,49 @@ class Model:
         out = np.stack([self._m.rollout(row, h) for row in a])
         return out[0] if single else out
 
-    def state_from_positions(self, q, t):
+    @property
+    def n_inputs(self):
+        """The number m of known inputs the map reads (0: a free model)."""
+        return int(self._m.n_inputs)
+
+    def simulate(self, z0, t, u):
+        """The free run of a driven model from the state z0 at t[0], fed the known inputs u
+        (n, m) at the times t (n,), held between samples as the model holds them (its
+        "hold"): an array (n, 2d) whose first row is z0. The simulation of `csympnet evaluate`,
+        to the bit. z0 from `state_from_positions(q, t, u=...)` of a recent window."""
+        if self.n_inputs == 0:
+            raise ValueError("simulate: this model has no inputs (it was fitted to a free "
+                             "record); use rollout")
+        z = _checks.vector("z0", z0, length=2 * self.d)
+        ta = _checks.vector("t", t, min_length=2)
+        ua = np.asarray(u, dtype=float)
+        if ua.ndim == 1 and self.n_inputs == 1:
+            ua = ua[:, None]
+        return self._m.simulate(z, ta, ua)
+
+    def frequency_response(self, omega, h, *, equilibrium=None, amplitude=None, input_index=0):
+        """The frequency response of a driven model sampled at the step h (the step it was
+        fitted at). Without `amplitude`: the map linearised at its equilibrium, a dict with
+        "omega", "response" (n, d, m) complex (q_i per unit of input j, the data's units),
+        "equilibrium" and "modes" [(angular frequency, damping ratio)]. With `amplitude`: the
+        nonlinear map driven by amplitude·sin(ωt) on input `input_index`, simulated until it
+        repeats, its fundamental per unit of input: "response" (n, d) and "settled" (n,).
+        csympnet.plot.frequency_response draws both (docs/identification.md, "The frequency
+        response")."""
+        from . import _response
+        if self.n_inputs == 0:
+            raise ValueError("frequency_response: this model has no inputs (it was fitted to a "
+                             "free record)")
+        step = _checks.real("h", h, positive=True)
+        if amplitude is None:
+            return _response.linear(self, omega, step, equilibrium)
+        return _response.simulated(self, omega, _checks.real("amplitude", amplitude,
+                                                             positive=True),
+                                   step, input_index=_checks.integer("input_index", input_index,
+                                                                     minimum=0),
+                                   z_eq=equilibrium)
+
+    def state_from_positions(self, q, t, u=None):
         """The state at the last of a recent window of positions alone, for a prediction or a
         rollout from a record without momenta (a csympnet model, as `fit` writes it).
 
@@ -139,14 +181,21 @@ class Model:
         (state (2d,), rms) with rms the root-mean-square position residual of that fit: near
         the noise of the positions when the model explains the window. The momenta are in the
         units the fit chose for them. `model.rollout(state, h, steps=n)` then forecasts from
-        t[-1]; `csympnet rollout --from-positions` does the same."""
+        t[-1]; `csympnet rollout --from-positions` does the same. A driven model takes the
+        window's inputs u (L, m), and `model.simulate(state, t_next, u_next)` forecasts."""
         qa = _records.positions("q", q, dim=self.d)
         if qa.shape[0] < 2:
             raise ValueError("q: expected at least 2 positions")
         ta = _checks.vector("t", t, length=qa.shape[0])
         if not np.all(np.diff(ta) > 0):
             raise ValueError("t: expected strictly increasing times")
-        state, rms = self._m.state_from_positions(qa, ta)
+        if u is None:
+            state, rms = self._m.state_from_positions(qa, ta)
+        else:
+            ua = np.asarray(u, dtype=float)
+            if ua.ndim == 1 and self.n_inputs == 1:
+                ua = ua[:, None]
+            state, rms = self._m.state_from_positions(qa, ta, ua)
         return state[0], float(rms)
 
     def jacobian(self, z, h):

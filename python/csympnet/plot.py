@@ -19,7 +19,7 @@ model, then the others in the order given.
 
 Functions (signatures in docs/python.md): phase_portrait, trajectory, accumulated_error, energy,
 rollout_figure, accumulated_errors, bars, error_vs_noise, lambda_vs_noise, noise_labels,
-summarize, save; fit_figure (the figure of a `csympnet fit` output directory, which alone
+summarize, frequency_response, save; fit_figure (the figure of a `csympnet fit` output directory, which alone
 needs the compiled module, for the model's rollouts).
 """
 
@@ -494,6 +494,58 @@ def energy(t, energies, reference=None, *, log=None, highlight=None, units=None,
         ax.set_title(title or "Energy")
         _legend(ax, legend_ax, size, energies, featured)
         return _finish(_style(ax, size), path)
+
+
+def frequency_response(linear, simulated=(), *, output=0, input=0, units=None, size="column",
+                       ax=None, path=None, title=None):
+    """The Bode plot of a driven model: the magnitude and phase of q_output per unit of
+    u_input against the angular frequency, for the map linearised at its equilibrium
+    (`linear`, the dict of Model.frequency_response(omega, h)) with its modes marked, and for
+    each dict of `simulated` (Model.frequency_response(omega, h, amplitude=a)) the nonlinear
+    response at that input amplitude (points where it did not settle are left out). `ax`: a
+    pair of Axes (magnitude, phase) to draw into, the legend then inside the first."""
+    omega = np.asarray(linear["omega"], dtype=float)
+    g = np.asarray(linear["response"])
+    if g.ndim != 3 or g.shape[0] != omega.size:
+        raise ValueError("linear: expected the dict of Model.frequency_response(omega, h)")
+    if not (0 <= output < g.shape[1] and 0 <= input < g.shape[2]):
+        raise ValueError(f"output, input: expected 0 <= output < {g.shape[1]} and "
+                         f"0 <= input < {g.shape[2]}")
+    u = _units(units)
+    with _rc(size):
+        if ax is not None:
+            if len(ax) != 2:
+                raise ValueError("ax: expected a pair of Axes (magnitude, phase)")
+            (mag_ax, phase_ax), legend_ax = ax, None
+        else:
+            fig, (mag_ax, phase_ax), legend_ax = _figure(size, 2, aspect=0.45,
+                                                         entries=1 + len(simulated))
+        lin = g[:, output, input]
+        mag_ax.loglog(omega, np.abs(lin), color="black", lw=1.4, label="linearised")
+        phase_ax.semilogx(omega, np.degrees(np.unwrap(np.angle(lin))), color="black", lw=1.4)
+        for k, sim in enumerate(simulated):
+            if sim.get("input_index", 0) != input:
+                continue
+            r = np.asarray(sim["response"])[:, output]
+            ok = np.asarray(sim.get("settled", np.ones(r.size, bool)), dtype=bool)
+            w = np.asarray(sim["omega"], dtype=float)
+            label = f"amplitude {sim['amplitude']:.3g}"
+            mag_ax.loglog(w[ok], np.abs(r[ok]), "o", ms=3, label=label, color=f"C{k}")
+            phase_ax.semilogx(w[ok], np.degrees(np.angle(r[ok])), "o", ms=3, color=f"C{k}")
+        for wn, zeta in linear.get("modes", []):
+            for a in (mag_ax, phase_ax):
+                a.axvline(wn, color="0.5", ls=":", lw=1.0)
+            mag_ax.annotate(f"ω {wn:.3g}, ζ {zeta:.2g}", (wn, 1.0), xycoords=("data", "axes fraction"),
+                            xytext=(2, -2), textcoords="offset points", va="top",
+                            fontsize=_preset(size)[2]["small"], color="0.35")
+        mag_ax.set_ylabel(_label(f"|q{output + 1} / u{input + 1}|"))
+        phase_ax.set_ylabel("phase (degrees)")
+        phase_ax.set_xlabel(_label("angular frequency", f"rad/{u['t']}" if u["t"] else ""))
+        mag_ax.set_title(title or "Frequency response")
+        handles, labels = mag_ax.get_legend_handles_labels()
+        _put_legend(legend_ax or mag_ax, handles, labels, size, inside=legend_ax is None)
+        _style(mag_ax, size)
+        return _finish(_style(phase_ax, size), path)
 
 
 def _positions_reference(reference, d):

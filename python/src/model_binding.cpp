@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -61,9 +62,54 @@ DArray rollout_states(const PyModel& m, const DArray& z0, const DArray& hs) {
   return states_to(out);
 }
 
+// The inputs u (n, m) of a map with m inputs as samples (m × n); refused by name when the
+// shape does not match.
+Matrix input_samples(const PyModel& m, const DArray& u, Index n, const std::string& what) {
+  const Index inputs = m.model.is_map() ? m.model.map->n_inputs() : 0;
+  if (inputs == 0)
+    throw Error(what + ": this model has no inputs (it was fitted to a free record)");
+  if (u.ndim() != 2 || u.shape(0) != n || u.shape(1) != inputs)
+    throw Error(what + ": u must be (" + std::to_string(n) + ", " + std::to_string(inputs) +
+                "), the model's " + std::to_string(inputs) + " input(s) at each of the " +
+                std::to_string(n) + " times");
+  Matrix out(inputs, n);
+  for (Index k = 0; k < n; ++k)
+    for (Index j = 0; j < inputs; ++j) {
+      out(j, k) = u.at(k, j);
+      if (!std::isfinite(out(j, k)))
+        throw Error(what + ": u[" + std::to_string(k) + ", " + std::to_string(j) +
+                    "] is not finite; expected a finite input at every time");
+    }
+  return out;
+}
+
+// The free run of a driven map from z0 at the times t (n,), fed the inputs u (n, m) at those
+// times (held between them as the model holds them): (n, 2d), z0 first. The same steps as
+// `csympnet evaluate`'s simulation.
+DArray simulate_driven(const PyModel& m, const DArray& z0, const DArray& t, const DArray& u) {
+  const Vector z = vector_from(z0, "z0", m.model.dim());
+  const Vector ts = vector_from(t, "t");
+  const Index n = ts.size();
+  if (n < 2) throw Error("simulate: t must hold at least two times (z0's and one more)");
+  const Vector steps = ts.tail(n - 1) - ts.head(n - 1);
+  for (Index k = 0; k < steps.size(); ++k)
+    if (!(std::isfinite(steps(k)) && steps(k) > 0.0))
+      throw Error("simulate: t must be finite and increasing; t[" + std::to_string(k + 1) +
+                  "] is not after t[" + std::to_string(k) + "]");
+  const Matrix us = input_samples(m, u, n, "simulate");
+  Matrix out;
+  {
+    py::gil_scoped_release nogil;
+    out = driven_rollout(*m.model.map, m.theta, z, steps, step_inputs(us, 0, n - 1));
+  }
+  return states_to(out);
+}
+
 // The state at the last of a window of positions q (L, d) at times t (L,), its momenta fitted
-// with the model (train/shooting.hpp, state_from_positions): (state (2d,), rms residual).
-py::tuple positions_state(const PyModel& m, const DArray& q, const DArray& t) {
+// with the model (train/shooting.hpp, state_from_positions): (state (2d,), rms residual). A
+// driven model takes the window's inputs u (L, m).
+py::tuple positions_state(const PyModel& m, const DArray& q, const DArray& t,
+                          std::optional<DArray> u) {
   if (!m.model.is_map() || m.model.type() != "csympnet")
     throw Error(
         "state_from_positions: needs a csympnet model (a one-step map with a damping "
@@ -78,12 +124,18 @@ py::tuple positions_state(const PyModel& m, const DArray& q, const DArray& t) {
   for (Index k = 0; k < len; ++k)
     for (Index i = 0; i < d; ++i) qs(i, k) = q.at(k, i);
   const Vector ts = vector_from(t, "t", len);
+  const Index inputs = m.model.map->n_inputs();
+  if (inputs > 0 && !u)
+    throw Error("state_from_positions: this model is driven by " + std::to_string(inputs) +
+                " input(s); give the window's inputs u (L, m)");
+  const Matrix us = u ? input_samples(m, *u, len, "state_from_positions") : Matrix();
   double rms = 0.0;
   Vector z;
   {
     py::gil_scoped_release nogil;
     // Refused (csympnet.Error) when the fit does not explain the window, as rollout does.
-    z = checked_state_from_positions(*m.model.map, m.theta, qs, ts, &rms, "state_from_positions");
+    z = checked_state_from_positions(*m.model.map, m.theta, qs, ts, &rms, "state_from_positions",
+                                     step_inputs(us, 0, len - 1));
   }
   return py::make_tuple(states_to(z), rms);
 }
@@ -247,7 +299,14 @@ void bind_model(py::module_& m) {
       .def_property_readonly("training_json", [](py::handle p) { return live(p).training.dump(); })
       .def("predict", guarded(&predict), py::arg("z"), py::arg("h"), py::arg("batched"))
       .def("rollout", guarded(&rollout_states), py::arg("z0"), py::arg("hs"))
-      .def("state_from_positions", guarded(&positions_state), py::arg("q"), py::arg("t"))
+      .def("state_from_positions", guarded(&positions_state), py::arg("q"), py::arg("t"),
+           py::arg("u") = py::none())
+      .def("simulate", guarded(&simulate_driven), py::arg("z0"), py::arg("t"), py::arg("u"))
+      .def_property_readonly("n_inputs",
+                             [](py::handle p) {
+                               const PyModel& s = live(p);
+                               return s.model.is_map() ? s.model.map->n_inputs() : Index{0};
+                             })
       .def("jacobian", guarded(&jacobians), py::arg("z"), py::arg("h"))
       .def("structure", guarded(&structure), py::arg("z"), py::arg("h"), py::arg("gamma_true"))
       .def("score", guarded(&score_model), py::arg("data"))

@@ -60,3 +60,65 @@ def test_bad_inputs_are_refused_by_name():
         csympnet.identify(q, t, u=bad, observed="positions")
     with pytest.raises(ValueError, match="u: known inputs go with trajectories"):
         csympnet.CSympNetID(observed="states").fit(np.c_[q, q], t, x_next=np.c_[q, q], u=u)
+
+
+@pytest.fixture(scope="module")
+def driven_model():
+    q, t, u = driven_record()
+    r = csympnet.identify(q, t, u=u, observed="positions")
+    assert r.identified, r.reasons
+    return r.model, t[1] - t[0]
+
+
+def test_a_driven_model_simulates_a_held_out_record_from_its_warm_up(driven_model):
+    model, _ = driven_model
+    q, t, u = driven_record(n=300, seed=4)
+    assert model.n_inputs == 1
+    state, rms = model.state_from_positions(q[:20], t[:20], u=u[:20])
+    assert rms < 0.02 * q.std()
+    run = model.simulate(state, t[19:], u[19:])
+    assert run.shape == (281, 2) and np.array_equal(run[0], state)
+    err = run[1:, 0] - q[20:]
+    assert np.sqrt(np.mean(err**2)) < 0.03 * q.std()
+    # the inputs are what drive it: the same start without them drifts off the record
+    still = model.simulate(state, t[19:], np.zeros(281))
+    assert np.sqrt(np.mean((still[1:, 0] - q[20:]) ** 2)) > 0.3 * q.std()
+
+
+def test_the_linear_response_is_its_own_simulation_and_the_oscillators(driven_model):
+    model, h = driven_model
+    w = np.array([0.5, 1.2, 1.9, 2.0, 2.1, 3.0, 5.0])
+    lin = model.frequency_response(w, h)
+    g = lin["response"][:, 0, 0]
+    # two paths through the map: its Jacobians at the equilibrium, and a small sinusoid run
+    # until it repeats
+    sim = model.frequency_response(w, h, amplitude=1e-3)
+    assert sim["settled"].all()
+    assert np.max(np.abs(sim["response"][:, 0] - g) / np.abs(g)) < 1e-4
+    # the oscillator the record came from, its input held on the straight line between
+    # samples as the model holds it (the first-order hold passes a sinusoid's fundamental
+    # times sinc²(ωh/2))
+    hold = np.sinc(w * h / (2 * np.pi)) ** 2
+    truth = GAIN / (OMEGA**2 - w**2 + 1j * GAMMA * w) * hold
+    assert np.max(np.abs(g - truth) / np.abs(truth)) < 0.02
+    (wn, zeta), = lin["modes"]
+    assert abs(wn - OMEGA) < 0.01 * OMEGA and abs(zeta - GAMMA / (2 * OMEGA)) < 0.1 * zeta
+    # a nonlinear response at a large amplitude is still this linear map's
+    big = model.frequency_response(w[:3], h, amplitude=10.0)
+    assert np.max(np.abs(big["response"][:, 0] - g[:3]) / np.abs(g[:3])) < 1e-3
+
+
+def test_the_frequency_response_refuses_what_it_cannot_do(driven_model, s1_model):
+    model, h = driven_model
+    with pytest.raises(ValueError, match="Nyquist"):
+        model.frequency_response([1.0, np.pi / h], h)
+    with pytest.raises(ValueError, match="positive finite"):
+        model.frequency_response([0.0, 1.0], h)
+    with pytest.raises(ValueError, match="no inputs"):
+        s1_model.frequency_response([1.0], 0.1)
+    with pytest.raises(ValueError, match="no inputs"):
+        s1_model.simulate(np.zeros(2), [0.0, 0.1], [[0.0], [0.0]])
+    with pytest.raises(Exception, match=r"u must be \(3, 1\)"):
+        model.simulate(np.zeros(2), [0.0, 0.1, 0.2], np.zeros((2, 1)))
+    with pytest.raises(Exception, match="give the window's inputs"):
+        model.state_from_positions(np.zeros(5), np.arange(5) * h)

@@ -346,3 +346,31 @@ def test_a_caption_goes_below_the_panels(tmp_path):
     fig.canvas.draw()
     cap = texts[0].get_window_extent()
     assert all(cap.y1 <= ax.get_window_extent().y0 + 1 for ax in fig.axes[:3])
+
+
+def test_frequency_response_draws_magnitude_phase_modes_and_settled_amplitudes(tmp_path):
+    # an oscillator's response in closed form, as Model.frequency_response returns it
+    w = np.geomspace(0.2, 5.0, 120)
+    g = (1.5 / (4.0 - w**2 + 0.1j * w)).reshape(-1, 1, 1)
+    linear = {"omega": w, "response": g, "modes": [(2.0, 0.025)]}
+    ws = np.array([0.5, 1.0, 2.0, 3.0])
+    sim = {"omega": ws, "amplitude": 0.3, "input_index": 0,
+           "response": (1.5 / (4.0 - ws**2 + 0.1j * ws)).reshape(-1, 1),
+           "settled": np.array([True, True, False, True])}
+    fig = plot.frequency_response(linear, [sim], units={"t": "s"}, path=tmp_path / "bode")
+    assert (tmp_path / "bode.png").exists() and (tmp_path / "bode.pdf").exists()
+    mag, phase = fig.axes[0], fig.axes[1]
+    assert mag.get_xscale() == "log" and mag.get_yscale() == "log"
+    assert phase.get_xscale() == "log"
+    line = mag.get_lines()[0]
+    assert np.allclose(line.get_ydata(), np.abs(g[:, 0, 0]))
+    # the phase falls through -90 degrees at the mode
+    ph = phase.get_lines()[0].get_ydata()
+    assert ph[0] > -5 and ph[-1] < -170
+    # the mode is marked on both panels; the point that did not settle is left out
+    assert any(len(ln.get_xdata()) == 2 and np.allclose(ln.get_xdata(), [2.0, 2.0])
+               for ln in mag.get_lines())
+    points = [ln for ln in mag.get_lines() if ln.get_marker() == "o"][0]
+    assert np.allclose(points.get_xdata(), [0.5, 1.0, 3.0])
+    with pytest.raises(ValueError, match="output, input"):
+        plot.frequency_response(linear, output=1)

@@ -87,8 +87,8 @@ double valid_time(const Matrix& err, const Vector& t, double t_start, double spr
   return err.cols() > 0 ? t(err.cols() - 1) - t_start : 0.0;
 }
 
-// Per step k of samples first … first + steps − 1 of a record's inputs u (m × n): the input at
-// its start, then at its end (2m × steps; empty when u is).
+}  // namespace
+
 Matrix step_inputs(const Matrix& u, Index first, Index steps) {
   if (u.rows() == 0) return Matrix();
   Matrix out(2 * u.rows(), steps);
@@ -97,9 +97,10 @@ Matrix step_inputs(const Matrix& u, Index first, Index steps) {
   return out;
 }
 
-// The model's free run from z over `steps`, driven by the step inputs `u`: 2d × (steps + 1).
 Matrix driven_rollout(const OneStepMap& map, ConstParams theta, const Vector& z,
                       const Vector& steps, const Matrix& u) {
+  require(u.cols() == steps.size() && u.rows() == 2 * map.n_inputs(),
+          "driven rollout: expected the inputs at the start and end of every step");
   Matrix out(z.size(), steps.size() + 1);
   out.col(0) = z;
   Vector h(1);
@@ -110,8 +111,6 @@ Matrix driven_rollout(const OneStepMap& map, ConstParams theta, const Vector& z,
   }
   return out;
 }
-
-}  // namespace
 
 long default_warmup(long samples) {
   const long tenth = (samples + 9) / 10;

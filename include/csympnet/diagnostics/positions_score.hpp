@@ -51,6 +51,15 @@ inline constexpr long kWarmupDefaultMin = 10;
 inline constexpr long kWarmupDefaultMax = 80;
 long default_warmup(long samples);
 
+// Per step k of samples first … first + steps − 1 of a record's inputs u (m × n): the input at
+// its start, then at its end (2m × steps; empty when u is).
+Matrix step_inputs(const Matrix& u, Index first, Index steps);
+
+// The map's free run from z over `steps`, driven by the step inputs `u` (2m × steps, as
+// step_inputs gives them): 2d × (steps + 1), z first. Stops on a stop request.
+Matrix driven_rollout(const OneStepMap& map, ConstParams theta, const Vector& z,
+                      const Vector& steps, const Matrix& u);
+
 struct PositionsScoreOptions {
   // Samples of the warm-up window, per trajectory (kWarmupRange); empty: default_warmup.
   std::optional<long> warmup;

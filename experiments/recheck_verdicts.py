@@ -26,6 +26,9 @@ import json
 import os
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from idbench.common import violation_reference  # noqa: E402  (the standard library only)
+
 CHECKS = ["measured_momenta", "dissipation", "linear_damping", "one_rate", "residuals"]
 
 
@@ -147,7 +150,9 @@ def main():
                     per[k] += 1
                 anyf += bool(failed)
                 verd[verdict] = verd.get(verdict, 0) + 1
-                lo_ref, hi_ref = c["violation"]["gamma_reference_range"]
+                terms = (r.get("dissipation") or {}).get("terms") or []
+                kinds = [t.get("kind") for t in terms if isinstance(t, dict)]
+                _, (lo_ref, hi_ref) = violation_reference(c["violation"], kinds)
                 if iv and iv[0] is not None and (iv[1] < lo_ref or iv[0] > hi_ref):
                     conf += 1
                     confident.append((c["id"], iv, (lo_ref, hi_ref)))

@@ -143,7 +143,10 @@ modal_rates; energy gain: the negative gamma), gamma_reference (the case's gamma
 gamma, i.e. the equivalent total at A0, or the mean modal rate for nonuniform) and
 gamma_reference_range ([min, max] modal rate for nonuniform, else the point). Errors are
 relative to |gamma_reference|; "confident wrong" on a violation case: identified with an
-interval outside gamma_reference_range (no error threshold).
+interval outside gamma_reference_range (no error threshold). A csympnet answer that names the
+family's own dissipation term (dry friction on a coulomb case, drag on a quadratic-drag case:
+the report's "dissipation" terms) gives the viscous part alone as its gamma, and is judged
+against gamma_viscous instead (common.violation_reference; `judged_on_viscous` per result).
 
 Each case is a trajectories CSV (`traj,t,q1..qd,p1..pd`, numbers written with repr) that is
 given to these methods:

@@ -34,3 +34,20 @@ STOP = threading.Event()
 def check_stop():
     if STOP.is_set():
         raise Interrupted()
+
+
+# The kind of dissipation term of fit's report ("dissipation" terms) that identifies each
+# violation family's extra dissipation.
+NAMED_DISSIPATION = {"coulomb": "coulomb", "quadratic-drag": "drag"}
+
+
+def violation_reference(v, kinds):
+    """(gamma, (low, high)) an answer on a violation case is judged against: the drawn
+    gamma_reference and its range, or, where the answer names the family's own dissipation term
+    (dry friction, drag: `kinds` from fit's report), the viscous part alone, which is then what
+    its gamma means."""
+    named = NAMED_DISSIPATION.get(v.get("family"))
+    if named is not None and named in (kinds or []) and v.get("gamma_viscous") is not None:
+        g = v["gamma_viscous"]
+        return g, (g, g)
+    return v["gamma_reference"], tuple(v["gamma_reference_range"])

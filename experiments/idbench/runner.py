@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from .common import LIBRARY_MAX_D, Interrupted, check_stop
+from .common import LIBRARY_MAX_D, Interrupted, check_stop, violation_reference
 from .generate import computed_momenta, generate, write_csv
 from .peers.csympnet import run_csympnet
 from .peers.oracle import oracle
@@ -35,11 +35,13 @@ def score(res, gamma):
 
 def score_violation(res, v):
     """Violation cases: the relative error against gamma_reference; an interval that lies
-    outside gamma_reference_range is a confident answer on violated data (confident_wrong)."""
+    outside gamma_reference_range is a confident answer on violated data (confident_wrong).
+    An answer that names the family's dissipation term (violation_reference) is judged on the
+    viscous part (`judged_on_viscous`)."""
     if res.get("status") != "ok":
         return res
-    gamma = v["gamma_reference"]
-    ref_lo, ref_hi = v["gamma_reference_range"]
+    gamma, (ref_lo, ref_hi) = violation_reference(v, res.get("dissipation_kinds"))
+    res["judged_on_viscous"] = gamma != v["gamma_reference"]
     g = res.get("gamma_hat")
     res["rel_err"] = abs(g - gamma) / abs(gamma)
     lo, hi = res.get("ci_low"), res.get("ci_high")

@@ -183,6 +183,24 @@ def test_the_chain_oracle_gives_the_true_form_in_place_of_the_callers_core():
     assert core["dissipation"] == ["coulomb(p1)", "coulomb(p2)"]
 
 
+def test_a_violation_answer_that_names_its_dissipation_is_judged_on_the_viscous_part():
+    from idbench.common import violation_reference
+    from idbench.runner import score_violation
+    v = {"family": "coulomb", "gamma_reference": 0.2, "gamma_reference_range": [0.2, 0.2],
+         "gamma_viscous": 0.1}
+    assert violation_reference(v, ["coulomb"]) == (0.1, (0.1, 0.1))
+    assert violation_reference(v, []) == (0.2, (0.2, 0.2))
+    assert violation_reference(v, ["drag"]) == (0.2, (0.2, 0.2))  # not the family's own term
+    named = score_violation({"status": "ok", "gamma_hat": 0.1, "ci_low": 0.09, "ci_high": 0.11,
+                             "dissipation_kinds": ["coulomb"]}, v)
+    assert named["judged_on_viscous"] and not named["confident_wrong"] and named["covers"]
+    folded = score_violation({"status": "ok", "gamma_hat": 0.1, "ci_low": 0.09, "ci_high": 0.11,
+                              "dissipation_kinds": []}, v)
+    assert not folded["judged_on_viscous"] and folded["confident_wrong"]
+    modes = {"family": "nonuniform", "gamma_reference": 0.2, "gamma_reference_range": [0.1, 0.3]}
+    assert violation_reference(modes, ["coulomb"]) == (0.2, (0.1, 0.3))
+
+
 def test_friction_plan_runs_from_the_command_line_and_is_deterministic():
     script = os.path.join(HERE, "..", "..", "experiments", "identification_benchmark.py")
     outs = []

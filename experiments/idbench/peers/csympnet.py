@@ -163,6 +163,10 @@ def run_csympnet(exe, data, outdir, extra, timeout, cpu=False):
         res["core_type"] = core_type(rep)
         if isinstance(rep.get("hamiltonian"), dict):
             res["hamiltonian"] = rep["hamiltonian"]
+        terms = (rep.get("dissipation") or {}).get("terms") if isinstance(
+            rep.get("dissipation"), dict) else None
+        res["dissipation_kinds"] = sorted({t.get("kind") for t in terms or []
+                                           if isinstance(t, dict) and t.get("kind") != "viscous"})
     if rc == 5 and rep is not None:  # model rejected: a verdict, counted apart
         failed = [ch.get("sentence") or ch["name"] for ch in res["checks"] or []
                   if ch["passed"] is False]

@@ -22,6 +22,7 @@
 #include "csympnet/train/positions_state.hpp"
 #include "csympnet/train/shooting.hpp"
 #include "interrupt.hpp"
+#include "rollout_inputs.hpp"
 #include "standard_streams.hpp"
 #include "system_options.hpp"
 
@@ -316,7 +317,13 @@ Vector state_at_end_of_positions(const SavedModel& saved, const std::string& pat
                 ": expected a positions header '[traj,]t,q1..qd' for "
                 "--from-positions (the positions alone, or --columns t=TIME,q1=POSITION "
                 "naming them; use --z0 for a state)");
-  const std::vector<Trajectory> trajs = parse_positions_csv(input.text, input.name);
+  const Index m = saved.model.map->n_inputs();
+  if (m > 0 && input.inputs != m)
+    throw Error(input.name + ": the model is driven by " + std::to_string(m) +
+                " input(s); expected the window's inputs u1..u" + std::to_string(m) +
+                " beside its positions ('t,q1..qd,u1..u" + std::to_string(m) + "')");
+  const std::vector<Trajectory> trajs = parse_positions_csv(
+      input.text, input.name, m > 0 ? InputColumns::kRead : InputColumns::kRefuse);
   if (trajs.size() != 1 || trajs.front().t.size() < 2)
     throw Error(input.name +
                 ": expected one trajectory of at least 2 positions for "
@@ -328,8 +335,8 @@ Vector state_at_end_of_positions(const SavedModel& saved, const std::string& pat
                 " positions per row; the model has d = " + std::to_string(saved.model.dim() / 2));
   double rms = 0.0;
   // Refused, exit 1, when the fit does not explain the window: no forecast from nonsense.
-  const Vector z =
-      checked_state_from_positions(*saved.model.map, saved.theta, w.z, w.t, &rms, input.name);
+  const Vector z = checked_state_from_positions(*saved.model.map, saved.theta, w.z, w.t, &rms,
+                                                input.name, step_inputs(w.u, 0, w.t.size() - 1));
   t0 = w.t(w.t.size() - 1);
   std::fprintf(stderr, "rollout: state at t = %s fitted to %lld positions (rms residual %s)\n",
                number_text(t0).c_str(), static_cast<long long>(w.t.size()),
@@ -357,6 +364,13 @@ void add_rollout(CLI::App& app) {
           ->check(kExistingFile);
   auto columns = std::make_shared<std::string>();
   add_columns_option(*cmd, *columns)->needs(pos_opt);
+  auto inputs = std::make_shared<std::string>();
+  CLI::Option* inputs_opt =
+      cmd->add_option("--inputs", *inputs,
+                      "A driven model's known inputs at each sample time of the rollout: a CSV "
+                      "'[t,]u1..um' with --steps + 1 rows (t0, t0 + h, ...), held between "
+                      "samples as the model holds them")
+          ->check(kExistingFile);
   z0_opt->excludes(pos_opt);
   pos_opt->excludes(z0_opt);
   cmd->add_option("--h", *h, "Step")->required()->check(kFiniteNumber)->check(kStep);
@@ -372,10 +386,30 @@ void add_rollout(CLI::App& app) {
       throw CLI::ValidationError("--z0",
                                  "expected the initial state q1,..,qd,p1,..,pd, or "
                                  "--from-positions FILE (a record of positions alone)");
+    const Index m = saved.model.is_map() ? saved.model.map->n_inputs() : 0;
+    if (m > 0 && inputs_opt->count() == 0)
+      throw CLI::ValidationError("--inputs", "the model is driven by " + std::to_string(m) +
+                                                 " input(s); expected --inputs FILE with u1..u" +
+                                                 std::to_string(m) +
+                                                 " at each of the --steps + 1 times");
+    if (m == 0 && inputs_opt->count() > 0)
+      throw CLI::ValidationError("--inputs",
+                                 "the model has no inputs (it was fitted to a free record); "
+                                 "expected no --inputs");
     double t0 = 0.0;
     Vector z = from_positions ? state_at_end_of_positions(saved, *positions, *columns, t0)
                               : parse_state(*z0, saved.model.dim());
+    const Matrix u = m > 0 ? read_rollout_inputs(*inputs, m, *steps, t0, *h) : Matrix();
     const LearnedMap map = learned_map(saved.model, saved.theta);
+    Vector hs(1);
+    hs(0) = *h;
+    // One step: the learned map, or a driven map fed its inputs at the step's start and end.
+    const auto step = [&](Index n) -> Vector {
+      if (m == 0) return map.step(z, *h);
+      Vector un(2 * m);
+      un << u.col(n - 1), u.col(n);
+      return saved.model.map->forward_driven(saved.theta, z, hs, un, nullptr);
+    };
     const Index d = saved.model.dim() / 2;
     std::string line = "t";
     for (Index i = 1; i <= d; ++i) line += ",q" + std::to_string(i);
@@ -395,7 +429,7 @@ void add_rollout(CLI::App& app) {
                           "; the rows printed are the rollout up to it");
       Vector next;
       try {
-        next = map.step(z, *h);
+        next = step(n);
       } catch (const StopRequested&) {
         throw Interrupted("rollout stopped during step " + std::to_string(n) +
                           "; the rows printed are the rollout up to step " + std::to_string(n - 1));

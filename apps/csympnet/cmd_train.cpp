@@ -443,9 +443,7 @@ void write_fit_outputs(const FitArgs& a, const IdentifyResult& r,
 // The fit's figure, unless skipped or impossible; whether it was drawn. An interrupt while
 // drawing leaves no half set of figures.
 bool draw_fit_figures(const FitArgs& a, const FitRecord& rec, const IdentifyResult& r) {
-  if (!a.no_figures && rec.driven)
-    std::fprintf(stderr, "fit: figure not drawn: no figure for a record with inputs yet\n");
-  if (a.no_figures || rec.driven || r.stopped || interrupted()) return false;
+  if (a.no_figures || r.stopped || interrupted()) return false;
   std::fflush(stdout);  // the answer first, while the figure is drawn
   const FigureOutcome f = figure_of(a, rec.pairs_only);
   if (interrupted()) {

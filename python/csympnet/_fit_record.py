@@ -15,20 +15,24 @@ import numpy as np
 
 # Positions fitted for the start state of a positions-only record.
 _START_WINDOW = 20
-_CANONICAL = re.compile(r"^(traj|t|h|[qp][1-9][0-9]*|next_[qp][1-9][0-9]*)$")
+_CANONICAL = re.compile(r"^(traj|t|h|[qpu][1-9][0-9]*|next_[qp][1-9][0-9]*)$")
+# Angular frequencies of a driven model's frequency response in the figure.
+_RESPONSE_POINTS = 400
 
-FitRun = namedtuple("FitRun", "report data rec which start z")
+FitRun = namedtuple("FitRun", "report data rec which start z response")
 FitRun.__doc__ = """What the figure draws: the report (dict), the record's file name, the
 trajectory drawn (a Record), which one it is in words ("" for the only one), the index of the
-free run's first sample and the free run's states (n - start, 2d)."""
+free run's first sample, the free run's states (n - start, 2d), and for a driven model its
+linearised frequency response (Model.frequency_response's dict; None for a free model)."""
 
 
 class Record:
     """One trajectory of a record: times t (n,), positions q (n, d), momenta p (n, d) or
-    None (positions alone), and the file's own name of each position column."""
+    None (positions alone), known inputs u (n, m) or None, and the file's own name of each
+    position column."""
 
-    def __init__(self, t, q, p, names):
-        self.t, self.q, self.p, self.names = t, q, p, names
+    def __init__(self, t, q, p, names, u=None):
+        self.t, self.q, self.p, self.names, self.u = t, q, p, names, u
 
 
 def _column_map(spec):
@@ -71,7 +75,11 @@ def read_record(path, columns=""):
     qs = [f"q{i}" for i in range(1, d + 1)]
     ps = [f"p{i}" for i in range(1, d + 1)]
     has_p = all(c in where for c in ps)
-    use = (["traj"] if "traj" in where else []) + ["t"] + qs + (ps if has_p else [])
+    m = sum(1 for c in where if re.fullmatch(r"u[0-9]+", c))
+    us = [f"u{j}" for j in range(1, m + 1)]
+    if any(c not in where for c in us):
+        raise ValueError(f"{path}: input columns must be u1..um in order, got {header!r}")
+    use = (["traj"] if "traj" in where else []) + ["t"] + qs + (ps if has_p else []) + us
     a = np.loadtxt(path, delimiter=",", skiprows=skip, usecols=[where[c] for c in use],
                    ndmin=2, encoding="utf-8-sig")
     back = {v: k for k, v in own.items()}
@@ -82,14 +90,28 @@ def read_record(path, columns=""):
         parts = np.split(a, cuts)
     else:
         parts = [a]
-    return [Record(x[:, 0], x[:, 1:1 + d], x[:, 1 + d:] if has_p else None, names)
+    k = 1 + d + (d if has_p else 0)
+    return [Record(x[:, 0], x[:, 1:1 + d], x[:, 1 + d:1 + 2 * d] if has_p else None, names,
+                   x[:, k:k + m] if m else None)
             for x in parts]
 
 
 def free_run(model, rec):
     """(index of the first simulated sample, states (n - index, 2d)): the model iterated over
     the record's own steps, from its first state or, for positions alone, from the state
-    fitted to the first window of positions (at the window's last time)."""
+    fitted to the first window of positions (at the window's last time). A driven model is
+    fed the record's inputs, from the state fitted to the first window of positions (its
+    momenta set aside, as fit sets them aside)."""
+    if model.n_inputs > 0:
+        if rec.u is None or rec.u.shape[1] != model.n_inputs:
+            raise ValueError(f"the model is driven by {model.n_inputs} input(s); the record "
+                             "has no such u columns")
+        start = min(len(rec.t), _START_WINDOW) - 1
+        z0, _ = model.state_from_positions(rec.q[:start + 1], rec.t[:start + 1],
+                                           u=rec.u[:start + 1])
+        if start + 1 == len(rec.t):
+            return start, z0[None, :]
+        return start, model.simulate(z0, rec.t[start:], rec.u[start:])
     if rec.p is not None:
         start, z0 = 0, np.concatenate([rec.q[0], rec.p[0]])
     else:
@@ -122,4 +144,25 @@ def read_fit(out_dir, data=None, model=None):
         raise ValueError(f"{data}: {rec.q.shape[1]} positions per row, the model has d = {model.d}")
     which = f"trajectory {k + 1} of {len(recs)} (the longest)" if len(recs) > 1 else ""
     start, z = free_run(model, rec)
-    return FitRun(report, data, rec, which, start, z)
+    return FitRun(report, data, rec, which, start, z, frequency_response(model, report, rec))
+
+
+def frequency_response(model, report, rec):
+    """A driven model's linearised frequency response over the angular frequencies from a
+    fifth of its slowest mode (or of the record's lowest frequency) to three times its fastest,
+    below 0.9 of the Nyquist frequency, at the record's median step; None for a free model or
+    one without an equilibrium near the origin (the figure then leaves the panel out)."""
+    if model.n_inputs == 0:
+        return None
+    h = float(np.median(np.diff(rec.t)))
+    modes = [m["angular_frequency"] for m in (report.get("modes") or {}).get("list", [])
+             if isinstance(m, dict) and m.get("angular_frequency")]
+    span = float(rec.t[-1] - rec.t[0])
+    lo = 0.2 * min(modes) if modes else 2 * np.pi / max(span, h)
+    hi = min(3.0 * max(modes) if modes else 0.5 * np.pi / h, 0.9 * np.pi / h)
+    if not (0 < lo < hi):
+        return None
+    try:
+        return model.frequency_response(np.geomspace(lo, hi, _RESPONSE_POINTS), h)
+    except ValueError:
+        return None

@@ -14,6 +14,10 @@ map of --columns), runs the fitted model freely over the record's own sample tim
     decay rate (energy ~ exp(-gamma_hat t)), so amplitudes decay at gamma_hat / 2;
   - the modes (angular frequency and damping ratio with their intervals) and gamma_hat.
 
+A driven record (u1..um columns) is run fed its inputs from the state fitted to its first
+window of positions, and the envelope gives way to the fitted map's linearised frequency
+response |q_i / u_j| with its modes marked (Model.frequency_response).
+
 The free run of a record with momenta starts at its first state; for positions alone it
 starts at the state that the model fits to the first window of positions
 (Model.state_from_positions), at the window's last time. With several trajectories the

@@ -643,7 +643,8 @@ def fit_figure(out_dir, data=None, path=None, *, model=None, size="page"):
     from csympnet._fit_record import read_fit  # the package: the rollouts are the library's
 
     run = read_fit(out_dir, data, model)
-    fig = _fit_panels(run.report, run.data, run.rec, run.start, run.z, run.which, size)
+    fig = _fit_panels(run.report, run.data, run.rec, run.start, run.z, run.which, size,
+                      response=run.response)
     if path is not None:
         _save_atomic(fig, path)
     return fig
@@ -731,7 +732,7 @@ def _fit_modes_text(report, width=100):
     return lines
 
 
-def _fit_panels(report, data, rec, start, z, which, size):
+def _fit_panels(report, data, rec, start, z, which, size, response=None):
     d = rec.q.shape[1]
     shown = min(d, _FIT_DOF_PANELS)
     t, ts = rec.t, rec.t[start:]
@@ -752,7 +753,8 @@ def _fit_panels(report, data, rec, start, z, which, size):
             ax.plot(t, rec.q[:, i], label="record", **_FIT_RECORD)
             ax.plot(ts, _shown(qhat[:, i]), color=FEATURED_COLOR, lw=1.0,
                     label=("free run from the first state" if start == 0 else
-                           f"free run from the state fitted\nto the first {start + 1} positions"),
+                           f"free run from the state fitted\nto the first {start + 1} positions"
+                           + (", fed the inputs" if response is not None else "")),
                     zorder=4)
             if start > 0:
                 ax.axvline(t[start], color="0.5", lw=0.6, ls=":")
@@ -785,13 +787,36 @@ def _fit_panels(report, data, rec, start, z, which, size):
             _style(ax, size)
             ax.grid(False, axis="x")
             row += 1
-        _envelope_panel(fig.add_subplot(gs[row, :]), report, rec, start, qhat, tlabel, size)
+        if response is not None:  # a driven record: no free decay to draw an envelope of
+            _response_panel(fig.add_subplot(gs[row, :]), response, rec.names, size,
+                            _fit_time_unit(report))
+        else:
+            _envelope_panel(fig.add_subplot(gs[row, :]), report, rec, start, qhat, tlabel, size)
         text = fig.add_subplot(gs[row + 1, :])
         text.axis("off")
         text.text(0.0, 1.0, "\n".join(lines), ha="left", va="top", fontsize=preset["small"],
                   transform=text.transAxes, in_layout=False)
         fig.suptitle(_fit_heading(report, data, which))
     return fig
+
+
+def _response_panel(ax, response, names, size, unit):
+    """A driven model's linearised frequency response, |q_i / u_j| for every pair, with its
+    modes marked (the magnitude panel of frequency_response)."""
+    w = np.asarray(response["omega"], dtype=float)
+    g = np.asarray(response["response"])
+    for i in range(g.shape[1]):
+        for j in range(g.shape[2]):
+            ax.loglog(w, np.abs(g[:, i, j]), lw=1.2, label=f"{names[i]} / u{j + 1}",
+                      color=FEATURED_COLOR if g.shape[1] * g.shape[2] == 1 else f"C{i + j}")
+    for wn, _ in response.get("modes", []):
+        ax.axvline(wn, color="0.5", ls=":", lw=0.8)
+    ax.set_xlabel(f"angular frequency (rad/{unit})" if unit else "angular frequency (rad per time unit)")
+    ax.set_ylabel("|q / u|")
+    ax.set_title("frequency response of the fitted map, linearised (dotted: its modes)")
+    if g.shape[1] * g.shape[2] > 1:
+        ax.legend(loc="best", fontsize=_preset(size)[2]["small"], framealpha=0.85)
+    _style(ax, size)
 
 
 def _window_rms(t, q_record, q_model, period):

@@ -107,6 +107,32 @@ def test_unidentified_fit_says_so(run_cli, tmp_path):
     assert "[" not in fig._suptitle.get_text()  # no interval
 
 
+def test_driven_record_is_fed_its_inputs_and_shows_its_frequency_response(run_cli, tmp_path):
+    from test_identify_inputs import GAMMA, OMEGA, driven_record  # the driven test oscillator
+    q, t, u = driven_record(n=600)
+    data = tmp_path / "driven.csv"
+    np.savetxt(data, np.c_[t, q, u], delimiter=",", header="t,q1,u1", comments="", fmt="%.17g")
+    out = fitted(run_cli, tmp_path, data)
+    fig = plot.fit_figure(out, path=out / "fit")
+    drawn(out / "fit")
+    titles = [ax.get_title() for ax in fig.axes]
+    assert any("frequency response" in t for t in titles)
+    assert not any("amplitude" in t for t in titles)  # no free decay's envelope
+    legend = " ".join(t.get_text() for ax in fig.axes if ax.get_legend()
+                      for t in ax.get_legend().get_texts())
+    assert "fed the inputs" in legend
+    resp = [ax for ax in fig.axes if "frequency response" in ax.get_title()][0]
+    mode = [ln for ln in resp.get_lines() if len(ln.get_xdata()) == 2][0].get_xdata()[0]
+    assert abs(mode - OMEGA) < 0.01 * OMEGA  # the linearised mode, near the oscillator's
+    curve = resp.get_lines()[0]
+    w, mag = curve.get_data()
+    assert abs(w[np.argmax(mag)] - np.sqrt(OMEGA**2 - GAMMA**2 / 2)) < 0.05  # the resonance
+    # the free run follows the record: the residual panel's rms is near the noise
+    res = [ax for ax in fig.axes if "residual" in ax.get_title()][0]
+    r = res.get_lines()[0].get_ydata()
+    assert np.sqrt(np.nanmean(r**2)) < 0.03 * q.std()
+
+
 def test_module_command_fails_in_one_line(tmp_path, run_cli):
     out = fitted(run_cli, tmp_path, RECORD, "--columns", COLUMNS)
     p = subprocess.run([sys.executable, "-m", "csympnet.fit_figure", str(out), "--data",

@@ -4,12 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
 
 #include "cli_support.hpp"
+#include "support/driven_oscillator.hpp"
 
 namespace csympnet::testing_cli {
 namespace {
@@ -135,6 +137,29 @@ TEST_F(FitFigureCli, AnOutputPathReachesNoShell) {
   EXPECT_FALSE(fs::exists("pwned"));
   EXPECT_FALSE(fs::exists("pwned2"));
   EXPECT_FALSE(fs::exists(dir_ / "pwned"));
+}
+
+// A driven record (t,q1,u1) gets its figure too: the free run fed the record's inputs, and the
+// linearised frequency response in place of the free decay's envelope.
+TEST_F(FitFigureCli, ADrivenRecordIsDrawnWithItsFrequencyResponse) {
+  if (!python_with_matplotlib())
+    GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
+  const Trajectory tr = testing::driven_record(600, 0.05, 0.005, 11);
+  const fs::path data = dir_ / "driven.csv", out = dir_ / "out";
+  {
+    std::ofstream f(data);
+    f << "t,q1,u1\n";
+    char line[128];
+    for (Index k = 0; k < tr.t.size(); ++k) {
+      std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g\n", tr.t(k), tr.z(0, k), tr.u(0, k));
+      f << line;
+    }
+  }
+  const CliResult r =
+      run("fit " + shell_quote(data.string()) + " --out " + shell_quote(out.string()) + " -q");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(has_figure(out)) << r.err;
+  EXPECT_EQ(r.err.find("figure not drawn"), std::string::npos) << r.err;
 }
 
 TEST_F(FitFigureCli, CtrlCWhileTheFigureIsDrawnStopsPromptlyWithTheInterruptCode) {

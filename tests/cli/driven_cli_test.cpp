@@ -29,16 +29,7 @@ using testing_cli::CliTest;
 using testing_cli::shell_quote;
 using testing_cli::slurp;
 
-// t,q1,u1 rows (positions and input), 17 significant digits.
-void write_positions_with_input(const std::string& path, const Trajectory& tr) {
-  std::ofstream out(path);
-  out << "t,q1,u1\n";
-  char line[128];
-  for (Index k = 0; k < tr.t.size(); ++k) {
-    std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g\n", tr.t(k), tr.z(0, k), tr.u(0, k));
-    out << line;
-  }
-}
+using testing::write_positions_with_input;
 
 class DrivenCli : public CliTest {};
 

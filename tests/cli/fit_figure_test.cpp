@@ -146,15 +146,7 @@ TEST_F(FitFigureCli, ADrivenRecordIsDrawnWithItsFrequencyResponse) {
     GTEST_SKIP() << "no csympnet package beside the CLI, or no python3 with matplotlib";
   const Trajectory tr = testing::driven_record(600, 0.05, 0.005, 11);
   const fs::path data = dir_ / "driven.csv", out = dir_ / "out";
-  {
-    std::ofstream f(data);
-    f << "t,q1,u1\n";
-    char line[128];
-    for (Index k = 0; k < tr.t.size(); ++k) {
-      std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g\n", tr.t(k), tr.z(0, k), tr.u(0, k));
-      f << line;
-    }
-  }
+  testing::write_positions_with_input(data.string(), tr);
   const CliResult r =
       run("fit " + shell_quote(data.string()) + " --out " + shell_quote(out.string()) + " -q");
   ASSERT_EQ(r.code, 0) << r.err;

@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <string>
 #include <vector>
 
 #include "csympnet/core/rng.hpp"
@@ -83,6 +86,17 @@ inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t s
   const double spread = std::sqrt((tr.z.row(0).array() - tr.z.row(0).mean()).square().mean());
   for (Index k = 0; k < n; ++k) tr.z(0, k) += noise * spread * rng.normal();
   return tr;
+}
+
+// The record as a positions-with-input CSV: t,q1,u1 rows, 17 significant digits.
+inline void write_positions_with_input(const std::string& path, const Trajectory& tr) {
+  std::ofstream out(path);
+  out << "t,q1,u1\n";
+  char line[128];
+  for (Index k = 0; k < tr.t.size(); ++k) {
+    std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g\n", tr.t(k), tr.z(0, k), tr.u(0, k));
+    out << line;
+  }
 }
 
 }  // namespace csympnet::testing

@@ -1,6 +1,7 @@
 #include "csympnet_id.hpp"
 
 #include <cmath>
+#include <vector>
 
 #include "../kernels/column_scaling.hpp"
 #include "../kernels/conformal_rows.hpp"
@@ -141,9 +142,10 @@ double scalar_damping_sum(const Matrix& dZout, const Matrix& p_core, const Matri
 
 }  // namespace
 
-CSympNetId::CSympNetId(std::unique_ptr<SymplecticCore> core, double beta_init)
-    : core_(std::move(core)), beta_init_(beta_init) {
+CSympNetId::CSympNetId(std::unique_ptr<SymplecticCore> core, double beta_init, InputSpec inputs)
+    : core_(std::move(core)), beta_init_(beta_init), inputs_(inputs) {
   require(core_ != nullptr, "csympnet: the symplectic core must not be null");
+  require(inputs_.m >= 0, "csympnet: the number of inputs must be >= 0");
   require(std::isfinite(beta_init) && beta_init != 0.0, [&] {
     return "csympnet: beta_init = " + std::to_string(beta_init) +
            ", expected a finite nonzero value (d|beta|/dbeta vanishes at 0, so beta would "
@@ -155,7 +157,8 @@ void CSympNetId::init_params(Rng& rng, ParamsRef theta) const {
   check_theta(*this, theta, "init_params");
   const Index nc = core_->n_params();
   core_->init_params(rng, theta.head(nc));
-  theta(nc) = beta_init_;
+  theta.segment(nc, core_->d() * inputs_.m).setZero();
+  theta(n_params() - 1) = beta_init_;
 }
 
 Matrix CSympNetId::forward(ConstParams theta, const Matrix& Z, const Vector& h,
@@ -186,6 +189,7 @@ Matrix CSympNetId::forward(ConstParams theta, const Matrix& Z, const Vector& h,
   if (cache != nullptr) {
     Context& ctx = cache->make_context<Context>();
     ctx.h = h;
+    ctx.u.resize(0, 0);
     a = &ctx.a;
     q = &ctx.q;
     p = &ctx.p_core;
@@ -194,7 +198,7 @@ Matrix CSympNetId::forward(ConstParams theta, const Matrix& Z, const Vector& h,
     core_cache = &ctx.core;
   }
   // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
-  conformal_factors(std::abs(theta(nc)), h, *a);
+  conformal_factors(std::abs(theta(n_params() - 1)), h, *a);
   q->resize(d, n);
   p->resize(d, n);
   split_rows(Z, a, *q, *p, p_in);
@@ -241,7 +245,11 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
     grad_a = (gp.array() * p_core.array()).colwise().sum().transpose();
     kernels::scale_columns(gp, a.data());
   }
+  const bool driven = ctx.u.rows() > 0;
+  // The second kick p += (h/2) B u(t₀ + h): gp passes unchanged, B takes its share.
+  if (driven) kick_backward(gp, h, ctx.u, 1.0, grad);
   core_->flow_backward(theta.head(nc), ctx.core, h, gq, gp, grad.head(nc));
+  if (driven) kick_backward(gp, h, ctx.u, 0.0, grad);
   // Inner scaling p̃ = a ⊙ p_in:  dL/da_j += Σ_i G̃_ij p_in,ij,  dL/dp_in = a G̃.
   // a_j = exp(−|β| h_j / 2):  da_j/dβ = −(h_j / 2) a_j sign(β).
   double sum;
@@ -254,7 +262,8 @@ void CSympNetId::backward(ConstParams theta, const ForwardCache& cache, const Ma
     grad_a.array() += (gp.array() * p_in.array()).colwise().sum().transpose();
     sum = (grad_a.array() * h.array() * a.array()).sum();
   }
-  grad(nc) += -0.5 * abs_derivative(theta(nc)) * sum;
+  const Index bi = n_params() - 1;
+  grad(bi) += -0.5 * abs_derivative(theta(bi)) * sum;
   if (dZin != nullptr) join_rows(gq, gp, a, *dZin);
 }
 
@@ -263,6 +272,7 @@ CSympNetId::Context& CSympNetId::size_forward(const Vector& h, ForwardCache& cac
   const Index n = h.size();
   Context& ctx = cache.make_context<Context>();
   ctx.h = h;
+  ctx.u.resize(0, 0);
   ctx.a.resize(n);
   ctx.p_in.resize(d, n);
   ctx.p_core.resize(d, n);
@@ -272,7 +282,7 @@ CSympNetId::Context& CSympNetId::size_forward(const Vector& h, ForwardCache& cac
 }
 
 bool CSympNetId::splits(Index n, const std::vector<Columns>& ranges) const {
-  return core_->d() > 1 && core_->splits_columns(n, ranges);
+  return inputs_.m == 0 && core_->d() > 1 && core_->splits_columns(n, ranges);
 }
 
 void CSympNetId::prepare(ConstParams theta, const Vector& h, ForwardCache& cache) const {
@@ -299,7 +309,7 @@ void CSympNetId::forward_columns(ConstParams theta, const Matrix& Z, ForwardCach
   Matrix& p = ctx.p_core;  // the core's p, in place: it ends as the core output
   Matrix& q = ctx.q;
   // a_j = exp(−γ̂ h_j / 2), the conformal factor of S_a for sample j.
-  conformal_factors(std::abs(theta(nc)), h, a, cols);
+  conformal_factors(std::abs(theta(n_params() - 1)), h, a, cols);
   split_rows_d<0>(Z.data() + 2 * d * c0, n, d, a.data() + c0, q.data() + d * c0, p.data() + d * c0,
                   ctx.p_in.data() + d * c0);
   core_->flow_columns(theta.head(nc), q, p, h, &ctx.core, cols);
@@ -338,29 +348,118 @@ void CSympNetId::backward_params(ConstParams theta, const ForwardCache& cache, P
 
 void CSympNetId::backward_finish(ConstParams theta, const ForwardCache& cache,
                                  ParamsRef grad) const {
-  const Index nc = core_->n_params();
+  const Index bi = n_params() - 1;
   const Context& ctx = recorded(cache, "csympnet::backward_finish");
   const double sum = (ctx.grad_a.array() * ctx.h.array() * ctx.a.array()).sum();
-  grad(nc) += -0.5 * abs_derivative(theta(nc)) * sum;
+  grad(bi) += -0.5 * abs_derivative(theta(bi)) * sum;
 }
 
 Matrix CSympNetId::jacobian(ConstParams theta, const Vector& z, double h) const {
+  return jacobian_driven(theta, z, h, Vector());
+}
+
+Matrix CSympNetId::jacobian_driven(ConstParams theta, const Vector& z, double h,
+                                   const Vector& u) const {
   check_jacobian_args(*this, theta, z);
+  if (u.size() != 0) check_inputs(Matrix(u), 1);
   const Index d = core_->d();
   const Index nc = core_->n_params();
-  const double a = std::exp(-0.5 * std::abs(theta(nc)) * h);
-  // DΦ̂ = diag(I, aI) DΨ(S_a z) diag(I, aI): start the tangents at diag(I, aI).
+  const double a = std::exp(-0.5 * std::abs(theta(n_params() - 1)) * h);
+  // DΦ̂ = diag(I, aI) DΨ(K S_a z) diag(I, aI): start the tangents at diag(I, aI); the kicks
+  // move the state, not the tangents.
   Vector q = z.head(d);
-  Vector p = a * z.tail(d);
+  Matrix p = a * z.tail(d);
+  const Vector hv = Vector::Constant(1, h);
+  if (u.size() != 0) kick(theta, p, hv, Matrix(u), 0.0);
+  Vector pv = p.col(0);
   Matrix tq = Matrix::Zero(d, 2 * d);
   Matrix tp = Matrix::Zero(d, 2 * d);
   tq.leftCols(d).setIdentity();
   tp.rightCols(d).diagonal().setConstant(a);
-  core_->flow_tangent(theta.head(nc), q, p, tq, tp, h);
+  core_->flow_tangent(theta.head(nc), q, pv, tq, tp, h);
   Matrix jac(2 * d, 2 * d);
   jac.topRows(d) = tq;
   jac.bottomRows(d) = a * tp;
   return jac;
+}
+
+void CSympNetId::check_inputs(const Matrix& U, Index n) const {
+  require(inputs_.m > 0, [&] {
+    return "csympnet forward: this map takes no inputs (U has " + std::to_string(U.rows()) +
+           " rows); expected a spec with \"inputs\": {\"m\": ...} for a driven record";
+  });
+  require(U.rows() == 2 * inputs_.m && U.cols() == n, [&] {
+    return "csympnet: inputs of " + std::to_string(U.rows()) + " x " + std::to_string(U.cols()) +
+           " for a map of " + std::to_string(inputs_.m) + " inputs and " + std::to_string(n) +
+           " steps; expected " + std::to_string(2 * inputs_.m) + " x " + std::to_string(n) +
+           " (per step the input at its start, then at its end)";
+  });
+}
+
+void CSympNetId::kick(ConstParams theta, Matrix& p, const Vector& h, const Matrix& U,
+                      double sigma) const {
+  const Index d = core_->d(), m = inputs_.m;
+  std::vector<double> u(static_cast<std::size_t>(m));
+  for (Index j = 0; j < p.cols(); ++j) {
+    input_at(inputs_.hold, m, U.col(j).data(), sigma, u.data());
+    const double half = 0.5 * h(j);
+    for (Index r = 0; r < d; ++r) {
+      double f = 0.0;
+      for (Index c = 0; c < m; ++c) f += theta(input_index(r, c)) * u[static_cast<std::size_t>(c)];
+      p(r, j) += half * f;
+    }
+  }
+}
+
+void CSympNetId::kick_backward(const Matrix& gp, const Vector& h, const Matrix& U, double sigma,
+                               ParamsRef grad) const {
+  const Index d = core_->d(), m = inputs_.m;
+  std::vector<double> u(static_cast<std::size_t>(m));
+  for (Index j = 0; j < gp.cols(); ++j) {
+    input_at(inputs_.hold, m, U.col(j).data(), sigma, u.data());
+    const double half = 0.5 * h(j);
+    for (Index r = 0; r < d; ++r)
+      for (Index c = 0; c < m; ++c)
+        grad(input_index(r, c)) += half * gp(r, j) * u[static_cast<std::size_t>(c)];
+  }
+}
+
+Matrix CSympNetId::forward_driven(ConstParams theta, const Matrix& Z, const Vector& h,
+                                  const Matrix& U, ForwardCache* cache) const {
+  if (U.rows() == 0) return forward(theta, Z, h, cache);
+  check_forward_args(*this, theta, Z, h);
+  check_inputs(U, Z.cols());
+  const Index d = core_->d();
+  const Index nc = core_->n_params();
+  const Index n = Z.cols();
+  Vector a_local;
+  Matrix q_local, p_local, p_in_local;
+  Vector* a = &a_local;
+  Matrix* q = &q_local;
+  Matrix* p = &p_local;
+  Matrix* p_in = &p_in_local;
+  ForwardCache* core_cache = nullptr;
+  if (cache != nullptr) {
+    Context& ctx = cache->make_context<Context>();
+    ctx.h = h;
+    ctx.u = U;
+    a = &ctx.a;
+    q = &ctx.q;
+    p = &ctx.p_core;
+    p_in = &ctx.p_in;
+    core_cache = &ctx.core;
+  }
+  conformal_factors(std::abs(theta(n_params() - 1)), h, *a);
+  q->resize(d, n);
+  p->resize(d, n);
+  p_in->resize(d, n);
+  split_rows(Z, a, *q, *p, p_in);
+  kick(theta, *p, h, U, 0.0);
+  core_->flow(theta.head(nc), *q, *p, h, core_cache);
+  kick(theta, *p, h, U, 1.0);
+  Matrix out;
+  join_rows(*q, *p, *a, out);
+  return out;
 }
 
 std::optional<double> CSympNetId::damping_rate(ConstParams theta) const {
@@ -369,10 +468,12 @@ std::optional<double> CSympNetId::damping_rate(ConstParams theta) const {
 }
 
 nlohmann::json CSympNetId::hyperparams() const {
-  return {{"type", "csympnet"},
-          {"d", core_->d()},
-          {"core", core_->core_spec()},
-          {"beta_init", beta_init_}};
+  nlohmann::json spec = {{"type", "csympnet"},
+                         {"d", core_->d()},
+                         {"core", core_->core_spec()},
+                         {"beta_init", beta_init_}};
+  if (inputs_.m > 0) spec["inputs"] = input_spec_json(inputs_);
+  return spec;
 }
 
 }  // namespace csympnet

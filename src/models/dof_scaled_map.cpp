@@ -9,6 +9,9 @@ namespace csympnet {
 DofScaledMap::DofScaledMap(std::unique_ptr<OneStepMap> inner)
     : inner_(std::move(inner)), d_(inner_ ? inner_->dim() / 2 : 0) {
   require(inner_ != nullptr, "dof-scaled map: no inner model");
+  require(inner_->n_inputs() == 0,
+          "dof-scaled map: the inner map takes known inputs, which the per-dof scales do not "
+          "pass on; a driven record is fitted on its positions, without dof scales");
 }
 
 void DofScaledMap::init_params(Rng& rng, ParamsRef theta) const {

@@ -5,7 +5,9 @@
 //   {"type": "g", "d": D, "layers": L, "width": W}                 bare G-SympNet core
 //   {"type": "sympnet", "d": D, "core": CORE}                      SympNet = the core alone
 //   {"type": "csympnet", "d": D, "core": CORE, "beta_init": B}     CSympNet-ID (B optional,
-//                                                                  default 0.1, nonzero)
+//                                                                  default 0.1, nonzero;
+//                                                                  "inputs": {"m": M, "hold":
+//                                                                  "foh"} for a driven map)
 //   {"type": "map", "d": D, "width": W}                            MapBaseline
 //
 //
@@ -202,13 +204,17 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
   if (type == "sympnet" || type == "csympnet") {
     const bool conformal = type == "csympnet";
     if (conformal) {
-      reject_unknown_keys(spec, where, {"type", "d", "core", "beta_init"});
+      reject_unknown_keys(spec, where, {"type", "d", "core", "beta_init", "inputs"});
     } else {
       reject_unknown_keys(spec, where, {"type", "d", "core"});
     }
     const Index d = get_count(spec, "d", where);
     if (conformal && spec.contains("core") && spec.at("core").is_object() &&
         spec.at("core").contains("type") && spec.at("core").at("type") == "library") {
+      require(!spec.contains("inputs"), [&] {
+        return where + ": key 'inputs' belongs inside the library core ({\"type\": \"library\", "
+                       "\"inputs\": {\"m\": ...}}), where the kicks take them";
+      });
       return make_library_map(spec.at("core"), d,
                               get_beta_init(spec, where, CSympNetId::kDefaultBetaInit),
                               where + ".core");
@@ -219,8 +225,10 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     });
     auto core = make_core(spec.at("core"), d, where + ".core");
     if (!conformal) return std::make_unique<SympNet>(std::move(core));
-    return std::make_unique<CSympNetId>(std::move(core),
-                                        get_beta_init(spec, where, CSympNetId::kDefaultBetaInit));
+    const InputSpec inputs =
+        spec.contains("inputs") ? read_input_spec(spec.at("inputs"), where) : InputSpec{};
+    return std::make_unique<CSympNetId>(
+        std::move(core), get_beta_init(spec, where, CSympNetId::kDefaultBetaInit), inputs);
   }
   if (type == "map") {
     reject_unknown_keys(spec, where, {"type", "d", "width"});

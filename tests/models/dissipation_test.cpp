@@ -134,7 +134,9 @@ TEST(FrictionKick, TwoHalvesAreOneWholeAndItSolvesItsOde) {
       const double rate = (coulomb_kick(p, f, mu, tau + dt).p - whole) / dt;
       EXPECT_NEAR(rate, f - mu * (whole > 0.0 ? 1.0 : -1.0), 1e-6) << p << " " << f << " " << mu;
     }
-    if (whole == 0.0 && tau > 0.0 && p != 0.0) EXPECT_LE(std::abs(f), mu);
+    if (whole == 0.0 && tau > 0.0 && p != 0.0) {
+      EXPECT_LE(std::abs(f), mu);
+    }
   }
   std::cout << "  kicks: " << branches[0] << " slip, " << branches[1] << " reverse, " << branches[2]
             << " stop and hold\n";

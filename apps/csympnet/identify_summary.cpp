@@ -134,10 +134,41 @@ void print_modes(const IdentifyResult& r, const std::optional<TimeUnit>& unit) {
   }
 }
 
+// The fitted core in a few words: "library (N terms)", "g:L:w", "la:L:m" (the model file has it
+// whole); the configured core when the model has none.
+std::string fitted_core(const IdentifyResult& r) {
+  nlohmann::json core = r.config.core;
+  if (r.model.map) {
+    const nlohmann::json spec = r.model.map->hyperparams();
+    if (spec.contains("core")) core = spec.at("core");
+  }
+  if (!core.is_object()) return core.dump();
+  const std::string type = core.value("type", std::string());
+  if (type == "library")
+    return "library (" + std::to_string(core.contains("terms") ? core.at("terms").size() : 0) +
+           " terms)";
+  if (type == "la")
+    return "la:" + std::to_string(core.value("layers", 0)) + ":" +
+           std::to_string(core.value("sublayers", 0));
+  if (type == "g")
+    return "g:" + std::to_string(core.value("layers", 0)) + ":" +
+           std::to_string(core.value("width", 0));
+  return core.dump();
+}
+
 void print_identify_details(const IdentifyResult& r, const std::string& out, bool figure) {
-  std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
-              static_cast<long long>(r.model.dim() / 2), static_cast<long long>(r.model.n_params()),
-              r.config.window, r.config.core.dump().c_str());
+  const bool driven = !r.input.is_null();
+  if (driven)
+    std::printf("csympnet, d = %lld, %lld params, driven by %lld input%s, core %s\n",
+                static_cast<long long>(r.model.dim() / 2),
+                static_cast<long long>(r.model.n_params()),
+                static_cast<long long>(r.model.map->n_inputs()),
+                r.model.map->n_inputs() == 1 ? "" : "s", fitted_core(r).c_str());
+  else
+    std::printf("csympnet, d = %lld, %lld params, window %ld steps, core %s\n",
+                static_cast<long long>(r.model.dim() / 2),
+                static_cast<long long>(r.model.n_params()), r.config.window,
+                fitted_core(r).c_str());
   // How close each choice between models was (report.json "model_selection").
   for (const nlohmann::json& x : model_selection(r)) {
     const nlohmann::json& m = x["margin"];
@@ -156,19 +187,26 @@ void print_identify_details(const IdentifyResult& r, const std::string& out, boo
   }
   // The library core is fitted by Levenberg-Marquardt alone: its AdamW summary ("trained 0
   // epochs ... best validation loss 0") would read as a perfect fit.
-  if (r.training.epochs_run == 0 && r.config.core.is_object() &&
-      r.config.core.value("type", std::string()) == "library")
+  if (driven)
+    std::printf("fitted by Levenberg-Marquardt alone: multiple shooting on the positions with "
+                "the inputs (no AdamW epochs)\n");
+  else if (r.training.epochs_run == 0 && r.config.core.is_object() &&
+           r.config.core.value("type", std::string()) == "library")
     std::printf("library core: fitted by Levenberg-Marquardt alone (no AdamW epochs)\n");
   else
     std::printf("%s\n", r.training.brief_report().c_str());
   std::printf(
       "%s\n",
       lm_summary_words(r.lm.iterations, r.lm.accepted, r.lm_best_iteration, r.lm.message).c_str());
-  std::printf(
-      "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
-      "max %.2e\n",
-      r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
-      r.quality.val_relative_residual, r.quality.structure_residual_max);
+  if (driven)
+    std::printf("train loss %.3e, held-out loss %.3e (positions, normalised units)\n",
+                r.quality.train_loss, r.quality.val_loss);
+  else
+    std::printf(
+        "train loss %.3e, held-out loss %.3e, %s of a window %.2e, structure residual "
+        "max %.2e\n",
+        r.quality.train_loss, r.quality.val_loss, kHeldOutResidualWords,
+        r.quality.val_relative_residual, r.quality.structure_residual_max);
   std::printf("wrote %s/{report.json,model.json,timings.json%s}\n", out.c_str(),
               figure ? ",fit.png,fit.pdf" : "");
 }

@@ -12,7 +12,7 @@ import sys
 import time
 
 from .common import GEN_OMEGA_DT, METHODS, REPO, STOP, Interrupted
-from .forced import FORCED_SYSTEMS, plan_forced
+from .forced import FORCED_EXTRA_SYSTEMS, FORCED_SYSTEMS, plan_forced
 from .forced_plan import FORCED_METHODS, run_forced_case
 from .forced_tables import case_rms, write_forced_outputs
 from .friction import FRICTION_STRATA, plan_friction
@@ -167,7 +167,8 @@ def parse_args():
                          "(default 6, 3 with --quick), the systems taken in turn")
     ap.add_argument("--forced-systems", default=",".join(FORCED_SYSTEMS),
                     help="with --forced-plan: a comma-separated subset of "
-                         + ",".join(FORCED_SYSTEMS))
+                         + ",".join(FORCED_SYSTEMS + FORCED_EXTRA_SYSTEMS) + " (the last "
+                         "outside csympnet's term library, only when named)")
     ap.add_argument("--friction-plan", action="store_true",
                     help="run the friction plan instead (viscous, Coulomb and drag decays, "
                          "an encoder-read pendulum with dry friction: idbench/friction.py), "
@@ -204,7 +205,8 @@ def plan_size(ap, args):
         subset = _subset(ap, args.friction_strata, FRICTION_STRATA, "friction strata")
     elif args.forced_plan:
         default = (3, 6)
-        subset = _subset(ap, args.forced_systems, FORCED_SYSTEMS, "forced systems")
+        subset = _subset(ap, args.forced_systems, FORCED_SYSTEMS + FORCED_EXTRA_SYSTEMS,
+                         "forced systems")
     elif args.observed_plan:
         default = (5, 10)
         subset = _subset(ap, args.observed_strata, OBSERVED_STRATA, "observed strata")

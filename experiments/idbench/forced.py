@@ -12,6 +12,10 @@ Model (unit masses, mass-normalised like the other systems of the benchmark):
                                  k_i x^2/2 + b_i x^4/4, k = (1, 0.6, 1.4), b = (1, 0.5, 0.8);
                                  the input on the first mass: B = [1, 0]^T (its structure, which
                                  entries are free, is known; their values are not)
+    saturating     d = 1, m = 1  V = k q^2/2 + f l log cosh(q / l), k = 0.25, f = 0.15,
+                                 l = 0.2 (a spring that saturates: stiffness 1 at rest, 0.25 far
+                                 out; the force k q + f tanh(q / l) is outside csympnet's term
+                                 library), B = [1]; only with --forced-systems
 
 The input between samples is a first-order hold: u(t) is the straight line between the samples
 u_k and u_{k+1} (the force B u(t) too); every record's u column is the input the system was
@@ -26,7 +30,8 @@ modes):
     multisine  a random-phase odd multisine: the odd harmonics k / (N h) of a period of N
                samples in the band, equal amplitudes, phases uniform in [0, 2 pi); scaled so that
                the linearised system's RMS response of q1 is the case's target amplitude A
-               (duffing 0.3-0.5, pendulum 0.2-0.35 rad, chain 0.5-0.8; log-uniform). Every
+               (duffing 0.3-0.5, pendulum 0.2-0.35 rad, chain 0.5-0.8, saturating 0.3-0.5, past
+               the saturation at l = 0.2; log-uniform). Every
                multisine record is preceded by one unrecorded period (the transient; the record
                starts in the periodic steady state).
     rising     Gaussian noise filtered by a 4th-order Butterworth band-pass over the same band,
@@ -61,15 +66,19 @@ import numpy as np
 from .common import check_stop
 
 FORCED_SYSTEMS = ["duffing", "pendulum", "duffing-chain"]
+# systems run only when named (--forced-systems): outside the library of csympnet's terms
+FORCED_EXTRA_SYSTEMS = ["saturating"]
 FORCED_STRATA = ["multisine", "rising"]
-TARGET_AMPLITUDE = {"duffing": (0.3, 0.5), "pendulum": (0.2, 0.35), "duffing-chain": (0.5, 0.8)}
+TARGET_AMPLITUDE = {"duffing": (0.3, 0.5), "pendulum": (0.2, 0.35), "duffing-chain": (0.5, 0.8),
+                    "saturating": (0.3, 0.5)}
 SIZES = {False: {"period": 1024, "train_periods": 4, "test_periods": 2, "rising": 4096},
          True: {"period": 512, "train_periods": 3, "test_periods": 2, "rising": 2048}}
 OMEGA_SUBSTEP = 0.02     # omega * RK4 substep when generating
-GAMMA_RATIO = {"duffing": (0.03, 0.1), "pendulum": (0.03, 0.1), "duffing-chain": (0.03, 0.1)}
+GAMMA_RATIO = {"duffing": (0.03, 0.1), "pendulum": (0.03, 0.1), "duffing-chain": (0.03, 0.1),
+               "saturating": (0.03, 0.1)}
 SENSITIVITY_STEP = 1e-4  # the relative change of gamma of the sensitivity check
 WARMUP_SAMPLES = 100     # the warm-up of the free-run score (peers/arx.py WARMUP)
-RISING_PEAK = {"duffing": 2.0, "pendulum": 1.5, "duffing-chain": 2.0}
+RISING_PEAK = {"duffing": 2.0, "pendulum": 1.5, "duffing-chain": 2.0, "saturating": 2.0}
 
 
 def _chain2_grad(q, th):
@@ -96,6 +105,10 @@ def forced_system(name):
                  theta_names=["k0", "k1", "k2", "b0", "b1", "b2"], grad=_chain2_grad,
                  B=np.array([[1.0], [0.0]]))
         s["K"] = np.array([[1.6, -0.6], [-0.6, 2.0]])
+    elif name == "saturating":
+        s = dict(d=1, m=1, theta=[0.25, 0.15, 0.2], theta_names=["k", "f", "l"],
+                 grad=lambda q, th: th[0] * q + th[1] * np.tanh(q / th[2]), B=np.array([[1.0]]))
+        s["K"] = np.array([[1.0]])
     else:
         raise ValueError(f"unknown forced system {name!r}")
     s["name"] = name

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .forced import FORCED_STRATA, FORCED_SYSTEMS
+from .forced import FORCED_EXTRA_SYSTEMS, FORCED_STRATA, FORCED_SYSTEMS
 from .forced_plan import FORCED_METHODS
 from .tables import fmt, write_plan_outputs
 
@@ -84,7 +84,8 @@ def gamma_stats(cases, m):
 
 
 def summarize_forced(cases):
-    systems = [s for s in FORCED_SYSTEMS if any(c["system"] == s for c in cases)]
+    systems = [s for s in FORCED_SYSTEMS + FORCED_EXTRA_SYSTEMS
+               if any(c["system"] == s for c in cases)]
     out = {"rms": {}, "gamma": {}, "status": {}}
     for st in FORCED_STRATA:
         for sy in systems:

@@ -77,12 +77,13 @@ DrivenData check_driven(const std::vector<Trajectory>& trajs, bool positions_onl
     throw OptionError("dissipation",
                       "a record with inputs is fitted with the viscous rate gamma alone; '" +
                           config.dissipation + "' is not supported with inputs yet");
-  if (!config.core.is_null() &&
-      !(config.core.is_object() && config.core.value("type", "") == "library"))
-    throw OptionError("core",
-                      "a record with inputs is fitted with the library core only ({\"type\": "
-                      "\"library\", \"terms\": [...]}); the neural cores (la, g) do not take "
-                      "inputs yet");
+  if (!config.core.is_null()) {
+    const std::string type = config.core.is_object() ? config.core.value("type", "") : "";
+    if (type != "library" && type != "la" && type != "g")
+      throw OptionError("core",
+                        "a record with inputs is fitted with the library core ({\"type\": "
+                        "\"library\", \"terms\": [...]}) or a neural core (la:L:m, g:L:w)");
+  }
   require(!trajs.empty(), "driven record: no trajectories");
   DrivenData out;
   out.m = trajs.front().u.rows();
@@ -136,11 +137,18 @@ Normalization driven_units(const std::vector<Trajectory>& q, Index d) {
   return u;
 }
 
+// The neural core the options name ({"type": "la"|"g", ...}), else null.
+nlohmann::json neural_core(const IdentifyConfig& config) {
+  const bool neural = config.core.is_object() && config.core.value("type", "") != "library";
+  return neural ? config.core : nlohmann::json();
+}
+
 // The given core's spec, or the quadratic terms (a linear system) to start the selection from;
 // the inputs' count checked against the record's.
 LibrarySpec driven_spec(const IdentifyConfig& config, Index d, Index m, nlohmann::json& record) {
   LibrarySpec s;
-  if (!config.core.is_null()) s = read_library_spec(config.core, d, "core");
+  if (neural_core(config).is_null() && !config.core.is_null())
+    s = read_library_spec(config.core, d, "core");
   if (s.terms.empty()) {
     // A linear term per coordinate too: the rest position is not the positions' mean (without
     // it a linear record's selection took a sin/cos pair at a small wavenumber for the offset).
@@ -196,13 +204,13 @@ struct DrivenInterval {
 // by 1/√n, the scores per block corrected for the 2d unknowns of every segment's start state
 // (the degrees-of-freedom correction of the positions route), with each block's information
 // (shooting_block_equations), from which the intervals count the blocks they rest on.
-NormalEquations driven_normal_equations(const HamiltonianLibraryMap& map, const Vector& theta,
+NormalEquations driven_normal_equations(const OneStepMap& map, const Vector& theta,
                                         const Matrix& z0, const ShootingSegments& train,
                                         const std::function<bool()>& stop) {
   const Index n_res = train.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
   NormalEquations ne = shooting_block_equations(map, theta, z0, train, map.n_params(), scale, stop);
-  const double hidden = static_cast<double>(2 * map.d() * train.size());
+  const double hidden = static_cast<double>(map.dim() * train.size());
   ne.scores *=
       std::sqrt(static_cast<double>(n_res) / std::max(1.0, static_cast<double>(n_res) - hidden));
   return ne;
@@ -210,7 +218,7 @@ NormalEquations driven_normal_equations(const HamiltonianLibraryMap& map, const 
 
 // γ̂'s interval (user's units) from `ne` over n_res residuals, inflated by `inflation`; throws
 // Error when the Gauss–Newton matrix cannot be factored even regularised.
-SandwichInterval driven_gamma_interval(const HamiltonianLibraryMap& map, const Vector& theta,
+SandwichInterval driven_gamma_interval(const OneStepMap& map, const Vector& theta,
                                        const NormalEquations& ne, Index n_res, double tau,
                                        double level, double inflation) {
   const Index bi = *map.damping_param_index();
@@ -248,15 +256,17 @@ double held_out_inflation(const ShootingReport& rep) {
 // linked chain's segments, each position clustered in its training block. `starts`: the states
 // the modes' mean state is taken over; `hold`: how far θ moves with the inputs' curvature
 // between samples (hold_shift), which γ̂'s and the gain's intervals are widened to span.
-DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& theta,
-                               const Normalization& units, double level, const Matrix& z0,
+DrivenInterval driven_interval(const DrivenFit& fit, const Normalization& units, double level,
+                               const Matrix& z0,
                                const ShootingSegments& train, double inflation,
                                const WindowSet& starts, const Vector& hold,
                                const IdentifyHooks& hooks) {
   if (hooks.stage) hooks.stage("interval");
   DrivenInterval out;
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
-  const Index d = map.d(), m = map.n_inputs(), p = map.n_params();
+  const OneStepMap& map = fit.used();
+  const Vector& theta = fit.theta;
+  const Index d = map.dim() / 2, m = map.n_inputs(), p = map.n_params();
   const double tau = units.time_scale;
   const Index n_res = train.n_residuals();
   const double scale = 1.0 / std::sqrt(static_cast<double>(n_res));
@@ -267,7 +277,7 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
   }
   try {
     SandwichInterval s = driven_gamma_interval(map, theta, ne, n_res, tau, level, inflation);
-    const Index bi = *map.damping_param_index();
+    const Index bi = fit.beta_index();
     span_the_hold(s, (std::abs(theta(bi) + hold(bi)) - std::abs(theta(bi))) / tau);
     out.gamma.interval = s;
   } catch (const Error&) {
@@ -276,6 +286,14 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
         "be factored even regularised, so no interval can be formed");
     return out;
   }
+  out.gamma.hamiltonian =
+      detail::hamiltonian_report(map, theta, units, {&ne, n_res, scale, inflation, level});
+  out.gamma.modes = detail::modal_analysis(map, theta, starts, tau, level,
+                                           {&ne, n_res, scale, 1.0, inflation, stop});
+  out.gamma.stopped = out.gamma.modes.stopped;
+  // A neural core's momentum unit is its own: the gain on the acceleration is read from the
+  // library core's diagonal mass, which it does not have.
+  if (fit.neural) return out;
   // The gain on the acceleration, q''_i = ... + G_ij u_j: G = W B, which the hidden momenta's
   // unit leaves alone (B alone is not fixed by positions).
   nlohmann::json gain = nlohmann::json::array(), low = gain, high = gain;
@@ -284,12 +302,12 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
     const double w = theta(i);
     for (Index j = 0; j < m; ++j) {
       Vector grad = Vector::Zero(p);
-      const double b = theta(map.input_index(i, j));
+      const double b = theta(fit.input_index(i, j));
       grad(i) = b;
-      grad(map.input_index(i, j)) = w;
+      grad(fit.input_index(i, j)) = w;
       const double unit = units.q_scale(i) / (tau * tau);
       SandwichInterval iv = interval_of(ne, grad, w * b, n_res, scale, inflation, unit, level);
-      const double shifted = (w + hold(i)) * (b + hold(map.input_index(i, j)));
+      const double shifted = (w + hold(i)) * (b + hold(fit.input_index(i, j)));
       span_the_hold(iv, (shifted - w * b) * unit);
       g_row.push_back(iv.gamma);
       l_row.push_back(iv.low);
@@ -300,11 +318,6 @@ DrivenInterval driven_interval(const HamiltonianLibraryMap& map, const Vector& t
     high.push_back(h_row);
   }
   out.gain = {{"B", gain}, {"B_ci_low", low}, {"B_ci_high", high}};
-  out.gamma.hamiltonian =
-      detail::hamiltonian_report(map, theta, units, {&ne, n_res, scale, inflation, level});
-  out.gamma.modes = detail::modal_analysis(map, theta, starts, tau, level,
-                                           {&ne, n_res, scale, 1.0, inflation, stop});
-  out.gamma.stopped = out.gamma.modes.stopped;
   return out;
 }
 
@@ -376,16 +389,26 @@ nlohmann::json segment_fit_interval(const DrivenFit& fit, const ShootingSegments
                                     const Normalization& units, double level,
                                     const IdentifyHooks& hooks) {
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
-  const NormalEquations ne = driven_normal_equations(fit.map, fit.theta, fit.z0, train, stop);
+  const NormalEquations ne = driven_normal_equations(fit.used(), fit.theta, fit.z0, train, stop);
   if (ne.stopped) return nullptr;
   try {
     const SandwichInterval s =
-        driven_gamma_interval(fit.map, fit.theta, ne, train.n_residuals(), units.time_scale, level,
+        driven_gamma_interval(fit.used(), fit.theta, ne, train.n_residuals(), units.time_scale, level,
                               held_out_inflation(fit.rep));
     return {{"gamma_hat", s.gamma}, {"low", s.low}, {"high", s.high}};
   } catch (const Error&) {
     return nullptr;
   }
+}
+
+// The LM options of the linked fits: they end when γ̂ stops moving (kDampingConvergedSe of its
+// standard error). For a neural core too: going on to the neural budget cost 2.5 times the fit
+// on four saturating-spring records and changed neither the stage kept nor the free run.
+ShootingOptions linking_options(const DrivenFit& fit, const IdentifyConfig& config,
+                                const IdentifyHooks& hooks) {
+  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
+  opt.converged_se = detail::kDampingConvergedSe;
+  return detail::watching_damping(fit.used(), opt);
 }
 
 // `fit` (θ, the held-out start states, the report) becomes the linked fit's; linking ends at a
@@ -398,15 +421,14 @@ DrivenChain link_driven(DrivenFit& fit, const std::vector<Trajectory>& nt, const
   DrivenChain out{cut.train, fit.z0, {}, 0, {}};
   std::vector<Matrix> states;
   if (fit.rep.stopped) {
-    out.states = detail::driven_states(fit.map, fit.theta, rec, cut.places, segments, fit.vz0);
+    out.states = detail::driven_states(fit.used(), fit.theta, rec, cut.places, segments, fit.vz0);
     out.starts = detail::training_state_windows(rec, out.states);
     return out;
   }
   record["segment_fit_interval"] = segment_fit_interval(fit, cut.train, units, config.level, hooks);
   if (hooks.stage) hooks.stage("linking the segments");
-  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
-  opt.converged_se = detail::kDampingConvergedSe;
-  detail::LinkedFit linked = detail::link_driven_segments(fit.map, fit.theta, rec, cut.places,
+  ShootingOptions opt = linking_options(fit, config, hooks);
+  detail::LinkedFit linked = detail::link_driven_segments(fit.used(), fit.theta, rec, cut.places,
                                                           segments, kSegment, fit.vz0, opt, states);
   record["linking"] = linked.record;
   out.starts = detail::training_state_windows(rec, states);
@@ -427,10 +449,10 @@ double gamma_standard_error(const DrivenFit& fit, const DrivenChain& chain, doub
                             const IdentifyHooks& hooks) {
   const auto stop = [&hooks] { return hooks.should_stop && hooks.should_stop(); };
   const NormalEquations ne =
-      driven_normal_equations(fit.map, fit.theta, chain.z0, chain.train, stop);
+      driven_normal_equations(fit.used(), fit.theta, chain.z0, chain.train, stop);
   if (ne.stopped) return std::numeric_limits<double>::quiet_NaN();
   try {
-    return driven_gamma_interval(fit.map, fit.theta, ne, chain.train.n_residuals(), 1.0, level,
+    return driven_gamma_interval(fit.used(), fit.theta, ne, chain.train.n_residuals(), 1.0, level,
                                  held_out_inflation(fit.rep))
         .std_error;
   } catch (const Error&) {
@@ -450,7 +472,7 @@ void refine_substeps(DrivenFit& fit, DrivenChain& chain, LibrarySpec spec, Index
                      const DrivenCut& cut, const IdentifyConfig& config, const IdentifyHooks& hooks,
                      double tau, nlohmann::json& record) {
   if (config.core.is_object() && config.core.contains("substeps")) return;
-  if (chain.per_piece == 0 || fit.rep.stopped) return;
+  if (chain.per_piece == 0 || fit.rep.stopped || fit.neural) return;
   nlohmann::json rounds = nlohmann::json::array();
   const Index bi = *fit.map.damping_param_index();
   for (int round = 0; round < kMaxSubstepDoublings; ++round) {
@@ -465,7 +487,7 @@ void refine_substeps(DrivenFit& fit, DrivenChain& chain, LibrarySpec spec, Index
                                             detail::watching_damping(map, opt));
     if (rep.stopped || !theta.allFinite()) break;
     const double change = std::abs(theta(bi)) - std::abs(fit.theta(bi));
-    DrivenFit finer{std::move(map), std::move(theta), fit.z0, std::move(val_z0), rep};
+    DrivenFit finer{std::move(map), std::move(theta), fit.z0, std::move(val_z0), rep, nullptr};
     DrivenChain at = chain;
     at.z0 = std::move(z0);
     const double se = gamma_standard_error(finer, at, config.level, hooks);
@@ -502,17 +524,15 @@ HoldRefit hold_refit(const DrivenFit& fit, const std::vector<Trajectory>& nt,
   if (chain.per_piece == 0 || fit.rep.stopped) return none;
   if (hooks.stage) hooks.stage("the input hold's share");
   const std::vector<Trajectory> curved = detail::curved_inputs(nt);
-  const DrivenCut cut = cut_driven(curved, fit.map.d());
+  const DrivenCut cut = cut_driven(curved, fit.used().dim() / 2);
   const detail::DrivenRecord rec = detail::driven_record(curved, cut.places);
   detail::Chain c = detail::cut_chain(rec.states, rec.layout, chain.per_piece, chain.states);
   c.z0 = chain.z0;  // the linked fit's start states (its states are its rollouts)
   if (c.segs.size() != chain.train.size()) return none;
   Vector theta = fit.theta;
   Matrix val_z0 = fit.vz0;
-  ShootingOptions opt = driven_options(config, hooks, kDrivenIterations);
-  opt.converged_se = detail::kDampingConvergedSe;
-  const ShootingReport rep = fit_shooting(fit.map, theta, c.z0, c.segs, val_z0, cut.val,
-                                          detail::watching_damping(fit.map, opt));
+  const ShootingReport rep = fit_shooting(fit.used(), theta, c.z0, c.segs, val_z0, cut.val,
+                                          linking_options(fit, config, hooks));
   if (rep.stopped || !theta.allFinite()) return none;
   return {theta - fit.theta, rep.final_loss};
 }
@@ -536,21 +556,26 @@ Vector hold_shift(const HoldRefit& refit, const ShootingReport& linked, Index n,
 
 // The input's record in the report (r.input): the gain B on the acceleration with its interval
 // (null without one), B_p in the model's momentum units.
-nlohmann::json input_record(const HamiltonianLibraryMap& map, const Vector& theta,
-                            const Normalization& units, Index d, Index m,
+nlohmann::json input_record(const DrivenFit& fit, const Normalization& units, Index d, Index m,
                             const nlohmann::json& gain) {
   nlohmann::json input = {
       {"m", m},
-      {"hold", hold_name(map.inputs().hold)},
+      {"hold", hold_name(fit.map.inputs().hold)},
       {"about",
        "H = H0(q, p) - q^T B_p u(t); B is the gain on the acceleration, q''_i = ... + "
        "sum_j B_ij u_j (data units), which positions fix; B_momentum is B_p in the "
        "model's momentum units (a convention when the momenta are hidden)"}};
+  if (fit.neural)
+    input["about"] =
+        "H = H0(q, p) - q^T B_p u(t), the input's force as half-kicks around the neural core; "
+        "B_momentum is B_p in the core's own momentum units (a convention when the momenta are "
+        "hidden), so the gain on the acceleration B is not formed (null): the library core's "
+        "diagonal mass gives it";
   nlohmann::json b_p = nlohmann::json::array();
   for (Index i = 0; i < d; ++i) {
     nlohmann::json row = nlohmann::json::array();
     for (Index j = 0; j < m; ++j)
-      row.push_back(units.p_scale(i) * theta(map.input_index(i, j)) / units.time_scale);
+      row.push_back(units.p_scale(i) * fit.theta(fit.input_index(i, j)) / units.time_scale);
     b_p.push_back(row);
   }
   input["B_momentum"] = b_p;
@@ -567,7 +592,7 @@ IdentifyResult assemble_driven(const DrivenFit& fit, const DrivenData& data,
                                const Normalization& units, const IdentifyConfig& config,
                                nlohmann::json choices, nlohmann::json summary,
                                const DrivenInterval& iv, const detail::Verdict& v, bool stopped) {
-  const HamiltonianLibraryMap& map = fit.map;
+  const OneStepMap& map = fit.used();
   const ShootingReport& rep = fit.rep;
   IdentifyResult r;
   r.config = config;
@@ -586,7 +611,7 @@ IdentifyResult assemble_driven(const DrivenFit& fit, const DrivenData& data,
   r.quality.train_loss = rep.final_loss;
   r.quality.val_loss = rep.val_loss;
   r.gamma = std::abs(fit.theta(*map.damping_param_index())) / units.time_scale;
-  r.input = input_record(map, fit.theta, units, data.d, data.m, iv.gain);
+  r.input = input_record(fit, units, data.d, data.m, iv.gain);
   r.interval = iv.gamma.interval;
   r.modes = iv.gamma.modes.list;
   r.modes_note = iv.gamma.modes.note;
@@ -643,16 +668,20 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   record["segments"] = {{"train", cut.train.size()}, {"held_out", cut.val.size()}};
   if (hooks.stage) hooks.stage("LM on the positions with the inputs");
   DrivenFit fit = fit_driven(driven_map(spec, spec.terms, data.d, data.m), nt, cut, config, hooks);
-  if (!terms_given && !fit.rep.stopped) {
+  const nlohmann::json neural = neural_core(config);
+  if (!terms_given && neural.is_null() && !fit.rep.stopped) {
     if (hooks.stage) hooks.stage("terms: selected on the positions with the inputs");
     fit = select_driven_terms(std::move(fit), spec, data.m, nt, cut, config, hooks, record);
   }
   record["terms_fitted"] = nlohmann::json::array();
   for (const LibraryTerm& t : fit.map.terms()) record["terms_fitted"].push_back(term_name(t));
+  // A neural core when named, or when the library leaves structure (not when --core library).
+  if ((config.core.is_null() || !neural.is_null()) && !fit.rep.stopped)
+    fit = consider_neural_core(std::move(fit), neural, data.m, cut, config, hooks, record);
   DrivenChain chain = link_driven(fit, nt, cut, units, config, hooks, record);
   refine_substeps(fit, chain, spec, data.m, cut, config, hooks, units.time_scale, record);
   const HoldRefit refit = hold_refit(fit, nt, chain, config, hooks);
-  const Index bi = *fit.map.damping_param_index();
+  const Index bi = fit.beta_index();
   nlohmann::json& held = record["input_hold"];
   held = {{"gamma_change", (std::abs(fit.theta(bi) + refit.shift(bi)) - std::abs(fit.theta(bi))) /
                                units.time_scale},
@@ -668,7 +697,7 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   bool stopped = rep.stopped;
   DrivenInterval iv;
   if (!stopped) {
-    iv = driven_interval(fit.map, fit.theta, units, config.level, chain.z0, chain.train,
+    iv = driven_interval(fit, units, config.level, chain.z0, chain.train,
                          held_out_inflation(rep), chain.starts, hold, hooks);
     stopped = stopped || iv.gamma.stopped;
   }

@@ -132,7 +132,7 @@ DrivenFit fit_driven(HamiltonianLibraryMap map, const std::vector<Trajectory>& n
   fit_start_states(map, theta, cut.val, vz0, 30, true, kMaxAbsState, kScoringTolerance);
   const ShootingOptions opt = driven_options(config, hooks, max_iterations);
   ShootingReport rep = fit_shooting(map, theta, z0, cut.train, vz0, cut.val, opt);
-  return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep};
+  return {std::move(map), std::move(theta), std::move(z0), std::move(vz0), rep, nullptr};
 }
 
 }  // namespace csympnet::detail

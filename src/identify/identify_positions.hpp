@@ -27,6 +27,17 @@ struct VelocityStart {
 };
 VelocityStart velocity_start(const std::vector<Trajectory>& positions);
 
+// The lag-one correlation of the shooting residuals within the segments, pooled over segments
+// and coordinates, and how many neighbouring pairs it pools (identify_positions_choice.cpp).
+// Measurement noise leaves about −2/(L − 2) over segments of L positions (the fitted starts take
+// the residuals' slowest part); a misfit of the force a positive excess.
+struct LagOne {
+  double rho = 0.0;
+  Index pairs = 0;
+};
+LagOne residual_lag_one(const OneStepMap& map, ConstParams theta, const Matrix& z0,
+                        const ShootingSegments& segs);
+
 // The floor test of the positions route (FloorTest): whether the library core, fitted to
 // segments of the positions, leaves residuals that are noise (`why` says what was measured).
 bool positions_floor(const Candidate& library, const BlockSplit& split, Index d, double spp,

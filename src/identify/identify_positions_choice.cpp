@@ -21,14 +21,6 @@ namespace csympnet::detail {
 // Levenberg–Marquardt steps (a G core on a 3-cart record ran its 100, 32 s, to lose).
 inline constexpr long kNeuralComparisonIterations = 40;
 
-namespace {
-
-// The lag-one correlation of the residuals within the segments, pooled over segments and
-// coordinates, and how many neighbouring pairs it pools.
-struct LagOne {
-  double rho = 0.0;
-  Index pairs = 0;
-};
 LagOne residual_lag_one(const OneStepMap& map, ConstParams theta, const Matrix& z0,
                         const ShootingSegments& segs) {
   const Vector r = shooting_residuals(map, theta, z0, segs);
@@ -52,8 +44,6 @@ LagOne residual_lag_one(const OneStepMap& map, ConstParams theta, const Matrix& 
   out.rho = den > 0.0 ? num / den : 0.0;
   return out;
 }
-
-}  // namespace
 
 // The floor test of the positions route (detail::FloorTest): the library core, with its rest
 // position terms, fitted to segments of up to two periods (80 positions at most) of the

@@ -162,14 +162,14 @@ SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Ma
   s.method = "cluster-robust sandwich over blocks";
   s.dof = std::max(1.0, static_cast<double>(s.blocks - 1));
   if (block_information != nullptr && !block_information->empty()) {
-    double sum = 0.0, sum_sq = 0.0;
+    double sum = 0.0, info_sq = 0.0;
     for (const Matrix& info : *block_information) {
       const double w = std::max(0.0, u.dot(info * u));
       sum += w;
-      sum_sq += w * w;
+      info_sq += w * w;
     }
-    if (sum_sq > 0.0 && std::isfinite(sum * sum / sum_sq)) {
-      s.effective_blocks = sum * sum / sum_sq;
+    if (info_sq > 0.0 && std::isfinite(sum * sum / info_sq)) {
+      s.effective_blocks = sum * sum / info_sq;
       s.dof = std::clamp(s.effective_blocks - 1.0, 1.0, s.dof);
     }
   }

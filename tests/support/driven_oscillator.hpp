@@ -34,9 +34,12 @@ struct Multisine {
 // generator that interpolates linearly gives it) instead of the smooth multisine.
 // `rest_until` > 0: the oscillator starts at rest and the input is 0 until that time, then
 // rises smoothly to the multisine over 2 time units (a record that starts before the drive).
+// `saturate` = l > 0: the spring saturates, −ω²q replaced by −(ω²/4) q − (3ω²/4) l tanh(q / l)
+// (stiffness ω² at rest, ω²/4 far out: a force outside the library of terms).
 inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t seed,
                                 double gamma = kDrivenGamma, double cubic = 0.0,
-                                bool straight = false, double rest_until = 0.0) {
+                                bool straight = false, double rest_until = 0.0,
+                                double saturate = 0.0) {
   Rng rng(seed, "driven-record");
   Multisine sines;
   for (int k = 0; k < 8; ++k) {
@@ -56,7 +59,10 @@ inline Trajectory driven_record(Index n, double h, double noise, std::uint64_t s
   };
   const auto field = [&](double q, double v, double t, double& dq, double& dv) {
     dq = v;
-    dv = -kDrivenOmega * kDrivenOmega * q - cubic * q * q * q - gamma * v + kDrivenGain * input(t);
+    const double w2 = kDrivenOmega * kDrivenOmega;
+    const double spring =
+        saturate > 0.0 ? 0.25 * w2 * q + 0.75 * w2 * saturate * std::tanh(q / saturate) : w2 * q;
+    dv = -spring - cubic * q * q * q - gamma * v + kDrivenGain * input(t);
   };
   Trajectory tr;
   tr.t.resize(n);

@@ -17,6 +17,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/inputs.hpp"
 #include "csympnet/models/one_step_map.hpp"
+#include "support/driven_derivative_check.hpp"
 #include "support/gradient_check.hpp"
 #include "support/model_fixtures.hpp"
 
@@ -60,8 +61,6 @@ TEST_P(NeuralDrivenTest, DerivativesMatchCentralDifferences) {
   ASSERT_EQ(map->n_inputs(), c.m);
   const auto free = make_one_step_map(free_spec(c));
   ASSERT_EQ(map->n_params(), free->n_params() + c.d * c.m);
-  FdOptions o;
-  o.tolerance = 1e-6;
   for (int rep = 0; rep < 3; ++rep) {
     const Vector theta = driven_theta(*map, rng, rep % 2 == 0 ? 0.4 : -0.3);
     const Index n = 4;
@@ -69,35 +68,10 @@ TEST_P(NeuralDrivenTest, DerivativesMatchCentralDifferences) {
     const Matrix u = rng.normal_matrix(2 * c.m, n, 1.0);
     const Vector h = rng.uniform_vector(n, 0.05, 0.3);
     const Matrix g = rng.normal_matrix(map->dim(), n, 1.0);
-    ForwardCache cache;
-    map->forward_driven(theta, z, h, u, &cache);
-    Vector grad = Vector::Ones(map->n_params());
-    Matrix dz;
-    map->backward(theta, cache, g, grad, &dz);
-    grad.array() -= 1.0;
-    const auto loss_theta = [&](const Vector& t) {
-      return (g.array() * map->forward_driven(t, z, h, u, nullptr).array()).sum();
-    };
-    const CheckResult by_theta = compare(grad, fd_gradient(loss_theta, theta, o), o.tolerance);
-    EXPECT_TRUE(by_theta.ok()) << by_theta.report("dL/dtheta");
+    const Vector grad = check_driven_derivatives(*map, theta, z, h, u, g, 1e-6);
     // B's block (between the core's parameters and β) has a slope the check above sees.
     const Index nc = free->n_params() - 1;
     EXPECT_GT(grad.segment(nc, c.d * c.m).cwiseAbs().sum(), 1e-3);
-    const auto loss_z = [&](const Vector& zf) {
-      const Matrix zz = zf.reshaped(map->dim(), n);
-      return (g.array() * map->forward_driven(theta, zz, h, u, nullptr).array()).sum();
-    };
-    const Vector zflat = z.reshaped();
-    const CheckResult by_z =
-        compare(Vector(dz.reshaped()), fd_gradient(loss_z, zflat, o), o.tolerance);
-    EXPECT_TRUE(by_z.ok()) << by_z.report("dL/dZ");
-    const Vector u0 = u.col(0);
-    const auto step = [&](const Vector& z0) {
-      return Vector(map->forward_driven(theta, z0, h.head(1), u0, nullptr).col(0));
-    };
-    const CheckResult jac = compare(map->jacobian_driven(theta, z.col(0), h(0), u0),
-                                    fd_jacobian(step, z.col(0), o), o.tolerance);
-    EXPECT_TRUE(jac.ok()) << jac.report("jacobian");
   }
 }
 

@@ -31,23 +31,33 @@ nlohmann::json default_driven_core(Index d) {
   return {{"type", "g"}, {"layers", 6}, {"width", std::min<Index>(16, 8 * d)}};
 }
 
+// The least excess of the lag-one correlation over noise's that trains a neural core. A smooth
+// misfit holding a share s of the residuals' variance raises the correlation by about
+// s (1 + 2/(L − 2)), 1.1 s over segments of 20: below 0.1, no core could lower the loss by more
+// than about 9%, which on a long record three standard errors would still call structure (a
+// 65,536-sample record: three standard errors 0.027) and a neural fit would take minutes for.
+constexpr double kMinLagOneExcess = 0.1;
+
 // Whether the library fit leaves the held-out positions at the noise floor: the lag-one
 // correlation of their residuals within the held-out segments against what noise leaves,
-// −2/(L − 2) (L the segments' mean length), plus three standard errors (1/√pairs each), as the
-// positions route's floor test.
+// −2/(L − 2) (L the segments' mean length), plus the larger of three standard errors (1/√pairs
+// each, the positions route's floor test) and kMinLagOneExcess.
 bool library_at_floor(const DrivenFit& lib, const DrivenCut& cut, std::string& why) {
   const LagOne lag = residual_lag_one(lib.map, lib.theta, lib.vz0, cut.val);
   double positions = 0.0;
   for (const Matrix& q : cut.val.q) positions += static_cast<double>(q.cols());
   const double len = positions / static_cast<double>(std::max<Index>(1, cut.val.size()));
   const double noise = -2.0 / std::max(1.0, len - 2.0);
-  const double bound = noise + 3.0 / std::sqrt(static_cast<double>(std::max<Index>(lag.pairs, 1)));
+  const double three_se = 3.0 / std::sqrt(static_cast<double>(std::max<Index>(lag.pairs, 1)));
+  const double bound = noise + std::max(three_se, kMinLagOneExcess);
   const bool white = lag.rho <= bound;
   why = std::string(white ? "the library fit's held-out position residuals are noise"
                           : "the library fit leaves smooth structure in the held-out positions") +
         " (lag-one correlation " + significant(lag.rho, 3) + " within segments of about " +
         significant(len, 3) + " positions, where noise leaves " + significant(noise, 3) +
-        ", three standard errors " + significant(bound - noise, 2) + "): a neural core was " +
+        ", the bound " + significant(bound, 3) + ": the larger of three standard errors " +
+        significant(three_se, 2) + " and " + significant(kMinLagOneExcess, 2) +
+        " above it): a neural core was " +
         (white ? "not trained" : "trained too");
   return white;
 }

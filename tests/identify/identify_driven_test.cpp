@@ -73,6 +73,11 @@ TEST(IdentifyDriven, RecoversDampingAndGainFromPositionsWithAnInput) {
   EXPECT_EQ(report["gamma_ci_low"].get<double>(), r.interval->low);
   // The model in the user's units is driven: it reads one input.
   EXPECT_EQ(r.model.map->n_inputs(), 1);
+  // The library writes this force: its held-out residuals are noise, and no neural core is
+  // trained (the floor test's record says so).
+  const nlohmann::json& neural = r.choices["driven"].at("neural");
+  EXPECT_FALSE(neural.contains("core")) << neural.dump(1);
+  EXPECT_NE(neural.at("floor").get<std::string>().find("not trained"), std::string::npos);
 }
 
 // The segments are linked by continuity over the record (choices.driven.linking): the decay

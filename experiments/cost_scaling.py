@@ -106,10 +106,19 @@ def oracle(t, q, p, tr, seed):
             r.append((vm - p) / sp)
         return np.concatenate(r)
 
-    # the first tenth, then the whole record (a frequency started 2e-2 off drifts a long
-    # record's phase by many periods)
+    # growing prefixes, the first tenth (at most 10^4 samples) and then ten times longer each
+    # time, then the whole record: a frequency started 2e-2 off drifts a long record's phase by
+    # many periods (at 10^6 samples the first tenth alone, 3,333 periods, left the fit in
+    # another minimum). gamma >= 0: a trial gamma below 0 overflows e^{-gamma t / 2} over a long
+    # record.
     fit = None
-    for m in (max(len(t) // 10, 50), len(t)):
+    m, stages = max(min(len(t) // 10, 10000), 50), []
+    while m < len(t):
+        stages.append(m)
+        m *= 10
+    stages.append(len(t))
+    lower = [0.0, 0.0, -np.inf, -np.inf]
+    for m in stages:
         tt, qq, pp = t[:m], q[:m], (p[:m] if p is not None else None)
 
         def part(x, tt=tt, qq=qq, pp=pp):
@@ -119,7 +128,8 @@ def oracle(t, q, p, tr, seed):
                 r.append((vm - pp) / sp)
             return np.concatenate(r)
 
-        fit = least_squares(part, x0 if fit is None else fit.x, method="trf", x_scale="jac")
+        fit = least_squares(part, x0 if fit is None else fit.x, method="trf", x_scale="jac",
+                            bounds=(lower, np.inf))
     r = residuals(fit.x)
     s2 = float(r @ r) / max(r.size - 4, 1)
     cov = s2 * np.linalg.inv(fit.jac.T @ fit.jac)

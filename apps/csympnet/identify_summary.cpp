@@ -188,8 +188,9 @@ void print_identify_details(const IdentifyResult& r, const std::string& out, boo
   // The library core is fitted by Levenberg-Marquardt alone: its AdamW summary ("trained 0
   // epochs ... best validation loss 0") would read as a perfect fit.
   if (driven)
-    std::printf("fitted by Levenberg-Marquardt alone: multiple shooting on the positions with "
-                "the inputs (no AdamW epochs)\n");
+    std::printf(
+        "fitted by Levenberg-Marquardt alone: multiple shooting on the positions with "
+        "the inputs (no AdamW epochs)\n");
   else if (r.training.epochs_run == 0 && r.config.core.is_object() &&
            r.config.core.value("type", std::string()) == "library")
     std::printf("library core: fitted by Levenberg-Marquardt alone (no AdamW epochs)\n");

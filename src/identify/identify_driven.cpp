@@ -257,8 +257,7 @@ double held_out_inflation(const ShootingReport& rep) {
 // the modes' mean state is taken over; `hold`: how far θ moves with the inputs' curvature
 // between samples (hold_shift), which γ̂'s and the gain's intervals are widened to span.
 DrivenInterval driven_interval(const DrivenFit& fit, const Normalization& units, double level,
-                               const Matrix& z0,
-                               const ShootingSegments& train, double inflation,
+                               const Matrix& z0, const ShootingSegments& train, double inflation,
                                const WindowSet& starts, const Vector& hold,
                                const IdentifyHooks& hooks) {
   if (hooks.stage) hooks.stage("interval");
@@ -393,8 +392,8 @@ nlohmann::json segment_fit_interval(const DrivenFit& fit, const ShootingSegments
   if (ne.stopped) return nullptr;
   try {
     const SandwichInterval s =
-        driven_gamma_interval(fit.used(), fit.theta, ne, train.n_residuals(), units.time_scale, level,
-                              held_out_inflation(fit.rep));
+        driven_gamma_interval(fit.used(), fit.theta, ne, train.n_residuals(), units.time_scale,
+                              level, held_out_inflation(fit.rep));
     return {{"gamma_hat", s.gamma}, {"low", s.low}, {"high", s.high}};
   } catch (const Error&) {
     return nullptr;
@@ -697,8 +696,8 @@ IdentifyResult identify_driven(const std::vector<Trajectory>& trajs, bool positi
   bool stopped = rep.stopped;
   DrivenInterval iv;
   if (!stopped) {
-    iv = driven_interval(fit, units, config.level, chain.z0, chain.train,
-                         held_out_inflation(rep), chain.starts, hold, hooks);
+    iv = driven_interval(fit, units, config.level, chain.z0, chain.train, held_out_inflation(rep),
+                         chain.starts, hold, hooks);
     stopped = stopped || iv.gamma.stopped;
   }
   choices["driven"] = record;

@@ -60,9 +60,7 @@ struct DrivenFit {
   std::shared_ptr<const OneStepMap> neural;
 
   // The map θ belongs to.
-  const OneStepMap& used() const {
-    return neural ? *neural : static_cast<const OneStepMap&>(map);
-  }
+  const OneStepMap& used() const { return neural ? *neural : static_cast<const OneStepMap&>(map); }
   Index beta_index() const { return *used().damping_param_index(); }
   // θ's entry of B(r, j): the library's after β and its dissipation rates; a neural map's
   // between its core's parameters and β (the last entry).
@@ -95,14 +93,13 @@ DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
 // The neural core of a driven record (identify_driven_neural.cpp): `requested`, the core the
 // options name ({"type": "la"|"g", ...}), or, when null, the default G core if the library fit
 // leaves smooth structure in the held-out positions (the lag-one test of the positions route,
-// residual_lag_one). The neural map CSympNet-ID with the library's hold starts from the library
-// fit (its γ̂, B and start states; the core taught the library's motion along the training
-// segments), is fitted by multiple shooting on the positions, and replaces the library fit when
+// residual_lag_one, with a least excess of 0.1). The neural map CSympNet-ID with the library's
+// hold starts from the library fit (its γ̂, B and start states; the core taught the library's
+// motion along the training segments as one-step pairs), is fitted by multiple shooting on the positions, and replaces the library fit when
 // its held-out loss is lower by more than three standard errors (√(2/n) of itself), or when
 // named. Every step goes into record["neural"].
 DrivenFit consider_neural_core(DrivenFit library, const nlohmann::json& requested, Index m,
-                               const DrivenCut& cut,
-                               const IdentifyConfig& config, const IdentifyHooks& hooks,
-                               nlohmann::json& record);
+                               const DrivenCut& cut, const IdentifyConfig& config,
+                               const IdentifyHooks& hooks, nlohmann::json& record);
 
 }  // namespace csympnet::detail

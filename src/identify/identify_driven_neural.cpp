@@ -57,8 +57,7 @@ bool library_at_floor(const DrivenFit& lib, const DrivenCut& cut, std::string& w
         significant(len, 3) + " positions, where noise leaves " + significant(noise, 3) +
         ", the bound " + significant(bound, 3) + ": the larger of three standard errors " +
         significant(three_se, 2) + " and " + significant(kMinLagOneExcess, 2) +
-        " above it): a neural core was " +
-        (white ? "not trained" : "trained too");
+        " above it): a neural core was " + (white ? "not trained" : "trained too");
   return white;
 }
 
@@ -124,9 +123,8 @@ nlohmann::json report_json(const ShootingReport& rep) {
 }  // namespace
 
 DrivenFit consider_neural_core(DrivenFit library, const nlohmann::json& requested, Index m,
-                               const DrivenCut& cut,
-                               const IdentifyConfig& config, const IdentifyHooks& hooks,
-                               nlohmann::json& record) {
+                               const DrivenCut& cut, const IdentifyConfig& config,
+                               const IdentifyHooks& hooks, nlohmann::json& record) {
   const Index d = library.map.d();
   nlohmann::json& rec = record["neural"];
   const bool named = !requested.is_null();
@@ -168,19 +166,22 @@ DrivenFit consider_neural_core(DrivenFit library, const nlohmann::json& requeste
   rec["library_val_loss"] = library.rep.val_loss;
   if (rep.stopped) return keep_library("interrupted", true);
   if (!theta.allFinite() || !std::isfinite(rep.val_loss))
-    return keep_library("the neural core's fit on the positions did not converge to finite "
-                        "values",
-                        false);
+    return keep_library(
+        "the neural core's fit on the positions did not converge to finite "
+        "values",
+        false);
   const double n_val = static_cast<double>(std::max<Index>(1, cut.val.n_residuals()));
   const double margin = 3.0 * std::sqrt(2.0 / n_val);
   const bool lower = rep.val_loss < library.rep.val_loss * (1.0 - margin);
-  rec["rule"] = "named on the command line, or a held-out loss of the positions lower than the "
-                "library fit's by more than three standard errors (" +
-                significant(margin, 2) + " of itself)";
+  rec["rule"] =
+      "named on the command line, or a held-out loss of the positions lower than the "
+      "library fit's by more than three standard errors (" +
+      significant(margin, 2) + " of itself)";
   if (!named && !lower)
-    return keep_library("the neural core's held-out loss is not lower than the library fit's "
-                        "by the margin: the library core (a readable Hamiltonian) is kept",
-                        false);
+    return keep_library(
+        "the neural core's held-out loss is not lower than the library fit's "
+        "by the margin: the library core (a readable Hamiltonian) is kept",
+        false);
   rec["chosen"] = core_name(core);
   DrivenFit out{std::move(library.map), std::move(theta), std::move(z0), std::move(vz0), rep, map};
   return out;

@@ -12,7 +12,8 @@
 // Known inputs (models/inputs.hpp; docs/derivations.md, "Known inputs: the neural cores"): with
 // H = H₀ − qᵀB u(t), the input's force enters as two half-kicks around the core,
 //
-//   Φ̂_h(z; u) = S_a ∘ K_{h/2, u(t₀+h)} ∘ Ψ_h ∘ K_{h/2, u(t₀)} ∘ S_a,   K_{τ,u}(q, p) = (q, p + τ B u),
+//   Φ̂_h(z; u) = S_a ∘ K_{h/2, u(t₀+h)} ∘ Ψ_h ∘ K_{h/2, u(t₀)} ∘ S_a,   K_{τ,u}(q, p) = (q, p + τ B
+//   u),
 //
 // u(t₀+h) as the hold gives it (the first-order hold: the sample at the step's end; the
 // zero-order hold: the one at its start). A kick is a translation in p, so symplectic, and the
@@ -55,9 +56,7 @@ class CSympNetId final : public OneStepMap, public ColumnSplitPasses {
   Index n_inputs() const override { return inputs_.m; }
   const InputSpec& inputs() const { return inputs_; }
   // θ's entry of B(r, j) (r < d, j < m).
-  Index input_index(Index r, Index j) const {
-    return core_->n_params() + r * inputs_.m + j;
-  }
+  Index input_index(Index r, Index j) const { return core_->n_params() + r * inputs_.m + j; }
 
   // What forward() keeps for backward(), and the column-split backward's records.
   struct Context final : ForwardContext {
@@ -94,9 +93,7 @@ class CSympNetId final : public OneStepMap, public ColumnSplitPasses {
   nlohmann::json hyperparams() const override;
 
   // The column-split passes (column_split.hpp), for free maps with d > 1 whose sweeps split.
-  const ColumnSplitPasses* column_split() const override {
-    return inputs_.m == 0 ? this : nullptr;
-  }
+  const ColumnSplitPasses* column_split() const override { return inputs_.m == 0 ? this : nullptr; }
   bool splits(Index n, const std::vector<Columns>& ranges) const override;
   void prepare(ConstParams theta, const Vector& h, ForwardCache& cache) const override;
   void forward_columns(ConstParams theta, const Matrix& Z, ForwardCache& cache, Matrix& out,

@@ -212,8 +212,9 @@ std::unique_ptr<OneStepMap> make_one_step_map(const nlohmann::json& spec) {
     if (conformal && spec.contains("core") && spec.at("core").is_object() &&
         spec.at("core").contains("type") && spec.at("core").at("type") == "library") {
       require(!spec.contains("inputs"), [&] {
-        return where + ": key 'inputs' belongs inside the library core ({\"type\": \"library\", "
-                       "\"inputs\": {\"m\": ...}}), where the kicks take them";
+        return where +
+               ": key 'inputs' belongs inside the library core ({\"type\": \"library\", "
+               "\"inputs\": {\"m\": ...}}), where the kicks take them";
       });
       return make_library_map(spec.at("core"), d,
                               get_beta_init(spec, where, CSympNetId::kDefaultBetaInit),

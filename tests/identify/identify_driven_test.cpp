@@ -242,8 +242,7 @@ TEST(IdentifyDriven, ANamedNeuralCoreIsFittedAndTheLibraryCoreTrainsNone) {
   Trajectory t = driven_record(1000, 0.05, 0.005, 3);
   t.z.conservativeResize(1, Eigen::NoChange);
   const IdentifyResult named = identify_driven(
-      {t}, true,
-      make_identify_config({{"core", {{"type", "g"}, {"layers", 2}, {"width", 4}}}}));
+      {t}, true, make_identify_config({{"core", {{"type", "g"}, {"layers", 2}, {"width", 4}}}}));
   const nlohmann::json& neural = named.choices["driven"].at("neural");
   EXPECT_EQ(neural.value("chosen", ""), "g:2:4") << neural.dump(1);
   EXPECT_TRUE(neural.at("named").get<bool>());

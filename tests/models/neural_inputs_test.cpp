@@ -137,7 +137,8 @@ INSTANTIATE_TEST_SUITE_P(Cases, NeuralDrivenTest,
                          [](const auto& param_info) {
                            return std::string(param_info.param.core) + "_d" +
                                   std::to_string(param_info.param.d) + "_m" +
-                                  std::to_string(param_info.param.m) + "_" + hold_name(param_info.param.hold);
+                                  std::to_string(param_info.param.m) + "_" +
+                                  hold_name(param_info.param.hold);
                          });
 
 // The impulse of one step: with the G core's parameters all 0 its modules move nothing (Ψ = the
@@ -153,7 +154,7 @@ TEST(NeuralDrivenKicks, TheImpulseIsTheHoldsIntegralOfTheInput) {
     const auto map = make_one_step_map(spec);
     Vector theta = Vector::Zero(map->n_params());
     const Index bi = map->n_params() - 1;
-    theta(bi) = 1e-300;  // γ̂ = 1e-300: a = 1 to the bit
+    theta(bi) = 1e-300;   // γ̂ = 1e-300: a = 1 to the bit
     theta(bi - 1) = 1.7;  // B
     Matrix z(2, 1);
     z << 0.3, -0.2;

@@ -95,9 +95,9 @@ DrivenFit select_driven_terms(DrivenFit fit, const LibrarySpec& spec, Index m,
 // leaves smooth structure in the held-out positions (the lag-one test of the positions route,
 // residual_lag_one, with a least excess of 0.1). The neural map CSympNet-ID with the library's
 // hold starts from the library fit (its γ̂, B and start states; the core taught the library's
-// motion along the training segments as one-step pairs), is fitted by multiple shooting on the positions, and replaces the library fit when
-// its held-out loss is lower by more than three standard errors (√(2/n) of itself), or when
-// named. Every step goes into record["neural"].
+// motion along the training segments as one-step pairs), is fitted by multiple shooting on the
+// positions, and replaces the library fit when its held-out loss is lower by more than three
+// standard errors (√(2/n) of itself), or when named. Every step goes into record["neural"].
 DrivenFit consider_neural_core(DrivenFit library, const nlohmann::json& requested, Index m,
                                const DrivenCut& cut, const IdentifyConfig& config,
                                const IdentifyHooks& hooks, nlohmann::json& record);

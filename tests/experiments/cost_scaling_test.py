@@ -88,15 +88,5 @@ def test_runs_from_the_command_line_with_a_stand_in():
 
 
 if __name__ == "__main__":
-    import time
-    failed = 0
-    for name, fn in sorted(globals().items()):
-        if name.startswith("test_") and callable(fn):
-            t0 = time.process_time()
-            try:
-                fn()
-                print(f"ok   {name} ({time.process_time() - t0:.2f} CPU s)")
-            except Exception as e:  # report every failing test, then exit 1
-                failed += 1
-                print(f"FAIL {name}: {type(e).__name__}: {e}")
-    sys.exit(1 if failed else 0)
+    from script_tests import run
+    run(globals())

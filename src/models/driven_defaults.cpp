@@ -1,4 +1,5 @@
-// OneStepMap's defaults for known inputs: a free map takes none (models/one_step_map.hpp).
+// OneStepMap's defaults for known inputs (a free map takes none) and for forward-mode step
+// sensitivities (a map without them refuses) (models/one_step_map.hpp).
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/one_step_map.hpp"
 
@@ -21,6 +22,11 @@ Matrix OneStepMap::jacobian_driven(ConstParams theta, const Vector& z, double h,
            " values)";
   });
   return jacobian(theta, z, h);
+}
+
+void OneStepMap::step_tangents(ConstParams /*theta*/, double /*h*/, const double* /*u*/,
+                               double* /*z*/, Matrix& /*t*/, Index /*n_theta*/) const {
+  throw Error(type() + ": this map has no forward-mode step sensitivities (has_step_tangents())");
 }
 
 }  // namespace csympnet

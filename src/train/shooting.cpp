@@ -89,6 +89,16 @@ Matrix shooting_states(const OneStepMap& map, ConstParams theta, const Vector& z
                        const Matrix& u) {
   Matrix z(z0.size(), h.size() + 1);
   z.col(0) = z0;
+  if (map.has_step_tangents()) {
+    // The same bits as forward_driven(), without a batch's allocations per step.
+    Matrix none(z0.size(), 0);
+    Vector zk = z0;
+    for (Index k = 0; k < h.size(); ++k) {
+      map.step_tangents(theta, h(k), u.rows() > 0 ? u.col(k).data() : nullptr, zk.data(), none, 0);
+      z.col(k + 1) = zk;
+    }
+    return z;
+  }
   Vector step(1);
   for (Index k = 0; k < h.size(); ++k) {
     step(0) = h(k);
@@ -154,11 +164,51 @@ void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Matrix
   const Index o = q.rows(), len = q.cols(), dim = z.rows();
   b.resize(len * o, dim);
   Matrix t = Matrix::Identity(dim, dim);
+  const bool tangents = map.has_step_tangents();
+  Vector zk(dim);
   for (Index k = 0; k < len; ++k) {
     b.middleRows(k * o, o) = t.topRows(o);
     if (rw.size() > 0) b.middleRows(k * o, o) = rw.asDiagonal() * b.middleRows(k * o, o);
     if (w.size() > 0) b.middleRows(k * o, o) *= w(k);
-    if (k + 1 < len) t = step_jacobian(map, theta, z, h, u, k) * t;
+    if (k + 1 == len) break;
+    if (tangents) {
+      zk = z.col(k);
+      map.step_tangents(theta, h(k), u.rows() > 0 ? u.col(k).data() : nullptr, zk.data(), t, 0);
+    } else {
+      t = step_jacobian(map, theta, z, h, u, k) * t;
+    }
+  }
+}
+
+// shooting_segment_jacobian's rows by forward-mode sensitivities (OneStepMap::step_tangents):
+// one pass along the segment carries T = ∂z_k/∂(θ_free, z₀) (2d × (n_free + 2d)); A's rows are
+// T's first n_free columns at the observed rows, B's its last 2d.
+void tangent_segment_rows(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                          const Matrix& q, const Vector& h, Index n_free, RowMajorMatrix& a,
+                          Matrix& b, Vector& r, const Vector& w, const Matrix& u,
+                          const Vector& rw) {
+  const Index o = q.rows(), len = q.cols(), dim = z0.size();
+  a.resize(len * o, n_free);
+  b.resize(len * o, dim);
+  r.resize(len * o);
+  Matrix t = Matrix::Zero(dim, n_free + dim);
+  t.rightCols(dim).setIdentity();
+  Vector z = z0;
+  for (Index k = 0; k < len; ++k) {
+    const double wk = w.size() > 0 ? w(k) : 1.0;
+    for (Index i = 0; i < o; ++i) {
+      const double s = rw.size() > 0 ? wk * rw(i) : wk;
+      const Index row = k * o + i;
+      a.row(row) = s * t.block(i, 0, 1, n_free);
+      b.row(row) = s * t.block(i, n_free, 1, dim);
+      // As position_residuals: (z − q) times the column's weight, then the row's.
+      double res = z(i) - q(i, k);
+      if (w.size() > 0) res *= wk;
+      if (rw.size() > 0) res = rw(i) * res;
+      r(row) = res;
+    }
+    if (k + 1 == len) break;
+    map.step_tangents(theta, h(k), u.rows() > 0 ? u.col(k).data() : nullptr, z.data(), t, n_free);
   }
 }
 
@@ -207,6 +257,10 @@ void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const V
   require(z0.size() == dim && (2 * o == dim || o == dim),
           "shooting: expected the positions or the whole state observed");
   require(rw.size() == 0 || rw.size() == o, "shooting: expected one weight per observed row");
+  if (map.has_step_tangents()) {
+    tangent_segment_rows(map, theta, z0, q, h, n_free, a, b, r, w, u, rw);
+    return;
+  }
   const Matrix z = shooting_states(map, theta, z0, h, u);
   r = position_residuals(z, q, w, rw);
   a.setZero(len * o, n_free);

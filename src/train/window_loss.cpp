@@ -210,6 +210,32 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
            std::to_string(p);
   });
   const Balance bal = balance_of(map, theta, balanced);
+  // The residual's row k times its weight w_k, and ∂w/∂β = sign(β) (H/2) w times the
+  // unweighted residual on a momentum row.
+  const auto finish_row = [&](Index j, Index k, double span, double weight, double raw) {
+    const bool p_row = k >= d;
+    r(j * dim + k) = (p_row ? weight : 1.0) * raw;
+    if (bal.on && p_row) jac(j * dim + k, bal.beta) += bal.sign * 0.5 * span * weight * raw;
+  };
+  if (map.has_step_tangents()) {
+    // Forward mode: ∂z_m/∂θ carried along the window (OneStepMap::step_tangents), one pass per
+    // window in place of one reverse pass per state component.
+    Matrix t(dim, p);
+    Vector z(dim);
+    for (Index j = 0; j < count; ++j) {
+      const Index i = first + j;
+      t.setZero();
+      z = w.z0.col(i);
+      for (Index s = 0; s < w.m; ++s) map.step_tangents(theta, w.h(s, i), nullptr, z.data(), t, p);
+      const double span = w.h.col(i).sum();
+      const double weight = bal.weight(span);
+      for (Index k = 0; k < dim; ++k) {
+        jac.row(j * dim + k) = (k >= d ? weight : 1.0) * t.row(k);
+        finish_row(j, k, span, weight, z(k) - w.zm(k, i));
+      }
+    }
+    return;
+  }
   std::vector<ForwardCache> caches(static_cast<std::size_t>(w.m));
   Matrix dz_in;
   for (Index j = 0; j < count; ++j) {
@@ -218,10 +244,7 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
     const double span = w.h.col(i).sum();
     const double weight = bal.weight(span);
     for (Index k = 0; k < dim; ++k) {
-      const bool p_row = k >= d;
-      const double wk = p_row ? weight : 1.0;
-      const double raw = out(k, 0) - w.zm(k, i);
-      r(j * dim + k) = wk * raw;
+      const double wk = k >= d ? weight : 1.0;
       Eigen::Map<Vector> row(jac.row(j * dim + k).data(), p);
       row.setZero();
       Matrix u = Matrix::Zero(dim, 1);
@@ -230,8 +253,7 @@ void window_jacobian_rows(const OneStepMap& map, ConstParams theta, const Window
         map.backward(theta, caches[static_cast<std::size_t>(s)], u, row, s > 0 ? &dz_in : nullptr);
         if (s > 0) u.swap(dz_in);
       }
-      // ∂w/∂β = sign(β) (H/2) w, times the unweighted residual.
-      if (bal.on && p_row) row(bal.beta) += bal.sign * 0.5 * span * weight * raw;
+      finish_row(j, k, span, weight, out(k, 0) - w.zm(k, i));
     }
   }
 }

@@ -98,6 +98,11 @@ class HamiltonianLibraryMap final : public OneStepMap {
                         ForwardCache* cache) const override;
   Matrix jacobian_driven(ConstParams theta, const Vector& z, double h,
                          const Vector& u) const override;
+  // Forward-mode step sensitivities (hamiltonian_library_tangents.cpp), dissipation terms and
+  // inputs included.
+  bool has_step_tangents() const override { return true; }
+  void step_tangents(ConstParams theta, double h, const double* u, double* z, Matrix& t,
+                     Index n_theta) const override;
   std::optional<double> damping_rate(ConstParams theta) const override;
   std::optional<Index> damping_param_index() const override { return beta_index_; }
   nlohmann::json hyperparams() const override;

@@ -128,6 +128,19 @@ class OneStepMap {
   // make_one_step_map().
   virtual nlohmann::json hyperparams() const = 0;
 
+  // Forward-mode sensitivities of one step, for maps that provide them (has_step_tangents()):
+  //   z ← Φ̂_h(z) driven by u (2m values as a column of U; null: none), the same bits as
+  //   forward_driven();
+  //   t ← DΦ̂_h(z) t + [∂Φ̂_h/∂θ_0 … ∂Φ̂_h/∂θ_{n_theta−1} | 0]   (t: 2d × c, n_theta ≤ c),
+  // the sensitivity of a rollout to θ's first n_theta entries (columns 0 … n_theta − 1) and to
+  // anything else (the other columns, e.g. its start state) carried one step further. With c = 0
+  // it is the step alone. The multiple-shooting and window fits take it in place of a reverse
+  // pass per state component and a separate state Jacobian (docs/derivations.md, "Forward-mode
+  // sensitivities"). The default refuses (Error).
+  virtual bool has_step_tangents() const { return false; }
+  virtual void step_tangents(ConstParams theta, double h, const double* u, double* z, Matrix& t,
+                             Index n_theta) const;
+
   // The column-split training passes, for models that have them (column_split.hpp); null
   // otherwise. Whether a given batch may be split is then asked of the passes.
   virtual const ColumnSplitPasses* column_split() const { return nullptr; }

@@ -1,0 +1,283 @@
+// Forward-mode sensitivities of one step of the Hamiltonian-library map (models/
+// hamiltonian_library.hpp; docs/derivations.md, "Forward-mode sensitivities").
+//
+// The step runs its stages as forward_driven() does, with the same expressions, so z ends with
+// the same bits. Beside it a tangent block t = (t_q; t_p) (2d × c) is carried through each part
+// of a stage, with ∂/∂θ_j added into column j < n_theta:
+//
+//   p ← a p − (τ/2) g(q):   t_p ← a t_p − (τ/2)(H(q) t_q + ∂g/∂θ);  t_p[:, β] += (∂a/∂β) p
+//   q ← q + τ W p:          t_q ← t_q + τ W t_p;                    t_q[:, W_rc] += τ (∂W/∂W_rc) p
+//   p ← a (p − (τ/2) g(q)): t_p ← a (t_p − (τ/2)(H(q) t_q + ∂g/∂θ)); t_p[:, β] += (∂a/∂β)(p − (τ/2)
+//   g)
+//
+// with g = ∇V(q) − B u(t₀ + σh), H = ∇²V, a = e^{−γτ/2}, γ = |β|. ∂g/∂θ is nonzero in the
+// columns of the coefficients (φ_k'), the wavenumbers (c_k ∂φ_k'/∂κ) and B (−u(σ)). The terms'
+// values at q are computed once per position, not once per column.
+//
+// Dissipation terms enter as in forward_driven(): a momentum with Coulomb friction inside the
+// kicks takes its kick's exact flow (coulomb_kick: the tangent is ∂p/∂p times p's, plus ∂p/∂f
+// times the force's, plus ∂p/∂μ in μ's column), and the flows beside the kicks (drag, and
+// Coulomb in "split" files) scale their momentum's row by ∂p/∂p and add ∂p/∂r in their rate's
+// column.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "csympnet/core/error.hpp"
+#include "csympnet/core/stop.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
+
+namespace csympnet {
+
+namespace {
+
+// The work space of one step, kept per thread so that a step allocates nothing once its sizes
+// have been seen.
+struct TangentScratch {
+  std::vector<double> q, p, g, wp, work, d1, d2, d1k, hv, gth, mass;
+  std::vector<KickStep> kick;
+  std::vector<char> fused;
+  // The momentum scalings a = e^{−γτ/2} of the stage weights, for the (γ, h, order, substeps)
+  // they were computed at: a record's steps are mostly equal, and each stage would otherwise
+  // take an exp().
+  std::vector<double> scaling;
+  double scaling_gamma = -1.0, scaling_h = -1.0;
+  int scaling_order = 0;
+  Index scaling_substeps = 0;
+};
+
+// d|x|/dx, 0 at 0 (the rates are |θ|).
+double sign_of(double x) {
+  return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0);
+}
+
+void fit_to(std::vector<double>& v, Index n) {
+  if (static_cast<Index>(v.size()) < n) v.resize(static_cast<std::size_t>(n));
+}
+
+constexpr Index kStagesPerPoll = 4096;
+
+}  // namespace
+
+void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const double* u, double* z,
+                                          Matrix& t, Index n_theta) const {
+  require(theta.size() == n_params(),
+          "hamiltonian library step_tangents: theta has the wrong size");
+  const Index d = d_, c = t.cols(), nt = static_cast<Index>(terms_.size());
+  require(t.rows() == 2 * d && n_theta >= 0 && n_theta <= c && n_theta <= n_params(),
+          "hamiltonian library step_tangents: expected t of 2d rows and n_theta <= its columns");
+  require(u == nullptr || inputs_.m > 0,
+          "hamiltonian library step_tangents: inputs given to a map that takes none");
+  const bool driven = u != nullptr;
+  const Index m = inputs_.m;
+  thread_local TangentScratch w;
+  for (auto* v : {&w.q, &w.p, &w.g, &w.wp}) fit_to(*v, d);
+  if (static_cast<Index>(w.kick.size()) < d) {
+    w.kick.resize(static_cast<std::size_t>(d));
+    w.fused.resize(static_cast<std::size_t>(d));
+  }
+  for (auto* v : {&w.d1, &w.d2, &w.d1k}) fit_to(*v, nt);
+  fit_to(w.work, std::max<Index>(m, 1));
+  fit_to(w.hv, d * c);
+  fit_to(w.gth, d * n_theta);
+  fit_to(w.mass, d * d);
+  double* q = w.q.data();
+  double* p = w.p.data();
+  double* g = w.g.data();
+  for (Index r = 0; r < d; ++r) {
+    q[r] = z[r];
+    p[r] = z[d + r];
+  }
+  const double beta = theta(beta_index_), gamma = std::abs(beta);
+  const bool beta_col = beta_index_ < n_theta;
+  const Index stages = stages_per_step(), nw = static_cast<Index>(weights_.size());
+  if (w.scaling_gamma != gamma || w.scaling_h != h || w.scaling_order != order_ ||
+      w.scaling_substeps != substeps_) {
+    w.scaling.resize(static_cast<std::size_t>(nw));
+    for (Index s = 0; s < nw; ++s)
+      w.scaling[static_cast<std::size_t>(s)] =
+          std::exp(-0.5 * gamma *
+                   (weights_[static_cast<std::size_t>(s)] * h / static_cast<double>(substeps_)));
+    w.scaling_gamma = gamma;
+    w.scaling_h = h;
+    w.scaling_order = order_;
+    w.scaling_substeps = substeps_;
+  }
+  // W dense (row-major), and x ↦ W x with each row summed in column order from 0: the bits of
+  // mass_times().
+  double* mass = w.mass.data();
+  for (Index r = 0; r < d; ++r)
+    for (Index cc = 0; cc < d; ++cc) {
+      const bool on = full_mass_ || r == cc;
+      const Index at = full_mass_ ? (r >= cc ? r * (r + 1) / 2 + cc : cc * (cc + 1) / 2 + r) : r;
+      mass[r * d + cc] = on ? theta(at) : 0.0;
+    }
+  const auto mass_apply = [&](const double* x, double* out) {
+    if (!full_mass_) {
+      for (Index r = 0; r < d; ++r) out[r] = mass[r * d + r] * x[r];
+      return;
+    }
+    for (Index r = 0; r < d; ++r) {
+      double sum = 0.0;
+      for (Index cc = 0; cc < d; ++cc) sum += mass[r * d + cc] * x[cc];
+      out[r] = sum;
+    }
+  };
+
+  // The terms at q: φ', φ'' and ∂φ'/∂κ per term, g = ∇V(q) − B u(σ) as gradient() and
+  // add_force() compute it, and ∂g/∂θ (d × n_theta, column-major) into w.gth.
+  const auto at_position = [&](double sigma) {
+    for (Index r = 0; r < d; ++r) g[r] = 0.0;
+    for (Index k = 0; k < nt; ++k) {
+      const LibraryTerm& term = terms_[static_cast<std::size_t>(k)];
+      const double kappa = term.has_wavenumber() ? theta(wavenumber_index(k)) : 0.0;
+      const TermValues tv = term_values(term, argument(k, q), kappa);
+      w.d1[k] = tv.d1;
+      w.d2[k] = tv.d2;
+      w.d1k[k] = tv.d1_kappa;
+      const double f = theta(coefficient_index(k)) * tv.d1;
+      const auto kk = static_cast<std::size_t>(k);
+      g[term.i] += wi_[kk] * f;
+      if (term.j >= 0) g[term.j] -= wj_[kk] * f;
+    }
+    if (driven) add_force(theta, u, sigma, g, w.work.data());
+    if (n_theta == 0) return;
+    double* gth = w.gth.data();
+    std::fill(gth, gth + d * n_theta, 0.0);
+    for (Index k = 0; k < nt; ++k) {
+      const LibraryTerm& term = terms_[static_cast<std::size_t>(k)];
+      const auto kk = static_cast<std::size_t>(k);
+      const auto add = [&](Index col, double f) {
+        if (col >= n_theta) return;
+        gth[col * d + term.i] += wi_[kk] * f;
+        if (term.j >= 0) gth[col * d + term.j] -= wj_[kk] * f;
+      };
+      add(coefficient_index(k), w.d1[k]);
+      if (term.has_wavenumber()) add(wavenumber_index(k), theta(coefficient_index(k)) * w.d1k[k]);
+    }
+    if (driven) {
+      input_at(inputs_.hold, m, u, sigma, w.work.data());
+      for (Index r = 0; r < d; ++r)
+        for (Index j = 0; j < m; ++j) {
+          const Index col = input_index(r, j);
+          if (col < n_theta) gth[col * d + r] -= w.work[j];
+        }
+    }
+  };
+  // hv = H(q) t_q (d × c, column-major).
+  const auto hessian_tangent = [&] {
+    if (c == 0) return;
+    double* hv = w.hv.data();
+    std::fill(hv, hv + d * c, 0.0);
+    for (Index k = 0; k < nt; ++k) {
+      const LibraryTerm& term = terms_[static_cast<std::size_t>(k)];
+      const auto kk = static_cast<std::size_t>(k);
+      const double s2 = theta(coefficient_index(k)) * w.d2[k];
+      if (s2 == 0.0) continue;
+      for (Index col = 0; col < c; ++col) {
+        const double* tq = t.col(col).data();
+        const double ev = term.j < 0 ? tq[term.i] : wi_[kk] * tq[term.i] - wj_[kk] * tq[term.j];
+        const double f = s2 * ev;
+        hv[col * d + term.i] += wi_[kk] * f;
+        if (term.j >= 0) hv[col * d + term.j] -= wj_[kk] * f;
+      }
+    }
+  };
+  // A kick on every momentum at the current q, its tangent first (it needs p before the kick):
+  //   first:  p ← a p − (τ/2) g,    or the friction kick of a p with force −g;
+  //   second: p ← a (p − (τ/2) g),  or a times the friction kick of p.
+  // A friction kick's tangent is ∂p/∂p · (its p's tangent) + ∂p/∂f · (−(H t_q + ∂g/∂θ)) plus
+  // ∂p/∂μ in its rate's column.
+  const auto kick = [&](bool first, double a, double da, double half_tau) {
+    for (Index r = 0; r < d; ++r) {
+      const double mu = coulomb_rate(theta, r);
+      w.fused[r] = mu > 0.0;
+      if (w.fused[r]) w.kick[r] = coulomb_kick(first ? a * p[r] : p[r], -g[r], mu, half_tau);
+    }
+    hessian_tangent();
+    for (Index col = 0; col < c; ++col) {
+      double* tp = t.col(col).data() + d;
+      const double* hv = w.hv.data() + col * d;
+      const double* gth = col < n_theta ? w.gth.data() + col * d : nullptr;
+      const bool is_beta = beta_col && col == beta_index_;
+      for (Index r = 0; r < d; ++r) {
+        const double force = gth != nullptr ? hv[r] + gth[r] : hv[r];
+        double in = first ? a * tp[r] : tp[r];
+        if (first && is_beta) in += da * p[r];
+        double out;
+        if (w.fused[r]) {
+          const KickStep& k = w.kick[r];
+          out = k.dp * in - k.dforce * force;
+          const Index rate = dissipation_index(coulomb_of_[static_cast<std::size_t>(r)]);
+          if (col == rate && rate < n_theta) out += sign_of(theta(rate)) * k.drate;
+        } else {
+          out = in - half_tau * force;
+        }
+        if (!first) {
+          out *= a;
+          if (is_beta) out += da * (w.fused[r] ? w.kick[r].p : p[r] - half_tau * g[r]);
+        }
+        tp[r] = out;
+      }
+    }
+    for (Index r = 0; r < d; ++r) {
+      if (first)
+        p[r] = w.fused[r] ? w.kick[r].p : a * p[r] - half_tau * g[r];
+      else
+        p[r] = w.fused[r] ? a * w.kick[r].p : a * (p[r] - half_tau * g[r]);
+    }
+  };
+  // The dissipation flows beside the kicks over τ/2 (opening: in term order; closing: the
+  // reverse), as dissipate(): each scales its momentum's tangent row by ∂p/∂p and adds ∂p/∂r in
+  // its rate's column.
+  const Index nk = static_cast<Index>(dissipation_.size());
+  const auto flows = [&](double half_tau, bool closing) {
+    for (Index n = 0; n < nk; ++n) {
+      const Index k = closing ? nk - 1 - n : n;
+      if (in_kicks(k)) continue;
+      const DissipationTerm& term = dissipation_[static_cast<std::size_t>(k)];
+      const Index col = dissipation_index(k);
+      const FlowStep f = dissipation_flow(term.kind, p[term.i], std::abs(theta(col)), half_tau);
+      t.row(d + term.i) *= f.dp;
+      if (col < n_theta) t(d + term.i, col) += sign_of(theta(col)) * f.drate;
+      p[term.i] = f.p;
+    }
+  };
+
+  at_position(sigma_[0]);
+  for (Index s = 0; s < stages; ++s) {
+    if (s % kStagesPerPoll == kStagesPerPoll - 1)
+      throw_if_stop_requested("hamiltonian library: a step of many substeps");
+    const double tau =
+        weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
+    const double a = w.scaling[static_cast<std::size_t>(s % nw)];
+    const double da = -0.5 * tau * a * sign_of(beta);  // ∂a/∂β
+    if (nk > 0) flows(0.5 * tau, false);
+    kick(true, a, da, 0.5 * tau);
+    // q ← q + τ W p.
+    for (Index col = 0; col < c; ++col) {
+      mass_apply(t.col(col).data() + d, w.wp.data());
+      for (Index r = 0; r < d; ++r) t(r, col) += tau * w.wp[r];
+    }
+    for (Index r = 0; r < d; ++r)
+      for (Index cc = 0; cc <= (full_mass_ ? r : -1); ++cc) {
+        const Index col = r * (r + 1) / 2 + cc;
+        if (col >= n_theta) continue;
+        t(r, col) += tau * p[cc];
+        if (cc != r) t(cc, col) += tau * p[r];
+      }
+    if (!full_mass_)
+      for (Index r = 0; r < std::min(d, n_theta); ++r) t(r, r) += tau * p[r];
+    mass_apply(p, w.wp.data());
+    for (Index r = 0; r < d; ++r) q[r] += tau * w.wp[r];
+    at_position(sigma_[static_cast<std::size_t>(s + 1)]);
+    kick(false, a, da, 0.5 * tau);
+    if (nk > 0) flows(0.5 * tau, true);
+  }
+  for (Index r = 0; r < d; ++r) {
+    z[r] = q[r];
+    z[d + r] = p[r];
+  }
+}
+
+}  // namespace csympnet

@@ -180,6 +180,27 @@ void start_state_jacobian(const OneStepMap& map, ConstParams theta, const Matrix
   }
 }
 
+// A segment's rollout from z0 (2d × L) and B = ∂r/∂z0 in one forward-mode pass, for a map with
+// step_tangents(): the states have shooting_states()' bits and B start_state_jacobian()'s.
+void rollout_with_start_jacobian(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                                 const Matrix& q, const Vector& h, const Vector& w,
+                                 const Vector& rw, const Matrix& u, Matrix& states, Matrix& b) {
+  const Index o = q.rows(), len = q.cols(), dim = z0.size();
+  states.resize(dim, len);
+  states.col(0) = z0;
+  b.resize(len * o, dim);
+  Matrix t = Matrix::Identity(dim, dim);
+  Vector zk = z0;
+  for (Index k = 0; k < len; ++k) {
+    b.middleRows(k * o, o) = t.topRows(o);
+    if (rw.size() > 0) b.middleRows(k * o, o) = rw.asDiagonal() * b.middleRows(k * o, o);
+    if (w.size() > 0) b.middleRows(k * o, o) *= w(k);
+    if (k + 1 == len) break;
+    map.step_tangents(theta, h(k), u.rows() > 0 ? u.col(k).data() : nullptr, zk.data(), t, 0);
+    states.col(k + 1) = zk;
+  }
+}
+
 // shooting_segment_jacobian's rows by forward-mode sensitivities (OneStepMap::step_tangents):
 // one pass along the segment carries T = ∂z_k/∂(θ_free, z₀) (2d × (n_free + 2d)); A's rows are
 // T's first n_free columns at the observed rows, B's its last 2d.
@@ -554,12 +575,19 @@ namespace {
 double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, const Vector& h,
                      const Vector& w, const Vector& rw, Eigen::Ref<Vector> z, long iterations,
                      double max_abs, const Matrix& inputs, double tolerance) {
-  Matrix states = shooting_states(map, theta, z, h, inputs), b;
+  // With step_tangents() each rollout carries B with it (one pass, not a rollout and then a
+  // pass for B), so B is current after every accepted trial.
+  const bool fused = map.has_step_tangents();
+  Matrix states, b, b_try;
+  if (fused)
+    rollout_with_start_jacobian(map, theta, z, q, h, w, rw, inputs, states, b);
+  else
+    states = shooting_states(map, theta, z, h, inputs);
   Vector r = position_residuals(states, q, w, rw);
   double lambda = 1e-3;
   double cost = std::numeric_limits<double>::infinity();
   if (r.allFinite() && z.cwiseAbs().maxCoeff() <= max_abs) {
-    start_state_jacobian(map, theta, states, q, h, w, rw, b, inputs);
+    if (!fused) start_state_jacobian(map, theta, states, q, h, w, rw, b, inputs);
     if (b.allFinite()) cost = r.squaredNorm();
   }
   bool b_current = true;  // b is B at z
@@ -580,9 +608,13 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
     Vector r_try;
     double c_try = std::numeric_limits<double>::infinity();
     if (trial.cwiseAbs().maxCoeff() <= max_abs) {
-      trial_states = shooting_states(map, theta, trial, h, inputs);
+      if (fused)
+        rollout_with_start_jacobian(map, theta, trial, q, h, w, rw, inputs, trial_states, b_try);
+      else
+        trial_states = shooting_states(map, theta, trial, h, inputs);
       r_try = position_residuals(trial_states, q, w, rw);
       c_try = r_try.squaredNorm();
+      if (fused && !b_try.allFinite()) c_try = std::numeric_limits<double>::infinity();
     }
     if (std::isfinite(c_try) && c_try < cost) {
       z = trial;
@@ -590,7 +622,8 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
       r = std::move(r_try);
       const bool done = cost - c_try <= tolerance * cost;
       lambda = std::max(lambda / 3.0, 1e-12);
-      b_current = false;
+      b_current = fused;
+      if (fused) b.swap(b_try);
       cost = c_try;
       if (done) break;
     } else {

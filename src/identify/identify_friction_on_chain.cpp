@@ -15,8 +15,11 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "csympnet/core/stop.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/train/shooting.hpp"
 #include "identify_chain.hpp"
 
 namespace csympnet::detail {
@@ -31,6 +34,11 @@ constexpr double kClearlyBetter = 10.0;
 constexpr long kTrialIterations = 25;
 // And its rate must stand clear of 0 by this many of its Gauss–Newton standard errors.
 constexpr double kRateStandardErrors = 3.0;
+// The trials run only when the score test at zero rates predicts at least this share of the
+// gain in the criterion that the group must show (kClearlyBetter + its parameters × log n):
+// the Gauss–Newton model's gain is an upper bound for rates that must stay ≥ 0, and the margin
+// of four covers its error where the loss is not quadratic in the rates.
+constexpr double kScreenShare = 0.25;
 // A current fit whose loss is below this share of the positions' mean square explains them to
 // rounding: there the criterion's n log(loss ratio) measures the last bits (a clean linear
 // oscillator's trials moved the loss by 0.2% at 1e-25 and "gained" 42), so nothing is offered.
@@ -40,6 +48,72 @@ double mean_square(const ShootingSegments& segs) {
   double sum = 0.0;
   for (const Matrix& q : segs.q) sum += q.squaredNorm();
   return sum / static_cast<double>(std::max<Index>(segs.n_residuals(), 1));
+}
+
+// gᵀA⁺g for the symmetric positive semi-definite A (eigenvalues below 1e-12 of the largest
+// count as 0): the Gauss–Newton decrease of the loss when the normal equations are scaled by
+// the number of residuals.
+// `step` (optional) receives the Gauss–Newton step −A⁺g.
+double gauss_newton_gain(const Matrix& a, const Vector& g, Vector* step = nullptr) {
+  if (g.size() == 0) return 0.0;
+  const Eigen::SelfAdjointEigenSolver<Matrix> e(a);
+  const Vector& l = e.eigenvalues();
+  const double top = std::max(l.maxCoeff(), 0.0);
+  const Vector c = e.eigenvectors().transpose() * g;
+  Vector w = Vector::Zero(l.size());
+  double gain = 0.0;
+  for (Index k = 0; k < l.size(); ++k)
+    if (l(k) > 1e-12 * top) {
+      gain += c(k) * c(k) / l(k);
+      w(k) = -c(k) / l(k);
+    }
+  if (step != nullptr) *step = e.eigenvectors() * w;
+  return gain;
+}
+
+// The score test of Coulomb friction on every coordinate at zero rates, at the current fit
+// (θ, start states z0, loss): the criterion's gain n·log(L/(L − ΔL)) that the Gauss–Newton model
+// predicts, ΔL the decrease of the loss with every parameter and start state free less the one
+// with the rates held at 0 (their efficient score's quadratic form). The rates start at 1e-300,
+// where |θ| has its slope and the map is the current one to rounding.
+double coulomb_score_gain(const Candidate& current, Index d, const Matrix& z0,
+                          const ShootingSegments& segs, double loss,
+                          const ShootingOptions& options) {
+  const auto& map = dynamic_cast<const HamiltonianLibraryMap&>(*current.inner.map);
+  std::vector<DissipationTerm> next = map.dissipation();
+  const Index first = static_cast<Index>(next.size());
+  for (const DissipationTerm& t : dissipation_group(DissipationKind::kCoulomb, d))
+    next.push_back(t);
+  Candidate c = library_with(current, d, map.terms(), next);
+  const auto& nm = dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
+  std::vector<Index> rates, others;
+  for (Index k = 0; k < nm.n_params(); ++k) {
+    const bool rate = k >= nm.dissipation_index(first) && k < nm.dissipation_index(first + d);
+    (rate ? rates : others).push_back(k);
+  }
+  for (Index k : rates) c.theta(k) = 1e-300;
+  const Index n = segs.n_residuals();
+  const NormalEquations ne = shooting_normal_equations(nm, c.theta, z0, segs, nm.n_params(),
+                                                       1.0 / std::sqrt(static_cast<double>(n)),
+                                                       false, options.should_stop);
+  if (ne.stopped) throw_if_stop_requested("the score test of dry friction on the positions");
+  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+  Matrix ar(others.size(), others.size());
+  Vector gr(others.size());
+  for (std::size_t i = 0; i < others.size(); ++i) {
+    gr(static_cast<Index>(i)) = ne.g(others[i]);
+    for (std::size_t j = 0; j < others.size(); ++j)
+      ar(static_cast<Index>(i), static_cast<Index>(j)) = a(others[i], others[j]);
+  }
+  Vector step;
+  const double full = gauss_newton_gain(a, ne.g, &step);
+  // One rate: the model's gain with the rate held ≥ 0 is 0 where its step is not upward. With
+  // more, the unconstrained gain stands as the bound.
+  if (d == 1 && step(rates.front()) <= 0.0) return 0.0;
+  const double drop = std::max(0.0, full - gauss_newton_gain(ar, gr));
+  if (!std::isfinite(drop) || !(loss > 0.0)) return std::numeric_limits<double>::infinity();
+  if (drop >= loss) return std::numeric_limits<double>::infinity();
+  return static_cast<double>(n) * std::log(loss / (loss - drop));
 }
 
 struct FrictionTrial {
@@ -118,6 +192,10 @@ bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
   // the linked fit and may lower the loss only by converging further; on a record with dry
   // friction and no drag, that alone made drag look worth 17 units of the criterion.
   ShootingReport reference = linked.report;
+  // The fit the score test is taken at: the linked fit, or the reference where it is lower.
+  Candidate at = library_with_terms(
+      lib, d, dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map).terms());
+  Matrix at_z0 = linked.chain.z0;
   {
     Candidate current = library_with_terms(
         lib, d, dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map).terms());
@@ -128,7 +206,11 @@ bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
     const ShootingReport r = fit_shooting(*current.inner.map, current.theta, z0, linked.chain.segs,
                                           vz, val, watching_damping(*current.inner.map, opt));
     if (r.stopped) throw_if_stop_requested("the friction and drag on the positions");
-    if (r.final_loss < reference.final_loss) reference = r;
+    if (r.final_loss < reference.final_loss) {
+      reference = r;
+      at = std::move(current);
+      at_z0 = std::move(z0);
+    }
   }
   if (reference.final_loss <= kRoundingShare * mean_square(linked.chain.segs)) {
     rec["dissipation_added_on_positions"] = {
@@ -137,8 +219,31 @@ bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
         {"decision", "none offered: the current model fits the positions to rounding"}};
     return false;
   }
+  std::vector<FrictionTrial> offered = offered_groups(lib, d, linked.chain.z0);
+  if (offered.empty()) return false;
+  // The score test first: where the Gauss–Newton model at zero rates cannot gain a quarter of
+  // what the group must, the trials (each up to 25 steps over the whole chain) are not run.
+  const double needed = kClearlyBetter + static_cast<double>(offered.front().added) *
+                                             std::log(static_cast<double>(n));
+  const double predicted =
+      coulomb_score_gain(at, d, at_z0, linked.chain.segs, reference.final_loss, options);
+  const nlohmann::json screen = {
+      {"predicted_gain",
+       std::isfinite(predicted) ? nlohmann::json(predicted) : nlohmann::json(nullptr)},
+      {"needed_gain", needed},
+      {"share_to_try", kScreenShare}};
+  if (predicted < kScreenShare * needed) {
+    rec["dissipation_added_on_positions"] = {
+        {"residuals", n},
+        {"added", nullptr},
+        {"score_test", screen},
+        {"decision",
+         "none tried: the score test of Coulomb friction at zero rates predicts a gain in the "
+         "criterion below a quarter of what the group must gain"}};
+    return false;
+  }
   std::optional<FrictionTrial> best;
-  for (FrictionTrial& t : offered_groups(lib, d, linked.chain.z0)) {
+  for (FrictionTrial& t : offered) {
     throw_if_stop_requested("the friction and drag offered on the linked positions");
     t.z0 = linked.chain.z0;
     t.val_z0 = val_z0;
@@ -195,6 +300,7 @@ bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
          "the current core fitted on for as many steps as a trial, and its rate is more than "
          "3 standard errors from 0"},
         {"residuals", n},
+        {"score_test", screen},
         {"trials", trials},
         {"added", best ? nlohmann::json(best->name) : nlohmann::json(nullptr)}};
   if (!best) return false;

@@ -177,6 +177,37 @@ std::vector<FrictionTrial> offered_groups(const Candidate& lib, Index d, const M
   return out;
 }
 
+// The reference the trials are judged against: the current core fitted on for as many steps as
+// a trial. A trial starts from the linked fit and may lower the loss only by converging further;
+// on a record with dry friction and no drag, that alone made drag look worth 17 units of the
+// criterion. `at` and `at_z0` are the fit the score test is taken at: the linked fit, or the
+// reference where it is lower.
+struct Reference {
+  ShootingReport report;
+  Candidate at;
+  Matrix at_z0;
+};
+Reference reference_fit(const Candidate& lib, Index d, const LinkedFit& linked,
+                        const ShootingSegments& val, const Matrix& val_z0,
+                        const ShootingOptions& options) {
+  const auto& terms = dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map).terms();
+  Reference out{linked.report, library_with_terms(lib, d, terms), linked.chain.z0};
+  Candidate current = library_with_terms(lib, d, terms);
+  Matrix z0 = linked.chain.z0, vz = val_z0;
+  ShootingOptions opt = options;
+  opt.n_free = current.inner.n_params();
+  opt.iterations = std::min(options.iterations, kTrialIterations);
+  const ShootingReport r = fit_shooting(*current.inner.map, current.theta, z0, linked.chain.segs,
+                                        vz, val, watching_damping(*current.inner.map, opt));
+  if (r.stopped) throw_if_stop_requested("the friction and drag on the positions");
+  if (r.final_loss < out.report.final_loss) {
+    out.report = r;
+    out.at = std::move(current);
+    out.at_z0 = std::move(z0);
+  }
+  return out;
+}
+
 }  // namespace
 
 bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
@@ -188,30 +219,8 @@ bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
     return false;
   const Index n = linked.chain.segs.n_residuals();
   nlohmann::json trials = nlohmann::json::array();
-  // The reference: the current core fitted on for as many steps as a trial. A trial starts from
-  // the linked fit and may lower the loss only by converging further; on a record with dry
-  // friction and no drag, that alone made drag look worth 17 units of the criterion.
-  ShootingReport reference = linked.report;
-  // The fit the score test is taken at: the linked fit, or the reference where it is lower.
-  Candidate at = library_with_terms(
-      lib, d, dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map).terms());
-  Matrix at_z0 = linked.chain.z0;
-  {
-    Candidate current = library_with_terms(
-        lib, d, dynamic_cast<const HamiltonianLibraryMap&>(*lib.inner.map).terms());
-    Matrix z0 = linked.chain.z0, vz = val_z0;
-    ShootingOptions opt = options;
-    opt.n_free = current.inner.n_params();
-    opt.iterations = std::min(options.iterations, kTrialIterations);
-    const ShootingReport r = fit_shooting(*current.inner.map, current.theta, z0, linked.chain.segs,
-                                          vz, val, watching_damping(*current.inner.map, opt));
-    if (r.stopped) throw_if_stop_requested("the friction and drag on the positions");
-    if (r.final_loss < reference.final_loss) {
-      reference = r;
-      at = std::move(current);
-      at_z0 = std::move(z0);
-    }
-  }
+  Reference ref = reference_fit(lib, d, linked, val, val_z0, options);
+  const ShootingReport& reference = ref.report;
   if (reference.final_loss <= kRoundingShare * mean_square(linked.chain.segs)) {
     rec["dissipation_added_on_positions"] = {
         {"residuals", n},
@@ -226,7 +235,7 @@ bool add_dissipation_on_chain(Candidate& lib, Index d, LinkedFit& linked,
   const double needed = kClearlyBetter + static_cast<double>(offered.front().added) *
                                              std::log(static_cast<double>(n));
   const double predicted =
-      coulomb_score_gain(at, d, at_z0, linked.chain.segs, reference.final_loss, options);
+      coulomb_score_gain(ref.at, d, ref.at_z0, linked.chain.segs, reference.final_loss, options);
   const nlohmann::json screen = {
       {"predicted_gain",
        std::isfinite(predicted) ? nlohmann::json(predicted) : nlohmann::json(nullptr)},

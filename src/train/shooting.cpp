@@ -591,6 +591,8 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
     if (b.allFinite()) cost = r.squaredNorm();
   }
   bool b_current = true;  // b is B at z
+  const double rounding =
+      kRoundingShare * position_residuals(Matrix::Zero(q.rows(), q.cols()), q, w, rw).squaredNorm();
   for (long it = 0; it < iterations && std::isfinite(cost); ++it) {
     throw_if_stop_requested("the fit of a hidden start state");
     if (!b_current) start_state_jacobian(map, theta, states, q, h, w, rw, b, inputs);
@@ -628,7 +630,7 @@ double fit_one_start(const OneStepMap& map, ConstParams theta, const Matrix& q, 
       if (done) break;
     } else {
       lambda *= 4.0;
-      if (lambda > 1e12) break;
+      if (lambda > 1e12 || cost <= rounding) break;
     }
   }
   return cost;
@@ -765,6 +767,20 @@ JointTrial joint_trial(const Vector& theta, const Matrix& z0, const Vector& step
   return t;
 }
 
+// The loss (per residual) below which the segments' weighted positions are reproduced to
+// rounding (kRoundingShare of their own mean square).
+double rounding_loss(const ShootingSegments& segs) {
+  double sum = 0.0;
+  for (std::size_t s = 0; s < segs.q.size(); ++s) {
+    const Matrix& q = segs.q[s];
+    sum += position_residuals(Matrix::Zero(q.rows(), q.cols()), q, weights_of(segs, s),
+                              segs.row_weight)
+               .squaredNorm();
+  }
+  const Index n = segs.n_residuals();
+  return n > 0 ? kRoundingShare * sum / static_cast<double>(n) : 0.0;
+}
+
 // Why three small steps ended the fit.
 std::string converged_message(double converged_chi2) {
   return converged_chi2 > 0.0
@@ -831,6 +847,7 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
   NormalEquations ne;
   bool fresh = false;
   double loss = rep.initial_loss;
+  const double rounding = rounding_loss(train);
   rep.message = "maximum number of iterations reached";
   for (long it = 1; it <= options.iterations; ++it) {
     if (stop()) {
@@ -879,6 +896,13 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       nu *= 2.0;
       if (lambda > 1e10) {
         rep.message = "no step lowers the loss (damping above 1e10)";
+        break;
+      }
+      if (loss <= rounding) {
+        rep.message =
+            "no step lowers the loss, which is at rounding level (below 1e-20 of the "
+            "positions' mean square)";
+        static_assert(kRoundingShare == 1e-20, "the message above names kRoundingShare");
         break;
       }
       continue;

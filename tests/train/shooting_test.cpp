@@ -331,6 +331,52 @@ TEST_P(ShootingTest, FitsRecoverExactPositions) {
   EXPECT_LE(rep.best_iteration, rep.iterations);
 }
 
+// Exact positions, the fit started at the truth: its loss is rounding, a trial step there fails,
+// and that ends the fit at once (not λ climbing through a dozen more rollouts), with θ where it
+// was to rounding. Positions with noise of 1e-6 of their size never end that way.
+TEST_P(ShootingTest, AFailedStepAtRoundingLevelEndsTheFit) {
+  const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
+  const Index d = map->dim() / 2;
+  Rng rng(41, GetParam());
+  const Vector truth = random_theta(*map, rng, 0.3, 0.3);
+  for (const double noise : {0.0, 1e-6}) {
+    SCOPED_TRACE(noise);
+    ShootingSegments train, val;
+    train.d = val.d = d;
+    const int count = 10;
+    Matrix z_true(2 * d, count);
+    double square_sum = 0.0;
+    for (int k = 0; k < count; ++k) {
+      z_true.col(k) = rng.normal_matrix(2 * d, 1, 0.6);
+      const Vector h = Vector::Constant(15, 0.1);
+      Matrix q = shooting_states(*map, truth, z_true.col(k), h).topRows(d);
+      q += noise * rng.normal_matrix(d, q.cols(), q.cwiseAbs().maxCoeff());
+      ShootingSegments& to = k < 7 ? train : val;
+      if (k < 7) square_sum += q.squaredNorm();
+      to.q.push_back(q);
+      to.h.push_back(h);
+      to.block.push_back(k % 3);
+    }
+    Vector theta = truth;
+    Matrix zt = z_true.leftCols(7), zv = z_true.rightCols(3);
+    ShootingOptions opt;
+    opt.iterations = 60;
+    const ShootingReport rep = fit_shooting(*map, theta, zt, train, zv, val, opt);
+    const bool at_rounding = rep.message.find("rounding level") != std::string::npos;
+    if (noise == 0.0) {
+      EXPECT_TRUE(at_rounding) << rep.message;
+      EXPECT_LE(rep.iterations, 6) << rep.message;
+      EXPECT_LE(rep.final_loss,
+                kRoundingShare * square_sum / static_cast<double>(train.n_residuals()));
+      EXPECT_LE((theta - truth).norm(), 1e-9 * truth.norm());
+    } else {
+      EXPECT_FALSE(at_rounding) << rep.message;
+      EXPECT_GT(rep.final_loss, 1e3 * kRoundingShare * square_sum /
+                                    static_cast<double>(train.n_residuals()));
+    }
+  }
+}
+
 // Noisy positions: a fit of the start states to kScoringTolerance (held-out segments) ends at
 // the loss of the fit to rounding within a millionth of it, and the loss either returns is the
 // loss of the start states it leaves (each segment's cost summed, not rolled out again).

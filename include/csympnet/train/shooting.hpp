@@ -132,7 +132,9 @@ NormalEquations shooting_block_equations(const OneStepMap& map, ConstParams thet
 // max_abs: a bound on every component of a start state (a trial step beyond it is refused): in
 // a direction the positions do not fix (a saturated core), the fit would otherwise run off.
 // tolerance: a segment's fit ends after an accepted step that lowers its ‖r‖² by at most this
-// fraction of itself (the default, to rounding; kScoringTolerance where only the loss is used).
+// fraction of itself (the default, to rounding; kScoringTolerance where only the loss is used),
+// or when a trial fails with ‖r‖² below kRoundingShare of the weighted positions' own sum of
+// squares.
 double fit_start_states(const OneStepMap& map, ConstParams theta, const ShootingSegments& segs,
                         Matrix& z0, long iterations = 30, bool several_starts = false,
                         double max_abs = std::numeric_limits<double>::infinity(),
@@ -143,6 +145,15 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
 // above 1e-3 of itself for up to 10⁶ residuals, so a start state converged further than 1e-8
 // of ‖r‖² only repeats rollouts.
 inline constexpr double kScoringTolerance = 1e-8;
+
+// A weighted residual sum of squares below this share of the weighted observations' own sum of
+// squares is at rounding level: the model reproduces them to 1e-10 of their size, where double's
+// rounding, accumulated over a segment's steps, is what is left. There a Levenberg–Marquardt
+// trial that fails is taken as the end (fit_start_states, fit_shooting): λ would otherwise
+// climb through a dozen more rollouts that fail alike. Steps that still lower the loss go on
+// to the floor. Noisy or quantised records stay far above it (noise of 1e-9 of the motion is a
+// share of 1e-18).
+inline constexpr double kRoundingShare = 1e-20;
 
 struct ShootingOptions {
   long iterations = 100;  // trial steps at most

@@ -115,24 +115,39 @@ bool richer_force_law_on_chain(Candidate& lib, Index d, const Matrix& q,
                                nlohmann::json& rec);
 
 // One way to change the library core on a chain: its name, the candidate, how many parameters
-// it removes (negative: adds), and for a swap the new terms.
+// it removes (negative: adds), and for a swap the new terms. `fixed_at_zero`: for a drop that
+// is the current core with these parameters (indices into the current θ) held at 0, and
+// nothing else changed; empty for any other change.
 struct ChainChange {
   std::string name;
   Candidate candidate;
   Index parameters = 0;
   std::string replaced_by;
+  std::vector<Index> fixed_at_zero;
 };
 // Greedy selection over a chain (identify_prune.cpp): every change `changes` offers is refitted
 // (θ and the start states, from the current fit), and the one that lowers the information
 // criterion most is made; then again, until none lowers it (a change that raised it by more
-// than 10 in a round is not tried again: a lazy greedy search). `lib`, `linked`'s start states
-// and report, `val_z0` and `states` follow; each trial goes into `trials`. Returns whether
-// anything changed.
+// than 10 in a round is not tried again: a lazy greedy search). A drop with `fixed_at_zero`
+// is first put to the Wald test at the current fit: where even a quarter of the rise of the
+// loss that the Gauss–Newton model predicts would raise the criterion by more than 10, it is
+// recorded with the prediction and not refitted. `lib`, `linked`'s start states and report,
+// `val_z0` and `states` follow; each trial goes into `trials`. Returns whether anything
+// changed.
 bool change_while_the_criterion_falls(
     Candidate& lib, LinkedFit& linked, const ShootingSegments& val, Matrix& val_z0,
     const ShootingOptions& options, std::vector<Matrix>& states,
     const std::function<std::vector<ChainChange>(const Candidate&)>& changes,
     nlohmann::json& trials);
+
+// The Wald test behind the screen above: the loss per residual over the chain that the
+// Gauss–Newton model at the current fit (lib.theta, linked's start states) predicts once the
+// parameters `fixed` (indices into lib.theta) are held at 0 and the rest, start states
+// included, refitted. Empty where the model cannot tell (a dropped direction the positions do
+// not fix). Throws Error on a stop request.
+std::optional<double> wald_loss_of_dropping(const Candidate& lib, const LinkedFit& linked,
+                                            const std::vector<Index>& fixed,
+                                            const ShootingOptions& options);
 
 // The change of the Bayesian information criterion, n log(loss) + k log n, when `dropped`
 // parameters are removed and the mean squared residual goes from loss_with to loss_without

@@ -52,7 +52,7 @@ std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q)
     if (next.size() > terms.size()) {
       Candidate x = library_with_terms(c, d, next);
       const Index added = x.inner.n_params() - c.inner.n_params();
-      out.push_back({name, std::move(x), -added, ""});
+      out.push_back({name, std::move(x), -added, "", {}});
     }
     const bool periodic_or_exp = std::any_of(terms.begin(), terms.end(), [i](const LibraryTerm& t) {
       return t.i == i && t.j < 0 && t.has_wavenumber();
@@ -67,7 +67,7 @@ std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q)
     x.theta(m.wavenumber_index(static_cast<Index>(terms.size()))) = span > 0.0 ? 1.0 / span : 1.0;
     const Index added = x.inner.n_params() - c.inner.n_params();
     out.push_back({term_name(next[next.size() - 2]) + ", " + term_name(next.back()), std::move(x),
-                   -added, ""});
+                   -added, "", {}});
   }
   return out;
 }
@@ -103,7 +103,7 @@ bool richer_force_law_on_chain(Candidate& lib, Index d, const Matrix& q,
     std::vector<ChainChange> out = additions(c, d, q);
     for (PolynomialAlternative& alt : periodic_alternatives(c, d, q)) {
       const Index fewer = c.inner.n_params() - alt.candidate.inner.n_params();
-      out.push_back({alt.replaced, std::move(alt.candidate), fewer, alt.by});
+      out.push_back({alt.replaced, std::move(alt.candidate), fewer, alt.by, {}});
     }
     return out;
   };

@@ -66,8 +66,11 @@ std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q)
     const double span = (q.row(i).array() - q.row(i).mean()).abs().maxCoeff();
     x.theta(m.wavenumber_index(static_cast<Index>(terms.size()))) = span > 0.0 ? 1.0 / span : 1.0;
     const Index added = x.inner.n_params() - c.inner.n_params();
-    out.push_back({term_name(next[next.size() - 2]) + ", " + term_name(next.back()), std::move(x),
-                   -added, "", {}});
+    out.push_back({term_name(next[next.size() - 2]) + ", " + term_name(next.back()),
+                   std::move(x),
+                   -added,
+                   "",
+                   {}});
   }
   return out;
 }

@@ -89,8 +89,8 @@ WaldModel wald_model(const Candidate& lib, const LinkedFit& linked,
   const Vector step = -(m.a_pinv * ne.g);
   m.optimum = lib.theta + step;
   m.optimum_loss = 2.0 * ne.cost + ne.g.dot(step);
-  m.valid = top > 0.0 && m.a_pinv.allFinite() && m.optimum.allFinite() &&
-            std::isfinite(m.optimum_loss);
+  m.valid =
+      top > 0.0 && m.a_pinv.allFinite() && m.optimum.allFinite() && std::isfinite(m.optimum_loss);
   return m;
 }
 

@@ -115,28 +115,48 @@ ShootingSegments positions_of(const Candidate& truth, const Vector& z0, Index n,
   return s;
 }
 
+// A Duffing oscillator with quartic c4 (W = 1, spring constant 4π², γ = 0.1, the library
+// q1^2, q1^3, q1^4): one linked segment of 400 positions from (1, 0) and 120 held out from
+// (-0.8, 1.5), both at steps of 0.05 with 0.1% noise; the chain's start state the true one.
+struct DuffingChain {
+  Candidate truth;
+  LinkedFit linked;
+  ShootingSegments val;
+  Matrix val_z0;
+};
+
+DuffingChain duffing_chain(double c4, Rng& rng) {
+  DuffingChain out;
+  out.truth = library(1, {"q1^2", "q1^3", "q1^4"});
+  const auto& m = lib_map(out.truth);
+  out.truth.theta(0) = 1.0;  // W
+  out.truth.theta(m.coefficient_index(0)) = 0.5 * 4.0 * M_PI * M_PI;
+  out.truth.theta(m.coefficient_index(2)) = c4;
+  out.truth.theta(*m.damping_param_index()) = 0.1;
+  Vector z0(2);
+  z0 << 1.0, 0.0;
+  out.linked.chain.segs = positions_of(out.truth, z0, 400, 0.05, 1e-3, rng);
+  out.linked.chain.z0 = z0;
+  out.linked.chain.span = {{0, 0}};
+  Vector z1(2);
+  z1 << -0.8, 1.5;
+  out.val = positions_of(out.truth, z1, 120, 0.05, 1e-3, rng);
+  out.val_z0 = z1;
+  return out;
+}
+
 // A Duffing oscillator (c4 = 5) and a linear one (c4 = 0), fitted with q1^2, q1^3 and q1^4
 // over one linked segment of 400 positions (0.1% noise): q1^3 goes in both, q1^4 only where
 // it is zero.
 TEST(IdentifyPrune, DropsThePowersThePositionsDoNotNeedAndKeepsTheOnesTheyDo) {
   for (const double c4 : {5.0, 0.0}) {
     Rng rng(7, "prune-fit");
-    Candidate truth = library(1, {"q1^2", "q1^3", "q1^4"});
+    DuffingChain dc = duffing_chain(c4, rng);
+    const Candidate& truth = dc.truth;
     const auto& m = lib_map(truth);
-    truth.theta(0) = 1.0;  // W
-    truth.theta(m.coefficient_index(0)) = 0.5 * 4.0 * M_PI * M_PI;
-    truth.theta(m.coefficient_index(2)) = c4;
-    truth.theta(*m.damping_param_index()) = 0.1;
-    Vector z0(2);
-    z0 << 1.0, 0.0;
-    LinkedFit linked;
-    linked.chain.segs = positions_of(truth, z0, 400, 0.05, 1e-3, rng);
-    linked.chain.z0 = z0;
-    linked.chain.span = {{0, 0}};
-    Vector z1(2);
-    z1 << -0.8, 1.5;
-    const ShootingSegments val = positions_of(truth, z1, 120, 0.05, 1e-3, rng);
-    Matrix val_z0 = z1;
+    LinkedFit& linked = dc.linked;
+    const ShootingSegments& val = dc.val;
+    Matrix& val_z0 = dc.val_z0;
     Candidate fitted = library(1, {"q1^2", "q1^3", "q1^4"});
     fitted.theta = truth.theta;
     fitted.theta(m.coefficient_index(1)) = 1e-3;  // the reference fit starts off the truth
@@ -195,22 +215,11 @@ TEST(IdentifyPrune, TheWaldTestPredictsTheRefittedLossOfADrop) {
   for (const double c4 : {5.0, 0.3}) {
     SCOPED_TRACE(c4);
     Rng rng(9, "wald-drop");
-    Candidate truth = library(1, {"q1^2", "q1^3", "q1^4"});
-    const auto& m = lib_map(truth);
-    truth.theta(0) = 1.0;  // W
-    truth.theta(m.coefficient_index(0)) = 0.5 * 4.0 * M_PI * M_PI;
-    truth.theta(m.coefficient_index(2)) = c4;
-    truth.theta(*m.damping_param_index()) = 0.1;
-    Vector z0(2);
-    z0 << 1.0, 0.0;
-    LinkedFit linked;
-    linked.chain.segs = positions_of(truth, z0, 400, 0.05, 1e-3, rng);
-    linked.chain.z0 = z0;
-    linked.chain.span = {{0, 0}};
-    Vector z1(2);
-    z1 << -0.8, 1.5;
-    const ShootingSegments val = positions_of(truth, z1, 120, 0.05, 1e-3, rng);
-    Matrix val_z0 = z1;
+    DuffingChain dc = duffing_chain(c4, rng);
+    const Candidate& truth = dc.truth;
+    LinkedFit& linked = dc.linked;
+    const ShootingSegments& val = dc.val;
+    Matrix& val_z0 = dc.val_z0;
     Candidate fitted = library(1, {"q1^2", "q1^3", "q1^4"});
     fitted.theta = truth.theta;
     ShootingOptions opt;
@@ -228,9 +237,9 @@ TEST(IdentifyPrune, TheWaldTestPredictsTheRefittedLossOfADrop) {
       next.erase(next.begin() + k);
       Candidate dropped = library_with_terms(fitted, 1, next);
       Matrix dz = linked.chain.z0, dv = val_z0;
-      const double refitted = fit_shooting(*dropped.inner.map, dropped.theta, dz,
-                                           linked.chain.segs, dv, val, opt)
-                                  .final_loss;
+      const double refitted =
+          fit_shooting(*dropped.inner.map, dropped.theta, dz, linked.chain.segs, dv, val, opt)
+              .final_loss;
       const double ratio = (*predicted - loss) / (refitted - loss);
       if (k == 1 || c4 < 1.0) {
         EXPECT_NEAR(ratio, 1.0, 0.1) << *predicted << " " << refitted << " " << loss;
@@ -258,9 +267,9 @@ TEST(IdentifyPrune, TheWaldTestPredictsTheRefittedLossOfADrop) {
         if (term_name(x) != term) next.push_back(x);
       Candidate dropped = library_with_terms(fitted, 1, next);
       Matrix dz = linked.chain.z0, dv = val_z0;
-      const double refitted = fit_shooting(*dropped.inner.map, dropped.theta, dz,
-                                           linked.chain.segs, dv, val, opt)
-                                  .final_loss;
+      const double refitted =
+          fit_shooting(*dropped.inner.map, dropped.theta, dz, linked.chain.segs, dv, val, opt)
+              .final_loss;
       EXPECT_GT(bic_change_of_dropping(loss, refitted, n, 1), 10.0) << t.dump();
     }
     // The quartic of c4 = 5 is far beyond what the screen lets through.

@@ -371,8 +371,8 @@ TEST_P(ShootingTest, AFailedStepAtRoundingLevelEndsTheFit) {
       EXPECT_LE((theta - truth).norm(), 1e-9 * truth.norm());
     } else {
       EXPECT_FALSE(at_rounding) << rep.message;
-      EXPECT_GT(rep.final_loss, 1e3 * kRoundingShare * square_sum /
-                                    static_cast<double>(train.n_residuals()));
+      EXPECT_GT(rep.final_loss,
+                1e3 * kRoundingShare * square_sum / static_cast<double>(train.n_residuals()));
     }
   }
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -781,6 +782,17 @@ double rounding_loss(const ShootingSegments& segs) {
   return n > 0 ? kRoundingShare * sum / static_cast<double>(n) : 0.0;
 }
 
+// After a failed trial (λ already raised): why the joint fit ends there, if it does. Damping
+// past 1e10, or a loss at rounding level, where every trial fails alike.
+std::optional<std::string> why_failed_trials_end(double lambda, double loss, double rounding) {
+  if (lambda > 1e10) return "no step lowers the loss (damping above 1e10)";
+  static_assert(kRoundingShare == 1e-20, "the message below names kRoundingShare");
+  if (loss <= rounding)
+    return "no step lowers the loss, which is at rounding level (below 1e-20 of the "
+           "positions' mean square)";
+  return std::nullopt;
+}
+
 // Why three small steps ended the fit.
 std::string converged_message(double converged_chi2) {
   return converged_chi2 > 0.0
@@ -894,15 +906,8 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     if (!(std::isfinite(loss_try) && loss_try < loss)) {
       lambda *= nu;
       nu *= 2.0;
-      if (lambda > 1e10) {
-        rep.message = "no step lowers the loss (damping above 1e10)";
-        break;
-      }
-      if (loss <= rounding) {
-        rep.message =
-            "no step lowers the loss, which is at rounding level (below 1e-20 of the "
-            "positions' mean square)";
-        static_assert(kRoundingShare == 1e-20, "the message above names kRoundingShare");
+      if (const auto why = why_failed_trials_end(lambda, loss, rounding)) {
+        rep.message = *why;
         break;
       }
       continue;

@@ -14,6 +14,12 @@
 // columns of the coefficients (φ_k'), the wavenumbers (c_k ∂φ_k'/∂κ) and B (−u(σ)). The terms'
 // values at q are computed once per position, not once per column.
 //
+// The block is carried row-major through the stages (copied in and out once per step): every
+// update is a row of one state component against all columns, contiguous, in the same
+// expressions and the same order of sums per entry as a column at a time, so the tangents keep
+// their bits. On a chain of 8 masses with momenta, a library fit took 0.72 of its CPU time
+// column-major (docs/benchmarks.md, "A fit's cost against d").
+//
 // Dissipation terms enter as in forward_driven(): a momentum with Coulomb friction inside the
 // kicks takes its kick's exact flow (coulomb_kick: the tangent is ∂p/∂p times p's, plus ∂p/∂f
 // times the force's, plus ∂p/∂μ in μ's column), and the flows beside the kicks (drag, and
@@ -35,6 +41,9 @@ namespace {
 // have been seen.
 struct TangentScratch {
   std::vector<double> q, p, g, wp, work, d1, d2, d1k, hv, gth, mass;
+  // The tangent block row-major (2d rows of c): a row is one state component's sensitivity
+  // to every column, so each stage's updates run along contiguous rows.
+  std::vector<double> rows, acc;
   std::vector<KickStep> kick;
   std::vector<char> fused;
   // The momentum scalings a = e^{−γτ/2} of the stage weights, for the (γ, h, order, substeps)
@@ -81,6 +90,13 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
   fit_to(w.hv, d * c);
   fit_to(w.gth, d * n_theta);
   fit_to(w.mass, d * d);
+  fit_to(w.rows, 2 * d * c);
+  fit_to(w.acc, c);
+  // T(r, col) = t(r, col), row-major; copied back at the end.
+  double* tr = w.rows.data();
+  for (Index col = 0; col < c; ++col)
+    for (Index r = 0; r < 2 * d; ++r) tr[r * c + col] = t(r, col);
+  const auto row = [tr, c](Index r) { return tr + r * c; };
   double* q = w.q.data();
   double* p = w.p.data();
   double* g = w.g.data();
@@ -149,8 +165,8 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       const auto kk = static_cast<std::size_t>(k);
       const auto add = [&](Index col, double f) {
         if (col >= n_theta) return;
-        gth[col * d + term.i] += wi_[kk] * f;
-        if (term.j >= 0) gth[col * d + term.j] -= wj_[kk] * f;
+        gth[term.i * n_theta + col] += wi_[kk] * f;
+        if (term.j >= 0) gth[term.j * n_theta + col] -= wj_[kk] * f;
       };
       add(coefficient_index(k), w.d1[k]);
       if (term.has_wavenumber()) add(wavenumber_index(k), theta(coefficient_index(k)) * w.d1k[k]);
@@ -160,11 +176,12 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       for (Index r = 0; r < d; ++r)
         for (Index j = 0; j < m; ++j) {
           const Index col = input_index(r, j);
-          if (col < n_theta) gth[col * d + r] -= w.work[j];
+          if (col < n_theta) gth[r * n_theta + col] -= w.work[j];
         }
     }
   };
-  // hv = H(q) t_q (d × c, column-major).
+  // hv = H(q) t_q (d × c, row-major): per term, along the columns (each entry sums the terms
+  // in their order).
   const auto hessian_tangent = [&] {
     if (c == 0) return;
     double* hv = w.hv.data();
@@ -174,12 +191,19 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       const auto kk = static_cast<std::size_t>(k);
       const double s2 = theta(coefficient_index(k)) * w.d2[k];
       if (s2 == 0.0) continue;
+      const double wi = wi_[kk], wj = wj_[kk];
+      const double* ti = row(term.i);
+      double* hi = hv + term.i * c;
+      if (term.j < 0) {
+        for (Index col = 0; col < c; ++col) hi[col] += wi * (s2 * ti[col]);
+        continue;
+      }
+      const double* tj = row(term.j);
+      double* hj = hv + term.j * c;
       for (Index col = 0; col < c; ++col) {
-        const double* tq = t.col(col).data();
-        const double ev = term.j < 0 ? tq[term.i] : wi_[kk] * tq[term.i] - wj_[kk] * tq[term.j];
-        const double f = s2 * ev;
-        hv[col * d + term.i] += wi_[kk] * f;
-        if (term.j >= 0) hv[col * d + term.j] -= wj_[kk] * f;
+        const double f = s2 * (wi * ti[col] - wj * tj[col]);
+        hi[col] += wi * f;
+        hj[col] -= wj * f;
       }
     }
   };
@@ -195,29 +219,51 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       if (w.fused[r]) w.kick[r] = coulomb_kick(first ? a * p[r] : p[r], -g[r], mu, half_tau);
     }
     hessian_tangent();
-    for (Index col = 0; col < c; ++col) {
-      double* tp = t.col(col).data() + d;
-      const double* hv = w.hv.data() + col * d;
-      const double* gth = col < n_theta ? w.gth.data() + col * d : nullptr;
-      const bool is_beta = beta_col && col == beta_index_;
-      for (Index r = 0; r < d; ++r) {
-        const double force = gth != nullptr ? hv[r] + gth[r] : hv[r];
-        double in = first ? a * tp[r] : tp[r];
-        if (first && is_beta) in += da * p[r];
-        double out;
-        if (w.fused[r]) {
-          const KickStep& k = w.kick[r];
-          out = k.dp * in - k.dforce * force;
-          const Index rate = dissipation_index(coulomb_of_[static_cast<std::size_t>(r)]);
-          if (col == rate && rate < n_theta) out += sign_of(theta(rate)) * k.drate;
+    for (Index r = 0; r < d; ++r) {
+      double* tp = row(d + r);
+      const double* hv = w.hv.data() + r * c;
+      const double* gth = w.gth.data() + r * n_theta;
+      const bool fused = w.fused[r];
+      if (!fused) {
+        // Without friction on this momentum: the same expressions as below, the columns of θ
+        // (with ∂g/∂θ) and the rest in loops of their own, β's column after them from its
+        // value before.
+        const double before_beta = beta_col ? tp[beta_index_] : 0.0;
+        if (first) {
+          for (Index col = 0; col < n_theta; ++col)
+            tp[col] = a * tp[col] - half_tau * (hv[col] + gth[col]);
+          for (Index col = n_theta; col < c; ++col) tp[col] = a * tp[col] - half_tau * hv[col];
         } else {
-          out = in - half_tau * force;
+          for (Index col = 0; col < n_theta; ++col)
+            tp[col] = (tp[col] - half_tau * (hv[col] + gth[col])) * a;
+          for (Index col = n_theta; col < c; ++col) tp[col] = (tp[col] - half_tau * hv[col]) * a;
         }
+        if (beta_col) {
+          const Index col = beta_index_;
+          const double force = hv[col] + gth[col];
+          if (first) {
+            tp[col] = (a * before_beta + da * p[r]) - half_tau * force;
+          } else {
+            tp[col] = (before_beta - half_tau * force) * a + da * (p[r] - half_tau * g[r]);
+          }
+        }
+        continue;
+      }
+      // A momentum with Coulomb friction takes its kick's exact flow.
+      const KickStep& k = w.kick[r];
+      const Index rate = dissipation_index(coulomb_of_[static_cast<std::size_t>(r)]);
+      for (Index col = 0; col < c; ++col) {
+        const double force = col < n_theta ? hv[col] + gth[col] : hv[col];
+        const bool is_beta = beta_col && col == beta_index_;
+        double in = first ? a * tp[col] : tp[col];
+        if (first && is_beta) in += da * p[r];
+        double out = k.dp * in - k.dforce * force;
+        if (col == rate && rate < n_theta) out += sign_of(theta(rate)) * k.drate;
         if (!first) {
           out *= a;
-          if (is_beta) out += da * (w.fused[r] ? w.kick[r].p : p[r] - half_tau * g[r]);
+          if (is_beta) out += da * k.p;
         }
-        tp[r] = out;
+        tp[col] = out;
       }
     }
     for (Index r = 0; r < d; ++r) {
@@ -238,8 +284,9 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       const DissipationTerm& term = dissipation_[static_cast<std::size_t>(k)];
       const Index col = dissipation_index(k);
       const FlowStep f = dissipation_flow(term.kind, p[term.i], std::abs(theta(col)), half_tau);
-      t.row(d + term.i) *= f.dp;
-      if (col < n_theta) t(d + term.i, col) += sign_of(theta(col)) * f.drate;
+      double* tp = row(d + term.i);
+      for (Index cc = 0; cc < c; ++cc) tp[cc] *= f.dp;
+      if (col < n_theta) tp[col] += sign_of(theta(col)) * f.drate;
       p[term.i] = f.p;
     }
   };
@@ -254,20 +301,34 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
     const double da = -0.5 * tau * a * sign_of(beta);  // ∂a/∂β
     if (nk > 0) flows(0.5 * tau, false);
     kick(true, a, da, 0.5 * tau);
-    // q ← q + τ W p.
-    for (Index col = 0; col < c; ++col) {
-      mass_apply(t.col(col).data() + d, w.wp.data());
-      for (Index r = 0; r < d; ++r) t(r, col) += tau * w.wp[r];
+    // q ← q + τ W p: row r of t_q gains τ (W t_p)_r, each (W t_p)_r summed over W's row in
+    // column order from 0 as mass_times() does.
+    for (Index r = 0; r < d; ++r) {
+      double* tq = row(r);
+      if (!full_mass_) {
+        const double wr = mass[r * d + r];
+        const double* tp = row(d + r);
+        for (Index col = 0; col < c; ++col) tq[col] += tau * (wr * tp[col]);
+        continue;
+      }
+      double* acc = w.acc.data();
+      std::fill(acc, acc + c, 0.0);
+      for (Index cc = 0; cc < d; ++cc) {
+        const double wrc = mass[r * d + cc];
+        const double* tp = row(d + cc);
+        for (Index col = 0; col < c; ++col) acc[col] += wrc * tp[col];
+      }
+      for (Index col = 0; col < c; ++col) tq[col] += tau * acc[col];
     }
     for (Index r = 0; r < d; ++r)
       for (Index cc = 0; cc <= (full_mass_ ? r : -1); ++cc) {
         const Index col = r * (r + 1) / 2 + cc;
         if (col >= n_theta) continue;
-        t(r, col) += tau * p[cc];
-        if (cc != r) t(cc, col) += tau * p[r];
+        row(r)[col] += tau * p[cc];
+        if (cc != r) row(cc)[col] += tau * p[r];
       }
     if (!full_mass_)
-      for (Index r = 0; r < std::min(d, n_theta); ++r) t(r, r) += tau * p[r];
+      for (Index r = 0; r < std::min(d, n_theta); ++r) row(r)[r] += tau * p[r];
     mass_apply(p, w.wp.data());
     for (Index r = 0; r < d; ++r) q[r] += tau * w.wp[r];
     at_position(sigma_[static_cast<std::size_t>(s + 1)]);
@@ -278,6 +339,8 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
     z[r] = q[r];
     z[d + r] = p[r];
   }
+  for (Index col = 0; col < c; ++col)
+    for (Index r = 0; r < 2 * d; ++r) t(r, col) = tr[r * c + col];
 }
 
 }  // namespace csympnet

@@ -193,7 +193,10 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     n = c.segs.n_residuals();
     const double corrected = corrected_loss(rep.final_loss, n, n_free + dim * c.segs.size());
     const double allowed = kept * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(n)));
-    const bool accept = !rep.stopped && std::isfinite(corrected) && corrected <= allowed;
+    // At rounding level a rise of the loss is rounding, not a model that stops following.
+    const bool at_rounding = rep.final_loss <= rounding_loss(c.segs);
+    const bool accept =
+        !rep.stopped && std::isfinite(corrected) && (corrected <= allowed || at_rounding);
     out.record["stages"].push_back({{"positions_per_segment", per},
                                     {"segments", c.segs.size()},
                                     {"loss", rep.final_loss},
@@ -201,6 +204,7 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
                                     {"lm_iterations", rep.iterations},
                                     {"lm_message", rep.message},
                                     {"seconds", seconds},
+                                    {"at_rounding_level", at_rounding},
                                     {"kept", accept}});
     if (rep.stopped) {
       out.report.stopped = true;

@@ -125,6 +125,65 @@ std::optional<double> wald_rise(const WaldModel& m, const std::vector<Index>& fi
   return std::isfinite(rise) ? std::optional<double>(rise) : std::nullopt;
 }
 
+// The score test's fall of the loss when the parameters `larger` adds to the current core are
+// fitted (the rest, start states included, refitted with them): the larger core's Gauss–Newton
+// optimum below the current core's (`current`), both models at the current fit. Measured from
+// the current model's optimum, not from the loss: where the fit is not at that optimum (a
+// misspecified core over long segments, whose loss the quadratic model misjudges), the
+// shortfall is not the addition's gain. Empty where either model is not finite.
+std::optional<double> score_fall(const WaldModel& current, const Candidate& larger,
+                                 const LinkedFit& linked, const ShootingOptions& options) {
+  if (!current.valid) return std::nullopt;
+  const WaldModel m = wald_model(larger, linked, options);
+  if (!m.valid) return std::nullopt;
+  return std::max(current.optimum_loss - m.optimum_loss, 0.0);
+}
+
+// A change the screens settle without a refit: a drop whose loss, at a quarter of the rise the
+// Wald test predicts (wald_rise), or an addition whose loss, at four times the fall the score
+// test predicts (the Gauss–Newton model of the larger core at the current fit, its optimum),
+// already raises the criterion by more than kClearlyWorse. Returns its trial record (the loss
+// and criterion change the model predicts, and the criterion at the margin), or none: refit it.
+// `wald`: the current core's model, built here once a drop asks for it.
+std::optional<nlohmann::json> screened(const ChainChange& change, const Candidate& lib,
+                                       const LinkedFit& linked, std::optional<WaldModel>& wald,
+                                       const ShootingOptions& options) {
+  const Index n = linked.chain.segs.n_residuals();
+  const double loss = linked.report.final_loss;
+  double predicted = 0.0, at_the_margin = 0.0;
+  std::string test;
+  if (!change.fixed_at_zero.empty()) {
+    if (!wald) wald = wald_model(lib, linked, options);
+    const std::optional<double> rise = wald_rise(*wald, change.fixed_at_zero);
+    if (!rise) return std::nullopt;
+    predicted = wald->optimum_loss + *rise;
+    at_the_margin =
+        bic_change_of_dropping(loss, wald->optimum_loss + kWaldShare * *rise, n, change.parameters);
+    test = "the Wald test at the current fit: a quarter of the predicted rise of the loss";
+  } else if (change.nests_current) {
+    if (!wald) wald = wald_model(lib, linked, options);
+    const std::optional<double> fall = score_fall(*wald, change.candidate, linked, options);
+    if (!fall) return std::nullopt;
+    const double margin = loss - *fall / kWaldShare;
+    if (!(margin > 0.0)) return std::nullopt;
+    predicted = loss - *fall;
+    at_the_margin = bic_change_of_dropping(loss, margin, n, change.parameters);
+    test = "the score test at the current fit: four times the predicted fall of the loss";
+  } else {
+    return std::nullopt;
+  }
+  if (!(at_the_margin > kClearlyWorse)) return std::nullopt;
+  return nlohmann::json{
+      {"term", change.name},
+      {"parameters_removed", change.parameters},
+      {"loss_before", loss},
+      {"loss_after", predicted},
+      {"bic_change", bic_change_of_dropping(loss, predicted, n, change.parameters)},
+      {"not_refitted", test + " would raise the criterion by " + std::to_string(at_the_margin)},
+      {"criterion_at_the_margin", at_the_margin},
+      {"lm_iterations", 0}};
+}
+
 }  // namespace
 
 bool change_while_the_criterion_falls(
@@ -134,6 +193,8 @@ bool change_while_the_criterion_falls(
     nlohmann::json& trials) {
   const Index n = linked.chain.segs.n_residuals();
   bool changed = false;
+  // A fit at rounding level cannot tell two cores apart: its criterion would rank rounding.
+  if (linked.report.final_loss <= rounding_loss(linked.chain.segs)) return false;
   // Each change's criterion in the round before: one that raised it by more than
   // kClearlyWorse is not tried again after another change was made (a lazy greedy search: the
   // rounds cost the changes that stood a chance, not all of them again; on a 4-dof chain the
@@ -146,30 +207,10 @@ bool change_while_the_criterion_falls(
       throw_if_stop_requested("the comparison of library terms on the linked positions");
       if (const auto was = last.find(drop.name); was != last.end() && was->second > kClearlyWorse)
         continue;
-      if (!drop.fixed_at_zero.empty()) {
-        if (!wald) wald = wald_model(lib, linked, options);
-        const double loss = linked.report.final_loss;
-        if (const auto rise = wald_rise(*wald, drop.fixed_at_zero)) {
-          const double at_a_share = bic_change_of_dropping(
-              loss, wald->optimum_loss + kWaldShare * *rise, n, drop.parameters);
-          if (at_a_share > kClearlyWorse) {
-            const double predicted = wald->optimum_loss + *rise;
-            const double change = bic_change_of_dropping(loss, predicted, n, drop.parameters);
-            trials.push_back(
-                {{"term", drop.name},
-                 {"parameters_removed", drop.parameters},
-                 {"loss_before", loss},
-                 {"loss_after", predicted},
-                 {"bic_change", change},
-                 {"not_refitted",
-                  "the Wald test at the current fit: a quarter of the predicted rise of the "
-                  "loss would raise the criterion by " +
-                      std::to_string(at_a_share)},
-                 {"lm_iterations", 0}});
-            last[drop.name] = at_a_share;
-            continue;
-          }
-        }
+      if (std::optional<nlohmann::json> skip = screened(drop, lib, linked, wald, options)) {
+        last[drop.name] = skip->at("criterion_at_the_margin").get<double>();
+        trials.push_back(std::move(*skip));
+        continue;
       }
       Trial t{drop.name, drop.replaced_by, std::move(drop.candidate), linked.chain.z0, val_z0, {},
               0.0};
@@ -235,6 +276,15 @@ std::optional<double> wald_loss_of_dropping(const Candidate& lib, const LinkedFi
   const std::optional<double> rise = wald_rise(m, fixed);
   if (!rise) return std::nullopt;
   return m.optimum_loss + *rise;
+}
+
+std::optional<double> score_loss_of_adding(const Candidate& lib, const Candidate& larger,
+                                           const LinkedFit& linked,
+                                           const ShootingOptions& options) {
+  const std::optional<double> fall =
+      score_fall(wald_model(lib, linked, options), larger, linked, options);
+  if (!fall) return std::nullopt;
+  return linked.report.final_loss - *fall;
 }
 
 double bic_change_of_dropping(double loss_with, double loss_without, Index n_residuals,

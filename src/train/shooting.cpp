@@ -768,20 +768,6 @@ JointTrial joint_trial(const Vector& theta, const Matrix& z0, const Vector& step
   return t;
 }
 
-// The loss (per residual) below which the segments' weighted positions are reproduced to
-// rounding (kRoundingShare of their own mean square).
-double rounding_loss(const ShootingSegments& segs) {
-  double sum = 0.0;
-  for (std::size_t s = 0; s < segs.q.size(); ++s) {
-    const Matrix& q = segs.q[s];
-    sum += position_residuals(Matrix::Zero(q.rows(), q.cols()), q, weights_of(segs, s),
-                              segs.row_weight)
-               .squaredNorm();
-  }
-  const Index n = segs.n_residuals();
-  return n > 0 ? kRoundingShare * sum / static_cast<double>(n) : 0.0;
-}
-
 // After a failed trial (λ already raised): why the joint fit ends there, if it does. Damping
 // past 1e10, or a loss at rounding level, where every trial fails alike.
 std::optional<std::string> why_failed_trials_end(double lambda, double loss, double rounding) {
@@ -822,6 +808,18 @@ const ShootingIterate& chosen_iterate(const std::vector<ShootingIterate>& kept, 
 }
 
 }  // namespace
+
+double rounding_loss(const ShootingSegments& segs) {
+  double sum = 0.0;
+  for (std::size_t s = 0; s < segs.q.size(); ++s) {
+    const Matrix& q = segs.q[s];
+    sum += position_residuals(Matrix::Zero(q.rows(), q.cols()), q, weights_of(segs, s),
+                              segs.row_weight)
+               .squaredNorm();
+  }
+  const Index n = segs.n_residuals();
+  return n > 0 ? kRoundingShare * sum / static_cast<double>(n) : 0.0;
+}
 
 ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
                             const ShootingSegments& train, Matrix& val_z0,

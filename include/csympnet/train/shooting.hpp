@@ -154,6 +154,9 @@ inline constexpr double kScoringTolerance = 1e-8;
 // to the floor. Noisy or quantised records stay far above it (noise of 1e-9 of the motion is a
 // share of 1e-18).
 inline constexpr double kRoundingShare = 1e-20;
+// The loss per residual at that level for these segments: kRoundingShare of their weighted
+// observations' own mean square. A fit's loss at or below it cannot tell two models apart.
+double rounding_loss(const ShootingSegments& segs);
 
 struct ShootingOptions {
   long iterations = 100;  // trial steps at most

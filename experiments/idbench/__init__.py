@@ -160,7 +160,7 @@ given to these methods:
     csympnet_library  (--library only) `csympnet fit DATA --out DIR -q --core library
               [--fit-args]`: the same data with the Hamiltonian-library core forced, read and
               counted exactly as csympnet (output in cases/<id>/csympnet_library/). Only for
-              d <= 4 (LIBRARY_MAX_D), where the library core is one of fit's default
+              d <= 10 (LIBRARY_MAX_D), where the library core is one of fit's default
               candidates; beyond, its fit takes minutes and the case is marked skipped.
     sindy     sparse regression of dp/dt: derivatives and smoothed states from a local cubic
               fit (7 samples, tricube weights, any spacing) per trajectory, then STLSQ

@@ -14,7 +14,7 @@ SIGMA_STRATA = [0.0, 1e-3, 1e-2, 5e-2]
 METHODS = ["csympnet", "csympnet_library", "csympnet_positions", "csympnet_differenced", "sindy",
            "oracle"]
 CORE_CHOICE_METHODS = ["csympnet", "csympnet_library"]  # the core-choice table
-LIBRARY_MAX_D = 4  # csympnet_library runs up to this d (the library core's default limit)
+LIBRARY_MAX_D = 10  # csympnet_library runs up to this d (the library core's default limit)
 VIOLATION_STRATA = ["nonuniform-1.5", "nonuniform-3", "nonuniform-30", "coulomb-0.2",
                     "coulomb-0.5", "coulomb-0.9", "quadratic-drag", "periodic-force",
                     "drifting-equilibrium", "energy-gain"]

@@ -407,9 +407,8 @@ CoreCandidates core_candidates(const IdentifyConfig& c, const IdentifyConfig& gi
   out.cores = out.choosing && !forced_dissipation ? default_cores(facts.d, facts.varying_steps)
               : out.library_given || out.choosing ? std::vector<nlohmann::json>{}
                                                   : std::vector<nlohmann::json>{c.core};
-  // The library core's cost grows as d⁴ (d² terms, a Jacobian row per coordinate, a pair of
-  // which grows with both; an FPU chain with d = 8 and 300 samples took 137 s): beyond
-  // d = kLibraryMaxD it is left out of the choice (given with --core library, it runs at any d).
+  // Beyond d = kLibraryMaxD the library core is left out of the choice (its cost, about d² per
+  // LM iteration, passes the neural cores'); given with --core library, it runs at any d.
   out.library_tried =
       out.library_given || (out.choosing && (facts.d <= kLibraryMaxD || forced_dissipation));
   return out;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <optional>
 
 #include <Eigen/Cholesky>
@@ -460,9 +461,14 @@ class LibrarySelection {
 
   // Backward elimination: the two groups whose terms are least significant (by their largest
   // sandwich t-ratio), then the least significant term if its t-ratio is below 2, each dropped
-  // when the held-out loss stays within the threshold (or the rounding floor).
+  // when the held-out loss stays within the threshold (or the rounding floor). A drop refused
+  // is not tried again until the held-out loss has moved by the threshold since: the drops made
+  // in between (terms at t below 2) leave the model as it was, and on a 20-mass chain the same
+  // two refused groups were refitted in each of 40 rounds (200 of a fit's 580 CPU s).
   void backward(Candidate& x) {
     nlohmann::json pruned = nlohmann::json::array();
+    std::map<std::vector<Index>, double> refused_at;  // the held-out loss when it was refused
+    long not_retried = 0;
     bool dropped_one = !given_terms_;
     while (dropped_one && !fit_.stop_requested() && active_terms().size() > 1) {
       dropped_one = false;
@@ -470,6 +476,12 @@ class LibrarySelection {
       if (t_of.empty()) break;
       for (const auto& [t, terms] : drops(t_of)) {
         if (fit_.stop_requested()) break;
+        if (const auto was = refused_at.find(terms);
+            was != refused_at.end() &&
+            std::abs(x.val_loss - was->second) <= threshold_ * was->second) {
+          ++not_retried;
+          continue;
+        }
         std::vector<bool> trial = active_;
         for (Index k : terms) trial[static_cast<std::size_t>(k)] = false;
         std::swap(active_, trial);
@@ -484,6 +496,7 @@ class LibrarySelection {
                           {"dropped", drop}});
         if (!drop) {
           std::swap(active_, trial);
+          refused_at[terms] = x.val_loss;
           continue;
         }
         x = std::move(y);
@@ -491,6 +504,7 @@ class LibrarySelection {
         break;
       }
     }
+    rec_["pruned_not_retried"] = not_retried;
     rec_["pruned"] = pruned;
   }
 

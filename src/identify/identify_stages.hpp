@@ -170,8 +170,13 @@ CoreChoice choose_core(std::vector<Candidate>& cand, CandidateFit& fit, bool cho
 // selects its terms (forward selection by Gauss–Newton gain, kept by the held-out loss, pruned
 // by their intervals); with "terms" it fits those. `record` is the report's
 // choices.library.
-// The largest d at which the library core is a default candidate.
-inline constexpr Index kLibraryMaxD = 4;
+// The largest d at which the library core is a default candidate. Beyond d = 4 its pool holds
+// the neighbours' differences alone, so an LM iteration costs about d² (d terms, d + 2d
+// tangent columns); on chains of 8 and 10 masses from positions it took a quarter and a half of
+// the neural cores' CPU time, with intervals 1.1-1.3 times a parametric fit's width
+// (docs/benchmarks.md, "A fit's cost against d"). At d = 20 one fit took 10 minutes from
+// positions and over 25 with momenta.
+inline constexpr Index kLibraryMaxD = 10;
 struct LibraryFit {
   Candidate cand;
   nlohmann::json record;

@@ -34,8 +34,7 @@ LibraryTerm single(Index i, TermShape shape, int power) {
 
 // Per coordinate: its missing powers 3 and 4 as one addition, and its sin/cos pair (when the
 // coordinate has no sinusoid or exponential yet), the pair's wavenumber started so that the
-// argument spans about ±1 over the positions `q` (normalised units). Each is the current core
-// with the new coefficients at 0 (nests_current: the score test may settle it unrefitted).
+// argument spans about ±1 over the positions `q` (normalised units).
 std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q) {
   std::vector<ChainChange> out;
   const std::vector<LibraryTerm>& terms = library_map(c).terms();
@@ -53,7 +52,7 @@ std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q)
     if (next.size() > terms.size()) {
       Candidate x = library_with_terms(c, d, next);
       const Index added = x.inner.n_params() - c.inner.n_params();
-      out.push_back({name, std::move(x), -added, "", {}, true});
+      out.push_back({name, std::move(x), -added, "", {}});
     }
     const bool periodic_or_exp = std::any_of(terms.begin(), terms.end(), [i](const LibraryTerm& t) {
       return t.i == i && t.j < 0 && t.has_wavenumber();
@@ -71,8 +70,7 @@ std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q)
                    std::move(x),
                    -added,
                    "",
-                   {},
-                   true});
+                   {}});
   }
   return out;
 }

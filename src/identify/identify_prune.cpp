@@ -125,53 +125,22 @@ std::optional<double> wald_rise(const WaldModel& m, const std::vector<Index>& fi
   return std::isfinite(rise) ? std::optional<double>(rise) : std::nullopt;
 }
 
-// The score test's fall of the loss when the parameters `larger` adds to the current core are
-// fitted (the rest, start states included, refitted with them): the larger core's Gauss–Newton
-// optimum below the current core's (`current`), both models at the current fit. Measured from
-// the current model's optimum, not from the loss: where the fit is not at that optimum (a
-// misspecified core over long segments, whose loss the quadratic model misjudges), the
-// shortfall is not the addition's gain. Empty where either model is not finite.
-std::optional<double> score_fall(const WaldModel& current, const Candidate& larger,
-                                 const LinkedFit& linked, const ShootingOptions& options) {
-  if (!current.valid) return std::nullopt;
-  const WaldModel m = wald_model(larger, linked, options);
-  if (!m.valid) return std::nullopt;
-  return std::max(current.optimum_loss - m.optimum_loss, 0.0);
-}
-
-// A change the screens settle without a refit: a drop whose loss, at a quarter of the rise the
-// Wald test predicts (wald_rise), or an addition whose loss, at four times the fall the score
-// test predicts (the Gauss–Newton model of the larger core at the current fit, its optimum),
-// already raises the criterion by more than kClearlyWorse. Returns its trial record (the loss
-// and criterion change the model predicts, and the criterion at the margin), or none: refit it.
-// `wald`: the current core's model, built here once a drop asks for it.
+// A drop the Wald test settles without a refit: its loss at a quarter of the rise the test
+// predicts (wald_rise) already raises the criterion by more than kClearlyWorse. Returns its
+// trial record (the loss and criterion change predicted, and the criterion at that margin), or
+// none: refit it. `wald`: the current core's model, built here once a drop asks for it.
 std::optional<nlohmann::json> screened(const ChainChange& change, const Candidate& lib,
                                        const LinkedFit& linked, std::optional<WaldModel>& wald,
                                        const ShootingOptions& options) {
+  if (change.fixed_at_zero.empty()) return std::nullopt;
   const Index n = linked.chain.segs.n_residuals();
   const double loss = linked.report.final_loss;
-  double predicted = 0.0, at_the_margin = 0.0;
-  std::string test;
-  if (!change.fixed_at_zero.empty()) {
-    if (!wald) wald = wald_model(lib, linked, options);
-    const std::optional<double> rise = wald_rise(*wald, change.fixed_at_zero);
-    if (!rise) return std::nullopt;
-    predicted = wald->optimum_loss + *rise;
-    at_the_margin =
-        bic_change_of_dropping(loss, wald->optimum_loss + kWaldShare * *rise, n, change.parameters);
-    test = "the Wald test at the current fit: a quarter of the predicted rise of the loss";
-  } else if (change.nests_current) {
-    if (!wald) wald = wald_model(lib, linked, options);
-    const std::optional<double> fall = score_fall(*wald, change.candidate, linked, options);
-    if (!fall) return std::nullopt;
-    const double margin = loss - *fall / kWaldShare;
-    if (!(margin > 0.0)) return std::nullopt;
-    predicted = loss - *fall;
-    at_the_margin = bic_change_of_dropping(loss, margin, n, change.parameters);
-    test = "the score test at the current fit: four times the predicted fall of the loss";
-  } else {
-    return std::nullopt;
-  }
+  if (!wald) wald = wald_model(lib, linked, options);
+  const std::optional<double> rise = wald_rise(*wald, change.fixed_at_zero);
+  if (!rise) return std::nullopt;
+  const double predicted = wald->optimum_loss + *rise;
+  const double at_the_margin =
+      bic_change_of_dropping(loss, wald->optimum_loss + kWaldShare * *rise, n, change.parameters);
   if (!(at_the_margin > kClearlyWorse)) return std::nullopt;
   return nlohmann::json{
       {"term", change.name},
@@ -179,7 +148,10 @@ std::optional<nlohmann::json> screened(const ChainChange& change, const Candidat
       {"loss_before", loss},
       {"loss_after", predicted},
       {"bic_change", bic_change_of_dropping(loss, predicted, n, change.parameters)},
-      {"not_refitted", test + " would raise the criterion by " + std::to_string(at_the_margin)},
+      {"not_refitted",
+       "the Wald test at the current fit: a quarter of the predicted rise of the loss would "
+       "raise the criterion by " +
+           std::to_string(at_the_margin)},
       {"criterion_at_the_margin", at_the_margin},
       {"lm_iterations", 0}};
 }
@@ -276,15 +248,6 @@ std::optional<double> wald_loss_of_dropping(const Candidate& lib, const LinkedFi
   const std::optional<double> rise = wald_rise(m, fixed);
   if (!rise) return std::nullopt;
   return m.optimum_loss + *rise;
-}
-
-std::optional<double> score_loss_of_adding(const Candidate& lib, const Candidate& larger,
-                                           const LinkedFit& linked,
-                                           const ShootingOptions& options) {
-  const std::optional<double> fall =
-      score_fall(wald_model(lib, linked, options), larger, linked, options);
-  if (!fall) return std::nullopt;
-  return linked.report.final_loss - *fall;
 }
 
 double bic_change_of_dropping(double loss_with, double loss_without, Index n_residuals,

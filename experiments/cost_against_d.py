@@ -38,7 +38,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
-from cost_scaling import install_stop_handlers  # noqa: E402
+from cost_scaling import figure, install_stop_handlers  # noqa: E402
 from idbench.common import Interrupted  # noqa: E402
 from idbench.peers.csympnet import run_csympnet  # noqa: E402
 
@@ -185,27 +185,6 @@ def summarize(rows, args):
     return "\n".join(lines) + "\n"
 
 
-def figure(rows, args, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(5.5, 4))
-    for obs, mark in zip(args.observed, ("o", "s")):
-        sub = [r for r in rows if r["observed"] == obs]
-        d = [r["d"] for r in sub]
-        ax.loglog(d, [r["csympnet"].get("cpu_seconds", np.nan) for r in sub], mark + "-",
-                  label=f"csympnet fit ({obs})")
-        ax.loglog(d, [r["oracle"].get("cpu_seconds", np.nan) for r in sub], mark + "--",
-                  label=f"oracle ({obs})")
-    ax.set_xlabel("degrees of freedom d")
-    ax.set_ylabel("CPU seconds")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True)
@@ -272,7 +251,8 @@ def main():
     with open(os.path.join(args.out, "summary.md"), "w") as f:
         f.write(summarize(rows, args))
     if args.figure and rows:
-        figure(rows, args, os.path.join(args.out, "cost_against_d.png"))
+        figure(rows, args, os.path.join(args.out, "cost_against_d.png"), key="d",
+               xlabel="degrees of freedom d")
     print(open(os.path.join(args.out, "summary.md")).read())
 
 

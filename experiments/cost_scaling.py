@@ -180,19 +180,20 @@ def summarize(rows, args):
     return "\n".join(lines) + "\n"
 
 
-def figure(rows, args, path):
+def figure(rows, args, path, key="n", xlabel="samples in the record"):
+    """CPU seconds of csympnet and the oracle against rows' `key`, log-log, per observation"""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(5.5, 4))
     for obs, mark in zip(args.observed, ("o", "s")):
         sub = [r for r in rows if r["observed"] == obs]
-        n = [r["n"] for r in sub]
-        ax.loglog(n, [r["csympnet"].get("cpu_seconds", np.nan) for r in sub], mark + "-",
+        x = [r[key] for r in sub]
+        ax.loglog(x, [r["csympnet"].get("cpu_seconds", np.nan) for r in sub], mark + "-",
                   label=f"csympnet fit ({obs})")
-        ax.loglog(n, [r["oracle"].get("cpu_seconds", np.nan) for r in sub], mark + "--",
+        ax.loglog(x, [r["oracle"].get("cpu_seconds", np.nan) for r in sub], mark + "--",
                   label=f"oracle ({obs})")
-    ax.set_xlabel("samples in the record")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("CPU seconds")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)

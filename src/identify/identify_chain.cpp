@@ -143,6 +143,37 @@ double corrected_loss(double loss, Index n, Index unknowns) {
                     : std::numeric_limits<double>::infinity();
 }
 
+// The longest of 4 per, 16 per, … (up to whole stretches; only lengths that merge segments)
+// whose segments, started from `states` and rolled out with θ as it is, already follow the
+// training positions: a corrected loss at most twice `kept`, the last stage's. There the misfit
+// left is at most the noise (for an oscillation, a phase error of at most the noise over the
+// amplitude), so the Gauss–Newton model of the fit holds from the start and the stages in between,
+// each a few Levenberg–Marquardt iterations over the whole record, would only walk the same way. A
+// probe is one rollout of the record, with no derivatives. `per` when none follows.
+Index longest_followed(const OneStepMap& map, ConstParams theta, const std::vector<Trajectory>& nt,
+                       const RecordLayout& layout, Index per, const std::vector<Matrix>& states,
+                       double kept, Index n_free) {
+  // The lengths that merge segments (a longer one that cuts the same segments is no skip).
+  std::vector<std::pair<Index, Chain>> longer;
+  Chain c = cut_chain(nt, layout, per, states);
+  for (Index len = 4 * per, segments = c.segs.size(); per < c.longest_stretch; len *= 4) {
+    Chain next = cut_chain(nt, layout, len, states);
+    if (next.segs.size() < segments) {
+      segments = next.segs.size();
+      longer.emplace_back(len, std::move(next));
+    }
+    if (len >= c.longest_stretch || segments <= 1) break;
+  }
+  for (auto it = longer.rbegin(); it != longer.rend(); ++it) {
+    const Chain& l = it->second;
+    const double loss = shooting_loss(map, theta, l.z0, l.segs);
+    const Index n = l.segs.n_residuals();
+    const double corrected = corrected_loss(loss, n, n_free + map.dim() * l.segs.size());
+    if (std::isfinite(corrected) && corrected <= 2.0 * kept) return it->first;
+  }
+  return per;
+}
+
 }  // namespace
 
 LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<Trajectory>& nt,
@@ -153,7 +184,8 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
   const Index n_free = options.n_free < 0 ? map.n_params() : options.n_free;
   LinkedFit out;
   out.record = {{"method",
-                 "multiple shooting with continuity: the segments merged four at a time, each "
+                 "multiple shooting with continuity: the segments merged four at a time (more "
+                 "where a rollout with theta as it is already follows), each "
                  "merged segment's start carried from the previous fit, theta and the starts "
                  "refitted, up to one segment per stretch of the record (a gap breaks one)"},
                 {"stages", nlohmann::json::array()}};
@@ -176,18 +208,28 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
   write_chain_states(map, theta, out.chain, states);
   out.linked_fully = first_length >= out.chain.longest_stretch;
   out.per_piece = first_length;
-  for (Index per = 4 * first_length; !out.linked_fully; per *= 4) {
+  // Stages may skip lengths while the model already follows the positions (see
+  // longest_followed); after a skip that is not kept, the fourfold steps resume.
+  bool skipping = true;
+  for (Index per = 4 * first_length; !out.linked_fully;) {
+    const Index from = per;
+    if (skipping) per = longest_followed(map, theta, nt, layout, per, states, kept, n_free);
     Chain c = cut_chain(nt, layout, per, states);
     if (c.segs.size() >= out.chain.segs.size()) {
       // No segment merged at this length (many short trajectories): longer still, or done.
       out.linked_fully = per >= c.longest_stretch;
+      per *= 4;
       continue;
     }
     Vector th = theta;
     Matrix vz = val_z0;
+    // A stage that skips lengths gets the iterations of the stages it skips: where the fit
+    // converges slowly (a neural core of hundreds of parameters runs to its budget), a skip
+    // must not leave it less far along than the fourfold stages would.
+    ShootingOptions stage_options = watching_damping(map, options);
+    for (Index len = from; len < per; len *= 4) stage_options.iterations += options.iterations;
     const auto t0 = std::chrono::steady_clock::now();
-    const ShootingReport rep =
-        fit_shooting(map, th, c.z0, c.segs, vz, val, watching_damping(map, options));
+    const ShootingReport rep = fit_shooting(map, th, c.z0, c.segs, vz, val, stage_options);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     n = c.segs.n_residuals();
@@ -197,19 +239,27 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     const bool at_rounding = rep.final_loss <= rounding_loss(c.segs);
     const bool accept =
         !rep.stopped && std::isfinite(corrected) && (corrected <= allowed || at_rounding);
-    out.record["stages"].push_back({{"positions_per_segment", per},
-                                    {"segments", c.segs.size()},
-                                    {"loss", rep.final_loss},
-                                    {"corrected_loss", corrected},
-                                    {"lm_iterations", rep.iterations},
-                                    {"lm_message", rep.message},
-                                    {"seconds", seconds},
-                                    {"at_rounding_level", at_rounding},
-                                    {"kept", accept}});
+    nlohmann::json stage = {{"positions_per_segment", per},
+                            {"segments", c.segs.size()},
+                            {"loss", rep.final_loss},
+                            {"corrected_loss", corrected},
+                            {"lm_iterations", rep.iterations},
+                            {"lm_message", rep.message},
+                            {"seconds", seconds},
+                            {"at_rounding_level", at_rounding},
+                            {"kept", accept}};
+    if (per > from) stage["skipped_to_from"] = from;
+    out.record["stages"].push_back(stage);
     if (rep.stopped) {
       out.report.stopped = true;
       why = "stopped on request";
       break;
+    }
+    if (!accept && per > from) {
+      // The skip went too far for the fit: the fourfold steps from the stage before.
+      skipping = false;
+      per = from;
+      continue;
     }
     if (!accept) {
       why = "the model does not follow the positions over segments of " + std::to_string(per) +
@@ -227,6 +277,7 @@ LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<
     kept = corrected;
     write_chain_states(map, theta, out.chain, states);
     out.linked_fully = per >= out.chain.longest_stretch;
+    per *= 4;
   }
   out.record["linked_fully"] = out.linked_fully;
   out.record["why_it_ends"] = why;

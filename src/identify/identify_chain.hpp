@@ -91,8 +91,10 @@ struct LinkedFit {
 // loss, corrected for the unknowns fitted (θ's n_free and 2d per segment), stays within three
 // standard errors of the previous stage's, or is at rounding level (rounding_loss: a clean
 // in-model record, where a rise is rounding): a model that cannot follow the positions over the
-// longer segments stops the linking there, and the report says so. θ, `states` and `val_z0`
-// are those of the last kept stage.
+// longer segments stops the linking there, and the report says so. A stage skips the lengths
+// over which a rollout with θ as it is already follows the positions (a corrected loss at most
+// twice the last stage's), with the iterations of the stages it skips; a skip not kept falls
+// back to the fourfold steps. θ, `states` and `val_z0` are those of the last kept stage.
 LinkedFit link_segments(const OneStepMap& map, Vector& theta, const std::vector<Trajectory>& nt,
                         const RecordLayout& layout, Index first_length, std::vector<Matrix>& states,
                         const ShootingSegments& val, Matrix& val_z0, const ShootingOptions& options,

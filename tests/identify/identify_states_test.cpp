@@ -1,6 +1,7 @@
 // The whole-record fit of records with momenta (identify_states.cpp, --record-fit whole): the
 // noise weights it estimates per row against the noise the record was given, its interval
-// against the windows' on the same record, and its coverage over independent records.
+// against the windows' on the same record, its coverage over independent records, and the
+// linking's skips of lengths the model already follows.
 #include <cmath>
 #include <iostream>
 #include <vector>
@@ -85,6 +86,55 @@ TEST(IdentifyStates, WholeRecordIntervalCoversAtAboutItsLevel) {
             << "\n";
   EXPECT_GE(covered, 25);  // ≥ 0.833: more than 2.9 sd below 0.95 fails
   EXPECT_GE(identified, 28);
+}
+
+// 6,000 samples of the oscillator (60 periods, noise 0.1%): the model that the windows fitted
+// already follows the positions over segments many times longer than the first ones, so the
+// linking skips lengths (a stage records the length it skipped from), links the record fully,
+// and its interval covers. With the wrong force law (a harmonic core on a stiff Duffing record)
+// the rollouts drift off at once and nothing is skipped.
+TEST(IdentifyStates, TheLinkingSkipsOnlyLengthsTheModelAlreadyFollows) {
+  const double gamma = 0.01;
+  const IdentifyResult r =
+      identify(decay_record(gamma, 6000, 0.1, 1e-3, 1e-3, 3), false, harmonic("whole"));
+  ASSERT_TRUE(r.interval.has_value());
+  const nlohmann::json& link = r.choices.at("whole_record").at("linking");
+  EXPECT_TRUE(link.at("linked_fully").get<bool>()) << link.dump(1);
+  int skips = 0;
+  for (const auto& stage : link.at("stages"))
+    if (stage.contains("skipped_to_from")) {
+      ++skips;
+      EXPECT_GT(stage["positions_per_segment"].get<long>(), stage["skipped_to_from"].get<long>());
+    }
+  EXPECT_GE(skips, 1) << link.dump(1);
+  EXPECT_LE(r.interval->low, gamma);
+  EXPECT_GE(r.interval->high, gamma);
+
+  // q'' = −q − 2q³ − γq', from q = 1.5: a harmonic core cannot follow it far.
+  Trajectory t;
+  const Index n = 3000;
+  const double h = 0.1, dt = h / 100.0;
+  t.t = Vector::LinSpaced(n, 0.0, h * static_cast<double>(n - 1));
+  t.z.resize(2, n);
+  double q = 1.5, p = 0.0;
+  Rng rng(4, "identify-states-duffing");
+  const auto acc = [gamma](double x, double v) { return -x - 2.0 * x * x * x - gamma * v; };
+  for (Index k = 0; k < n; ++k) {
+    t.z(0, k) = q + 1e-3 * rng.normal();
+    t.z(1, k) = p + 1e-3 * rng.normal();
+    for (int s = 0; s < 100; ++s) {
+      const double a1 = p, b1 = acc(q, p);
+      const double a2 = p + 0.5 * dt * b1, b2 = acc(q + 0.5 * dt * a1, a2);
+      const double a3 = p + 0.5 * dt * b2, b3 = acc(q + 0.5 * dt * a2, a3);
+      const double a4 = p + dt * b3, b4 = acc(q + dt * a3, a4);
+      q += dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4);
+      p += dt / 6.0 * (b1 + 2.0 * b2 + 2.0 * b3 + b4);
+    }
+  }
+  const IdentifyResult wrong = identify({t}, false, harmonic("whole"));
+  ASSERT_TRUE(wrong.choices.contains("whole_record")) << wrong.choices.dump();
+  for (const auto& stage : wrong.choices["whole_record"]["linking"]["stages"])
+    EXPECT_FALSE(stage.contains("skipped_to_from")) << stage.dump();
 }
 
 }  // namespace

@@ -77,10 +77,12 @@ double median_step(const Vector& t) {
   return h.size() % 2 == 1 ? h[m] : 0.5 * (h[m - 1] + h[m]);
 }
 
-// q at sample c from its k neighbours on each side: the least-squares polynomial of degree
-// min(4, 2k − 2) in time through them, at t_c. Smooth positions are predicted to O(h⁵) at any
-// steps; noise is not predicted at all.
-double interpolate_centre(const Vector& t, const Eigen::Ref<const RowVector>& q, Index c, Index k) {
+// q = z's row `dof` at sample c from its k neighbours on each side: the least-squares polynomial
+// of degree min(4, 2k − 2) in time through them, at t_c. Smooth positions are predicted to
+// O(h⁵) at any steps; noise is not predicted at all. (z and the row index, not the row: a row of
+// a column-major matrix bound to a contiguous Ref was copied whole at every call, 20,000 copies
+// of the record on a long one.)
+double interpolate_centre(const Vector& t, const Matrix& z, Index dof, Index c, Index k) {
   const Index deg = std::min<Index>(4, 2 * k - 2);
   const double scale = t(c + k) - t(c - k);
   Matrix v(2 * k, deg + 1);
@@ -91,7 +93,7 @@ double interpolate_centre(const Vector& t, const Eigen::Ref<const RowVector>& q,
     const double tau = (t(c + j) - t(c)) / scale;
     double power = 1.0;
     for (Index m = 0; m <= deg; ++m, power *= tau) v(row, m) = power;
-    y(row++) = q(c + j);
+    y(row++) = z(dof, c + j);
   }
   return v.colPivHouseholderQr().solve(y)(0);
 }
@@ -120,7 +122,7 @@ Rows rows_of(const std::vector<const Trajectory*>& group, Index dof, Index d, In
     for (Index c = k; c < t->t.size() - k; ++c, ++seen) {
       if (seen % stride != 0) continue;
       for (Index j = -k; j <= k; ++j) r.taps(row, j + k) = t->z(dof, c + j);
-      r.interp(row) = interpolate_centre(t->t, t->z.row(dof), c, k);
+      r.interp(row) = interpolate_centre(t->t, t->z, dof, c, k);
       const double h0 = t->t(c) - t->t(c - 1), h1 = t->t(c + 1) - t->t(c);
       r.grad(row) = (h0 * h0 * t->z(dof, c + 1) - h1 * h1 * t->z(dof, c - 1) +
                      (h1 * h1 - h0 * h0) * t->z(dof, c)) /

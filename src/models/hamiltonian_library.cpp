@@ -117,15 +117,11 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     wj_.push_back(t.j < 0 ? 0.0 : scales_(t.j));
   }
   require(inputs_.m >= 0, "hamiltonian library: the number of inputs must be >= 0");
-  sigma_.assign(1, 0.0);
-  for (Index i = 0; i < substeps_; ++i) {
-    double within = 0.0;
-    for (double w : weights_) {
-      within += w;
-      sigma_.push_back((static_cast<double>(i) + within) / static_cast<double>(substeps_));
-    }
+  double within = 0.0;
+  for (double w : weights_) {
+    within += w;
+    within_.push_back(within);
   }
-  sigma_.back() = 1.0;
   coulomb_of_.assign(static_cast<std::size_t>(d), -1);
   for (std::size_t k = 0; k < dissipation_.size(); ++k) {
     const DissipationTerm& t = dissipation_[k];
@@ -140,6 +136,15 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     if (t.kind == DissipationKind::kCoulomb && coulomb_in_kicks_)
       coulomb_of_[static_cast<std::size_t>(t.i)] = static_cast<Index>(k);
   }
+}
+
+double HamiltonianLibraryMap::sigma(Index s) const {
+  const Index nw = static_cast<Index>(weights_.size());
+  if (s <= 0) return 0.0;
+  if (s >= substeps_ * nw) return 1.0;
+  const Index i = (s - 1) / nw, j = (s - 1) % nw;
+  return (static_cast<double>(i) + within_[static_cast<std::size_t>(j)]) /
+         static_cast<double>(substeps_);
 }
 
 void HamiltonianLibraryMap::dissipate(ConstParams theta, double half_tau, bool closing, double* p,
@@ -366,7 +371,7 @@ Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z,
     }
     const double* ucol = driven ? U.col(col).data() : nullptr;
     gradient(theta, q.data(), g.data());
-    if (driven) add_force(theta, ucol, sigma_[0], g.data(), work.data());
+    if (driven) add_force(theta, ucol, sigma(0), g.data(), work.data());
     double* rec = ctx != nullptr ? ctx->states.data() + col * (stages + 1) * rs : nullptr;
     for (Index s = 0; s <= stages; ++s) {
       const double tau = s == stages ? 0.0
@@ -390,8 +395,7 @@ Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z,
       mass_times(theta, p.data(), wp.data());
       for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
       gradient(theta, q.data(), g.data());
-      if (driven)
-        add_force(theta, ucol, sigma_[static_cast<std::size_t>(s + 1)], g.data(), work.data());
+      if (driven) add_force(theta, ucol, sigma(s + 1), g.data(), work.data());
       for (Index r = 0; r < d; ++r) {
         const double mu = coulomb_rate(theta, r);
         p[r] = mu > 0.0 ? a * coulomb_kick(p[r], -g[r], mu, 0.5 * tau).p
@@ -502,8 +506,8 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
         pb[r] *= a;  // now p̄3
       }
       // p3 = p2 − (τ/2)(∇V(q1) − B u(σ_{s+1})); p̄2 = p̄3 but through a friction kick.
-      kick_backward(theta, k2, fused, q1, sigma_[static_cast<std::size_t>(s + 1)], ucol, tau,
-                    pb.data(), qb.data(), scratch, grad);
+      kick_backward(theta, k2, fused, q1, sigma(s + 1), ucol, tau, pb.data(), qb.data(), scratch,
+                    grad);
       // q1 = q0 + τ W p2.
       mass_times(theta, qb.data(), wq.data());
       for (Index r = 0; r < d; ++r) pb[r] += tau * wq[r];
@@ -516,8 +520,7 @@ void HamiltonianLibraryMap::backward(ConstParams theta, const ForwardCache& cach
         for (Index r = 0; r < d; ++r) grad(r) += tau * qb[r] * p2[r];
       }
       // p2 = a p0 − (τ/2)(∇V(q0) − B u(σ_s)).
-      kick_backward(theta, k1, fused, q0, sigma_[static_cast<std::size_t>(s)], ucol, tau, pb.data(),
-                    qb.data(), scratch, grad);
+      kick_backward(theta, k1, fused, q0, sigma(s), ucol, tau, pb.data(), qb.data(), scratch, grad);
       for (Index r = 0; r < d; ++r) {
         a_bar += pb[r] * p0[r];
         pb[r] *= a;
@@ -598,7 +601,7 @@ Matrix HamiltonianLibraryMap::jacobian_driven(ConstParams theta, const Vector& z
     }
   };
   gradient(theta, q.data(), g.data());
-  if (driven) add_force(theta, u.data(), sigma_[0], g.data(), work.data());
+  if (driven) add_force(theta, u.data(), sigma(0), g.data(), work.data());
   for (Index s = 0; s < stages; ++s) {
     poll_within_step(s);
     const double tau =
@@ -613,8 +616,7 @@ Matrix HamiltonianLibraryMap::jacobian_driven(ConstParams theta, const Vector& z
     mass_times(theta, p.data(), wp.data());
     for (Index r = 0; r < d; ++r) q[r] += tau * wp[r];
     gradient(theta, q.data(), g.data());
-    if (driven)
-      add_force(theta, u.data(), sigma_[static_cast<std::size_t>(s + 1)], g.data(), work.data());
+    if (driven) add_force(theta, u.data(), sigma(s + 1), g.data(), work.data());
     friction_kicks(1.0, 0.5 * tau);
     kick_tangent(0.5 * tau);
     tp *= a;

@@ -228,8 +228,11 @@ class HamiltonianLibraryMap final : public OneStepMap {
   std::vector<Index> coulomb_of_;
   InputSpec inputs_;
   // Per stage boundary s = 0 … stages of one step: its time as a share σ_s of h (σ_0 = 0,
-  // σ_stages = 1); a stage of weight b runs from σ_s to σ_{s+1} = σ_s + b/n.
-  std::vector<double> sigma_;
+  // σ_stages = 1); a stage of weight b runs from σ_s to σ_{s+1} = σ_s + b/n. Computed, not
+  // stored: a model file may ask for millions of substeps (a table of them took 288 MB and
+  // seconds to build and free at 4,000,000).
+  double sigma(Index s) const;
+  std::vector<double> within_;  // the weights' running sums within one substep, in order
 };
 
 // The core spec {"type": "library", "terms": [...], "order": 4, "substeps": n, "mass":

@@ -447,7 +447,7 @@ void keep_chosen(CoreFit& f, const CandidateFit& fit) {
 
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                  const IdentifyConfig& config, const IdentifyHooks& hooks,
-                 const FloorTest& floor_test) {
+                 const FloorTest& floor_test, const RefitFollows& refit_follows) {
   check_inputs(trajs, config);
   const Communicator& comm =
       hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
@@ -488,13 +488,18 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                                    std::to_string(kLibraryMaxD) +
                                    ": the library core is not tried by default (--core library "
                                    "runs it)";
+  bool library_thinned = false;
   if (cc.library_tried) {
     if (hooks.stage) hooks.stage("library core");
-    LibraryFit lib =
-        fit_library(fit, cc.library_given ? c.core : nlohmann::json::object(), f.facts.d,
-                    f.warm.beta_init, f.units.normalization, c.balanced, comm, c.dissipation);
+    // Its final fit is a start where a fit of the record follows once it is chosen.
+    const bool start_only = refit_follows && refit_follows(nlohmann::json{{"type", "library"}});
+    LibraryFit lib = fit_library(fit, cc.library_given ? c.core : nlohmann::json::object(),
+                                 f.facts.d, f.warm.beta_init, f.units.normalization, c.balanced,
+                                 comm, c.dissipation, start_only);
+    library_thinned = lib.thinned;
+    if (hooks.stage) hooks.stage("library: the noise-floor test");
     const bool at_floor = floor_test && cc.choosing
-                              ? floor_test(lib.cand, f.split, floor_reason)
+                              ? floor_test(lib.cand, f.split, floor_reason, lib.record)
                               : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason);
     if (at_floor && cc.choosing) cc.cores.clear();
     lib.record["floor"] = floor_reason;
@@ -517,12 +522,37 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
   if (!f.lm_fits) f.choices["lm_note"] = "more than 6000 parameters: no LM, no interval";
   f.choices["lm_patience"] = kLmPatience;
   f.windows = adapt_windows(best, fit, f.split, config, f.facts.summary.value("pairs_file", false),
-                            c.balanced);
+                            c.balanced, refit_follows && refit_follows(best.core));
+  f.thinned_start = f.windows.thinned || (best.pretrained && library_thinned && f.best == 0);
   f.choices.update(f.windows.choices);
   c.window = f.split.m;
   f.choices["window"] = f.split.m;
   keep_chosen(f, fit);
   return f;
+}
+
+void windows_on_every_window(CoreFit& f, const IdentifyConfig& config, const IdentifyHooks& hooks) {
+  if (!f.thinned_start) return;
+  const Communicator& comm =
+      hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
+  const IdentifyHooks user_hooks = in_user_units(hooks, f.units.normalization.time_scale);
+  CandidateFit fit(config, f.config, user_hooks, comm, f.split, 1.0);
+  Candidate& best = f.cand[f.best];
+  const long budget = fit.lm_budget(best, 15.0);
+  fit.lm(best, budget, "LM on longer windows (every window)");
+  f.choices["then_every_window"] = {
+      {"why",
+       "the chosen core was fitted on thinned windows as a start, and the fit of the record that "
+       "was to refit theta was not made: LM on every window"},
+      {"lm_iterations", best.lm.iterations}};
+  f.thinned_start = false;
+  f.theta = best.theta;
+  f.lm = best.lm;
+  f.lm_best_iteration = best.lm_best_iteration;
+  f.stopped = f.stopped || fit.stopped();
+  f.gamma = best.inner.map->damping_rate(f.theta).value_or(0.0) / f.units.normalization.time_scale;
+  f.train_loss = fit.loss(best, f.split.train);
+  f.val_loss = fit.loss(best, f.split.val);
 }
 
 Model user_model(const Model& inner, const Normalization& units, const IdentifyInit* init) {
@@ -612,7 +642,10 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
                              const IdentifyConfig& config, const IdentifyHooks& hooks,
                              bool confirm_growth_in_reversed_time) {
   using namespace detail;
-  CoreFit f = fit_core(trajs, pairs_only, config, hooks);
+  CoreFit f = fit_core(trajs, pairs_only, config, hooks, {},
+                       [pairs_only, &config](const nlohmann::json& core) {
+                         return !pairs_only && whole_record_wanted(core, config);
+                       });
   const Communicator& comm =
       hooks.communicator != nullptr ? *hooks.communicator : serial_communicator();
   FinalFit end;
@@ -627,7 +660,7 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
   // Trajectories with momenta: the whole record fitted with q and p observed, its interval
   // (identify_states.cpp); else the windows' interval.
   bool whole = false;
-  if (assess && !pairs_only && whole_record_wanted(f, f.config)) {
+  if (assess && !pairs_only && whole_record_wanted(f.cand[f.best].core, f.config)) {
     WholeRecordFit w = fit_whole_record(f, config, hooks);
     stopped = stopped || w.stopped;
     end.choices["whole_record"] = w.record;
@@ -641,6 +674,14 @@ IdentifyResult identify_once(const std::vector<Trajectory>& trajs, bool pairs_on
       end.quality.val_loss = w.val_loss;
       end.interval = std::move(w.interval);
     }
+  }
+  if (assess && !whole && !stopped && f.thinned_start) {
+    windows_on_every_window(f, config, hooks);
+    end.theta = f.theta;
+    end.gamma = f.gamma;
+    end.quality.train_loss = f.train_loss;
+    end.quality.val_loss = f.val_loss;
+    stopped = stopped || f.stopped;
   }
   const OneStepMap& map = *f.cand[f.best].inner.map;
   if (assess && !whole && !stopped) {

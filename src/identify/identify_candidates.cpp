@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
@@ -318,7 +319,8 @@ double lag_one_correlation(const Vector& res, const WindowSet& w) {
 // steps (which divide its bias and variance) are worth their compounding of misfit; LM
 // continues from the one-step fit.
 WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
-                           const IdentifyConfig& given, bool pairs_file, bool balanced) {
+                           const IdentifyConfig& given, bool pairs_file, bool balanced,
+                           bool start_only) {
   WindowChoice out;
   nlohmann::json& choices = out.choices;
   if (!split.adaptive || fit.stopped()) {
@@ -337,9 +339,25 @@ WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split
         "one-step residuals correlate negatively along trajectories "
         "(noise dominates misfit): windows of " +
         std::to_string(split.m) + " steps";
-    const long stage_b = fit.lm_budget(best, 15.0);
+    out.thinned = start_only &&
+                  (split.train.size() > kSelectionWindows || split.val.size() > kSelectionWindows);
+    const BlockSplit thin = out.thinned ? selection_split(split, kSelectionWindows) : BlockSplit{};
+    std::optional<CandidateFit> thin_fit;
+    if (out.thinned) thin_fit = fit.on(thin);
+    CandidateFit& on = thin_fit ? *thin_fit : fit;
+    const long stage_b = on.lm_budget(best, 15.0);
     choices["lm_iterations_windows"] = stage_b;
-    fit.lm(best, stage_b, "LM on longer windows (noise dominates)");
+    if (out.thinned)
+      choices["lm_windows_thinned"] = {
+          {"windows", thin.train.size()},
+          {"of", split.train.size()},
+          {"held_out", thin.val.size()},
+          {"held_out_of", split.val.size()},
+          {"why",
+           "a later fit of the record refits theta: the windows' fit is its start, on windows "
+           "evenly spread over the record"}};
+    on.lm(best, stage_b, "LM on longer windows (noise dominates)");
+    fit.note_stop();
   } else {
     choices["window_reason"] =
         "one-step residuals correlate positively along trajectories "

@@ -128,6 +128,12 @@ struct ChainChange {
   std::string replaced_by;
   std::vector<Index> fixed_at_zero;
 };
+// The force law's additions to a library core (identify_force_law.cpp), per coordinate: its
+// missing powers 3 and 4 as one change, and its sin/cos pair (when the coordinate has no sinusoid
+// or exponential yet), the pair's wavenumber started so that the argument spans about ±1 over
+// the positions `q` (d x n, normalised units).
+std::vector<ChainChange> force_law_additions(const Candidate& c, Index d, const Matrix& q);
+
 // Greedy selection over a chain (identify_prune.cpp): every change `changes` offers is refitted
 // (θ and the start states, from the current fit), and the one that lowers the information
 // criterion most is made; then again, until none lowers it (a change that raised it by more

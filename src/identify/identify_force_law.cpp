@@ -32,10 +32,9 @@ LibraryTerm single(Index i, TermShape shape, int power) {
   return t;
 }
 
-// Per coordinate: its missing powers 3 and 4 as one addition, and its sin/cos pair (when the
-// coordinate has no sinusoid or exponential yet), the pair's wavenumber started so that the
-// argument spans about ±1 over the positions `q` (normalised units).
-std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q) {
+}  // namespace
+
+std::vector<ChainChange> force_law_additions(const Candidate& c, Index d, const Matrix& q) {
   std::vector<ChainChange> out;
   const std::vector<LibraryTerm>& terms = library_map(c).terms();
   const auto has = [&terms](const LibraryTerm& t) {
@@ -75,8 +74,6 @@ std::vector<ChainChange> additions(const Candidate& c, Index d, const Matrix& q)
   return out;
 }
 
-}  // namespace
-
 bool richer_force_law_on_chain(Candidate& lib, Index d, const Matrix& q,
                                const std::vector<Trajectory>& nt, const RecordLayout& layout,
                                LinkedFit& linked, const ShootingSegments& val, Matrix& val_z0,
@@ -103,7 +100,7 @@ bool richer_force_law_on_chain(Candidate& lib, Index d, const Matrix& q,
   // (a quartic chosen over the short segments before may stop following a pendulum's swing
   // over the longer ones).
   const auto changes = [d, &q](const Candidate& c) {
-    std::vector<ChainChange> out = additions(c, d, q);
+    std::vector<ChainChange> out = force_law_additions(c, d, q);
     for (PolynomialAlternative& alt : periodic_alternatives(c, d, q)) {
       const Index fewer = c.inner.n_params() - alt.candidate.inner.n_params();
       out.push_back({alt.replaced, std::move(alt.candidate), fewer, alt.by, {}});

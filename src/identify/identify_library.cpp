@@ -25,15 +25,6 @@ constexpr double kStepPhase = 0.2;   // ω h / n at the start
 constexpr Index kMaxSubsteps = 256;  // the integrator's error check doubles n up to this
 constexpr long kRoundIterations = 12;
 constexpr long kFinalIterations = 300;
-// The selection (start, additions, drops, dissipation) sees at most this many training and
-// this many held-out windows, evenly spread over the record; the final fit sees them all. A
-// term is kept when it lowers the held-out loss by a share g of at least 2e-3. The fitted
-// parameters' own noise costs a model of p parameters about p / n of the loss (1e-4 for two
-// added terms), and on n held-out residuals the paired change of the loss is seen at about
-// √(g n) / 2 standard errors (4.5 at the threshold for 20,000 one-dof windows): a longer record
-// buys a narrower interval, not another choice. On 10⁵ samples the selection had taken a third
-// of a fit's time, and on 10⁶ a quarter.
-constexpr Index kSelectionWindows = 20000;
 
 const HamiltonianLibraryMap& library_of(const Candidate& x) {
   return dynamic_cast<const HamiltonianLibraryMap&>(*x.inner.map);
@@ -353,25 +344,6 @@ std::vector<Addition> ranked_additions(const Candidate& x, const std::vector<Lib
     if (!seen) unique.push_back(std::move(ad));
   }
   return unique;
-}
-
-// At most `cap` of `w`'s windows, evenly spread over it (all of them when it has no more).
-WindowSet evenly_spread(const WindowSet& w, Index cap) {
-  const Index n = w.size();
-  if (n <= cap) return w;
-  std::vector<Index> pick;
-  pick.reserve(static_cast<std::size_t>(cap));
-  for (Index j = 0; j < cap; ++j) pick.push_back(j * n / cap);
-  return select_windows(w, pick);
-}
-
-// The split with at most `cap` training and `cap` held-out windows, evenly spread; the blocks
-// as they are.
-BlockSplit selection_split(const BlockSplit& split, Index cap) {
-  BlockSplit out = split;
-  out.train = evenly_spread(split.train, cap);
-  out.val = evenly_spread(split.val, cap);
-  return out;
 }
 
 // The selection as a class: the fit's context as members, one method per stage.
@@ -886,11 +858,29 @@ class LibrarySelection {
   std::vector<DissipationTerm> dissipation_;  // the terms of every candidate made
 };
 
+// At most `cap` of `w`'s windows, evenly spread over it (all of them when it has no more).
+WindowSet evenly_spread(const WindowSet& w, Index cap) {
+  const Index n = w.size();
+  if (n <= cap) return w;
+  std::vector<Index> pick;
+  pick.reserve(static_cast<std::size_t>(cap));
+  for (Index j = 0; j < cap; ++j) pick.push_back(j * n / cap);
+  return select_windows(w, pick);
+}
+
 }  // namespace
+
+BlockSplit selection_split(const BlockSplit& split, Index cap) {
+  BlockSplit out = split;
+  out.train = evenly_spread(split.train, cap);
+  out.val = evenly_spread(split.val, cap);
+  return out;
+}
 
 LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
                        double beta_init, const Normalization& units, bool balanced,
-                       const Communicator& comm, const std::string& dissipation) {
+                       const Communicator& comm, const std::string& dissipation,
+                       bool start_only) {
   const auto t0 = std::chrono::steady_clock::now();
   LibraryFit out;
   const BlockSplit& all = fit.split();
@@ -908,17 +898,25 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
         {"why", "the terms were chosen on " + std::to_string(thin.train.size()) + " of " +
                     std::to_string(all.train.size()) + " training windows and " +
                     std::to_string(thin.val.size()) + " of " + std::to_string(all.val.size()) +
-                    " held-out windows, evenly spread over the record; the final fit was "
-                    "made on all"}};
+                    " held-out windows, evenly spread over the record; " +
+                    (start_only ? "the final fit too, as a start: a later fit of the record "
+                                  "refits theta"
+                                : "the final fit was made on all")},
+        {"final_fit_on_these", start_only}};
   Candidate x = sel.start();
   sel.dissipation(x, dissipation, "after the start");
   sel.forward(x);
   sel.backward(x);
   sel.prune_dissipation(x, dissipation);
   sel.dissipation(x, dissipation, "after the potential's terms");
-  sel.use(fit);
-  if (thinned) x.val_loss = fit.loss(x, all.val);
+  if (!start_only) sel.use(fit);
+  if (thinned && !start_only) x.val_loss = fit.loss(x, all.val);
   sel.finish(x);
+  if (thinned && start_only) {
+    x.val_loss = fit.loss(x, all.val);
+    out.record["val_loss"] = x.val_loss;
+    out.thinned = true;
+  }
   out.record["seconds"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   out.cand = std::move(x);

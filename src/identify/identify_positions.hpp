@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -40,8 +41,30 @@ LagOne residual_lag_one(const OneStepMap& map, ConstParams theta, const Matrix& 
 
 // The floor test of the positions route (FloorTest): whether the library core, fitted to
 // segments of the positions, leaves residuals that are noise (`why` says what was measured).
-bool positions_floor(const Candidate& library, const BlockSplit& split, Index d, double spp,
-                     std::string& why);
+// Where it leaves smooth structure, its terms are judged on those segments (terms_on_segments);
+// when the changed core leaves noise, it replaces `library` (θ its segment fit's) and the test
+// passes. The judgement is recorded in rec["terms_on_positions"].
+bool positions_floor(Candidate& library, const BlockSplit& split, Index d, double spp,
+                     std::string& why, nlohmann::json& rec);
+
+// The library core's terms judged on segments of the positions (identify_positions_terms.cpp):
+// from `start` (the core `lib` fitted to them), each change that force_law_additions,
+// periodic_alternatives and polynomial_alternatives offer is refitted (θ and the hidden start
+// states), and the one that lowers the Bayesian information criterion of the training
+// positions most, n log(loss) + parameters x log n, is made; then again, until none lowers it.
+// Nothing is changed where the fit is at rounding level; at most 2d + 2 changes are made, and
+// the search ends after a change where `stop` (when given) says so. `q`: the training
+// positions (d x n). Throws Error on a stop request.
+using StopSearch = std::function<bool(const Candidate& lib, const SegmentFit& fit)>;
+struct TermsOnSegments {
+  Candidate lib;  // the core as changed (θ its fit's); a copy of `lib` when nothing changed
+  SegmentFit fit;
+  nlohmann::json trials;
+  bool changed = false;
+};
+TermsOnSegments terms_on_segments(const Candidate& lib, const SegmentFit& start, Index d,
+                                  const Matrix& q, const ShootingOptions& options,
+                                  const StopSearch& stop = {});
 
 // The cores compared on the positions: every trained candidate's segment fit, the held-out
 // loss of the positions decides (the library kept within three standard errors). Returns the

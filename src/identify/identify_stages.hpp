@@ -187,14 +187,17 @@ inline constexpr Index kLibraryMaxD = 10;
 struct LibraryFit {
   Candidate cand;
   nlohmann::json record;
+  bool thinned = false;  // its final fit saw the thinned windows (`start_only`)
 };
 // `dissipation`: IdentifyConfig::dissipation ("auto" selects Coulomb friction and drag beside
 // γ; "viscous" none; "viscous+coulomb", "viscous+drag" fit that term as given). On more than
 // 20,000 training windows the selection runs on 20,000 of them, evenly spread, and the final fit
-// on all (record["selection_windows"]).
+// on all (record["selection_windows"]), or with `start_only` (a later fit of the record refits
+// θ) on the 20,000 too.
 LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
                        double beta_init, const Normalization& units, bool balanced,
-                       const Communicator& comm, const std::string& dissipation = "auto");
+                       const Communicator& comm, const std::string& dissipation = "auto",
+                       bool start_only = false);
 
 // The dissipation terms beside γ (identify_dissipation.cpp; docs/identification.md, "Dry
 // friction and drag"):
@@ -217,12 +220,31 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
 // block: about −1/2 for one-step residuals of pure measurement noise, positive for a misfit.
 double lag_one_correlation(const Vector& res, const WindowSet& w);
 
+// The library's selection (start, additions, drops, dissipation) sees at most this many
+// training and this many held-out windows, evenly spread over the record; the final fit sees
+// them all. A
+// term is kept when it lowers the held-out loss by a share g of at least 2e-3. The fitted
+// parameters' own noise costs a model of p parameters about p / n of the loss (1e-4 for two
+// added terms), and on n held-out residuals the paired change of the loss is seen at about
+// √(g n) / 2 standard errors (4.5 at the threshold for 20,000 one-dof windows): a longer record
+// buys a narrower interval, not another choice. On 10⁵ samples the selection had taken a third
+// of a fit's time, and on 10⁶ a quarter.
+inline constexpr Index kSelectionWindows = 20000;
+// The split with at most `cap` training and `cap` held-out windows, evenly spread; the blocks
+// as they are (identify_library.cpp).
+BlockSplit selection_split(const BlockSplit& split, Index cap);
+
 // Longer windows when noise dominates misfit (an automatic window only); LM continues on them.
+// With `start_only` (a fit of the whole record or of the positions refits θ after) that LM
+// sees at most kSelectionWindows training and held-out windows, evenly spread (`thinned`):
+// the windows' θ is then a start, and a start needs no more windows than a choice of terms.
 struct WindowChoice {
   nlohmann::json choices = nlohmann::json::object();  // why this window; the LM spent on it
+  bool thinned = false;
 };
 WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split,
-                           const IdentifyConfig& given, bool pairs_file, bool balanced);
+                           const IdentifyConfig& given, bool pairs_file, bool balanced,
+                           bool start_only);
 
 // The largest absolute normalised coordinate: the data's scale for the interval's rounding term.
 double data_scale(const std::vector<Trajectory>& nt);
@@ -353,6 +375,9 @@ struct CoreFit {
   CoreChoice choice;
   WindowChoice windows;
   std::size_t best = 0;    // the chosen candidate
+  // The chosen core's last window fit saw thinned windows, a refit of the record to follow
+  // (the library's final fit, or the LM on longer windows): windows_on_every_window.
+  bool thinned_start = false;
   bool lm_fits = true;     // at most 6,000 parameters: LM and an interval
   bool stopped = false;    // a stop was requested during training
   IdentifyConfig config;   // with every automatic choice resolved
@@ -369,16 +394,25 @@ struct CoreFit {
 };
 // Whether the library core explains the data to the noise, so that the neural cores are not
 // trained; `why` says what was measured. The default judges the held-out one-step residuals
-// (at_noise_floor); the positions route judges the positions (identify_positions.cpp).
-using FloorTest =
-    std::function<bool(const Candidate& library, const BlockSplit& split, std::string& why)>;
+// (at_noise_floor); the positions route judges the positions (identify_positions.cpp), and may
+// replace the library candidate by one with terms judged there (its record in `record`).
+using FloorTest = std::function<bool(Candidate& library, const BlockSplit& split, std::string& why,
+                                     nlohmann::json& record)>;
+// Whether a later stage refits θ on the record (the whole-record fit, the positions fit) when
+// `core` is chosen: the windows' θ is then a start (fit_library's and adapt_windows'
+// `start_only`).
+using RefitFollows = std::function<bool(const nlohmann::json& core)>;
 CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
                  const IdentifyConfig& config, const IdentifyHooks& hooks,
-                 const FloorTest& floor_test = {});
+                 const FloorTest& floor_test = {}, const RefitFollows& refit_follows = {});
+// Where the chosen core was fitted on thinned windows as a start (CoreFit::thinned_start) and
+// the refit that was to follow was not made: its LM continued on every window, f's θ, γ̂,
+// losses and LM record from it.
+void windows_on_every_window(CoreFit& f, const IdentifyConfig& config, const IdentifyHooks& hooks);
 
 // Whether a record with momenta is fitted as a whole (config.record_fit: "whole", "windows",
 // or "auto": identify_states.cpp says when).
-bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config);
+bool whole_record_wanted(const nlohmann::json& core, const IdentifyConfig& config);
 // The whole-record fit of a record with momenta (identify_states.cpp): from the windows' fit,
 // θ and every segment's start state fitted to the observed q and p, the segments linked over
 // the record; the chosen candidate (f.cand[f.best]) carries its θ and core.

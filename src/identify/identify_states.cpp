@@ -78,9 +78,8 @@ void estimate_row_weights(const OneStepMap& map, ConstParams theta, Index d, Cut
 
 // "auto": the library core (a few parameters; a neural core's thousands make every segment's
 // sensitivities costly: an FPU chain of 16 dof took minutes where its windows took 6 s).
-bool whole_record_wanted(const CoreFit& f, const IdentifyConfig& config) {
+bool whole_record_wanted(const nlohmann::json& core, const IdentifyConfig& config) {
   if (config.record_fit != "auto") return config.record_fit == "whole";
-  const nlohmann::json& core = f.cand[f.best].core;
   return core.is_object() && core.value("type", "") == "library";
 }
 

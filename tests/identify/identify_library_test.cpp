@@ -277,6 +277,43 @@ TEST(LibraryCore, ALongRecordsTermsAreChosenOnEvenlySpreadWindows) {
   const auto* q4 = find_term(r.hamiltonian, "q1^4");
   ASSERT_NE(q4, nullptr) << r.hamiltonian.dump();
   EXPECT_TRUE(covers(*q4, 0.25)) << q4->dump();
+  // The whole record is fitted after the windows: the library's final fit and the LM on
+  // longer windows were its start, on the thinned windows.
+  EXPECT_TRUE(lib["selection_windows"]["final_fit_on_these"].get<bool>());
+  ASSERT_TRUE(r.choices.contains("lm_windows_thinned")) << r.choices.dump();
+  EXPECT_EQ(r.choices["lm_windows_thinned"]["windows"].get<long>(), 20000);
+  EXPECT_FALSE(r.choices.contains("then_every_window"));
+  ASSERT_TRUE(r.choices.contains("whole_record"));
+  EXPECT_FALSE(r.choices["whole_record"].contains("skipped")) << r.choices["whole_record"].dump();
+  EXPECT_TRUE(r.choices["whole_record"].contains("linking")) << r.choices["whole_record"].dump();
+}
+
+// Where the library's final fit was thinned for a whole-record fit that is then not made (no
+// segment of 3 samples: 30,000 trajectories of 2), the LM goes on over every window, and the
+// interval is the windows'.
+TEST(LibraryCore, ThinnedWindowsAreFittedOnEveryWindowWhenTheRecordIsNotFittedWhole) {
+  const double gamma = 0.05;
+  std::vector<Vector> starts;
+  Rng rng(11, "short-trajectories");
+  for (int k = 0; k < 30000; ++k) {
+    const double a = rng.uniform(0.5, 1.5), phase = rng.uniform(0.0, 2.0 * M_PI);
+    starts.push_back((Vector(2) << a * std::cos(phase), a * std::sin(phase)).finished());
+  }
+  const auto data =
+      rk4_records([](double q) { return -q - q * q * q; }, gamma, starts, 2, 0.15, 1e-3, 12);
+  IdentifyConfig c;
+  c.core = {{"type", "library"}};
+  const IdentifyResult r = identify(data, false, c);
+  const nlohmann::json& thin = r.choices["library"]["selection_windows"];
+  EXPECT_TRUE(thin["final_fit_on_these"].get<bool>()) << thin.dump();
+  EXPECT_EQ(thin["windows"].get<long>(), 20000);
+  EXPECT_GT(thin["of"].get<long>(), 20000);
+  ASSERT_TRUE(r.choices.contains("then_every_window")) << r.choices.dump();
+  EXPECT_TRUE(r.choices["whole_record"].contains("skipped")) << r.choices["whole_record"].dump();
+  ASSERT_TRUE(r.identified) << r.choices.dump();
+  ASSERT_TRUE(r.interval.has_value());
+  EXPECT_TRUE(r.interval->low <= gamma && gamma <= r.interval->high)
+      << r.gamma << " [" << r.interval->low << ", " << r.interval->high << "]";
 }
 
 }  // namespace

@@ -345,7 +345,9 @@ WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split
     std::optional<CandidateFit> thin_fit;
     if (out.thinned) thin_fit = fit.on(thin);
     CandidateFit& on = thin_fit ? *thin_fit : fit;
-    const long stage_b = on.lm_budget(best, 15.0);
+    // The budget of every window's fit (a budget by work would buy the thinned fit as many
+    // more iterations as it has fewer windows).
+    const long stage_b = fit.lm_budget(best, 15.0);
     choices["lm_iterations_windows"] = stage_b;
     if (out.thinned)
       choices["lm_windows_thinned"] = {

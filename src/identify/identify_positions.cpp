@@ -212,6 +212,7 @@ PositionsFit refine_on_positions(const std::vector<Trajectory>& positions, CoreF
   const bool terms_given = given.core.is_object() && given.core.contains("terms");
   const Index d = f.facts.d;
   const std::vector<Trajectory>& nt = f.units.trajectories;
+  if (hooks.stage) hooks.stage("hidden momenta: rest position, the segments' length");
   const std::string rest_terms = f.config.init == nullptr && !terms_given && !out.stopped
                                      ? add_rest_position_terms(f)
                                      : std::string();

@@ -89,6 +89,32 @@ Cut cut_segments(const std::vector<Trajectory>& blocks, Index d, Index len, Inde
   return c;
 }
 
+Cut evenly_spread_segments(const Cut& c, Index cap) {
+  const Index n = c.segs.size();
+  if (n <= cap) return c;
+  Cut out;
+  out.set_aside = c.set_aside;
+  out.segs.d = c.segs.d;
+  out.segs.row_weight = c.segs.row_weight;
+  out.z0.resize(c.z0.rows(), cap);
+  const auto copy_if = [](const auto& from, auto& to, std::size_t k) {
+    if (!from.empty()) to.push_back(from[k]);
+  };
+  for (Index j = 0; j < cap; ++j) {
+    const Index s = j * n / cap;
+    const auto k = static_cast<std::size_t>(s);
+    out.segs.q.push_back(c.segs.q[k]);
+    out.segs.h.push_back(c.segs.h[k]);
+    out.segs.block.push_back(c.segs.block[k]);
+    copy_if(c.segs.observed, out.segs.observed, k);
+    copy_if(c.segs.column_block, out.segs.column_block, k);
+    copy_if(c.segs.u, out.segs.u, k);
+    copy_if(c.at, out.at, k);
+    out.z0.col(j) = c.z0.col(s);
+  }
+  return out;
+}
+
 // The largest growth of a perturbation of the start state along any segment's fitted rollout,
 // ‖∂z_L/∂z_0‖ (Frobenius). A damped system contracts; a fitted map whose rollout amplifies a
 // perturbation 1e6-fold over one segment has start states poised on an unstable manifold of
@@ -119,7 +145,7 @@ Index segment_length(const OneStepMap& map, ConstParams theta,
   std::vector<std::pair<Index, double>> losses;
   for (Index len = 10; len <= longest;
        len = len * 2 > longest && len < longest ? longest : 2 * len) {
-    Cut c = cut_segments(blocks, d, len, rows);
+    Cut c = evenly_spread_segments(cut_segments(blocks, d, len, rows), kLengthSegments);
     const double loss =
         fit_start_states(map, theta, c.segs, c.z0, 30, true, kMaxAbsState, kScoringTolerance);
     const double corrected = loss * static_cast<double>(len) / static_cast<double>(len - 2);

@@ -94,6 +94,7 @@ WholeRecordFit fit_whole_record(CoreFit& f, const IdentifyConfig& given,
   rec = {{"method",
           "multiple shooting over the whole record with q and p observed, each row weighted by "
           "its noise (errors in variables); segments linked by continuity"}};
+  if (hooks.stage) hooks.stage("whole record: the segments' length");
   const double spp = samples_per_period(nt);
   nlohmann::json tried = nlohmann::json::array();
   if (cut_segments(f.split.train_blocks, d, 10, rows).segs.size() == 0) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <optional>
 
@@ -403,6 +404,9 @@ class LibrarySelection {
     rec_["data_rate"] = omega;
     rec_["substeps_start"] = substeps;
     Candidate x = make(active_terms(), substeps, nullptr);
+    // The regression over every training window does not poll: after a stop request the
+    // candidate stays as made (10 dof and 2,000 samples: 0.1 s, 0.6 s under the sanitizers).
+    if (fit_->stop_requested()) return x;
     regression_start(x, split_->train);
     train_lm(x, kRoundIterations, "library: start");
     refine_integrator(x, "start");
@@ -904,18 +908,32 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
                                 : "the final fit was made on all")},
         {"final_fit_on_these", start_only}};
   Candidate x = sel.start();
-  sel.dissipation(x, dissipation, "after the start");
-  sel.forward(x);
-  sel.backward(x);
-  sel.prune_dissipation(x, dissipation);
-  sel.dissipation(x, dissipation, "after the potential's terms");
-  if (!start_only) sel.use(fit);
-  if (thinned && !start_only) x.val_loss = fit.loss(x, all.val);
-  sel.finish(x);
-  if (thinned && start_only) {
-    x.val_loss = fit.loss(x, all.val);
-    out.record["val_loss"] = x.val_loss;
-    out.thinned = true;
+  // The stages in turn; a stop request ends the selection between them (each stage's LM ends
+  // at once, but its rankings, checks and integrator comparison run on): the candidate as it
+  // stands, which the caller reports as stopped.
+  const std::function<void()> stages[] = {
+      [&] { sel.dissipation(x, dissipation, "after the start"); },
+      [&] { sel.forward(x); },
+      [&] { sel.backward(x); },
+      [&] { sel.prune_dissipation(x, dissipation); },
+      [&] { sel.dissipation(x, dissipation, "after the potential's terms"); },
+      [&] {
+        if (!start_only) sel.use(fit);
+        if (thinned && !start_only) x.val_loss = fit.loss(x, all.val);
+        sel.finish(x);
+        if (thinned && start_only) {
+          x.val_loss = fit.loss(x, all.val);
+          out.record["val_loss"] = x.val_loss;
+          out.thinned = true;
+        }
+      }};
+  for (const std::function<void()>& stage : stages) {
+    if (fit.stop_requested()) {
+      fit.note_stop();
+      out.record["stopped"] = "a stop was requested: the selection ended here";
+      break;
+    }
+    stage();
   }
   out.record["seconds"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

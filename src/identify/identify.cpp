@@ -501,9 +501,9 @@ CoreFit fit_core(const std::vector<Trajectory>& trajs, bool pairs_only,
     // Not judged after a stop request: the fit ends with the candidate as it stands.
     const bool stopping = fit.stop_requested();
     const bool at_floor =
-        !stopping && (floor_test && cc.choosing
-                          ? floor_test(lib.cand, f.split, floor_reason, lib.record)
-                          : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason));
+        !stopping &&
+        (floor_test && cc.choosing ? floor_test(lib.cand, f.split, floor_reason, lib.record)
+                                   : at_noise_floor(lib.cand, f.split, c.balanced, floor_reason));
     if (stopping) floor_reason = "not judged: a stop was requested";
     if (at_floor && cc.choosing) cc.cores.clear();
     lib.record["floor"] = floor_reason;

@@ -883,8 +883,7 @@ BlockSplit selection_split(const BlockSplit& split, Index cap) {
 
 LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Index d,
                        double beta_init, const Normalization& units, bool balanced,
-                       const Communicator& comm, const std::string& dissipation,
-                       bool start_only) {
+                       const Communicator& comm, const std::string& dissipation, bool start_only) {
   const auto t0 = std::chrono::steady_clock::now();
   LibraryFit out;
   const BlockSplit& all = fit.split();

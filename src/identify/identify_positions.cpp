@@ -413,14 +413,14 @@ IdentifyResult positions_once(const std::vector<Trajectory>& positions,
   const detail::VelocityStart start = detail::velocity_start(positions);
   const double spp = detail::samples_per_period(positions);
   const Index d = positions.front().z.rows();
-  detail::CoreFit f =
-      detail::fit_core(start.states, false, config, hooks,
-                       [spp, d](detail::Candidate& lib, const detail::BlockSplit& split,
-                                std::string& why, nlohmann::json& rec) {
-                         return detail::positions_floor(lib, split, d, spp, why, rec);
-                       },
-                       // The positions fit refits θ from the windows' (refine_on_positions).
-                       [](const nlohmann::json&) { return true; });
+  detail::CoreFit f = detail::fit_core(
+      start.states, false, config, hooks,
+      [spp, d](detail::Candidate& lib, const detail::BlockSplit& split, std::string& why,
+               nlohmann::json& rec) {
+        return detail::positions_floor(lib, split, d, spp, why, rec);
+      },
+      // The positions fit refits θ from the windows' (refine_on_positions).
+      [](const nlohmann::json&) { return true; });
   const detail::PositionsFit p = detail::refine_on_positions(positions, f, config, hooks);
   // Not made (no segment of 3 positions, or more than 6,000 parameters): the windows' θ is
   // the answer, fitted on every window.

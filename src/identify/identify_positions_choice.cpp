@@ -125,18 +125,17 @@ std::optional<TermsOnSegments> terms_that_leave_noise(const detail::Candidate& v
 
 // The floor test of the positions route (detail::FloorTest): the library core, with its rest
 // position terms, fitted to segments of up to two periods (80 positions at most) of the
-// positions (at most 20,000 positions a side, evenly spread); when the lag-one correlation of its held-out residuals is within three standard
-// errors (1/√pairs each) of what measurement noise leaves, nothing smooth is left for a neural
-// core to explain, and those are not trained. Noise leaves −2/(L − 2) over segments of L
-// positions: each coordinate's fitted start (a position and a momentum) takes the residuals'
-// slowest part. A misfit of the force shows as a positive excess, the larger the longer the
-// segments (over 10 positions the fitted starts absorb it). The velocity start's own test
-// judges velocities from local fits, whose errors are smooth: there a linear two-cart record
-// at 0.2% noise "left structure", and two neural cores were trained and fitted on the
-// positions to lose (30 of a fit's 35 CPU s).
-// Where the velocity stage's terms leave structure, the terms are judged on the same segments
-// first (terms_that_leave_noise): between families that differ by less than the velocities'
-// errors, its choice was a coin toss.
+// positions (at most 20,000 positions a side, evenly spread); when the lag-one correlation of its
+// held-out residuals is within three standard errors (1/√pairs each) of what measurement noise
+// leaves, nothing smooth is left for a neural core to explain, and those are not trained. Noise
+// leaves −2/(L − 2) over segments of L positions: each coordinate's fitted start (a position and a
+// momentum) takes the residuals' slowest part. A misfit of the force shows as a positive excess,
+// the larger the longer the segments (over 10 positions the fitted starts absorb it). The velocity
+// start's own test judges velocities from local fits, whose errors are smooth: there a linear
+// two-cart record at 0.2% noise "left structure", and two neural cores were trained and fitted on
+// the positions to lose (30 of a fit's 35 CPU s). Where the velocity stage's terms leave structure,
+// the terms are judged on the same segments first (terms_that_leave_noise): between families that
+// differ by less than the velocities' errors, its choice was a coin toss.
 bool positions_floor(detail::Candidate& library, const detail::BlockSplit& split, Index d,
                      double spp, std::string& why, nlohmann::json& rec) {
   std::optional<detail::Candidate> rest = detail::with_rest_position_terms(library, d);

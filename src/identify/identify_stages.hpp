@@ -374,7 +374,7 @@ struct CoreFit {
   std::vector<Candidate> cand;
   CoreChoice choice;
   WindowChoice windows;
-  std::size_t best = 0;    // the chosen candidate
+  std::size_t best = 0;  // the chosen candidate
   // The chosen core's last window fit saw thinned windows, a refit of the record to follow
   // (the library's final fit, or the LM on longer windows): windows_on_every_window.
   bool thinned_start = false;

@@ -15,6 +15,7 @@
 #include "csympnet/identify/identify.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/models/model.hpp"
+#include "oversampled_pendulum.hpp"
 
 namespace csympnet::detail {
 namespace {
@@ -125,26 +126,8 @@ TEST(PositionsTerms, AnOversampledPendulumIsFittedByTheLibraryAloneFromPositions
   // The record of IdentifyForceLaw (V = -cos q, γ = 0.02, 0.6 rad, 85 samples per period), fitted
   // with every core a candidate: the velocity stage keeps a harmonic force, the floor test's
   // segments see its misfit, and the terms judged there leave noise, so no neural core is trained.
-  const nlohmann::json core = {
-      {"type", "library"}, {"terms", {"cos(q1)"}}, {"order", 6}, {"substeps", 8}};
-  const Model truth =
-      make_model({{"type", "csympnet"}, {"d", 1}, {"core", core}, {"beta_init", 0.1}});
-  Vector theta = Vector::Zero(truth.n_params());
-  theta(0) = 1.0;
-  theta(1) = -1.0;
-  theta(2) = 1.0;
   const double gamma = 0.02;
-  theta(3) = gamma;
-  const int n = 4000;
-  const double h = 2.0 * M_PI / 85.0;
-  Matrix z(2, n);
-  z.col(0) << 0.6, 0.0;
-  const Vector step = Vector::Constant(1, h);
-  for (int k = 1; k < n; ++k) z.col(k) = truth.map->forward(theta, z.col(k - 1), step, nullptr);
-  Rng rng(3, "oversampled-pendulum");
-  Trajectory t;
-  t.t = Vector::LinSpaced(n, 0.0, h * (n - 1));
-  t.z = z.topRows(1) + 0.6 * 2e-3 * rng.normal_matrix(1, n, 1.0);
+  const Trajectory t = oversampled_pendulum(gamma);
   const IdentifyResult r = identify_positions({t}, IdentifyConfig{});
   ASSERT_TRUE(r.identified) << r.verdict;
   EXPECT_LE(r.interval->low, gamma);

@@ -43,6 +43,15 @@
 #include "csympnet/models/model.hpp"
 #include "csympnet/models/model_file.hpp"
 
+// The sanitizer build: gcc defines __SANITIZE_ADDRESS__, clang answers __has_feature.
+#if defined(__SANITIZE_ADDRESS__)
+#define CSYMPNET_UNDER_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define CSYMPNET_UNDER_ASAN 1
+#endif
+#endif
+
 namespace csympnet {
 namespace {
 
@@ -1194,7 +1203,7 @@ TEST_F(HostileFiles, ModelFilesBeyondWhatAModelHoldsAreRefusedUnderAMemoryLimit)
     write_file(dir_ / "big.json", text);
   }
   SpawnOptions o;
-#if !defined(__SANITIZE_ADDRESS__)
+#if !defined(CSYMPNET_UNDER_ASAN)
   // AddressSanitizer reserves terabytes of address space for its shadow memory, so a limit on
   // the address space stops it before main(); under it the refusals alone are checked.
   o.address_space_kb = 600000;

@@ -15,6 +15,8 @@ namespace csympnet::kernels {
 
 namespace {
 
+#ifdef CSYMPNET_FMA_KERNELS
+
 // Inner block: the kernels run l in blocks of kInnerBlock, each continuing every chain from the
 // partial the previous block stored, so A's m x kInnerBlock block stays in L2 and a tile's
 // kInnerBlock x 8 block of B in L1 (at m = 100: 200 KiB and 16 KiB).
@@ -55,8 +57,6 @@ void run_blocked(FmaKernel kernel, const FmaArgs& p, Index kc) {
     kernel(q, l, q.k, part, ldp, nullptr, 0);
   }
 }
-
-#ifdef CSYMPNET_FMA_KERNELS
 
 FmaKernel kernel_named(const char* isa) {
   if (std::strcmp(isa, "avx512") == 0) return fma_product_avx512;

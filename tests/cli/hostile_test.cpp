@@ -42,15 +42,7 @@
 #include "csympnet/io/files.hpp"
 #include "csympnet/models/model.hpp"
 #include "csympnet/models/model_file.hpp"
-
-// The sanitizer build: gcc defines __SANITIZE_ADDRESS__, clang answers __has_feature.
-#if defined(__SANITIZE_ADDRESS__)
-#define CSYMPNET_UNDER_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define CSYMPNET_UNDER_ASAN 1
-#endif
-#endif
+#include "support/sanitizers.hpp"
 
 namespace csympnet {
 namespace {

@@ -11,6 +11,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 
 namespace csympnet::detail {
@@ -47,9 +48,8 @@ DampingBasis coordinate_damping_basis(Index d) {
 DampingBasis modal_damping_basis(const Matrix& p) {
   const Index d = p.rows();
   require(p.cols() == d, "modal damping basis: expected a square matrix of directions");
-  const Eigen::FullPivLU<Matrix> lu(p);
-  require(lu.isInvertible(), "modal damping basis: the directions are not independent");
-  const Matrix p_inv = lu.inverse();
+  require(dense::is_invertible(p), "modal damping basis: the directions are not independent");
+  const Matrix p_inv = dense::full_pivot_inverse(p);
   DampingBasis b{"a rate per mode of the fitted core's linearisation", {}, Vector::Ones(d)};
   for (Index k = 0; k < d; ++k) b.e.push_back(p.col(k) * p_inv.row(k));
   return b;
@@ -178,9 +178,7 @@ FixedPoint nearest_fixed_point(const OneStepMap& map, const Vector& theta, Vecto
     // Least squares of least norm: a map with a line of equilibria (a free chain's
     // translation) has J − I singular (to within what training leaves, hence the relative
     // rank threshold), and the nearest equilibrium is wanted.
-    Eigen::CompleteOrthogonalDecomposition<Matrix> cod(j);
-    cod.setThreshold(1e-7);
-    const Vector step = -cod.solve(f);
+    const Vector step = -dense::least_norm_solution(j, f, 1e-7);
     if (!step.allFinite()) break;
     double t = 1.0;
     bool improved = false;
@@ -206,20 +204,20 @@ std::optional<Vector> map_fixed_point(const OneStepMap& map, const Vector& theta
 
 std::optional<LinearModes> modes_of_linear_map(const Matrix& jac, double h) {
   const Index d = jac.rows() / 2;
-  const Eigen::EigenSolver<Matrix> es(jac);
-  if (es.info() != Eigen::Success) return std::nullopt;
+  const dense::Eigensystem es = dense::eigensystem(jac, true);
+  if (!es.ok) return std::nullopt;
   std::vector<std::pair<double, Vector>> modes;  // (angle, real p direction)
   for (Index i = 0; i < 2 * d; ++i) {
-    const std::complex<double> lambda = es.eigenvalues()(i);
+    const std::complex<double> lambda = es.values(i);
     if (!(lambda.imag() > 1e-9) || std::abs(std::abs(lambda) - 1.0) > 0.1) continue;
-    const Eigen::VectorXcd vp = es.eigenvectors().col(i).tail(d);
+    const Eigen::VectorXcd vp = es.vectors.col(i).tail(d);
     Matrix ri(d, 2);
     ri.col(0) = vp.real();
     ri.col(1) = vp.imag();
-    const Eigen::JacobiSVD<Matrix> svd(ri, Eigen::ComputeThinU);
-    const Vector s = svd.singularValues();
+    const dense::SingularValues svd = dense::singular_values(ri, true);
+    const Vector& s = svd.values;
     if (!(s(0) > 0.0) || s(1) > kMaxImaginaryShare * s(0)) return std::nullopt;
-    modes.emplace_back(std::arg(lambda), svd.matrixU().col(0));
+    modes.emplace_back(std::arg(lambda), svd.u.col(0));
   }
   if (static_cast<Index>(modes.size()) != d) return std::nullopt;
   std::sort(modes.begin(), modes.end(),
@@ -232,8 +230,7 @@ std::optional<LinearModes> modes_of_linear_map(const Matrix& jac, double h) {
     out.frequency(k) = modes[static_cast<std::size_t>(k)].first / h;
     out.p.col(k) = modes[static_cast<std::size_t>(k)].second;
   }
-  const Eigen::JacobiSVD<Matrix> svd(out.p);
-  const Vector s = svd.singularValues();
+  const Vector s = dense::singular_values(out.p, false).values;
   if (!(s(d - 1) > 0.0) || s(0) / s(d - 1) > kMaxCondition) return std::nullopt;
   return out;
 }

@@ -6,6 +6,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/identify/model_checks.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
@@ -54,9 +55,9 @@ void dissipation_start(Candidate& y, std::size_t first, const WindowSet& train) 
       }
     }
   const Matrix ata = a.transpose() * a;
-  const Eigen::LDLT<Matrix> l(ata + 1e-10 * std::max(ata.diagonal().maxCoeff(), 1e-300) *
-                                        Matrix::Identity(ata.rows(), ata.cols()));
-  const Vector sol = l.solve(a.transpose() * b);
+  const dense::Ldlt l(ata + 1e-10 * std::max(ata.diagonal().maxCoeff(), 1e-300) *
+                                Matrix::Identity(ata.rows(), ata.cols()));
+  const Vector sol = l.solve(Vector(a.transpose() * b));
   if (!sol.allFinite()) return;
   // A rate that the residuals put at or below 0 starts small and positive (|θ| has no slope
   // at 0): LM takes it down if the data say so.

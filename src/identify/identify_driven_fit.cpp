@@ -6,6 +6,7 @@
 
 #include <Eigen/QR>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
 #include "csympnet/core/stop.hpp"
@@ -56,7 +57,7 @@ Vector driven_start(const HamiltonianLibraryMap& map, const std::vector<Trajecto
   const auto n = static_cast<Index>(rows_b.size());
   const Matrix a = Eigen::Map<const RowMajorMatrix>(rows_a.data(), n, cols);
   const Vector b = Eigen::Map<const Vector>(rows_b.data(), n);
-  const Vector x = a.colPivHouseholderQr().solve(b);
+  const Vector x = dense::least_squares(a, b);
   if (!x.allFinite()) return theta;
   for (Index c = 0; c < nt_terms; ++c) theta(map.coefficient_index(c)) = x(c);
   // β must be nonzero (γ̂ = |β| has no slope at 0); a negative start is a noisy one.

@@ -17,6 +17,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/stop.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/shooting.hpp"
@@ -56,10 +57,10 @@ double mean_square(const ShootingSegments& segs) {
 // `step` (optional) receives the Gauss–Newton step −A⁺g.
 double gauss_newton_gain(const Matrix& a, const Vector& g, Vector* step = nullptr) {
   if (g.size() == 0) return 0.0;
-  const Eigen::SelfAdjointEigenSolver<Matrix> e(a);
-  const Vector& l = e.eigenvalues();
+  const dense::SymmetricEigen e = dense::symmetric_eigen(a);
+  const Vector& l = e.values;
   const double top = std::max(l.maxCoeff(), 0.0);
-  const Vector c = e.eigenvectors().transpose() * g;
+  const Vector c = e.vectors.transpose() * g;
   Vector w = Vector::Zero(l.size());
   double gain = 0.0;
   for (Index k = 0; k < l.size(); ++k)
@@ -67,7 +68,7 @@ double gauss_newton_gain(const Matrix& a, const Vector& g, Vector* step = nullpt
       gain += c(k) * c(k) / l(k);
       w(k) = -c(k) / l(k);
     }
-  if (step != nullptr) *step = e.eigenvectors() * w;
+  if (step != nullptr) *step = e.vectors * w;
   return gain;
 }
 

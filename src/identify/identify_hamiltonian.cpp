@@ -15,6 +15,7 @@
 
 #include <Eigen/LU>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
@@ -240,7 +241,7 @@ nlohmann::json hamiltonian_report(const OneStepMap& any_map, const Vector& theta
     for (Index c = 0; c < d; ++c) row.push_back(w(r, c));
     inv_mass.push_back(row);
   }
-  const Matrix m = w.fullPivLu().isInvertible() ? Matrix(w.inverse()) : Matrix::Zero(d, d);
+  const Matrix m = dense::is_invertible(w) ? dense::inverse(w) : Matrix(Matrix::Zero(d, d));
   nlohmann::json mass = nlohmann::json::array();
   for (Index r = 0; r < d; ++r) {
     nlohmann::json row = nlohmann::json::array();

@@ -11,6 +11,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
@@ -108,8 +109,8 @@ void regression_start(Candidate& x, const WindowSet& w) {
   }
   // W: each row of q̇ = W p̄ by least squares, then symmetrised.
   const Matrix ppt = pbar * pbar.transpose();
-  const Eigen::LDLT<Matrix> pl(ppt + 1e-12 * ppt.trace() * Matrix::Identity(d, d));
-  Matrix wm = pl.solve(pbar * qdot.transpose()).transpose();
+  const dense::Ldlt pl(ppt + 1e-12 * ppt.trace() * Matrix::Identity(d, d));
+  Matrix wm = pl.solve(Matrix(pbar * qdot.transpose())).transpose();
   wm = 0.5 * (wm + wm.transpose());
   // ṗ = −Σ c_k ∇φ_k(q̄) − γ p̄: columns −∇φ_k and −p̄, stacked over coordinates and samples.
   Matrix a(n * d, k_terms + 1);
@@ -139,9 +140,9 @@ void regression_start(Candidate& x, const WindowSet& w) {
   for (Index i = 0; i < n; ++i)
     for (Index r = 0; r < d; ++r) b(i * d + r) = pdot(r, i);
   const Matrix ata = a.transpose() * a;
-  const Eigen::LDLT<Matrix> al(ata + 1e-10 * ata.diagonal().maxCoeff() *
-                                         Matrix::Identity(ata.rows(), ata.cols()));
-  const Vector sol = al.solve(a.transpose() * b);
+  const dense::Ldlt al(ata + 1e-10 * ata.diagonal().maxCoeff() *
+                                 Matrix::Identity(ata.rows(), ata.cols()));
+  const Vector sol = al.solve(Vector(a.transpose() * b));
   if (!sol.allFinite() || !wm.allFinite()) return;
   for (Index r = 0; r < d; ++r)
     for (Index c = 0; c <= r; ++c)
@@ -296,7 +297,7 @@ std::vector<Addition> ranked_additions(const Candidate& x, const std::vector<Lib
         ass(r, c) = a(s[static_cast<std::size_t>(r)], s[static_cast<std::size_t>(c)]);
     }
     ass.diagonal() += 1e-10 * ass.diagonal().cwiseMax(1e-300);
-    const Eigen::LDLT<Matrix> ldlt(ass);
+    const dense::Ldlt ldlt(ass);
     const Vector ags = ldlt.solve(gs);
     for (const std::vector<Index>& group : groups) {
       std::vector<Index> add;
@@ -320,8 +321,8 @@ std::vector<Addition> ranked_additions(const Candidate& x, const std::vector<Lib
       const Vector num = gg - b.transpose() * ags;
       Matrix den = agg - b.transpose() * ldlt.solve(b);
       den.diagonal() += 1e-12 * agg.diagonal().cwiseMax(1e-300);
-      const Eigen::LDLT<Matrix> dl(den);
-      if (dl.info() != Eigen::Success || !num.allFinite()) continue;
+      const dense::Ldlt dl(den);
+      if (!dl.ok() || !num.allFinite()) continue;
       const Vector step = -dl.solve(num);
       const double gain = std::clamp(-0.5 * num.dot(step) / std::max(ne.cost, 1e-300), 0.0, 1.0);
       if (!std::isfinite(gain) || gain <= 0.0) continue;

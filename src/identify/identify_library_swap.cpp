@@ -7,6 +7,7 @@
 
 #include <Eigen/QR>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "identify_stages.hpp"
@@ -147,7 +148,7 @@ std::vector<PolynomialAlternative> polynomial_alternatives(const Candidate& lib,
     // Centred columns: the constant is no term.
     const Vector ones = Vector::Ones(n);
     const Matrix xc = x.rowwise() - x.colwise().mean();
-    const Vector poly = xc.colPivHouseholderQr().solve(y - ones * y.mean());
+    const Vector poly = dense::least_squares(xc, Vector(y - ones * y.mean()));
     if (!poly.allFinite()) continue;
     Swapped sw = swapped_candidate(lib, d, next, group);
     for (int p = 1; p <= 4; ++p) {
@@ -218,7 +219,7 @@ std::vector<PolynomialAlternative> periodic_alternatives(const Candidate& lib, I
                 term_values(terms[k], u, 0.0).phi;
     }
     const Matrix xc = x.rowwise() - x.colwise().mean();
-    const Vector fit = xc.colPivHouseholderQr().solve(y - Vector::Ones(n) * y.mean());
+    const Vector fit = dense::least_squares(xc, Vector(y - Vector::Ones(n) * y.mean()));
     if (!fit.allFinite()) continue;
     Swapped sw = swapped_candidate(lib, d, next, removed);
     sw.coefficient(base) += fit(0);

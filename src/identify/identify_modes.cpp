@@ -10,6 +10,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "damping_profile.hpp"
 #include "identify_stages.hpp"
@@ -36,11 +37,11 @@ std::optional<std::vector<Complex>> mode_eigenvalues(const OneStepMap& map, cons
   const FixedPoint fixed = nearest_fixed_point(map, theta, z, h);
   if (!(fixed.residual <= tolerance)) return std::nullopt;
   z = fixed.z;
-  const Eigen::EigenSolver<Matrix> es(map.jacobian(theta, z, h), false);
-  if (es.info() != Eigen::Success) return std::nullopt;
+  const dense::Eigensystem es = dense::eigensystem(map.jacobian(theta, z, h), false);
+  if (!es.ok) return std::nullopt;
   std::vector<Complex> s;
-  for (Index i = 0; i < es.eigenvalues().size(); ++i) {
-    const Complex mu = es.eigenvalues()(i);
+  for (Index i = 0; i < es.values.size(); ++i) {
+    const Complex mu = es.values(i);
     // An oscillation: an angle per step beyond rounding, and a decay slower than critical.
     const Complex x = std::log(mu) / h;
     if (std::arg(mu) > 1e-6 && ratio_of(x) < 0.999 && ratio_of(x) > -0.999) s.push_back(x);

@@ -20,6 +20,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/stop.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
 #include "csympnet/train/shooting.hpp"
@@ -73,8 +74,9 @@ WaldModel wald_model(const Candidate& lib, const LinkedFit& linked,
       map, lib.theta, linked.chain.z0, segs, map.n_params(),
       1.0 / std::sqrt(static_cast<double>(n)), false, options.should_stop);
   if (ne.stopped) throw_if_stop_requested("the Wald test of the library terms on the positions");
-  const Eigen::SelfAdjointEigenSolver<Matrix> e(Matrix(ne.a.selfadjointView<Eigen::Lower>()));
-  const Vector& l = e.eigenvalues();
+  const dense::SymmetricEigen e =
+      dense::symmetric_eigen(Matrix(ne.a.selfadjointView<Eigen::Lower>()));
+  const Vector& l = e.values;
   const double top = std::max(l.maxCoeff(), 0.0);
   Vector inv = Vector::Zero(l.size());
   std::vector<Index> null;
@@ -84,8 +86,8 @@ WaldModel wald_model(const Candidate& lib, const LinkedFit& linked,
     else
       null.push_back(k);
   WaldModel m;
-  m.a_pinv = e.eigenvectors() * inv.asDiagonal() * e.eigenvectors().transpose();
-  m.null_space = e.eigenvectors()(Eigen::all, null);
+  m.a_pinv = e.vectors * inv.asDiagonal() * e.vectors.transpose();
+  m.null_space = e.vectors(Eigen::all, null);
   const Vector step = -(m.a_pinv * ne.g);
   m.optimum = lib.theta + step;
   m.optimum_loss = 2.0 * ne.cost + ne.g.dot(step);
@@ -117,11 +119,11 @@ std::optional<double> wald_rise(const WaldModel& m, const std::vector<Index>& fi
     for (Index j = 0; j < k; ++j)
       w(i, j) = m.a_pinv(fixed[static_cast<std::size_t>(i)], fixed[static_cast<std::size_t>(j)]);
   }
-  const Eigen::SelfAdjointEigenSolver<Matrix> e(w);
+  const dense::SymmetricEigen e = dense::symmetric_eigen(w);
   const double largest = std::max(m.a_pinv.diagonal().maxCoeff(), 0.0);
-  if (!(e.eigenvalues().minCoeff() > 1e-9 * largest)) return std::nullopt;
-  const Vector c = e.eigenvectors().transpose() * t;
-  const double rise = c.cwiseAbs2().cwiseQuotient(e.eigenvalues()).sum();
+  if (!(e.values.minCoeff() > 1e-9 * largest)) return std::nullopt;
+  const Vector c = e.vectors.transpose() * t;
+  const double rise = c.cwiseAbs2().cwiseQuotient(e.values).sum();
   return std::isfinite(rise) ? std::optional<double>(rise) : std::nullopt;
 }
 

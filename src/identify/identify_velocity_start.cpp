@@ -9,6 +9,7 @@
 
 #include <Eigen/QR>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "identify_positions.hpp"
 
@@ -72,7 +73,8 @@ Trajectory with_local_velocities(const Trajectory& t, double half) {
       const double s = (t.t(i) - t.t(j)) / half;
       for (Index p = 0; p <= degree; ++p) x(i - lo, p) = std::pow(s, static_cast<double>(p));
     }
-    const Matrix coef = x.colPivHouseholderQr().solve(t.z.middleCols(lo, hi - lo + 1).transpose());
+    const Matrix coef =
+        dense::least_squares(x, dense::RowMajor(t.z.middleCols(lo, hi - lo + 1).transpose()));
     out.z.col(j).tail(d) = coef.row(1).transpose() / half;
   }
   return out;

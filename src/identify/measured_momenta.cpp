@@ -16,6 +16,7 @@
 
 #include <Eigen/QR>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/identify/model_checks.hpp"
 
 namespace csympnet {
@@ -65,7 +66,7 @@ Fit least_squares(const Matrix& x, const Vector& y) {
   for (Index j = 0; j < scale.size(); ++j)
     if (!(scale(j) > 0.0)) scale(j) = 1.0;
   a = a * scale.cwiseInverse().asDiagonal();
-  const Vector c = a.colPivHouseholderQr().solve(y);
+  const Vector c = dense::least_squares(a, y);
   return {(y - a * c).squaredNorm(), (y.array() - y.mean()).square().sum()};
 }
 
@@ -95,7 +96,7 @@ double interpolate_centre(const Vector& t, const Matrix& z, Index dof, Index c, 
     for (Index m = 0; m <= deg; ++m, power *= tau) v(row, m) = power;
     y(row++) = z(dof, c + j);
   }
-  return v.colPivHouseholderQr().solve(y)(0);
+  return dense::least_squares(v, y)(0);
 }
 
 // The regression rows of one group of trajectories (one long trajectory, or the short ones

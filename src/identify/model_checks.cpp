@@ -1,4 +1,5 @@
 #include "csympnet/identify/model_checks.hpp"
+#include "csympnet/core/dense.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -302,9 +303,9 @@ ModelCheck linear_damping_check(const CheckInput& in, double c, double se_c,
 
 // Real parts of the eigenvalues of C, ascending.
 std::vector<double> sorted_rates(const Matrix& c) {
-  Eigen::EigenSolver<Matrix> es(c, false);
+  const dense::Eigensystem es = dense::eigensystem(c, false);
   std::vector<double> r;
-  for (Index i = 0; i < c.rows(); ++i) r.push_back(es.eigenvalues()(i).real());
+  for (Index i = 0; i < c.rows(); ++i) r.push_back(es.values(i).real());
   std::sort(r.begin(), r.end());
   return r;
 }
@@ -360,13 +361,13 @@ Wald robust_wald(const std::vector<BlockProfile>& bs, const Matrix& a_inv, const
   const Matrix proj = Matrix::Identity(ne, ne) - u * u.transpose();
   const Vector pd = proj * delta;
   const Matrix pv = proj * v * proj;
-  Eigen::SelfAdjointEigenSolver<Matrix> es(0.5 * (pv + pv.transpose()));
-  const double top = es.eigenvalues().cwiseAbs().maxCoeff();
+  const dense::SymmetricEigen es = dense::symmetric_eigen(0.5 * (pv + pv.transpose()));
+  const double top = es.values.cwiseAbs().maxCoeff();
   double wald = 0.0;
   for (Index i = 0; i < ne; ++i) {
-    const double ev = es.eigenvalues()(i);
+    const double ev = es.values(i);
     if (ev <= 1e-12 * top) continue;  // the common direction, and any the data do not see
-    const double x = es.eigenvectors().col(i).dot(pd);
+    const double x = es.vectors.col(i).dot(pd);
     wald += x * x / ev;
   }
   const double q = static_cast<double>(w.q);
@@ -383,7 +384,7 @@ double heldout_gain_t(const std::vector<FoldSums>& f, const FoldSums& all, doubl
   std::vector<double> gain;
   for (const FoldSums& s : f) {
     const Vector delta =
-        -(all.a - s.a + ridge * Matrix::Identity(ne, ne)).ldlt().solve(all.g - s.g);
+        -dense::Ldlt(all.a - s.a + ridge * Matrix::Identity(ne, ne)).solve(Vector(all.g - s.g));
     const double out_full = -2.0 * s.g.dot(delta) - delta.dot(s.a * delta);
     const double rest = all.sa - s.sa;
     const double dc = rest > 0.0 ? -(all.sg - s.sg) / rest : 0.0;
@@ -422,8 +423,8 @@ ModeRates mode_rates(const DampingBasis& basis, const std::optional<detail::Line
   out.rate = rates_of(delta);
   std::vector<std::vector<double>> fold_rates;
   for (const FoldSums& s : f)
-    fold_rates.push_back(
-        rates_of(-(all.a - s.a + ridge * Matrix::Identity(ne, ne)).ldlt().solve(all.g - s.g)));
+    fold_rates.push_back(rates_of(
+        -dense::Ldlt(all.a - s.a + ridge * Matrix::Identity(ne, ne)).solve(Vector(all.g - s.g))));
   const double nf = static_cast<double>(f.size());
   const auto jackknife_se = [&](const std::function<double(const std::vector<double>&)>& stat) {
     double m = 0.0, v = 0.0;
@@ -480,7 +481,7 @@ ModelCheck one_rate_check(const CheckInput& in, const DampingProfile& prof, doub
     all.sg += s.sg;
   }
   const double ridge = 1e-10 * all.a.trace() / static_cast<double>(ne) + 1e-300;
-  const Matrix a_inv = (all.a + ridge * Matrix::Identity(ne, ne)).inverse();
+  const Matrix a_inv = dense::inverse(all.a + ridge * Matrix::Identity(ne, ne));
   const Vector delta = -a_inv * all.g;
   const Wald w = robust_wald(bs, a_inv, delta, basis.common);
   k.statistic = w.f;

@@ -1,4 +1,5 @@
 #include "csympnet/models/hamiltonian_library.hpp"
+#include "csympnet/core/dense.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -258,8 +259,7 @@ void HamiltonianLibraryMap::check_inverse_mass(ConstParams theta, const std::str
     });
   }
   if (!full_mass_ || d_ == 1) return;
-  const Eigen::LLT<Matrix> llt(inverse_mass(theta));
-  require(llt.info() == Eigen::Success, [&] {
+  require(dense::Llt(inverse_mass(theta)).ok(), [&] {
     return where + ": params[0.." + std::to_string(mass_size() - 1) + "]" + mass_kind() +
            " are not positive definite; expected a positive-definite inverse mass (a positive "
            "kinetic energy 1/2 p^T W p for every p != 0)";

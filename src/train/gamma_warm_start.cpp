@@ -1,4 +1,5 @@
 #include "csympnet/train/gamma_warm_start.hpp"
+#include "csympnet/core/dense.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -20,12 +21,13 @@ Matrix affine_fit(const Matrix& x, const Matrix& y, const std::string& what) {
   Matrix design(n, m + 1);
   design.leftCols(m) = x.transpose();
   design.col(m).setOnes();
-  const Eigen::ColPivHouseholderQR<Matrix> qr(design);
-  require(qr.rank() == m + 1, [&] {
-    return what + ": the states do not span phase space (rank " + std::to_string(qr.rank()) +
+  const dense::RankedSolution fit =
+      dense::least_squares_with_rank(design, dense::RowMajor(y.transpose()));
+  require(fit.rank == m + 1, [&] {
+    return what + ": the states do not span phase space (rank " + std::to_string(fit.rank) +
            " of " + std::to_string(m + 1) + "); need more varied pairs";
   });
-  return qr.solve(y.transpose()).transpose();  // m × (m+1)
+  return fit.x.transpose();  // m × (m+1)
 }
 
 // Indices of pairs grouped by equal step (relative tolerance 1e-9).
@@ -55,7 +57,7 @@ GammaWarmStart by_det(const PairSet& pairs, const std::vector<std::vector<Index>
     if (static_cast<Index>(g.size()) < min_size) continue;
     const PairSet sub = select_pairs(pairs, g);
     const Matrix ac = affine_fit(sub.z0, sub.z1, "gamma warm start (det)");
-    const double det = ac.leftCols(pairs.dim()).determinant();
+    const double det = dense::determinant(ac.leftCols(pairs.dim()));
     if (!(det > 0.0)) continue;  // not a damped flow at this step; leave it out
     const double h = sub.h(0), weight = static_cast<double>(g.size());
     num += weight * h * std::log(det);

@@ -1,4 +1,5 @@
 #include "csympnet/train/shooting.hpp"
+#include "csympnet/core/dense.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -237,12 +238,11 @@ void tangent_segment_rows(const OneStepMap& map, ConstParams theta, const Vector
 // U⁻¹ for a small symmetric positive semi-definite U; a ridge at rounding level only where U is
 // singular or nearly so (condition beyond 1e14), so that a segment whose positions do not
 // determine its start state still solves.
-Eigen::LLT<Matrix> small_factor(const Matrix& u) {
+dense::Llt small_factor(const Matrix& u) {
   const double top = std::max(u.diagonal().maxCoeff(), 1e-300);
-  Eigen::LLT<Matrix> f(u);
-  if (f.info() == Eigen::Success && f.matrixLLT().diagonal().minCoeff() > 1e-7 * std::sqrt(top))
-    return f;
-  return Eigen::LLT<Matrix>(u + 1e-14 * top * Matrix::Identity(u.rows(), u.cols()));
+  dense::Llt f(u);
+  if (f.ok() && f.factor_diagonal().minCoeff() > 1e-7 * std::sqrt(top)) return f;
+  return dense::Llt(u + 1e-14 * top * Matrix::Identity(u.rows(), u.cols()));
 }
 
 }  // namespace
@@ -445,9 +445,9 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
     const SegmentTerms& x = terms[i];
     Matrix u = x.u;
     u.diagonal() += lambda * marquardt_diagonal(x.u);
-    const Eigen::LLT<Matrix> f = small_factor(u);
+    const dense::Llt f = small_factor(u);
     // W U⁻¹ Wᵀ = V Vᵀ with V = W L⁻ᵀ.
-    const Matrix v = f.matrixL().solve(x.w.transpose()).transpose();
+    const Matrix v = f.lower_solve_transposed(x.w);
     a.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
     const Vector ug = f.solve(x.gb);
     g.noalias() -= x.w * ug;
@@ -466,13 +466,13 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
 // 1e-10 of the largest count as 0. Rows too few to fix a start state then carry no information
 // on θ (A_kᵀ(I − P_B)A_k = 0), as they would once that start state is fitted to them.
 Matrix small_pseudo_inverse(const Matrix& u) {
-  const Eigen::SelfAdjointEigenSolver<Matrix> e(u);
-  const Vector& l = e.eigenvalues();
+  const dense::SymmetricEigen e = dense::symmetric_eigen(u);
+  const Vector& l = e.values;
   const double top = std::max(l.maxCoeff(), 0.0);
   Vector inv = Vector::Zero(l.size());
   for (Index k = 0; k < l.size(); ++k)
     if (l(k) > 1e-10 * top) inv(k) = 1.0 / l(k);
-  return e.eigenvectors() * inv.asDiagonal() * e.eigenvectors().transpose();
+  return e.vectors * inv.asDiagonal() * e.vectors.transpose();
 }
 
 // The normal equations with the start states eliminated (accumulate, then reduce at λ = 0);
@@ -657,7 +657,7 @@ Vector one_step_momentum(const OneStepMap& map, ConstParams theta, const Vector&
     const Matrix jac =
         (u0.size() > 0 ? map.jacobian_driven(theta, z, h, u0) : map.jacobian(theta, z, h))
             .block(0, d, d, d);
-    const Vector dp = jac.colPivHouseholderQr().solve(-f);
+    const Vector dp = dense::least_squares(jac, Vector(-f));
     if (!dp.allFinite()) break;
     double scale = 1.0;
     bool moved = false;

@@ -1,4 +1,5 @@
 #include "csympnet/train/window_loss.hpp"
+#include "csympnet/core/dense.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -311,8 +312,8 @@ Vector gauss_newton_step(const NormalEquations& ne) {
   for (double mu = 1e-9; mu < 1e3; mu *= 100.0) {
     Matrix lhs = a;
     lhs.diagonal() += mu * diag;
-    const Eigen::LDLT<Matrix> f(lhs);
-    if (f.info() != Eigen::Success) continue;
+    const dense::Ldlt f(lhs);
+    if (!f.ok()) continue;
     Vector step = -f.solve(ne.g);
     if (step.allFinite()) return step;
   }

@@ -5,8 +5,9 @@ flags, one after another, taken from a build directory's compile_commands.json:
     bench/compile_cost.py --build build-asan src/models/g_sympnet.cpp tests/cli/hostile_test.cpp
 
 Compares CMake's RelWithDebInfo default (-O2 -g) with -O2 -g1 and -O1 -g1 (what `make
-test-asan` uses, docs/testing.md). CPU time rather than wall time, so other jobs on the
-machine disturb it less.
+test-asan` uses, docs/testing.md). With --as-is, each file once with its build's own flags
+(two builds' directories, e.g. before and after a change, then compare file by file). CPU
+time rather than wall time, so other jobs on the machine disturb it less.
 """
 
 import argparse
@@ -28,11 +29,13 @@ def children_cpu():
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--build", default="build-asan", help="build directory with compile_commands.json")
+    ap.add_argument("--as-is", action="store_true", help="only the build's own flags")
     ap.add_argument("files", nargs="+", help="source files (path suffixes)")
     a = ap.parse_args()
+    variants = {"as built": {}} if a.as_is else VARIANTS
     with open(os.path.join(a.build, "compile_commands.json")) as f:
         commands = json.load(f)
-    totals = dict.fromkeys(VARIANTS, 0.0)
+    totals = dict.fromkeys(variants, 0.0)
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "unit.o")
         for entry in commands:
@@ -41,7 +44,7 @@ def main():
             args = shlex.split(entry["command"])
             args[args.index("-o") + 1] = out
             row = []
-            for name, swap in VARIANTS.items():
+            for name, swap in variants.items():
                 start = children_cpu()
                 subprocess.run([swap.get(x, x) for x in args], cwd=entry["directory"], check=True,
                                stderr=subprocess.DEVNULL)

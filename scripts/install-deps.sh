@@ -41,8 +41,8 @@ packages=(
   libceres-dev         # second-stage optimisers: Levenberg-Marquardt and L-BFGS
   liblapack-dev        # normal-equations Levenberg-Marquardt: dsyrk, dpotrf
   libopenblas0-pthread # ... through OpenBLAS (Debian alternatives), not the reference BLAS
-  clang-14             # fuzz/: libFuzzer targets (make fuzz)
-  libclang-rt-14-dev   # fuzz/: the libFuzzer and sanitizer runtimes for clang
+  clang-14             # make test-asan (the sanitizer build) and fuzz/ (make fuzz)
+  libclang-rt-14-dev   # the sanitizer and libFuzzer runtimes for clang
 )
 : "$bench"  # nothing more to add: python3-torch is in the list above
 

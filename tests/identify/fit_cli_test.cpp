@@ -494,17 +494,22 @@ TEST(FitCli, TheHamiltonianLineSaysWhetherItsTermsHaveIntervals) {
   }
 }
 
-// Trajectories of 2 positions each: each fits its hidden start state exactly and leaves
-// nothing for the dynamics. Not identified, with that reason, and a report (exit 4); it once
-// ended in "the Gauss-Newton matrix could not be factored" (exit 1).
-TEST(FitCli, PositionsTrajectoriesOfTwoSamplesAreNotIdentifiedWithTheReason) {
-  Rng rng(11, "two-sample-trajectories");
+// 300 trajectories of 2 positions each (times 0 and 0.1, positions normal), as CSV text.
+std::string two_sample_trajectories(std::uint64_t seed) {
+  Rng rng(seed, "two-sample-trajectories");
   std::string text = "traj,t,q1\n";
   for (int j = 0; j < 300; ++j)
     for (int k = 0; k < 2; ++k)
       text += std::to_string(j) + "," + round_trip_text(0.1 * k) + "," +
               round_trip_text(rng.normal()) + "\n";
-  const SmallFit f = small_fit_text(text);
+  return text;
+}
+
+// Trajectories of 2 positions each: each fits its hidden start state exactly and leaves
+// nothing for the dynamics. Not identified, with that reason, and a report (exit 4); it once
+// ended in "the Gauss-Newton matrix could not be factored" (exit 1).
+TEST(FitCli, PositionsTrajectoriesOfTwoSamplesAreNotIdentifiedWithTheReason) {
+  const SmallFit f = small_fit_text(two_sample_trajectories(11));
   EXPECT_EQ(f.code, 4) << f.printed;
   ASSERT_TRUE(f.report.is_object()) << f.printed;
   EXPECT_EQ(f.report["verdict"], "not identified");
@@ -517,13 +522,7 @@ TEST(FitCli, PositionsTrajectoriesOfTwoSamplesAreNotIdentifiedWithTheReason) {
 // core is fitted and no neural core is trained for nothing (7 CPU s here, 55 under the
 // sanitizers, before); the answer and its reason are those above.
 TEST(FitCli, PositionsTooShortForAnySegmentTrainNoNeuralCore) {
-  Rng rng(12, "two-sample-trajectories");
-  std::string text = "traj,t,q1\n";
-  for (int j = 0; j < 300; ++j)
-    for (int k = 0; k < 2; ++k)
-      text += std::to_string(j) + "," + round_trip_text(0.1 * k) + "," +
-              round_trip_text(rng.normal()) + "\n";
-  const SmallFit f = small_fit_text(text, "");
+  const SmallFit f = small_fit_text(two_sample_trajectories(12), "");
   EXPECT_EQ(f.code, 4) << f.printed;
   ASSERT_TRUE(f.report.is_object()) << f.printed;
   EXPECT_EQ(f.report["verdict"], "not identified");

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <optional>
@@ -779,6 +780,59 @@ std::optional<std::string> why_failed_trials_end(double lambda, double loss, dou
   return std::nullopt;
 }
 
+// Three significant digits.
+std::string fmt_short(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+
+// The fall of the cost (half the loss) that the local model predicts for the Gauss–Newton step
+// from (θ, z0) (λ = 1e-12, Marquardt's scaling, as a floor for directions the data do not fix);
+// infinity where the reduced system does not factor.
+double gauss_newton_predicted(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
+                              const ShootingSegments& train, const Vector& theta, const Matrix& z0,
+                              Index n_free) {
+  constexpr double kGaussNewtonLambda = 1e-12;
+  Matrix a;
+  Vector g;
+  reduce(ne, terms, train, kGaussNewtonLambda, a, g);
+  Vector step = -g;
+  if (!lapack::cholesky(a.data(), n_free)) return std::numeric_limits<double>::infinity();
+  lapack::cholesky_solve(a.data(), n_free, step.data());
+  if (!step.allFinite()) return std::numeric_limits<double>::infinity();
+  return joint_trial(theta, z0, step, ne, terms, n_free, kGaussNewtonLambda).predicted;
+}
+
+// Why the fit ends before a trial, if the Gauss–Newton step's predicted fall of the loss says
+// that no step from here can matter. In units of χ² (n · Δloss / loss) the fall that the model
+// predicts for the step bounds every parameter's move in its own standard error: the step's component b satisfies δ_b² ≤ [A⁻¹]_bb · gᵀA⁻¹g (Cauchy–
+// Schwarz in A⁻¹'s inner product), and gᵀA⁻¹g is at most the predicted fall, so |δ_b| ≤
+// SE_b · √(predicted χ² fall) for the watched parameter and every other. A predicted fall of at
+// most converged_se² moves the watched parameter by at most converged_se of its standard error
+// (what the rule of three accepted steps asks of each), one of at most converged_chi2 is a
+// small step in χ²'s units; below 1e-10 of the loss itself the loss is at its rounding level,
+// where every trial fails alike. Every step that LM could still take is then smaller.
+std::optional<std::string> why_predicted_converged(double predicted, double loss, Index n,
+                                                   const ShootingOptions& options, bool watching) {
+  if (!(loss > 0.0) || !std::isfinite(predicted)) return std::nullopt;
+  const double fall = 2.0 * predicted;  // the loss is twice the cost
+  const double chi2 = static_cast<double>(n) * fall / loss;
+  const double se2 = options.converged_se * options.converged_se;
+  if (watching && chi2 <= se2)
+    return "converged: the Gauss-Newton step from the fit is predicted to lower chi-square by " +
+           fmt_short(chi2) + ", so it moves the damping parameter by at most " +
+           fmt_short(std::sqrt(std::max(chi2, 0.0))) + " of its standard error (below " +
+           fmt_short(options.converged_se) + ")";
+  if (options.converged_chi2 > 0.0 && chi2 <= options.converged_chi2)
+    return "converged: the Gauss-Newton step from the fit is predicted to lower chi-square by " +
+           fmt_short(chi2) + " (below " + fmt_short(options.converged_chi2) + ")";
+  if (fall <= 1e-10 * loss)
+    return "converged: the Gauss-Newton step from the fit is predicted to lower the loss by " +
+           fmt_short(fall / loss) + " of itself (below 1e-10: the loss's rounding level)";
+  return std::nullopt;
+}
+
 // Why three small steps ended the fit.
 std::string converged_message(double converged_chi2) {
   return converged_chi2 > 0.0
@@ -895,6 +949,18 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
       continue;
     }
     JointTrial trial = joint_trial(theta, z0, step, ne, terms, n_free, lambda);
+    // The damped step's predicted fall is at most Gauss–Newton's: only a small one is worth the
+    // undamped step's (a reduction and a factorisation of n_free, no rollout).
+    if (why_predicted_converged(trial.predicted, loss, train.n_residuals(), options,
+                                watch_se > 0.0)) {
+      const double fall = gauss_newton_predicted(ne, terms, train, theta, z0, n_free);
+      if (const auto why = why_predicted_converged(fall, loss, train.n_residuals(), options,
+                                                   watch_se > 0.0)) {
+        rep.watch_converged = watch_se > 0.0;
+        rep.message = *why;
+        break;
+      }
+    }
     const double loss_try = trial.z0.cwiseAbs().maxCoeff() <= options.max_abs_state
                                 ? shooting_loss(map, trial.theta, trial.z0, train)
                                 : std::numeric_limits<double>::infinity();

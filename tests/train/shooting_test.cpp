@@ -613,6 +613,67 @@ TEST(Shooting, DampingWatchEndsOnceTheDampingStopsMoving) {
   EXPECT_LT(std::sqrt(var), se * 1.5);
 }
 
+// The rule decided from one prediction: where the Gauss–Newton step's predicted fall of χ² is
+// at most converged_se², the fit ends before the trial. That step then moves the damping
+// parameter by at most converged_se of its standard error (the Cauchy–Schwarz bound): one more
+// step, taken with every rule off, stays within it. A fit restarted where the rule ended it
+// ends again at once, θ untouched (no held-out segments: the fit returns its last iterate).
+TEST(Shooting, APredictedFallBelowTheBoundEndsTheFitBeforeTheTrial) {
+  const auto map = make_one_step_map(nlohmann::json::parse(
+      R"({"type":"csympnet","d":1,"core":{"type":"library","terms":["q1^2","q1^4"]}})"));
+  const Index b = *map->damping_param_index();
+  Rng rng(43, "damping-predicted");
+  Vector truth(map->n_params());
+  map->init_params(rng, truth);
+  truth(2) = 0.05;
+  truth(b) = 0.1;
+  int ended_by_prediction = 0;
+  for (int draw = 0; draw < 12; ++draw) {
+    SCOPED_TRACE(draw);
+    ShootingSegments train, val;
+    train.d = val.d = 1;
+    const int count = 10;
+    Matrix z_true(2, count);
+    for (int k = 0; k < count; ++k) {
+      z_true.col(k) = rng.normal_matrix(2, 1, 0.6);
+      train.q.push_back(
+          shooting_states(*map, truth, z_true.col(k), Vector::Constant(21, 0.1)).topRows(1) +
+          rng.normal_matrix(1, 22, 0.01));
+      train.h.push_back(Vector::Constant(21, 0.1));
+      train.block.push_back(k % 4);
+    }
+    ShootingOptions opt;
+    opt.iterations = 300;
+    opt.patience = 300;
+    opt.converged_se = 0.01;
+    opt.watch_index = b;
+    Vector theta = truth;
+    Matrix zt = z_true, zv(2, 0);
+    const ShootingReport rep = fit_shooting(*map, theta, zt, train, zv, val, opt);
+    if (rep.message.find("predicted") == std::string::npos) continue;
+    ++ended_by_prediction;
+    EXPECT_TRUE(rep.watch_converged);
+    // Restarted there: ends before any trial, θ and the start states as they were.
+    Vector again = theta;
+    Matrix zt2 = zt, zv2 = zv;
+    const ShootingReport rep2 = fit_shooting(*map, again, zt2, train, zv2, val, opt);
+    EXPECT_EQ(rep2.iterations, 1) << rep2.message;
+    EXPECT_EQ(rep2.accepted, 0) << rep2.message;
+    EXPECT_EQ(again, theta);
+    EXPECT_EQ(zt2, zt);
+    // One more step with every rule off moves the damping parameter within the bound.
+    ShootingOptions one = opt;
+    one.iterations = 1;
+    one.watch_index = -1;
+    one.converged_se = 0.0;
+    Vector next = theta;
+    Matrix zt3 = zt, zv3 = zv;
+    fit_shooting(*map, next, zt3, train, zv3, val, one);
+    EXPECT_LE(std::abs(next(b) - theta(b)), 0.01 * rep.watch_se * (1.0 + 1e-6));
+  }
+  EXPECT_GE(ended_by_prediction, 6);
+}
+
 TEST(Shooting, RefusesMalformedSegments) {
   ShootingSegments s;
   s.d = 1;

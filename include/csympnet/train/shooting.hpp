@@ -178,6 +178,11 @@ struct ShootingOptions {
   // θ[watch_index] by less than converged_se of its standard error (the Gauss–Newton one,
   // σ̂² [A⁻¹], the start states eliminated), end the fit. A fit that creeps along a direction
   // the positions barely fix then ends once γ has stopped moving; −1: not used.
+  //
+  // Both rules are also decided from one prediction, before a trial: where the fall of χ² that
+  // the Gauss–Newton step is predicted to give is at most converged_se² (it then moves every
+  // parameter by at most converged_se of its standard error), at most converged_chi2, or under
+  // 1e-10 of the loss (its rounding level), the fit ends without the trial.
   Index watch_index = -1;
   double converged_se = 0.0;
 };

@@ -78,13 +78,25 @@ Matrix DampingProfile::residuals(double c) const {
   return map_->apply(core_theta_, x, h) - target;
 }
 
+Matrix DampingProfile::momentum_jacobian_times(const Vector& x, double h, const Matrix& dirs) const {
+  if (map_->has_step_tangents()) {
+    // Forward mode: the tangent block (0; dirs) carried through the step, no parameter columns.
+    Matrix t(2 * d_, dirs.cols());
+    t.topRows(d_).setZero();
+    t.bottomRows(d_) = dirs;
+    Vector z = x;
+    map_->step_tangents(core_theta_, h, nullptr, z.data(), t, 0);
+    return t;
+  }
+  return map_->jacobian(core_theta_, x, h).rightCols(d_) * dirs;
+}
+
 Vector DampingProfile::rate_jacobian(double c, Index k) const {
   const double h = w_.h(0, k);
   const double a = std::exp(-0.5 * c * h);
   Vector x = w_.z0.col(k);
   x.tail(d_) *= a;
-  const Matrix jac = map_->jacobian(core_theta_, x, h);
-  Vector u = a * (jac.rightCols(d_) * w_.z0.col(k).tail(d_));
+  Vector u = momentum_jacobian_times(x, h, a * w_.z0.col(k).tail(d_));
   u.tail(d_) += w_.zm.col(k).tail(d_) / a;
   return -0.5 * h * u;
 }
@@ -94,13 +106,13 @@ Matrix DampingProfile::entry_jacobian(double c, Index k, const DampingBasis& bas
   const double a = std::exp(-0.5 * c * h);
   Vector x = w_.z0.col(k);
   x.tail(d_) *= a;
-  const Matrix jac = map_->jacobian(core_theta_, x, h);
+  const Matrix jac_p = momentum_jacobian_times(x, h, Matrix::Identity(d_, d_));
   const auto p0 = w_.z0.col(k).tail(d_);
   const auto p1 = w_.zm.col(k).tail(d_);
   Matrix g(2 * d_, basis.size());
   for (Index m = 0; m < basis.size(); ++m) {
     const Matrix& e = basis.e[static_cast<std::size_t>(m)];
-    g.col(m) = (-0.5 * h * a) * (jac.rightCols(d_) * (e * p0));
+    g.col(m) = (-0.5 * h * a) * (jac_p * (e * p0));
     g.col(m).tail(d_) += (-0.5 * h / a) * (e * p1);
   }
   return g;
@@ -177,19 +189,26 @@ FixedPoint nearest_fixed_point(const OneStepMap& map, const Vector& theta, Vecto
     const Matrix j = map.jacobian(theta, z, h) - Matrix::Identity(z.size(), z.size());
     // Least squares of least norm: a map with a line of equilibria (a free chain's
     // translation) has J − I singular (to within what training leaves, hence the relative
-    // rank threshold), and the nearest equilibrium is wanted.
-    const Vector step = -dense::least_norm_solution(j, f, 1e-7);
-    if (!step.allFinite()) break;
-    double t = 1.0;
+    // rank threshold), and the nearest equilibrium is wanted. A direction just above the
+    // threshold (a translation with a slight fitted restoring force) gives a step too long to
+    // lower the residual: the step is then taken again with that direction counted as null,
+    // so that whether the equilibrium is found does not hang on the rounding of one singular
+    // value.
     bool improved = false;
-    for (int half = 0; half < 20; ++half, t *= 0.5) {
-      const Vector fz = residual(z + t * step);
-      if (fz.allFinite() && fz.norm() < f.norm()) {
-        z += t * step;
-        f = fz;
-        improved = true;
-        break;
+    for (const double rank_threshold : {1e-7, 1e-5, 1e-3}) {
+      const Vector step = -dense::least_norm_solution(j, f, rank_threshold);
+      if (!step.allFinite()) continue;
+      double t = 1.0;
+      for (int half = 0; half < 20; ++half, t *= 0.5) {
+        const Vector fz = residual(z + t * step);
+        if (fz.allFinite() && fz.norm() < f.norm()) {
+          z += t * step;
+          f = fz;
+          improved = true;
+          break;
+        }
       }
+      if (improved) break;
     }
     if (!improved) break;
   }

@@ -111,6 +111,10 @@ class DampingProfile {
   const WindowSet& windows() const { return w_; }
 
  private:
+  // ∂Ψ/∂p at x (the core, one step of h) times dirs (d × k): 2d × k. Forward-mode tangents
+  // where the map has them (k passes' worth of one step), else its Jacobian's p columns.
+  Matrix momentum_jacobian_times(const Vector& x, double h, const Matrix& dirs) const;
+
   const OneStepMap* map_;
   Vector core_theta_;
   WindowSet w_;

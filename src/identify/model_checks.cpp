@@ -65,25 +65,6 @@ double upper_t_p(double t, double dof) {  // P(T > t)
   return boost::math::cdf(boost::math::complement(boost::math::students_t(dof), t));
 }
 
-// The common signed rate c at which Σ_b g_b = 0 (Gauss–Newton on c alone, the core fixed),
-// started from the model's own rate.
-double fit_common_rate(const DampingProfile& prof, double c0, const std::function<bool()>& stop) {
-  double c = c0;
-  for (int it = 0; it < 8; ++it) {
-    const std::vector<BlockProfile> bs = prof.blocks(c, nullptr, stop);
-    double a = 0.0, g = 0.0;
-    for (const BlockProfile& b : bs) {
-      a += b.a;
-      g += b.g;
-    }
-    if (!(a > 0.0) || (stop && stop())) break;
-    const double step = -g / a;
-    c += step;
-    if (std::abs(step) <= 1e-12 + 1e-9 * std::abs(c)) break;
-  }
-  return c;
-}
-
 // The signed rate's cluster-robust standard error over blocks (its estimating equation
 // Σ_b g_b(c) = 0; a sandwich with one parameter).
 double common_rate_se(const std::vector<BlockProfile>& bs) {
@@ -98,6 +79,37 @@ double common_rate_se(const std::vector<BlockProfile>& bs) {
   if (used < 2 || !(a > 0.0)) return kNaN;
   const double nb = static_cast<double>(used);
   return std::sqrt(nb / (nb - 1.0) * s) / a;
+}
+
+// The common signed rate c at which Σ_b g_b = 0 (Gauss–Newton on c alone, the core fixed),
+// started from the model's own rate, with the per-block sums at it. The fit ends where the next
+// step would move c by less than 1e-3 of its standard error (or 1e-9 of itself): c stays where
+// the sums were taken, so that they need no further pass over the data.
+struct CommonRate {
+  double c = 0.0;
+  std::vector<BlockProfile> bs;
+};
+CommonRate fit_common_rate(const DampingProfile& prof, double c0,
+                           const std::function<bool()>& stop) {
+  constexpr double kShareOfSe = 1e-3;
+  CommonRate out{c0, {}};
+  for (int it = 0; it < 8; ++it) {
+    out.bs = prof.blocks(out.c, nullptr, stop);
+    double a = 0.0, g = 0.0;
+    for (const BlockProfile& b : out.bs) {
+      a += b.a;
+      g += b.g;
+    }
+    if (!(a > 0.0) || (stop && stop())) return out;
+    const double step = -g / a;
+    const double se = common_rate_se(out.bs);
+    if (std::abs(step) <= 1e-12 + 1e-9 * std::abs(out.c) ||
+        (std::isfinite(se) && std::abs(step) <= kShareOfSe * se))
+      return out;
+    out.c += step;
+  }
+  out.bs = prof.blocks(out.c, nullptr, stop);
+  return out;
 }
 
 ModelCheck dissipation_check(const CheckInput& in, double c, double se, Index n_blocks) {
@@ -620,9 +632,8 @@ ModelCheck amplitude_check(const CheckInput& in, const std::function<bool()>& sh
   require(!in.blocks.empty(), "amplitude_check: no blocks");
   const double c0 = in.map->damping_rate(in.theta).value_or(0.0);
   DampingProfile prof(*in.map, in.theta, in.damping_index, windows_from_trajectories(in.blocks, 1));
-  const double c = fit_common_rate(prof, c0, should_stop);
-  const std::vector<BlockProfile> bs = prof.blocks(c, nullptr, should_stop);
-  return linear_damping_check(in, c, common_rate_se(bs), bs);
+  const CommonRate fit = fit_common_rate(prof, c0, should_stop);
+  return linear_damping_check(in, fit.c, common_rate_se(fit.bs), fit.bs);
 }
 
 std::vector<ModelCheck> check_model(const CheckInput& in,
@@ -632,8 +643,9 @@ std::vector<ModelCheck> check_model(const CheckInput& in,
   require(std::isfinite(in.time_scale) && in.time_scale > 0.0, "check_model: bad time scale");
   const double c0 = in.map->damping_rate(in.theta).value_or(0.0);
   DampingProfile prof(*in.map, in.theta, in.damping_index, windows_from_trajectories(in.blocks, 1));
-  const double c = fit_common_rate(prof, c0, should_stop);
-  const std::vector<BlockProfile> bs = prof.blocks(c, nullptr, should_stop);
+  const CommonRate fit = fit_common_rate(prof, c0, should_stop);
+  const double c = fit.c;
+  const std::vector<BlockProfile>& bs = fit.bs;
   const double se = common_rate_se(bs);
   std::vector<ModelCheck> out;
   out.push_back(dissipation_check(in, c, se, prof.n_blocks()));

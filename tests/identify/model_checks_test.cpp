@@ -192,15 +192,26 @@ Vector residual_with_matrix(const OneStepMap& map, const Vector& core_theta, con
   return map.apply(core_theta, x, Vector::Constant(1, h)).col(0) - y;
 }
 
+// The core's p-Jacobian comes from its Jacobian (a neural core) or from forward-mode tangents
+// (the library core): both against central differences.
 TEST(DampingProfile, DerivativesInTheDampingMatrixMatchFiniteDifferences) {
-  for (int trial = 0; trial < 3; ++trial) {
+  for (int trial = 0; trial < 6; ++trial) {
     Rng rng(trial, "profile-derivative");
     const Index d = 2 + trial % 2;
-    Model m = make_model({{"type", "csympnet"},
-                          {"d", d},
-                          {"core", {{"type", "g"}, {"layers", 2}, {"width", 5}}},
-                          {"beta_init", 0.2},
-                          {"dof_scales", "learned"}});
+    const bool library = trial >= 3;
+    nlohmann::json terms = {"(q1-q2)^4", "sin(q1)", "q2"};
+    for (Index i = 1; i <= d; ++i) terms.push_back("q" + std::to_string(i) + "^2");
+    Model m = make_model(
+        library ? nlohmann::json{{"type", "csympnet"},
+                                 {"d", d},
+                                 {"core", {{"type", "library"}, {"mass", "full"}, {"terms", terms}}},
+                                 {"beta_init", 0.2}}
+                : nlohmann::json{{"type", "csympnet"},
+                                 {"d", d},
+                                 {"core", {{"type", "g"}, {"layers", 2}, {"width", 5}}},
+                                 {"beta_init", 0.2},
+                                 {"dof_scales", "learned"}});
+    ASSERT_EQ(m.map->has_step_tangents(), library);
     Vector theta(m.n_params());
     m.init_params(rng, theta);
     theta += 0.2 * rng.uniform_vector(theta.size(), -1.0, 1.0);

@@ -124,9 +124,15 @@ double largest_sensitivity(const OneStepMap& map, ConstParams theta, const Cut& 
   double most = 0.0;
   for (Index s = 0; s < c.segs.size(); ++s) {
     const Vector& h = c.segs.h[static_cast<std::size_t>(s)];
-    const Matrix z = shooting_states(map, theta, c.z0.col(s), h);
-    Matrix t = Matrix::Identity(z.rows(), z.rows());
-    for (Index k = 0; k < h.size(); ++k) t = map.jacobian(theta, z.col(k), h(k)) * t;
+    Matrix t = Matrix::Identity(c.z0.rows(), c.z0.rows());
+    if (map.has_step_tangents()) {
+      // Forward mode: the identity carried along the rollout (no Jacobian per step).
+      Vector z = c.z0.col(s);
+      for (Index k = 0; k < h.size(); ++k) map.step_tangents(theta, h(k), nullptr, z.data(), t, 0);
+    } else {
+      const Matrix z = shooting_states(map, theta, c.z0.col(s), h);
+      for (Index k = 0; k < h.size(); ++k) t = map.jacobian(theta, z.col(k), h(k)) * t;
+    }
     const double n = t.norm();
     most = std::isfinite(n) ? std::max(most, n) : std::numeric_limits<double>::infinity();
   }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <set>
 #include <tuple>
@@ -364,7 +365,19 @@ Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z,
   Matrix out(2 * d, n);
   std::vector<double> q(d), p(d), g(d), wp(d), work(static_cast<std::size_t>(inputs_.m));
   const Index nw = static_cast<Index>(weights_.size());
+  // The momentum scalings e^{−γτ/2} of the stage weights at the current column's h: a record's
+  // steps are mostly equal, and each stage would otherwise take an exp() (same expression, so
+  // the same bits).
+  std::vector<double> scaling(static_cast<std::size_t>(nw));
+  double scaling_h = std::numeric_limits<double>::quiet_NaN();
   for (Index col = 0; col < n; ++col) {
+    if (!(h(col) == scaling_h)) {
+      for (Index s = 0; s < nw; ++s)
+        scaling[static_cast<std::size_t>(s)] = std::exp(
+            -0.5 * gamma *
+            (weights_[static_cast<std::size_t>(s)] * h(col) / static_cast<double>(substeps_)));
+      scaling_h = h(col);
+    }
     for (Index r = 0; r < d; ++r) {
       q[r] = Z(r, col);
       p[r] = Z(d + r, col);
@@ -386,7 +399,7 @@ Matrix HamiltonianLibraryMap::forward_driven(ConstParams theta, const Matrix& Z,
       }
       if (s == stages) break;
       poll_within_step(s);
-      const double a = std::exp(-0.5 * gamma * tau);
+      const double a = scaling[static_cast<std::size_t>(s % nw)];
       for (Index r = 0; r < d; ++r) {
         const double mu = coulomb_rate(theta, r);
         p[r] =

@@ -291,7 +291,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
     }
   };
 
-  at_position(sigma(0));
+  at_position(driven ? sigma(0) : 0.0);
   for (Index s = 0; s < stages; ++s) {
     if (s % kStagesPerPoll == kStagesPerPoll - 1)
       throw_if_stop_requested("hamiltonian library: a step of many substeps");
@@ -331,7 +331,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       for (Index r = 0; r < std::min(d, n_theta); ++r) row(r)[r] += tau * p[r];
     mass_apply(p, w.wp.data());
     for (Index r = 0; r < d; ++r) q[r] += tau * w.wp[r];
-    at_position(sigma(s + 1));
+    at_position(driven ? sigma(s + 1) : 0.0);
     kick(false, a, da, 0.5 * tau);
     if (nk > 0) flows(0.5 * tau, true);
   }

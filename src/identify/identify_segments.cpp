@@ -207,9 +207,12 @@ Vector shooting_gauss_newton_step(const OneStepMap& map, const Vector& theta, co
 // substeps: one Gauss–Newton step at 2n less the step at n (what the fit's own optimisation
 // left is in both), so the integrator's share is measured on the fit the interval is formed
 // from, not on the one-step windows (which fix γ too loosely for the difference to mean
-// anything). θ moved by that difference; empty for any other core, or when stopped.
+// anything). θ moved by that difference; empty for any other core, or when stopped. The step at
+// n is taken from `at_fit`, the reduced normal equations already formed at θ for the interval
+// (the same A and g, summed over other clusters).
 std::optional<Vector> integrator_moved(const OneStepMap& map, const nlohmann::json& core,
                                        const Vector& theta, const Cut& train, Index n_free,
+                                       const NormalEquations& at_fit,
                                        const std::function<bool()>& stop) {
   if (!core.is_object() || core.value("type", "") != "library" || !core.contains("substeps"))
     return std::nullopt;
@@ -219,8 +222,9 @@ std::optional<Vector> integrator_moved(const OneStepMap& map, const nlohmann::js
       make_model({{"type", "csympnet"}, {"d", train.segs.d}, {"core", fine}, {"beta_init", 1.0}});
   if (!finer.is_map() || finer.n_params() != map.n_params()) return std::nullopt;
   const Vector step2 = shooting_gauss_newton_step(*finer.map, theta, train, n_free, stop);
-  const Vector step1 = shooting_gauss_newton_step(map, theta, train, n_free, stop);
-  if (step2.size() != theta.size() || step1.size() != theta.size()) return std::nullopt;
+  if (step2.size() != theta.size() || at_fit.a.rows() != n_free) return std::nullopt;
+  Vector step1 = Vector::Zero(theta.size());
+  step1.head(n_free) = gauss_newton_step(at_fit);
   return Vector(theta + step2 - step1);
 }
 
@@ -311,7 +315,7 @@ GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, 
   inflate_interval(s, inflation);
   // The library core's integrator share, measured on this fit (integrator_moved).
   std::vector<double> dissipation_integrator;
-  if (const auto moved = integrator_moved(map, at.library_core, theta, train, n_free, stop)) {
+  if (const auto moved = integrator_moved(map, at.library_core, theta, train, n_free, ne, stop)) {
     const double g1 = map.damping_rate(*moved).value_or(gamma_n);
     add_integrator(s, std::isfinite(g1) ? std::abs(g1 - gamma_n) : 0.0);
     dissipation_integrator = dissipation_relative_changes(map, theta, *moved);
@@ -342,8 +346,12 @@ GammaInterval segments_interval(const OneStepMap& map, const IntervalBasis& at, 
 SegmentFit fit_segments(const OneStepMap& map, const Vector& theta, const Cut& train,
                         const Cut& val, const ShootingOptions& opt) {
   SegmentFit out{theta, train, val, {}};
-  fit_start_states(map, out.theta, out.train.segs, out.train.z0, 30, true, kMaxAbsState);
-  // Held out: scored only (fit_shooting refits them at once).
+  // To the scoring tolerance (1e-8 of each segment's ‖r‖²) on both sides: the training start
+  // states only choose among the starts and start the joint fit, whose Gauss–Newton steps
+  // move them with θ (and whose convergence rule sees what they leave); the held-out ones are
+  // scored (fit_shooting refits them at once).
+  fit_start_states(map, out.theta, out.train.segs, out.train.z0, 30, true, kMaxAbsState,
+                   kScoringTolerance);
   fit_start_states(map, out.theta, out.val.segs, out.val.z0, 30, true, kMaxAbsState,
                    kScoringTolerance);
   out.rep = fit_shooting(map, out.theta, out.train.z0, out.train.segs, out.val.z0, out.val.segs,

@@ -484,7 +484,8 @@ class LibrarySelection {
     bool dropped_one = !given_terms_;
     while (dropped_one && !fit_->stop_requested() && active_terms().size() > 1) {
       dropped_one = false;
-      const std::vector<double> t_of = t_ratios(x);
+      NormalEquations ne;
+      const std::vector<double> t_of = t_ratios(x, ne);
       if (t_of.empty()) break;
       for (const auto& [t, terms] : drops(t_of)) {
         if (fit_->stop_requested()) break;
@@ -498,11 +499,13 @@ class LibrarySelection {
         for (Index k : terms) trial[static_cast<std::size_t>(k)] = false;
         std::swap(active_, trial);
         Candidate y = make(active_terms(), library_of(x).substeps(), &x);
+        const bool projected = start_projected(x, terms, ne, y);
         const std::string name = names(terms);
         train_lm(y, kRoundIterations, "library: without " + name);
         const bool drop = no_worse(x.val_loss, y.val_loss);
         pruned.push_back({{"terms", name},
                           {"t_ratio", t},
+                          {"start", projected ? "projected" : "the fit without the terms"},
                           {"val_loss_before", x.val_loss},
                           {"val_loss_after", y.val_loss},
                           {"dropped", drop}});
@@ -799,11 +802,11 @@ class LibrarySelection {
 
   // Each active pool term's t-ratio (coefficient over its sandwich standard error); empty when
   // interrupted.
-  std::vector<double> t_ratios(const Candidate& x) const {
+  std::vector<double> t_ratios(const Candidate& x, NormalEquations& ne) const {
     const HamiltonianLibraryMap& map = library_of(x);
     const WindowSet& train = split_->train;
     const double sc = 1.0 / std::sqrt(static_cast<double>(train.size()));
-    const NormalEquations ne = normal_equations_over_ranks(
+    ne = normal_equations_over_ranks(
         map, x.theta, train, balanced_, sc, true, [this] { return fit_->stop_requested(); }, comm_);
     if (ne.stopped) return {};
     std::vector<double> t_of(pool_.size(), 0.0);
@@ -818,6 +821,67 @@ class LibrarySelection {
         if (pool_[q] == map.terms()[static_cast<std::size_t>(k)]) t_of[q] = t;
     }
     return t_of;
+  }
+
+  // A drop's LM starts where the Gauss–Newton model of x's fit puts the rest with the dropped
+  // terms' parameters at 0 (the other coefficients take over what the dropped ones carried):
+  // minimising ½ δᵀAδ + gᵀδ with δ_D = −θ_D gives δ_K = −A_KK⁻¹ (g_K + A_KD δ_D), D the dropped
+  // terms' coefficients and the wavenumbers only they use, A and g x's normal equations (those
+  // of its t-ratios). y (x without the terms) takes that start when its training loss is the
+  // lower; returns whether it did. Without it the LM starts from x's values as they are and
+  // spends its iterations walking the others over.
+  bool start_projected(Candidate& x, const std::vector<Index>& dropped_pool,
+                       const NormalEquations& ne, Candidate& y) {
+    const HamiltonianLibraryMap& map = library_of(x);
+    const Index n = map.n_params();
+    if (ne.a.rows() != n || ne.g.size() != n || fit_->stop_requested()) return false;
+    std::vector<char> drop(static_cast<std::size_t>(n), 0);
+    std::vector<char> kept_wavenumber(static_cast<std::size_t>(n), 0);
+    for (Index k = 0; k < static_cast<Index>(map.terms().size()); ++k) {
+      const LibraryTerm& term = map.terms()[static_cast<std::size_t>(k)];
+      bool dropped = false;
+      for (Index q : dropped_pool) dropped = dropped || pool_[static_cast<std::size_t>(q)] == term;
+      if (dropped) drop[static_cast<std::size_t>(map.coefficient_index(k))] = 1;
+      if (!dropped && map.wavenumber_index(k) >= 0)
+        kept_wavenumber[static_cast<std::size_t>(map.wavenumber_index(k))] = 1;
+    }
+    for (Index k = 0; k < static_cast<Index>(map.terms().size()); ++k) {
+      const Index w = map.wavenumber_index(k);
+      if (w >= 0 && !kept_wavenumber[static_cast<std::size_t>(w)] &&
+          drop[static_cast<std::size_t>(map.coefficient_index(k))])
+        drop[static_cast<std::size_t>(w)] = 1;
+    }
+    std::vector<Index> kept, gone;
+    for (Index j = 0; j < n; ++j) (drop[static_cast<std::size_t>(j)] ? gone : kept).push_back(j);
+    if (gone.empty() || kept.empty()) return false;
+    const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+    const Index nk = static_cast<Index>(kept.size()), nd = static_cast<Index>(gone.size());
+    Matrix akk(nk, nk), akd(nk, nd);
+    Vector rhs(nk), dd(nd);
+    for (Index j = 0; j < nd; ++j) dd(j) = -x.theta(gone[static_cast<std::size_t>(j)]);
+    for (Index i = 0; i < nk; ++i) {
+      const Index ki = kept[static_cast<std::size_t>(i)];
+      rhs(i) = ne.g(ki);
+      for (Index j = 0; j < nk; ++j) akk(i, j) = a(ki, kept[static_cast<std::size_t>(j)]);
+      for (Index j = 0; j < nd; ++j) akd(i, j) = a(ki, gone[static_cast<std::size_t>(j)]);
+    }
+    rhs.noalias() += akd * dd;
+    // A ridge at 1e-9 of the diagonal, as the Gauss–Newton step takes it.
+    akk.diagonal() += 1e-9 * akk.diagonal().cwiseMax(1e-300);
+    const dense::Ldlt f(akk);
+    if (!f.ok()) return false;
+    const Vector dk = -f.solve(rhs);
+    if (!dk.allFinite()) return false;
+    Vector start = x.theta;
+    for (Index i = 0; i < nk; ++i) start(kept[static_cast<std::size_t>(i)]) += dk(i);
+    for (Index j = 0; j < nd; ++j) start(gone[static_cast<std::size_t>(j)]) = 0.0;
+    std::swap(x.theta, start);
+    Candidate p = make(active_terms(), library_of(x).substeps(), &x);
+    std::swap(x.theta, start);
+    const double plain = fit_->loss(y, split_->train), moved = fit_->loss(p, split_->train);
+    if (!(moved < plain)) return false;
+    y = std::move(p);
+    return true;
   }
 
   // The drops to try, as (t-ratio, pool terms): the two least significant groups, then the

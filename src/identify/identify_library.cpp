@@ -825,11 +825,10 @@ class LibrarySelection {
 
   // A drop's LM starts where the Gauss–Newton model of x's fit puts the rest with the dropped
   // terms' parameters at 0 (the other coefficients take over what the dropped ones carried):
-  // minimising ½ δᵀAδ + gᵀδ with δ_D = −θ_D gives δ_K = −A_KK⁻¹ (g_K + A_KD δ_D), D the dropped
-  // terms' coefficients and the wavenumbers only they use, A and g x's normal equations (those
-  // of its t-ratios). y (x without the terms) takes that start when its training loss is the
-  // lower; returns whether it did. Without it the LM starts from x's values as they are and
-  // spends its iterations walking the others over.
+  // gauss_newton_with_zeros, D the dropped terms' coefficients and the wavenumbers only they
+  // use, A and g x's normal equations (those of its t-ratios). y (x without the terms) takes
+  // that start when its training loss is the lower; returns whether it did. Without it the LM
+  // starts from x's values as they are and spends its iterations walking the others over.
   bool start_projected(Candidate& x, const std::vector<Index>& dropped_pool,
                        const NormalEquations& ne, Candidate& y) {
     const HamiltonianLibraryMap& map = library_of(x);
@@ -851,30 +850,11 @@ class LibrarySelection {
           drop[static_cast<std::size_t>(map.coefficient_index(k))])
         drop[static_cast<std::size_t>(w)] = 1;
     }
-    std::vector<Index> kept, gone;
-    for (Index j = 0; j < n; ++j) (drop[static_cast<std::size_t>(j)] ? gone : kept).push_back(j);
-    if (gone.empty() || kept.empty()) return false;
-    const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
-    const Index nk = static_cast<Index>(kept.size()), nd = static_cast<Index>(gone.size());
-    Matrix akk(nk, nk), akd(nk, nd);
-    Vector rhs(nk), dd(nd);
-    for (Index j = 0; j < nd; ++j) dd(j) = -x.theta(gone[static_cast<std::size_t>(j)]);
-    for (Index i = 0; i < nk; ++i) {
-      const Index ki = kept[static_cast<std::size_t>(i)];
-      rhs(i) = ne.g(ki);
-      for (Index j = 0; j < nk; ++j) akk(i, j) = a(ki, kept[static_cast<std::size_t>(j)]);
-      for (Index j = 0; j < nd; ++j) akd(i, j) = a(ki, gone[static_cast<std::size_t>(j)]);
-    }
-    rhs.noalias() += akd * dd;
-    // A ridge at 1e-9 of the diagonal, as the Gauss–Newton step takes it.
-    akk.diagonal() += 1e-9 * akk.diagonal().cwiseMax(1e-300);
-    const dense::Ldlt f(akk);
-    if (!f.ok()) return false;
-    const Vector dk = -f.solve(rhs);
-    if (!dk.allFinite()) return false;
-    Vector start = x.theta;
-    for (Index i = 0; i < nk; ++i) start(kept[static_cast<std::size_t>(i)]) += dk(i);
-    for (Index j = 0; j < nd; ++j) start(gone[static_cast<std::size_t>(j)]) = 0.0;
+    std::vector<Index> gone;
+    for (Index j = 0; j < n; ++j)
+      if (drop[static_cast<std::size_t>(j)]) gone.push_back(j);
+    Vector start = gauss_newton_with_zeros(ne, x.theta, gone);
+    if (start.size() != n) return false;
     std::swap(x.theta, start);
     Candidate p = make(active_terms(), library_of(x).substeps(), &x);
     std::swap(x.theta, start);

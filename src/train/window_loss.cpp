@@ -306,6 +306,42 @@ NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta
   return ne;
 }
 
+Vector gauss_newton_with_zeros(const NormalEquations& ne, const Vector& theta,
+                               const std::vector<Index>& zeroed) {
+  const Index n = theta.size();
+  require(ne.a.rows() == n && ne.g.size() == n,
+          "gauss_newton_with_zeros: the normal equations do not match theta");
+  std::vector<char> is_zeroed(static_cast<std::size_t>(n), 0);
+  for (Index j : zeroed) {
+    require(j >= 0 && j < n, "gauss_newton_with_zeros: an index outside theta");
+    is_zeroed[static_cast<std::size_t>(j)] = 1;
+  }
+  std::vector<Index> kept, gone;
+  for (Index j = 0; j < n; ++j) (is_zeroed[static_cast<std::size_t>(j)] ? gone : kept).push_back(j);
+  if (gone.empty() || kept.empty()) return {};
+  const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+  const Index nk = static_cast<Index>(kept.size()), nd = static_cast<Index>(gone.size());
+  Matrix akk(nk, nk), akd(nk, nd);
+  Vector rhs(nk), dd(nd);
+  for (Index j = 0; j < nd; ++j) dd(j) = -theta(gone[static_cast<std::size_t>(j)]);
+  for (Index i = 0; i < nk; ++i) {
+    const Index ki = kept[static_cast<std::size_t>(i)];
+    rhs(i) = ne.g(ki);
+    for (Index j = 0; j < nk; ++j) akk(i, j) = a(ki, kept[static_cast<std::size_t>(j)]);
+    for (Index j = 0; j < nd; ++j) akd(i, j) = a(ki, gone[static_cast<std::size_t>(j)]);
+  }
+  rhs.noalias() += akd * dd;
+  akk.diagonal() += 1e-9 * akk.diagonal().cwiseMax(1e-300);
+  const dense::Ldlt f(akk);
+  if (!f.ok()) return {};
+  const Vector dk = -f.solve(rhs);
+  if (!dk.allFinite()) return {};
+  Vector out = theta;
+  for (Index i = 0; i < nk; ++i) out(kept[static_cast<std::size_t>(i)]) += dk(i);
+  for (Index j = 0; j < nd; ++j) out(gone[static_cast<std::size_t>(j)]) = 0.0;
+  return out;
+}
+
 Vector gauss_newton_step(const NormalEquations& ne) {
   const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
   const Vector diag = a.diagonal().cwiseMax(1e-300);

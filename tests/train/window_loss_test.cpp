@@ -3,6 +3,8 @@
 // chunked normal equations against the explicit J; the chunks' shares add up to the loss.
 #include "csympnet/train/window_loss.hpp"
 
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "csympnet/core/error.hpp"
@@ -243,6 +245,47 @@ TEST(WindowLoss, WindowsStayInsideTheirTrajectories) {
   EXPECT_EQ(w.zm.col(0), t[0].z.col(3));
   EXPECT_EQ(w.zm.col(5), t[2].z.col(5));
   EXPECT_DOUBLE_EQ(w.h(2, 5), t[2].t(5) - t[2].t(4));
+}
+
+// The Gauss–Newton step with parameters held at 0, at random normal equations: the held ones
+// are exactly 0, the rest stationary for the quadratic model (its gradient on them vanishes to
+// the ridge), and the model is no higher there than at θ with the held ones simply zeroed.
+TEST(GaussNewtonWithZeros, ZeroesTheHeldAndMinimisesTheModelOverTheRest) {
+  for (int draw = 0; draw < 20; ++draw) {
+    SCOPED_TRACE(draw);
+    Rng rng(draw, "gn-with-zeros");
+    const Index n = 3 + draw % 6;
+    const Matrix j = rng.normal_matrix(2 * n + 3, n, 1.0);
+    NormalEquations ne;
+    ne.a = j.transpose() * j;
+    ne.g = rng.normal_matrix(n, 1, 0.3);
+    const Vector theta = rng.normal_matrix(n, 1, 1.0);
+    std::vector<Index> zeroed;
+    for (Index k = 0; k < n; ++k)
+      if (rng.uniform(0.0, 1.0) < 0.35 || k == draw % n) zeroed.push_back(k);
+    if (static_cast<Index>(zeroed.size()) == n) zeroed.pop_back();
+    const Vector out = gauss_newton_with_zeros(ne, theta, zeroed);
+    ASSERT_EQ(out.size(), n);
+    const Vector delta = out - theta;
+    const auto model = [&](const Vector& d) { return 0.5 * d.dot(ne.a * d) + ne.g.dot(d); };
+    const Vector grad = ne.a * delta + ne.g;
+    Vector plain = Vector::Zero(n);
+    for (Index k : zeroed) {
+      EXPECT_EQ(out(k), 0.0);
+      plain(k) = -theta(k);
+    }
+    for (Index k = 0; k < n; ++k) {
+      if (std::find(zeroed.begin(), zeroed.end(), k) != zeroed.end()) continue;
+      EXPECT_LE(std::abs(grad(k)), 1e-6 * (1.0 + ne.a.cwiseAbs().maxCoeff() * delta.norm()));
+    }
+    EXPECT_LE(model(delta), model(plain) + 1e-12 * std::abs(model(plain)));
+  }
+  NormalEquations ne;
+  ne.a = Matrix::Identity(2, 2);
+  ne.g = Vector::Zero(2);
+  EXPECT_EQ(gauss_newton_with_zeros(ne, Vector::Ones(2), {}).size(), 0);
+  EXPECT_EQ(gauss_newton_with_zeros(ne, Vector::Ones(2), {0, 1}).size(), 0);
+  EXPECT_THROW(gauss_newton_with_zeros(ne, Vector::Ones(2), {2}), Error);
 }
 
 }  // namespace

@@ -93,6 +93,12 @@ struct NormalEquations {
 // One Gauss–Newton step from these normal equations, −(A + μD)⁻¹ g with D = diag A and μ a
 // ridge at 1e-9 (raised a hundredfold while A + μD cannot be factored); zero when it never can.
 Vector gauss_newton_step(const NormalEquations& ne);
+// θ moved by the Gauss–Newton step constrained to put the parameters `zeroed` at 0: the
+// quadratic model ½ δᵀAδ + gᵀδ minimised with δ_D = −θ_D (D = zeroed) gives
+// δ_K = −A_KK⁻¹ (g_K + A_KD δ_D) on the rest (A_KK with the same 1e-9 ridge). Empty when
+// nothing is zeroed, nothing is left, or A_KK cannot be factored.
+Vector gauss_newton_with_zeros(const NormalEquations& ne, const Vector& theta,
+                               const std::vector<Index>& zeroed);
 
 NormalEquations window_normal_equations(const OneStepMap& map, ConstParams theta,
                                         const WindowSet& w, bool balanced, double scale,

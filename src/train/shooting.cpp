@@ -692,7 +692,8 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
     const Vector& h = segs.h[i];
     const Vector& w = weights_of(segs, i);
     const Matrix& u = segs.inputs(s);
-    Vector best = z0.col(s);
+    const Vector given = z0.col(s);
+    Vector best = given;
     const Vector& rw = segs.row_weight;
     double best_cost =
         fit_one_start(map, theta, q, h, w, rw, best, iterations, max_abs, u, tolerance);
@@ -714,6 +715,8 @@ double fit_start_states(const OneStepMap& map, ConstParams theta, const Shooting
         z.tail(d) = k == 0 ? Vector(Vector::Zero(d))
                            : one_step_momentum(map, theta, q.col(0), q.col(1), h(0), u);
       }
+      // The given start itself (a cut's first observed state): its fit, deterministic, is done.
+      if (z == given) continue;
       const double c = fit_one_start(map, theta, q, h, w, rw, z, iterations, max_abs, u, tolerance);
       if (c < best_cost) {
         best_cost = c;

@@ -128,7 +128,8 @@ NormalEquations shooting_block_equations(const OneStepMap& map, ConstParams thet
 // (held-out segments, the start of the joint fit, a rollout from observed positions).
 // several_starts: each segment is also fitted from its first position with p = 0 and with the
 // p that carries it to the second position in one step, and the lowest fit kept (a start far
-// from the motion, or in another basin, is then not final). Returns the loss after.
+// from the motion, or in another basin, is then not final); a start equal to the given one, as
+// a cut's first observed state is, is not fitted twice. Returns the loss after.
 // max_abs: a bound on every component of a start state (a trial step beyond it is refused): in
 // a direction the positions do not fix (a saturated core), the fit would otherwise run off.
 // tolerance: a segment's fit ends after an accepted step that lowers its ‖r‖² by at most this

@@ -205,7 +205,8 @@ nlohmann::json model_selection(const IdentifyResult& r) {
     };
     for (const auto& s : lib["forward"]) {
       if (!s.contains("kept")) {
-        round.push_back(s);
+        // A group the score test left unfitted has no held-out loss to compare.
+        if (s.contains("val_loss_after")) round.push_back(s);
         continue;
       }
       const std::string kept = text(s, "kept");

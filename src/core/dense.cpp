@@ -17,6 +17,19 @@ Matrix least_squares(const Matrix& a, const RowMajor& b) {
   return a.colPivHouseholderQr().solve(b);
 }
 
+Vector first_coefficient_weights(const Matrix& a) {
+  const Eigen::HouseholderQR<Matrix> qr(a);
+  const Index n = a.cols();
+  Vector u = Vector::Zero(a.rows());
+  u(0) = 1.0;
+  qr.matrixQR()
+      .topLeftCorner(n, n)
+      .triangularView<Eigen::Upper>()
+      .transpose()
+      .solveInPlace(u.head(n));
+  return qr.householderQ() * u;
+}
+
 RankedSolution least_squares_with_rank(const Matrix& a, const RowMajor& b) {
   const Eigen::ColPivHouseholderQR<Matrix> qr(a);
   return {qr.solve(b), qr.rank()};

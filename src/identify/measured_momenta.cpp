@@ -14,9 +14,8 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/QR>
-
 #include "csympnet/core/dense.hpp"
+#include "csympnet/core/stop.hpp"
 #include "csympnet/identify/model_checks.hpp"
 
 namespace csympnet {
@@ -78,29 +77,76 @@ double median_step(const Vector& t) {
   return h.size() % 2 == 1 ? h[m] : 0.5 * (h[m - 1] + h[m]);
 }
 
-// q = z's row `dof` at sample c from its k neighbours on each side: the least-squares polynomial
-// of degree min(4, 2k − 2) in time through them, at t_c. Smooth positions are predicted to
-// O(h⁵) at any steps; noise is not predicted at all. (z and the row index, not the row: a row of
-// a column-major matrix bound to a contiguous Ref was copied whole at every call, 20,000 copies
-// of the record on a long one.)
-double interpolate_centre(const Vector& t, const Matrix& z, Index dof, Index c, Index k) {
+// The weights w of q_c ≈ Σ_j w_j q_{c+j} (j = −k … k, j ≠ 0): the least-squares polynomial of
+// degree min(4, 2k − 2) in time through the k neighbours on each side, at t_c. Smooth positions
+// are predicted to O(h⁵) at any steps; noise is not predicted at all. The weights depend on the
+// times alone, so one factorisation per centre serves every degree of freedom.
+Vector centre_weights(const Vector& t, Index c, Index k) {
   const Index deg = std::min<Index>(4, 2 * k - 2);
   const double scale = t(c + k) - t(c - k);
   Matrix v(2 * k, deg + 1);
-  Vector y(2 * k);
   Index row = 0;
   for (Index j = -k; j <= k; ++j) {
     if (j == 0) continue;
     const double tau = (t(c + j) - t(c)) / scale;
     double power = 1.0;
     for (Index m = 0; m <= deg; ++m, power *= tau) v(row, m) = power;
-    y(row++) = z(dof, c + j);
+    ++row;
   }
-  return dense::least_squares(v, y)(0);
+  return dense::first_coefficient_weights(v);
 }
 
-// The regression rows of one group of trajectories (one long trajectory, or the short ones
-// pooled), for one degree of freedom.
+// The trajectories regressed together (one long trajectory, or the short ones pooled), with
+// the interpolation weights of their centres (every stride-th), shared by the degrees of
+// freedom.
+struct Group {
+  std::vector<const Trajectory*> trajs;
+  Matrix weights;  // a row per centre: the 2K neighbours' weights (centre_weights)
+};
+
+struct Groups {
+  std::vector<Group> groups;
+  Index total = 0;  // centres over every trajectory
+  Index stride = 1;
+  bool stopped = false;  // a stop was requested while the weights were computed
+};
+
+Groups groups_of(const std::vector<Trajectory>& trajs, Index k) {
+  Groups out;
+  std::vector<const Trajectory*> pooled;
+  for (const Trajectory& t : trajs) {
+    const Index n_centres = t.t.size() - 2 * k;
+    if (n_centres < 1) continue;
+    out.total += n_centres;
+    if (n_centres >= min_rows(k))
+      out.groups.push_back({{&t}, Matrix()});
+    else
+      pooled.push_back(&t);
+  }
+  if (!pooled.empty()) out.groups.push_back({pooled, Matrix()});
+  out.stride = std::max<Index>(1, out.total / kMaxRows);
+  for (Group& g : out.groups) {
+    Index count = 0, seen = 0;
+    for (const Trajectory* t : g.trajs)
+      for (Index c = k; c < t->t.size() - k; ++c, ++seen)
+        if (seen % out.stride == 0) ++count;
+    g.weights.resize(count, 2 * k);
+    Index row = 0;
+    seen = 0;
+    for (const Trajectory* t : g.trajs)
+      for (Index c = k; c < t->t.size() - k; ++c, ++seen) {
+        if (seen % out.stride != 0) continue;
+        if (row % 1024 == 1023 && stop_requested()) {
+          out.stopped = true;
+          return out;
+        }
+        g.weights.row(row++) = centre_weights(t->t, c, k).transpose();
+      }
+  }
+  return out;
+}
+
+// The regression rows of one group for one degree of freedom.
 struct Rows {
   Matrix taps;    // q_{n−K} … q_{n+K}
   Vector interp;  // q_n from its 2K neighbours: a local polynomial at the actual times
@@ -109,21 +155,22 @@ struct Rows {
   Index size() const { return p.size(); }
 };
 
-Rows rows_of(const std::vector<const Trajectory*>& group, Index dof, Index d, Index k,
-             Index stride) {
-  Index count = 0, seen = 0;
-  for (const Trajectory* t : group)
-    for (Index c = k; c < t->t.size() - k; ++c, ++seen)
-      if (seen % stride == 0) ++count;
+// Every stride-th centre of the group, as groups_of chose them.
+Rows rows_of(const Group& g, Index dof, Index d, Index k, Index stride) {
+  const Index count = g.weights.rows();
+  Index seen = 0;
   Rows r{Matrix(count, 2 * k + 1), Vector(count), Vector(count), Vector(count), Vector(count)};
   Index row = 0;
-  seen = 0;
-  for (const Trajectory* t : group) {
+  for (const Trajectory* t : g.trajs) {
     const double h = median_step(t->t);
     for (Index c = k; c < t->t.size() - k; ++c, ++seen) {
       if (seen % stride != 0) continue;
       for (Index j = -k; j <= k; ++j) r.taps(row, j + k) = t->z(dof, c + j);
-      r.interp(row) = interpolate_centre(t->t, t->z, dof, c, k);
+      double interp = 0.0;
+      for (Index j = 0; j < k; ++j)
+        interp += g.weights(row, j) * t->z(dof, c - k + j) +
+                  g.weights(row, k + j) * t->z(dof, c + 1 + j);
+      r.interp(row) = interp;
       const double h0 = t->t(c) - t->t(c - 1), h1 = t->t(c + 1) - t->t(c);
       r.grad(row) = (h0 * h0 * t->z(dof, c + 1) - h1 * h1 * t->z(dof, c - 1) +
                      (h1 * h1 - h0 * h0) * t->z(dof, c)) /
@@ -158,26 +205,12 @@ Index half_width(const std::vector<Trajectory>& trajs) {
   return 0;
 }
 
-Shares shares_of(const std::vector<Trajectory>& trajs, Index dof, Index d, Index k) {
-  std::vector<std::vector<const Trajectory*>> groups;
-  std::vector<const Trajectory*> pooled;
-  Index total = 0;
-  for (const Trajectory& t : trajs) {
-    const Index n_centres = t.t.size() - 2 * k;
-    if (n_centres < 1) continue;
-    total += n_centres;
-    if (n_centres >= min_rows(k))
-      groups.push_back({&t});
-    else
-      pooled.push_back(&t);
-  }
-  if (!pooled.empty()) groups.push_back(pooled);
+Shares shares_of(const Groups& gs, Index dof, Index d, Index k) {
   Shares s;
-  if (total < min_rows(k)) return s;
-  const Index stride = std::max<Index>(1, total / kMaxRows);
+  if (gs.total < min_rows(k)) return s;
   Fit fir, grad, pos, rec;
-  for (const auto& g : groups) {
-    const Rows r = rows_of(g, dof, d, k, stride);
+  for (const Group& g : gs.groups) {
+    const Rows r = rows_of(g, dof, d, k, gs.stride);
     if (r.size() < 2 * k + 3) continue;  // a pooled remainder too small to fit
     fir += least_squares(r.taps, r.p_h);
     grad += least_squares(r.grad, r.p);
@@ -214,9 +247,15 @@ ModelCheck measured_momenta_check(const std::vector<Trajectory>& trajs, bool pai
   }
   const Index d = trajs.front().z.rows() / 2;
   const Index half = half_width(trajs);
+  const Groups groups = half > 0 ? groups_of(trajs, half) : Groups();
   std::vector<double> ratio, pos, mom, rec;
   for (Index i = 0; i < d && half > 0; ++i) {
-    const Shares s = shares_of(trajs, i, d, half);
+    if (groups.stopped || stop_requested()) {
+      k.applicable = false;
+      k.sentence = "not judged: a stop was requested";
+      return k;
+    }
+    const Shares s = shares_of(groups, i, d, half);
     if (s.rows < min_rows(half) || !std::isfinite(s.momenta) || !std::isfinite(s.positions)) break;
     mom.push_back(s.momenta);
     rec.push_back(s.recurrence);

@@ -22,6 +22,10 @@ using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::Ro
 Vector least_squares(const Matrix& a, const Vector& b);
 Matrix least_squares(const Matrix& a, const Matrix& b);
 Matrix least_squares(const Matrix& a, const RowMajor& b);
+// w with wᵀy = the first entry of the least-squares solution of a x ≈ y, for every y (a of full
+// column rank, rows ≥ columns): by Householder QR a = QR, w = Q R⁻ᵀ e₀. A local polynomial's
+// value at its centre, as weights of the samples that one factorisation serves for every y.
+Vector first_coefficient_weights(const Matrix& a);
 struct RankedSolution {
   Matrix x;
   Index rank = 0;

@@ -1,5 +1,6 @@
 #include "csympnet/train/refine.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -150,7 +151,13 @@ LeastSquaresProblem one_step_problem(const OneStepMap& map, const PairSet& pairs
   };
   p.jacobian = [&map, &pairs, scale, &monitor](ConstParams theta, Eigen::Ref<RowMajorMatrix> jac) {
     residual_jacobian(map, theta, pairs, jac, [&monitor] { return monitor.interrupted(); });
-    jac *= scale;  // when stopped, the solver sees the stop before it uses jac
+    // Scaled in blocks of rows, polled between them (6,400 × 4,111 entries took 0.5 s under the
+    // sanitizers); when stopped, the solver sees the stop before it uses jac.
+    constexpr Index kRows = 256;
+    for (Index i = 0; i < jac.rows(); i += kRows) {
+      if (monitor.interrupted()) return;
+      jac.middleRows(i, std::min(kRows, jac.rows() - i)) *= scale;
+    }
   };
   p.should_stop = [&monitor] { return monitor.interrupted(); };
   return p;

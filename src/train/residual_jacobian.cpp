@@ -39,7 +39,7 @@ void residual_jacobian(const OneStepMap& map, ConstParams theta, const PairSet& 
   Vector h(1);
   Matrix upstream = Matrix::Zero(m, 1);
   for (Index j = 0; j < n; ++j) {
-    if (should_stop && j % 32 == 0 && should_stop()) return;
+    if (should_stop && should_stop()) return;  // per pair: 2d backward passes
     z = pairs.z0.col(j);
     h(0) = pairs.h(j);
     map.forward(theta, z, h, &cache);

@@ -22,11 +22,8 @@ Vector first_coefficient_weights(const Matrix& a) {
   const Index n = a.cols();
   Vector u = Vector::Zero(a.rows());
   u(0) = 1.0;
-  qr.matrixQR()
-      .topLeftCorner(n, n)
-      .triangularView<Eigen::Upper>()
-      .transpose()
-      .solveInPlace(u.head(n));
+  qr.matrixQR().topLeftCorner(n, n).triangularView<Eigen::Upper>().transpose().solveInPlace(
+      u.head(n));
   return qr.householderQ() * u;
 }
 

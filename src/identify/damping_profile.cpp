@@ -78,7 +78,8 @@ Matrix DampingProfile::residuals(double c) const {
   return map_->apply(core_theta_, x, h) - target;
 }
 
-Matrix DampingProfile::momentum_jacobian_times(const Vector& x, double h, const Matrix& dirs) const {
+Matrix DampingProfile::momentum_jacobian_times(const Vector& x, double h,
+                                               const Matrix& dirs) const {
   if (map_->has_step_tangents()) {
     // Forward mode: the tangent block (0; dirs) carried through the step, no parameter columns.
     Matrix t(2 * d_, dirs.cols());

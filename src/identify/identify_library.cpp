@@ -462,8 +462,9 @@ class LibrarySelection {
         if (share < kTryShareOfThreshold * threshold_) {
           step["fitted"] = false;
           step["earns_its_place"] = false;
-          step["why"] = "not fitted: on every training window the Gauss-Newton step is predicted "
-                        "to remove less than a quarter of the keep threshold from the loss";
+          step["why"] =
+              "not fitted: on every training window the Gauss-Newton step is predicted "
+              "to remove less than a quarter of the keep threshold from the loss";
           steps.push_back(step);
           continue;
         }

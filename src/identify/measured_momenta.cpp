@@ -168,8 +168,8 @@ Rows rows_of(const Group& g, Index dof, Index d, Index k, Index stride) {
       for (Index j = -k; j <= k; ++j) r.taps(row, j + k) = t->z(dof, c + j);
       double interp = 0.0;
       for (Index j = 0; j < k; ++j)
-        interp += g.weights(row, j) * t->z(dof, c - k + j) +
-                  g.weights(row, k + j) * t->z(dof, c + 1 + j);
+        interp +=
+            g.weights(row, j) * t->z(dof, c - k + j) + g.weights(row, k + j) * t->z(dof, c + 1 + j);
       r.interp(row) = interp;
       const double h0 = t->t(c) - t->t(c - 1), h1 = t->t(c + 1) - t->t(c);
       r.grad(row) = (h0 * h0 * t->z(dof, c + 1) - h1 * h1 * t->z(dof, c - 1) +

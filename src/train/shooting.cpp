@@ -809,13 +809,14 @@ double gauss_newton_predicted(NormalEquations& ne, const std::vector<SegmentTerm
 
 // Why the fit ends before a trial, if the Gauss–Newton step's predicted fall of the loss says
 // that no step from here can matter. In units of χ² (n · Δloss / loss) the fall that the model
-// predicts for the step bounds every parameter's move in its own standard error: the step's component b satisfies δ_b² ≤ [A⁻¹]_bb · gᵀA⁻¹g (Cauchy–
-// Schwarz in A⁻¹'s inner product), and gᵀA⁻¹g is at most the predicted fall, so |δ_b| ≤
-// SE_b · √(predicted χ² fall) for the watched parameter and every other. A predicted fall of at
-// most converged_se² moves the watched parameter by at most converged_se of its standard error
-// (what the rule of three accepted steps asks of each), one of at most converged_chi2 is a
-// small step in χ²'s units; below 1e-10 of the loss itself the loss is at its rounding level,
-// where every trial fails alike. Every step that LM could still take is then smaller.
+// predicts for the step bounds every parameter's move in its own standard error: the step's
+// component b satisfies δ_b² ≤ [A⁻¹]_bb · gᵀA⁻¹g (Cauchy– Schwarz in A⁻¹'s inner product), and
+// gᵀA⁻¹g is at most the predicted fall, so |δ_b| ≤ SE_b · √(predicted χ² fall) for the watched
+// parameter and every other. A predicted fall of at most converged_se² moves the watched parameter
+// by at most converged_se of its standard error (what the rule of three accepted steps asks of
+// each), one of at most converged_chi2 is a small step in χ²'s units; below 1e-10 of the loss
+// itself the loss is at its rounding level, where every trial fails alike. Every step that LM could
+// still take is then smaller.
 std::optional<std::string> why_predicted_converged(double predicted, double loss, Index n,
                                                    const ShootingOptions& options, bool watching) {
   if (!(loss > 0.0) || !std::isfinite(predicted)) return std::nullopt;
@@ -957,8 +958,8 @@ ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
     if (why_predicted_converged(trial.predicted, loss, train.n_residuals(), options,
                                 watch_se > 0.0)) {
       const double fall = gauss_newton_predicted(ne, terms, train, theta, z0, n_free);
-      if (const auto why = why_predicted_converged(fall, loss, train.n_residuals(), options,
-                                                   watch_se > 0.0)) {
+      if (const auto why =
+              why_predicted_converged(fall, loss, train.n_residuals(), options, watch_se > 0.0)) {
         rep.watch_converged = watch_se > 0.0;
         rep.message = *why;
         break;

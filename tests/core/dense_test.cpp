@@ -42,8 +42,8 @@ TEST(Dense, FirstCoefficientWeightsInterpolatePolynomialsAtTheCentre) {
     for (Index j = 0; j < 2 * k; ++j) {
       const double side = j < k ? -1.0 : 1.0;
       const Index step = j < k ? k - j : j - k + 1;
-      tau(j) = side * (static_cast<double>(step) + rng.uniform(-0.3, 0.3)) /
-               static_cast<double>(2 * k);
+      tau(j) =
+          side * (static_cast<double>(step) + rng.uniform(-0.3, 0.3)) / static_cast<double>(2 * k);
       double power = 1.0;
       for (Index m = 0; m <= deg; ++m, power *= tau(j)) v(j, m) = power;
     }

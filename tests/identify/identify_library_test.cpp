@@ -303,8 +303,7 @@ TEST(LibraryCore, GroupsThatCannotEarnTheirPlaceOnALongRecordAreNotFitted) {
   const double gamma = 0.01;
   std::vector<Vector> starts;
   for (double q0 : {1.5, 1.0, 2.0, 0.7}) starts.push_back((Vector(2) << q0, 0.2).finished());
-  const auto data =
-      rk4_records([](double q) { return -q; }, gamma, starts, 2500, 0.15, 1e-3, 21);
+  const auto data = rk4_records([](double q) { return -q; }, gamma, starts, 2500, 0.15, 1e-3, 21);
   IdentifyConfig c;
   c.core = {{"type", "library"}};
   const IdentifyResult r = identify(data, false, c);

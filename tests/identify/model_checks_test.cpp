@@ -202,15 +202,16 @@ TEST(DampingProfile, DerivativesInTheDampingMatrixMatchFiniteDifferences) {
     nlohmann::json terms = {"(q1-q2)^4", "sin(q1)", "q2"};
     for (Index i = 1; i <= d; ++i) terms.push_back("q" + std::to_string(i) + "^2");
     Model m = make_model(
-        library ? nlohmann::json{{"type", "csympnet"},
-                                 {"d", d},
-                                 {"core", {{"type", "library"}, {"mass", "full"}, {"terms", terms}}},
-                                 {"beta_init", 0.2}}
-                : nlohmann::json{{"type", "csympnet"},
-                                 {"d", d},
-                                 {"core", {{"type", "g"}, {"layers", 2}, {"width", 5}}},
-                                 {"beta_init", 0.2},
-                                 {"dof_scales", "learned"}});
+        library
+            ? nlohmann::json{{"type", "csympnet"},
+                             {"d", d},
+                             {"core", {{"type", "library"}, {"mass", "full"}, {"terms", terms}}},
+                             {"beta_init", 0.2}}
+            : nlohmann::json{{"type", "csympnet"},
+                             {"d", d},
+                             {"core", {{"type", "g"}, {"layers", 2}, {"width", 5}}},
+                             {"beta_init", 0.2},
+                             {"dof_scales", "learned"}});
     ASSERT_EQ(m.map->has_step_tangents(), library);
     Vector theta(m.n_params());
     m.init_params(rng, theta);

@@ -740,14 +740,8 @@ class LibrarySelection {
     for (Index j = 0; j < ym.n_params(); ++j)
       if (!held[static_cast<std::size_t>(j)]) free.push_back(j);
     const Matrix a = ne.a.selfadjointView<Eigen::Lower>();
-    const Index nf = static_cast<Index>(free.size());
-    Matrix af(nf, nf);
-    Vector gf(nf);
-    for (Index r = 0; r < nf; ++r) {
-      gf(r) = ne.g(free[static_cast<std::size_t>(r)]);
-      for (Index c = 0; c < nf; ++c)
-        af(r, c) = a(free[static_cast<std::size_t>(r)], free[static_cast<std::size_t>(c)]);
-    }
+    Matrix af = a(free, free);
+    const Vector gf = ne.g(free);
     af.diagonal() += 1e-10 * af.diagonal().cwiseMax(1e-300);
     const dense::Ldlt f(af);
     if (!f.ok()) return std::numeric_limits<double>::infinity();

@@ -810,7 +810,7 @@ double gauss_newton_predicted(NormalEquations& ne, const std::vector<SegmentTerm
 // Why the fit ends before a trial, if the Gauss–Newton step's predicted fall of the loss says
 // that no step from here can matter. In units of χ² (n · Δloss / loss) the fall that the model
 // predicts for the step bounds every parameter's move in its own standard error: the step's
-// component b satisfies δ_b² ≤ [A⁻¹]_bb · gᵀA⁻¹g (Cauchy– Schwarz in A⁻¹'s inner product), and
+// component b satisfies δ_b² ≤ [A⁻¹]_bb · gᵀA⁻¹g (Cauchy–Schwarz in A⁻¹'s inner product), and
 // gᵀA⁻¹g is at most the predicted fall, so |δ_b| ≤ SE_b · √(predicted χ² fall) for the watched
 // parameter and every other. A predicted fall of at most converged_se² moves the watched parameter
 // by at most converged_se of its standard error (what the rule of three accepted steps asks of

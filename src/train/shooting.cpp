@@ -879,162 +879,236 @@ double rounding_loss(const ShootingSegments& segs) {
   return n > 0 ? kRoundingShare * sum / static_cast<double>(n) : 0.0;
 }
 
+namespace {
+
+// One run of the joint Levenberg–Marquardt fit: its data, its damping, its counters of small
+// steps and the iterates it accepted. Each iteration is three steps: the damped step from the
+// current normal equations (damped_step), the stop tests before its rollout
+// (converged_before_trial), and the trial itself (try_step), which on success records the
+// iterate (accept). `finish` then keeps the chosen iterate.
+class JointFit {
+ public:
+  JointFit(const OneStepMap& map, const ShootingSegments& train, const ShootingSegments& val,
+           const ShootingOptions& options)
+      : map_(map),
+        train_(train),
+        val_(val),
+        options_(options),
+        n_free_(options.n_free < 0 ? map.n_params() : options.n_free),
+        scale_(1.0 / std::sqrt(static_cast<double>(train.n_residuals()))),
+        n_val_(static_cast<double>(std::max<Index>(1, val.n_residuals()))),
+        rounding_(rounding_loss(train)) {}
+
+  // Starts at (θ, z0): the training loss there, and its held-out loss as the first iterate.
+  // False where the rollout from the start is not finite (a trial core far from the data has
+  // no Jacobian).
+  bool start(const Vector& theta, const Matrix& z0, Matrix& val_z0) {
+    rep_.initial_loss = loss_ = shooting_loss(map_, theta, z0, train_);
+    if (!std::isfinite(loss_)) {
+      rep_.final_loss = rep_.val_loss = std::numeric_limits<double>::infinity();
+      rep_.message = "the rollout from the start is not finite";
+      return false;
+    }
+    theta_ = theta;
+    z0_ = z0;
+    kept_.push_back({0, theta_, z0_, val_z0, val_loss(theta_, val_z0)});
+    best_val_ = kept_.back().val;
+    rep_.message = "maximum number of iterations reached";
+    return true;
+  }
+
+  // The iterations, until a rule ends them or the budget runs out.
+  void iterate(Matrix& val_z0) {
+    for (long it = 1; it <= options_.iterations; ++it) {
+      if (!refresh()) {
+        rep_.stopped = true;
+        rep_.message = "stopped by the caller";
+        return;
+      }
+      ++rep_.iterations;
+      std::optional<Vector> step = damped_step();
+      if (!step) continue;
+      JointTrial trial = joint_trial(theta_, z0_, *step, ne_, terms_, n_free_, lambda_);
+      if (const auto why = converged_before_trial(trial)) {
+        rep_.watch_converged = watch_se_ > 0.0;
+        rep_.message = *why;
+        return;
+      }
+      if (const auto why = try_step(std::move(trial), *step, it, val_z0)) {
+        rep_.message = *why;
+        return;
+      }
+    }
+  }
+
+  const ShootingReport& report() const { return rep_; }
+
+  // The chosen iterate into (θ, z0, val_z0), and the report.
+  ShootingReport finish(Vector& theta, Matrix& z0, Matrix& val_z0) {
+    // The standard error of a mean of n squared Gaussian residuals is the mean times √(2/n).
+    const ShootingIterate& chosen =
+        chosen_iterate(kept_, best_val_, standard_error(best_val_), val_.size() == 0);
+    theta = chosen.theta;
+    z0 = chosen.z0;
+    val_z0 = chosen.val_z0;
+    rep_.best_iteration = chosen.iteration;
+    rep_.final_loss = shooting_loss(map_, theta, z0, train_);
+    rep_.val_loss = chosen.val;
+    return rep_;
+  }
+
+ private:
+  bool stop() const { return options_.should_stop && options_.should_stop(); }
+
+  // The held-out loss, compared at its standard error: its start states to kScoringTolerance.
+  double val_loss(ConstParams theta, Matrix& val_z0) const {
+    return val_.size() > 0 ? fit_start_states(map_, theta, val_, val_z0, 30, false,
+                                              options_.max_abs_state, kScoringTolerance)
+                           : 0.0;
+  }
+  double standard_error(double loss) const { return loss * std::sqrt(2.0 / n_val_); }
+
+  // The normal equations at the current iterate, unless they are already there. False: stopped.
+  bool refresh() {
+    if (stop()) return false;
+    if (fresh_) return true;
+    ne_ = accumulate(
+        map_, theta_, z0_, train_, n_free_, scale_, false, [this] { return stop(); }, terms_);
+    if (ne_.stopped) return false;
+    fresh_ = true;
+    return true;
+  }
+
+  // θ's step from the reduced system at the current λ, and the watched parameter's standard
+  // error from its factor (watch_se_). None, with λ raised, where the system does not factor
+  // or the step is not finite or runs ten times the size of θ (along a direction the positions
+  // do not fix).
+  std::optional<Vector> damped_step() {
+    Matrix a;
+    Vector g;
+    reduce(ne_, terms_, train_, lambda_, a, g);
+    Vector step = -g;
+    if (!lapack::cholesky(a.data(), n_free_)) {
+      lambda_ *= 10.0;
+      return std::nullopt;
+    }
+    lapack::cholesky_solve(a.data(), n_free_, step.data());
+    const Index b = options_.watch_index;
+    watch_se_ = b >= 0 && b < n_free_ && options_.converged_se > 0.0
+                    ? factored_standard_error(a, n_free_, b, loss_, train_.n_residuals())
+                    : 0.0;
+    if (watch_se_ > 0.0) rep_.watch_se = watch_se_;
+    if (!step.allFinite() || step.norm() > 10.0 * (1.0 + theta_.head(n_free_).norm())) {
+      lambda_ *= 4.0;
+      return std::nullopt;
+    }
+    return step;
+  }
+
+  // The damped step's predicted fall is at most Gauss–Newton's: only a small one is worth the
+  // undamped step's (a reduction and a factorisation of n_free, no rollout).
+  std::optional<std::string> converged_before_trial(const JointTrial& trial) {
+    const bool watching = watch_se_ > 0.0;
+    const Index n = train_.n_residuals();
+    if (!why_predicted_converged(trial.predicted, loss_, n, options_, watching))
+      return std::nullopt;
+    const double fall = gauss_newton_predicted(ne_, terms_, train_, theta_, z0_, n_free_);
+    return why_predicted_converged(fall, loss_, n, options_, watching);
+  }
+
+  // The trial's rollout; Nielsen's update of λ from the gain ratio ρ (actual over predicted
+  // decrease; the loss is twice the cost). Returns why the fit ends, if it does.
+  std::optional<std::string> try_step(JointTrial trial, const Vector& step, long it,
+                                      Matrix& val_z0) {
+    const double loss_try = trial.z0.cwiseAbs().maxCoeff() <= options_.max_abs_state
+                                ? shooting_loss(map_, trial.theta, trial.z0, train_)
+                                : std::numeric_limits<double>::infinity();
+    const double rho = trial.predicted > 0.0 ? 0.5 * (loss_ - loss_try) / trial.predicted : -1.0;
+    if (!(std::isfinite(loss_try) && loss_try < loss_)) {
+      lambda_ *= nu_;
+      nu_ *= 2.0;
+      return why_failed_trials_end(lambda_, loss_, rounding_);
+    }
+    nu_ = 2.0;
+    ++rep_.accepted;
+    count_small_steps(step, loss_try);
+    theta_ = std::move(trial.theta);
+    z0_ = std::move(trial.z0);
+    loss_ = loss_try;
+    fresh_ = false;
+    lambda_ = std::max(
+        lambda_ * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * std::min(rho, 1.0) - 1.0, 3)), 1e-10);
+    return accept(it, val_z0);
+  }
+
+  // The counters of small steps in a row, for an accepted step to loss_try.
+  void count_small_steps(const Vector& step, double loss_try) {
+    const double n_train = static_cast<double>(train_.n_residuals());
+    const bool small = (loss_ - loss_try) <= 1e-10 * loss_ ||
+                       n_train * (loss_ - loss_try) <= options_.converged_chi2 * loss_try;
+    // Counted only for a step near Gauss–Newton's (λ small) that lowers χ² by less than 1: a
+    // heavily damped step is small in every direction, and a larger fall of χ² still moves θ.
+    const bool watch_small =
+        watch_se_ > 0.0 && lambda_ <= 1e-2 && n_train * (loss_ - loss_try) <= loss_try &&
+        std::abs(step(options_.watch_index)) <= options_.converged_se * watch_se_;
+    watch_steps_ = watch_small ? watch_steps_ + 1 : 0;
+    small_steps_ = small ? small_steps_ + 1 : 0;
+  }
+
+  // The accepted iterate's held-out loss, kept; why the fit ends there, if it does.
+  std::optional<std::string> accept(long it, Matrix& val_z0) {
+    const double v = val_loss(theta_, val_z0);
+    if (options_.on_accepted) options_.on_accepted(it, loss_, v);
+    kept_.push_back({it, theta_, z0_, val_z0, v});
+    // Patience counts steps whose held-out loss is above the lowest by more than its standard
+    // error (below): at the noise floor the fit goes on converging.
+    if (v < best_val_) best_val_ = v;
+    if (v <= best_val_ + standard_error(best_val_)) {
+      since_best_ = 0;
+    } else if (++since_best_ >= options_.patience) {
+      return "the held-out loss stayed more than its standard error above the lowest for " +
+             std::to_string(options_.patience) + " steps";
+    }
+    if (watch_steps_ >= 3) {
+      rep_.watch_converged = true;
+      return "converged: three steps in a row each moved the damping parameter by less than " +
+             std::to_string(options_.converged_se) + " of its standard error";
+    }
+    if (small_steps_ >= 3) return converged_message(options_.converged_chi2);
+    return std::nullopt;
+  }
+
+  const OneStepMap& map_;
+  const ShootingSegments& train_;
+  const ShootingSegments& val_;
+  const ShootingOptions& options_;
+  const Index n_free_;
+  const double scale_, n_val_, rounding_;
+  Vector theta_;
+  Matrix z0_;
+  double loss_ = 0.0, best_val_ = 0.0, watch_se_ = 0.0;
+  double lambda_ = 1e-4, nu_ = 2.0;
+  long since_best_ = 0, small_steps_ = 0, watch_steps_ = 0;
+  bool fresh_ = false;
+  NormalEquations ne_;
+  std::vector<SegmentTerms> terms_;
+  std::vector<ShootingIterate> kept_;
+  ShootingReport rep_;
+};
+
+}  // namespace
+
 ShootingReport fit_shooting(const OneStepMap& map, Vector& theta, Matrix& z0,
                             const ShootingSegments& train, Matrix& val_z0,
                             const ShootingSegments& val, const ShootingOptions& options) {
   train.validate("shooting: training segments");
   if (val.size() > 0) val.validate("shooting: held-out segments");
-  const Index n_free = options.n_free < 0 ? map.n_params() : options.n_free;
-  const Index dim = 2 * train.d;
-  require(z0.rows() == dim && z0.cols() == train.size(), "shooting: z0 must be 2d x segments");
-  const double scale = 1.0 / std::sqrt(static_cast<double>(train.n_residuals()));
-  const auto stop = [&] { return options.should_stop && options.should_stop(); };
-  // The held-out loss is compared at its standard error: its start states to kScoringTolerance.
-  const auto val_loss = [&](ConstParams th, Matrix& vz) {
-    return val.size() > 0 ? fit_start_states(map, th, val, vz, 30, false, options.max_abs_state,
-                                             kScoringTolerance)
-                          : 0.0;
-  };
-
-  ShootingReport rep;
-  rep.initial_loss = shooting_loss(map, theta, z0, train);
-  // A start whose rollout is not finite (a trial core far from the data) has no Jacobian.
-  if (!std::isfinite(rep.initial_loss)) {
-    rep.final_loss = rep.val_loss = std::numeric_limits<double>::infinity();
-    rep.message = "the rollout from the start is not finite";
-    return rep;
-  }
-  std::vector<ShootingIterate> kept;
-  kept.push_back({0, theta, z0, val_z0, val_loss(theta, val_z0)});
-  const double n_val = static_cast<double>(std::max<Index>(1, val.n_residuals()));
-  const auto standard_error = [n_val](double loss) { return loss * std::sqrt(2.0 / n_val); };
-  double best_val = kept.back().val;
-  double lambda = 1e-4, nu = 2.0;
-  long since_best = 0, small_steps = 0, watch_steps = 0;
-  std::vector<SegmentTerms> terms;
-  NormalEquations ne;
-  bool fresh = false;
-  double loss = rep.initial_loss;
-  const double rounding = rounding_loss(train);
-  rep.message = "maximum number of iterations reached";
-  for (long it = 1; it <= options.iterations; ++it) {
-    if (stop()) {
-      rep.stopped = true;
-      rep.message = "stopped by the caller";
-      break;
-    }
-    if (!fresh) {
-      ne = accumulate(map, theta, z0, train, n_free, scale, false, stop, terms);
-      if (ne.stopped) {
-        rep.stopped = true;
-        rep.message = "stopped by the caller";
-        break;
-      }
-      fresh = true;
-    }
-    ++rep.iterations;
-    Matrix a;
-    Vector g;
-    reduce(ne, terms, train, lambda, a, g);
-    Vector step = -g;
-    if (!lapack::cholesky(a.data(), n_free)) {
-      lambda *= 10.0;
-      continue;
-    }
-    lapack::cholesky_solve(a.data(), n_free, step.data());
-    const Index b = options.watch_index;
-    const double watch_se = b >= 0 && b < n_free && options.converged_se > 0.0
-                                ? factored_standard_error(a, n_free, b, loss, train.n_residuals())
-                                : 0.0;
-    if (watch_se > 0.0) rep.watch_se = watch_se;
-    // A step ten times the size of θ is a run along a direction the positions do not fix.
-    if (!step.allFinite() || step.norm() > 10.0 * (1.0 + theta.head(n_free).norm())) {
-      lambda *= 4.0;
-      continue;
-    }
-    JointTrial trial = joint_trial(theta, z0, step, ne, terms, n_free, lambda);
-    // The damped step's predicted fall is at most Gauss–Newton's: only a small one is worth the
-    // undamped step's (a reduction and a factorisation of n_free, no rollout).
-    if (why_predicted_converged(trial.predicted, loss, train.n_residuals(), options,
-                                watch_se > 0.0)) {
-      const double fall = gauss_newton_predicted(ne, terms, train, theta, z0, n_free);
-      if (const auto why =
-              why_predicted_converged(fall, loss, train.n_residuals(), options, watch_se > 0.0)) {
-        rep.watch_converged = watch_se > 0.0;
-        rep.message = *why;
-        break;
-      }
-    }
-    const double loss_try = trial.z0.cwiseAbs().maxCoeff() <= options.max_abs_state
-                                ? shooting_loss(map, trial.theta, trial.z0, train)
-                                : std::numeric_limits<double>::infinity();
-    // Nielsen's update of λ from the gain ratio ρ (actual over predicted decrease; the loss is
-    // twice the cost).
-    const double rho = trial.predicted > 0.0 ? 0.5 * (loss - loss_try) / trial.predicted : -1.0;
-    if (!(std::isfinite(loss_try) && loss_try < loss)) {
-      lambda *= nu;
-      nu *= 2.0;
-      if (const auto why = why_failed_trials_end(lambda, loss, rounding)) {
-        rep.message = *why;
-        break;
-      }
-      continue;
-    }
-    nu = 2.0;
-    ++rep.accepted;
-    const double n_train = static_cast<double>(train.n_residuals());
-    const bool small = (loss - loss_try) <= 1e-10 * loss ||
-                       n_train * (loss - loss_try) <= options.converged_chi2 * loss_try;
-    // Counted only for a step near Gauss–Newton's (λ small) that lowers χ² by less than 1: a
-    // heavily damped step is small in every direction, and a larger fall of χ² still moves θ.
-    const bool watch_small = watch_se > 0.0 && lambda <= 1e-2 &&
-                             n_train * (loss - loss_try) <= loss_try &&
-                             std::abs(step(b)) <= options.converged_se * watch_se;
-    watch_steps = watch_small ? watch_steps + 1 : 0;
-    small_steps = small ? small_steps + 1 : 0;
-    theta = std::move(trial.theta);
-    z0 = std::move(trial.z0);
-    loss = loss_try;
-    fresh = false;
-    lambda = std::max(
-        lambda * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * std::min(rho, 1.0) - 1.0, 3)), 1e-10);
-    const double v = val_loss(theta, val_z0);
-    if (options.on_accepted) options.on_accepted(it, loss, v);
-    kept.push_back({it, theta, z0, val_z0, v});
-    // Patience counts steps whose held-out loss is above the lowest by more than its standard
-    // error (below): at the noise floor the fit goes on converging.
-    if (v < best_val) best_val = v;
-    if (v <= best_val + standard_error(best_val)) {
-      since_best = 0;
-    } else if (++since_best >= options.patience) {
-      rep.message = "the held-out loss stayed more than its standard error above the lowest for " +
-                    std::to_string(options.patience) + " steps";
-      break;
-    }
-    if (watch_steps >= 3) {
-      rep.watch_converged = true;
-      rep.message =
-          "converged: three steps in a row each moved the damping parameter by less "
-          "than " +
-          std::to_string(options.converged_se) + " of its standard error";
-      break;
-    }
-    if (small_steps >= 3) {
-      rep.message = converged_message(options.converged_chi2);
-      break;
-    }
-  }
-  // The standard error of a mean of n squared Gaussian residuals is the mean times √(2/n).
-  const ShootingIterate& chosen =
-      chosen_iterate(kept, best_val, standard_error(best_val), val.size() == 0);
-  theta = chosen.theta;
-  z0 = chosen.z0;
-  val_z0 = chosen.val_z0;
-  rep.best_iteration = chosen.iteration;
-  best_val = chosen.val;
-  rep.final_loss = shooting_loss(map, theta, z0, train);
-  rep.val_loss = best_val;
-  return rep;
+  require(z0.rows() == 2 * train.d && z0.cols() == train.size(),
+          "shooting: z0 must be 2d x segments");
+  JointFit fit(map, train, val, options);
+  if (!fit.start(theta, z0, val_z0)) return fit.report();
+  fit.iterate(val_z0);
+  return fit.finish(theta, z0, val_z0);
 }
 
 }  // namespace csympnet

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/core/finite.hpp"
 #include "lapack.hpp"
 
 namespace csympnet {
@@ -17,6 +18,22 @@ constexpr double kMinMu = 1e-16;     // Ceres: max_trust_region_radius = 1e16
 constexpr double kMaxMu = 1e32;      // Ceres: min_trust_region_radius = 1e-32
 constexpr double kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;  // Ceres: min/max_lm_diagonal
 constexpr double kMinRelativeDecrease = 1e-3;               // Ceres: min_relative_decrease
+
+// `m` as an n × n matrix of zeros, taken a block of columns at a time with `should_stop` (when
+// given) polled between them: a fresh matrix's first touch maps its pages
+// (kMaxUninterruptedTouch). False: stopped, `m` emptied.
+bool zeros_polled(Matrix& m, Index n, const std::function<bool()>& should_stop) {
+  m.resize(n, n);  // allocates; touches nothing
+  const Index cols = std::max<Index>(1, lapack::kMaxUninterruptedTouch / std::max<Index>(n, 1));
+  for (Index j = 0; j < n; j += cols) {
+    if (should_stop && should_stop()) {
+      m.resize(0, 0);
+      return false;
+    }
+    m.middleCols(j, std::min(cols, n - j)).setZero();
+  }
+  return true;
+}
 
 // JᵀJ (lower triangle) and Jᵀr at the current iterate. Where one dsyrk would run past
 // kMaxUninterruptedFlops, J is taken in blocks of rows with `should_stop` (when given) polled
@@ -30,7 +47,8 @@ struct NormalEquations {
   Vector g;
   bool form(const RowMajorMatrix& jac, const Vector& r, const std::function<bool()>& should_stop) {
     const Index m = jac.rows(), n = jac.cols();
-    if (a.rows() != n) a.setZero(n, n);  // dsyrk writes the lower triangle; the upper stays 0
+    // dsyrk writes the lower triangle; the upper stays 0.
+    if (a.rows() != n && !zeros_polled(a, n, should_stop)) return false;
     g.resize(n);
     // A row-major m × n J is a column-major n × m Jᵀ.
     const double per_row = static_cast<double>(n) * static_cast<double>(n);
@@ -116,12 +134,12 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
   auto linearise = [&]() {
     if (problem.normal_equations) {
       problem.normal_equations(theta, ne.a, ne.g);
-      return ne.a.allFinite() && ne.g.allFinite();
+      return all_finite(ne.a) && all_finite(ne.g);
     }
     if (jac.rows() != m) jac.resize(m, n);
     problem.jacobian(theta, jac);
     if (problem.should_stop && problem.should_stop()) return false;  // jac may be partial
-    if (!jac.allFinite()) return false;
+    if (!all_finite(jac)) return false;
     return ne.form(jac, r, problem.should_stop);
   };
   if (!linearise()) {
@@ -131,7 +149,11 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
     return report;
   }
 
-  Matrix lhs(n, n);
+  Matrix lhs;  // its pages mapped here, polled, not in the first iteration's copy of A
+  if (!zeros_polled(lhs, n, problem.should_stop)) {
+    report.message = "stopped by the caller";
+    return report;
+  }
   Vector diag(n), step(n), a_step(n), trial(n);
   double mu = kInitialMu, nu = 2.0;
   report.message = "maximum number of iterations reached";

@@ -1,7 +1,6 @@
 #include "csympnet/data/generate.hpp"
 
 #include <cmath>
-#include <sstream>
 #include <string>
 
 #include "csympnet/core/error.hpp"
@@ -11,15 +10,9 @@ namespace csympnet {
 
 namespace {
 
-std::string num(double x) {
-  std::ostringstream os;
-  os << x;
-  return os.str();
-}
-
 void check_box(double box, const char* where) {
   require(std::isfinite(box) && box > 0.0, [&] {
-    return std::string(where) + ": box must be a finite number > 0, got " + num(box);
+    return std::string(where) + ": box must be a finite number > 0, got " + number_text(box);
   });
 }
 
@@ -41,9 +34,10 @@ bool bounded(const Eigen::Ref<const Vector>& z, double bound) {
 
 void StepSpec::validate() const {
   require(std::isfinite(h_min) && h_min > 0.0,
-          [&] { return "steps.h_min must be a finite number > 0, got " + num(h_min); });
+          [&] { return "steps.h_min must be a finite number > 0, got " + number_text(h_min); });
   require(std::isfinite(h_max) && h_max >= h_min, [&] {
-    return "steps.h_max must be a finite number >= h_min = " + num(h_min) + ", got " + num(h_max);
+    return "steps.h_max must be a finite number >= h_min = " + number_text(h_min) + ", got " +
+           number_text(h_max);
   });
 }
 
@@ -100,8 +94,9 @@ NoiseScales noise_scales(const System& sys, const StepSpec& steps, Rng& rng,
 }
 
 void add_noise(PairSet& pairs, double sigma, const NoiseScales& scales, Rng& rng) {
-  require(std::isfinite(sigma) && sigma >= 0.0,
-          [&] { return "add_noise: sigma must be a finite number >= 0, got " + num(sigma); });
+  require(std::isfinite(sigma) && sigma >= 0.0, [&] {
+    return "add_noise: sigma must be a finite number >= 0, got " + number_text(sigma);
+  });
   const Index dim = pairs.z0.rows();
   require(pairs.z1.rows() == dim && pairs.z1.cols() == pairs.z0.cols(),
           "add_noise: z0 and z1 must have the same shape");
@@ -129,20 +124,20 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
     return "generate_test_set: m must be >= 1 trajectories, got " + std::to_string(m);
   });
   require(std::isfinite(h_test) && h_test > 0.0, [&] {
-    return "generate_test_set: h_test must be a finite number > 0, got " + num(h_test);
+    return "generate_test_set: h_test must be a finite number > 0, got " + number_text(h_test);
   });
   require(std::isfinite(horizon) && horizon > 0.0, [&] {
-    return "generate_test_set: horizon must be a finite number > 0, got " + num(horizon);
+    return "generate_test_set: horizon must be a finite number > 0, got " + number_text(horizon);
   });
   require(std::isfinite(bound) && bound > 0.0, [&] {
-    return "generate_test_set: bound must be a finite number > 0, got " + num(bound);
+    return "generate_test_set: bound must be a finite number > 0, got " + number_text(bound);
   });
   require(max_redraws >= 0, [&] {
     return "generate_test_set: max_redraws must be >= 0, got " + std::to_string(max_redraws);
   });
   const double steps_real = std::round(horizon / h_test);
   require(steps_real >= 1.0 && steps_real <= 1e9, [&] {
-    return "generate_test_set: horizon / h_test = " + num(horizon / h_test) +
+    return "generate_test_set: horizon / h_test = " + number_text(horizon / h_test) +
            " must round to a step count in [1, 1e9]";
   });
   const auto n_steps = static_cast<Index>(steps_real);
@@ -197,7 +192,7 @@ TestSet generate_test_set(const System& sys, Index m, double h_test, double hori
     require(out.redraws <= max_redraws, [&] {
       return "cannot generate the test trajectories: only " +
              std::to_string(out.trajectories.size()) + " of " + std::to_string(m) +
-             " stayed within |z| <= " + num(bound) + " over the horizon after " +
+             " stayed within |z| <= " + number_text(bound) + " over the horizon after " +
              std::to_string(out.redraws) +
              " starts were drawn again (the reference solution blows up or loses accuracy "
              "for this system: check --omega, --gamma, --alpha and --k); expected a system "

@@ -15,13 +15,13 @@ namespace csympnet {
 
 namespace {
 
-nlohmann::json optional_number(double x) {
+nlohmann::json number_or_null(double x) {
   return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
 }
 
 nlohmann::json numbers(const Vector& v) {
   nlohmann::json out = nlohmann::json::array();
-  for (Index i = 0; i < v.size(); ++i) out.push_back(optional_number(v(i)));
+  for (Index i = 0; i < v.size(); ++i) out.push_back(number_or_null(v(i)));
   return out;
 }
 
@@ -121,11 +121,11 @@ void to_json(nlohmann::json& j, const PositionsScores& s) {
   j = {{"trajectories", s.trajectories},
        {"warmup", s.warmup ? nlohmann::json(*s.warmup) : nlohmann::json(nullptr)},
        {"samples_scored", s.samples_scored},
-       {"rmse", optional_number(s.rmse)},
+       {"rmse", number_or_null(s.rmse)},
        {"rmse_per_coordinate", numbers(s.rmse_per_coordinate)},
        {"spread", s.spread},
        {"spread_per_coordinate", numbers(s.spread_per_coordinate)},
-       {"nrmse", optional_number(s.nrmse)},
+       {"nrmse", number_or_null(s.nrmse)},
        {"valid_time_mean", s.valid_time_mean},
        {"valid_time_tolerance", kValidTimeTolerance},
        {"rollout_finite", s.rollout_finite}};
@@ -136,7 +136,7 @@ void to_json(nlohmann::json& j, const PositionsScores& s) {
                    {"scored", t.scored},
                    {"t_start", t.t_start},
                    {"state_fit_rms", t.state_fit_rms},
-                   {"rmse", optional_number(t.rmse)},
+                   {"rmse", number_or_null(t.rmse)},
                    {"rmse_per_coordinate", numbers(t.rmse_per_coordinate)},
                    {"spread", t.spread},
                    {"valid_time", t.valid_time},

@@ -7,8 +7,13 @@
 #include <string>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/models/hamiltonian_library.hpp"
 
 namespace csympnet::detail {
+
+const HamiltonianLibraryMap& library_map(const Candidate& c) {
+  return dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
+}
 
 RecordLayout record_layout(const std::vector<Trajectory>& nt, const BlockSplit& split) {
   RecordLayout out;

@@ -19,10 +19,6 @@ namespace csympnet::detail {
 
 namespace {
 
-const HamiltonianLibraryMap& library_map(const Candidate& c) {
-  return dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
-}
-
 LibraryTerm single(Index i, TermShape shape, int power) {
   LibraryTerm t;
   t.i = i;

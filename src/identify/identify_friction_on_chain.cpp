@@ -30,9 +30,6 @@ namespace {
 // A group enters only with very strong evidence (Kass and Raftery's scale: a Bayes factor
 // beyond e^5), so that a viscous record's noise does not buy a friction term.
 constexpr double kClearlyBetter = 10.0;
-// Each trial is judged after at most this many Levenberg–Marquardt steps, as the chain's other
-// changes are (identify_prune.cpp); the group that enters is then fitted on to convergence.
-constexpr long kTrialIterations = 25;
 // And its rate must stand clear of 0 by this many of its Gauss–Newton standard errors.
 constexpr double kRateStandardErrors = 3.0;
 // The trials run only when the score test at zero rates predicts at least this share of the

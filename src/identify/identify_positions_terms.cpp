@@ -28,17 +28,6 @@ namespace csympnet::detail {
 
 namespace {
 
-// A trial's fit is judged after at most this many Levenberg–Marquardt steps; the change made
-// is fitted on with the rest of the budget (as on the chain, identify_prune.cpp).
-constexpr long kTrialIterations = 25;
-// A change that raised the criterion by more than this in a round is not tried again after
-// another change was made (a lazy greedy search, as on the chain).
-constexpr double kClearlyWorse = 10.0;
-
-const HamiltonianLibraryMap& library_map(const Candidate& c) {
-  return dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
-}
-
 // Every change offered: a coordinate's missing powers 3 and 4, its sin/cos pair (added, or in
 // place of its powers 3 and 4), and a sin/cos or exp group replaced by the powers of its
 // argument.

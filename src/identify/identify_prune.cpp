@@ -30,10 +30,6 @@ namespace csympnet::detail {
 
 namespace {
 
-const HamiltonianLibraryMap& library_map(const Candidate& c) {
-  return dynamic_cast<const HamiltonianLibraryMap&>(*c.inner.map);
-}
-
 struct Trial {
   std::string name, replaced_by;
   Candidate candidate;
@@ -42,14 +38,6 @@ struct Trial {
   double delta_bic = std::numeric_limits<double>::infinity();
 };
 
-// A change of the information criterion above this is very strong evidence against the change
-// (Kass and Raftery's scale: a Bayes factor beyond e^5).
-constexpr double kClearlyWorse = 10.0;
-// A trial change's fit is judged after at most this many Levenberg–Marquardt steps (most end
-// on their convergence rules well before); the change made is then fitted on to convergence.
-// On a record of 10^5 samples a step costs about a second, and a trial that crept on for 100
-// steps cost 95 s of a fit's 350.
-constexpr long kTrialIterations = 25;
 // A drop is refitted unless a quarter of the rise of the loss that the Wald test predicts
 // already raises the criterion by more than kClearlyWorse: the margin of four covers the
 // Gauss–Newton model's error where the loss is not quadratic in the dropped parameters.

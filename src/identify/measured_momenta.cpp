@@ -22,7 +22,7 @@ namespace csympnet {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kUnset = std::numeric_limits<double>::quiet_NaN();
 // Filters over up to 2K + 1 samples are recognised (Savitzky–Golay windows up to 17): the
 // largest K ≤ 8 whose centres (samples with K neighbours each side) number at least
 // min_rows(K), enough for 2K + 2 coefficients.
@@ -38,7 +38,7 @@ constexpr Index kMaxRows = 20000;
 // filter of the positions too.
 constexpr double kExactRecurrence = 1e-24;
 
-std::string fmt(double v, int digits = 2) {
+std::string two_digits(double v, int digits = 2) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.*g", digits, v);
   return buf;
@@ -53,7 +53,7 @@ struct Fit {
     tss += o.tss;
     return *this;
   }
-  double share() const { return tss > 0.0 ? rss / tss : kNaN; }
+  double share() const { return tss > 0.0 ? rss / tss : kUnset; }
 };
 
 Fit least_squares(const Matrix& x, const Vector& y) {
@@ -186,9 +186,9 @@ Rows rows_of(const Group& g, Index dof, Index d, Index k, Index stride) {
 // The regressions of one degree of freedom: each trajectory long enough on its own (its own
 // filter, whatever step the user's filter assumed), the shorter ones pooled.
 struct Shares {
-  double momenta = kNaN;     // what the best filter of the positions leaves of the momenta
-  double positions = kNaN;   // what the neighbouring positions leave unpredicted of a position
-  double recurrence = kNaN;  // what the best filter of its neighbours leaves of a position
+  double momenta = kUnset;     // what the best filter of the positions leaves of the momenta
+  double positions = kUnset;   // what the neighbouring positions leave unpredicted of a position
+  double recurrence = kUnset;  // what the best filter of its neighbours leaves of a position
   Index rows = 0;
 };
 
@@ -289,9 +289,9 @@ ModelCheck measured_momenta_check(const std::vector<Trajectory>& trajs, bool pai
   const bool noisy = noise > th.smooth_positions;
   k.passed = !(computed && noisy);
   const std::string shares = "a filter of the positions leaves a share " +
-                             fmt(*std::max_element(mom.begin(), mom.end())) +
+                             two_digits(*std::max_element(mom.begin(), mom.end())) +
                              " of the momenta's variation, and the positions keep a share " +
-                             fmt(noise) + " that their neighbours do not predict";
+                             two_digits(noise) + " that their neighbours do not predict";
   if (!k.passed) {
     k.sentence =
         "the momenta are computed from the positions (" + shares +

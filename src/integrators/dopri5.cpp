@@ -25,7 +25,7 @@ namespace odeint = boost::numeric::odeint;
 using State = std::vector<double>;
 using Stepper = odeint::runge_kutta_dopri5<State>;
 
-std::string num(double x) {
+std::string num17(double x) {
   std::ostringstream os;
   os.precision(17);
   os << x;
@@ -38,7 +38,7 @@ bool all_finite(const State& x) {
 
 void check_h(double h, const char* where) {
   require(std::isfinite(h) && h > 0.0,
-          [&] { return std::string(where) + ": h must be a finite number > 0, got " + num(h); });
+          [&] { return std::string(where) + ": h must be a finite number > 0, got " + num17(h); });
 }
 
 void check_z0(const Vector& z0, const char* where) {
@@ -154,7 +154,7 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
   while (t < h) {
     require(steps < opt.max_steps, [&] {
       return "dopri5: step budget of " + std::to_string(opt.max_steps) +
-             " exhausted at t = " + num(t) + " of h = " + num(h) +
+             " exhausted at t = " + num17(t) + " of h = " + num17(h) +
              " (the learned field may be stiff or blowing up); expected a span the field "
              "can be integrated over within the budget (a smaller step)";
     });
@@ -171,7 +171,7 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
       // A NaN error estimate compares as "not > 1" and is accepted by Boost, so this check is
       // also what catches a field that returned NaN inside the step.
       require(all_finite(x_new) && all_finite(dxdt_new), [&] {
-        return "dopri5: the state became non-finite at t = " + num(t) + " of h = " + num(h) +
+        return "dopri5: the state became non-finite at t = " + num17(t) + " of h = " + num17(h) +
                " (the learned field may be blowing up or returned NaN)";
       });
       x.swap(x_new);
@@ -179,8 +179,8 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
       if (last) t = h;
     }
     require(t >= h || (std::isfinite(dt) && dt > 0.0 && t + dt > t), [&] {
-      return "dopri5: step size underflow (dt = " + num(dt) + ") at t = " + num(t) +
-             " of h = " + num(h) + " (the learned field may be stiff or blowing up)";
+      return "dopri5: step size underflow (dt = " + num17(dt) + ") at t = " + num17(t) +
+             " of h = " + num17(h) + " (the learned field may be stiff or blowing up)";
     });
   }
 }
@@ -189,9 +189,9 @@ void integrate(System sys, State& x, double h, const OdeOptions& opt) {
 
 void OdeOptions::validate() const {
   require(std::isfinite(rtol) && rtol > 0.0,
-          [&] { return "OdeOptions.rtol must be a finite number > 0, got " + num(rtol); });
+          [&] { return "OdeOptions.rtol must be a finite number > 0, got " + num17(rtol); });
   require(std::isfinite(atol) && atol > 0.0,
-          [&] { return "OdeOptions.atol must be a finite number > 0, got " + num(atol); });
+          [&] { return "OdeOptions.atol must be a finite number > 0, got " + num17(atol); });
   require(max_steps >= 1,
           [&] { return "OdeOptions.max_steps must be >= 1, got " + std::to_string(max_steps); });
 }

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <sstream>
 #include <vector>
 
 #include <boost/numeric/odeint.hpp>
@@ -22,12 +21,6 @@ constexpr double kCeilSlack = 1e-10;
 constexpr double kMaxSubsteps = 1e12;
 // Adaptive steps (accepted or rejected) of one rk_flow call before it gives up.
 constexpr long kMaxRkSteps = 10000000;
-
-std::string num(double x) {
-  std::ostringstream os;
-  os << x;
-  return os.str();
-}
 
 // n substeps of S_a ∘ SV_δ ∘ S_a on the columns (Q, P). The closing kick of one substep and the
 // opening kick of the next use ∇V at the same q, so the gradient is computed once per substep
@@ -81,7 +74,7 @@ void check_state(const System& sys, const Vector& z, const char* where) {
 
 void check_step(double h, const char* where) {
   require(std::isfinite(h) && h > 0.0, [&] {
-    return std::string(where) + ": step h must be a finite number > 0, got " + num(h);
+    return std::string(where) + ": step h must be a finite number > 0, got " + number_text(h);
   });
 }
 
@@ -113,20 +106,23 @@ void ReferenceOptions::validate() const {
                    std::to_string(static_cast<int>(method));
           });
   require(std::isfinite(h_ref) && h_ref > 0.0,
-          [&] { return "reference.h_ref must be a finite number > 0, got " + num(h_ref); });
-  require(std::isfinite(rk_rtol) && rk_rtol > 0.0,
-          [&] { return "reference.rk_rtol must be a finite number > 0, got " + num(rk_rtol); });
-  require(std::isfinite(rk_atol) && rk_atol > 0.0,
-          [&] { return "reference.rk_atol must be a finite number > 0, got " + num(rk_atol); });
+          [&] { return "reference.h_ref must be a finite number > 0, got " + number_text(h_ref); });
+  require(std::isfinite(rk_rtol) && rk_rtol > 0.0, [&] {
+    return "reference.rk_rtol must be a finite number > 0, got " + number_text(rk_rtol);
+  });
+  require(std::isfinite(rk_atol) && rk_atol > 0.0, [&] {
+    return "reference.rk_atol must be a finite number > 0, got " + number_text(rk_atol);
+  });
 }
 
 Index substep_count(double h, double h_ref) {
   check_step(h, "substep_count");
-  require(std::isfinite(h_ref) && h_ref > 0.0,
-          [&] { return "substep_count: h_ref must be a finite number > 0, got " + num(h_ref); });
+  require(std::isfinite(h_ref) && h_ref > 0.0, [&] {
+    return "substep_count: h_ref must be a finite number > 0, got " + number_text(h_ref);
+  });
   const double r = h / h_ref;
   require(r <= kMaxSubsteps,
-          [&] { return "substep_count: h / h_ref = " + num(r) + " substeps is too many"; });
+          [&] { return "substep_count: h / h_ref = " + number_text(r) + " substeps is too many"; });
   const double n = std::ceil(r * (1.0 - kCeilSlack));
   return n < 1.0 ? Index{1} : static_cast<Index>(n);
 }
@@ -190,7 +186,8 @@ Matrix expm_propagator(const System& sys, double h) {
     return "expm reference: system kind \"" + sys.spec().kind +
            "\" is nonlinear; use splitting or rk";
   });
-  require(std::isfinite(h), [&] { return "expm_propagator: h must be finite, got " + num(h); });
+  require(std::isfinite(h),
+          [&] { return "expm_propagator: h must be finite, got " + number_text(h); });
   const Matrix hA = h * sys.linear_generator();
   return hA.exp();
 }
@@ -200,13 +197,13 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
   check_state(sys, z, "rk_flow");
   check_step(h, "rk_flow");
   require(std::isfinite(rtol) && rtol > 0.0 && std::isfinite(atol) && atol > 0.0, [&] {
-    return "rk_flow: tolerances must be finite and > 0, got rtol " + num(rtol) + ", atol " +
-           num(atol);
+    return "rk_flow: tolerances must be finite and > 0, got rtol " + number_text(rtol) + ", atol " +
+           number_text(atol);
   });
-  using State = std::vector<double>;
+  using FlowState = std::vector<double>;
   const Index dim = sys.dim();
-  State x(z.data(), z.data() + dim);
-  auto rhs = [&sys, dim](const State& xs, State& dxdt, double /*t*/) {
+  FlowState x(z.data(), z.data() + dim);
+  auto rhs = [&sys, dim](const FlowState& xs, FlowState& dxdt, double /*t*/) {
     const Vector f = sys.vector_field(Eigen::Map<const Vector>(xs.data(), dim));
     Eigen::Map<Vector>(dxdt.data(), dim) = f;
   };
@@ -214,12 +211,13 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
   // The controlled loop by hand (integrate_adaptive has no step bound): a stiff system (a huge
   // ω) would otherwise take steps without end. Each try counts against kMaxRkSteps, and the
   // stop request is polled every 64 tries.
-  auto stepper = odeint::make_controlled(atol, rtol, odeint::runge_kutta_fehlberg78<State>());
+  auto stepper = odeint::make_controlled(atol, rtol, odeint::runge_kutta_fehlberg78<FlowState>());
   double t = 0.0, dt = 0.1 * h;
   for (long tries = 0; t < h; ++tries) {
     require(tries < kMaxRkSteps, [&] {
       return "the rk reference took " + std::to_string(kMaxRkSteps) +
-             " adaptive steps and reached t = " + num(t) + " of a step of " + num(h) +
+             " adaptive steps and reached t = " + number_text(t) + " of a step of " +
+             number_text(h) +
              " (the system is too stiff for it at this step: a large omega or gamma?); "
              "expected a system and step the rk reference can integrate, or the splitting "
              "reference";
@@ -232,13 +230,13 @@ Vector rk_flow(const System& sys, const Vector& z, double h, double rtol, double
       if (last || t >= h) t = h;
     }
     require(std::isfinite(dt) && dt > 0.0 && (t >= h || t + dt > t), [&] {
-      return "the rk reference's step size underflowed (dt = " + num(dt) +
-             ") at t = " + num(t_before) + " of a step of " + num(h) +
+      return "the rk reference's step size underflowed (dt = " + number_text(dt) +
+             ") at t = " + number_text(t_before) + " of a step of " + number_text(h) +
              "; expected a system and step the rk reference can integrate";
     });
   }
   require(std::all_of(x.begin(), x.end(), [](double v) { return std::isfinite(v); }), [&] {
-    return "the rk reference's state became non-finite over a step of " + num(h) +
+    return "the rk reference's state became non-finite over a step of " + number_text(h) +
            "; expected a system and step the rk reference can integrate";
   });
   return Eigen::Map<const Vector>(x.data(), dim);

@@ -7,18 +7,14 @@
 #include "../kernels/conformal_rows.hpp"
 #include "../kernels/scaled_exp.hpp"
 #include "csympnet/core/error.hpp"
+#include "library_map_detail.hpp"
 #include "shape_checks.hpp"
 
 namespace csympnet {
 
 namespace {
 
-// d|β|/dβ, with the subgradient 0 at β = 0.
-double abs_derivative(double beta) {
-  if (beta > 0.0) return 1.0;
-  if (beta < 0.0) return -1.0;
-  return 0.0;
-}
+using library_detail::abs_derivative;
 
 // The state and gradient rows are split and joined here column by column: Eigen's loops over
 // a block of rows of a column-major matrix (a 1 x N row of a 2 x N matrix above all) are

@@ -4,6 +4,7 @@
 
 #include "activation.hpp"
 #include "csympnet/core/error.hpp"
+#include "library_map_detail.hpp"
 #include "mlp_rop.hpp"
 #include "vector_field_checks.hpp"
 #include "vector_field_models.hpp"
@@ -35,12 +36,7 @@ std::vector<Index> scalar_net_sizes(Dissipation kind, Index d, Index width) {
   return {2 * d, width, width, 1};
 }
 
-// d|β|/dβ, with the subgradient 0 at β = 0.
-double abs_derivative(double beta) {
-  if (beta > 0.0) return 1.0;
-  if (beta < 0.0) return -1.0;
-  return 0.0;
-}
+using library_detail::abs_derivative;
 
 }  // namespace
 

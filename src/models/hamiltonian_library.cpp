@@ -14,6 +14,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/stop.hpp"
+#include "library_map_detail.hpp"
 #include "shape_checks.hpp"
 
 namespace csympnet {
@@ -35,11 +36,8 @@ std::vector<double> composition_weights(int order) {
   return w;
 }
 
-// A step of many substeps (4,000,000 of them take seconds) polls the process-wide stop request
-// every this many stages, so Ctrl-C ends it (rollout, evaluate, Python). A map of the
-// identification's sizes (at most 256 substeps of 9 stages) never reaches it, so its training
-// keeps stopping at its own checkpoints.
-constexpr Index kStagesPerPoll = 4096;
+using library_detail::abs_derivative;
+using library_detail::kStagesPerPoll;
 
 void poll_within_step(Index stage) {
   if (stage % kStagesPerPoll == kStagesPerPoll - 1)
@@ -50,12 +48,6 @@ void poll_within_step(Index stage) {
 using TermKey = std::tuple<Index, Index, int, int, double>;
 TermKey key_of(const LibraryTerm& t) {
   return {t.i, t.j, static_cast<int>(t.shape), t.power, t.kappa_sign};
-}
-
-double abs_derivative(double beta) {
-  if (beta > 0.0) return 1.0;
-  if (beta < 0.0) return -1.0;
-  return 0.0;
 }
 
 }  // namespace

@@ -32,6 +32,7 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/stop.hpp"
 #include "csympnet/models/hamiltonian_library.hpp"
+#include "library_map_detail.hpp"
 
 namespace csympnet {
 
@@ -55,16 +56,12 @@ struct TangentScratch {
   Index scaling_substeps = 0;
 };
 
-// d|x|/dx, 0 at 0 (the rates are |θ|).
-double sign_of(double x) {
-  return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0);
-}
+using library_detail::abs_derivative;
+using library_detail::kStagesPerPoll;
 
 void fit_to(std::vector<double>& v, Index n) {
   if (static_cast<Index>(v.size()) < n) v.resize(static_cast<std::size_t>(n));
 }
-
-constexpr Index kStagesPerPoll = 4096;
 
 }  // namespace
 
@@ -258,7 +255,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
         double in = first ? a * tp[col] : tp[col];
         if (first && is_beta) in += da * p[r];
         double out = k.dp * in - k.dforce * force;
-        if (col == rate && rate < n_theta) out += sign_of(theta(rate)) * k.drate;
+        if (col == rate && rate < n_theta) out += abs_derivative(theta(rate)) * k.drate;
         if (!first) {
           out *= a;
           if (is_beta) out += da * k.p;
@@ -286,7 +283,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
       const FlowStep f = dissipation_flow(term.kind, p[term.i], std::abs(theta(col)), half_tau);
       double* tp = row(d + term.i);
       for (Index cc = 0; cc < c; ++cc) tp[cc] *= f.dp;
-      if (col < n_theta) tp[col] += sign_of(theta(col)) * f.drate;
+      if (col < n_theta) tp[col] += abs_derivative(theta(col)) * f.drate;
       p[term.i] = f.p;
     }
   };
@@ -298,7 +295,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
     const double tau =
         weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
     const double a = w.scaling[static_cast<std::size_t>(s % nw)];
-    const double da = -0.5 * tau * a * sign_of(beta);  // ∂a/∂β
+    const double da = -0.5 * tau * a * abs_derivative(beta);  // ∂a/∂β
     if (nk > 0) flows(0.5 * tau, false);
     kick(true, a, da, 0.5 * tau);
     // q ← q + τ W p: row r of t_q gains τ (W t_p)_r, each (W t_p)_r summed over W's row in

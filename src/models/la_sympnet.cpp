@@ -18,14 +18,9 @@ namespace {
 [[maybe_unused]] const bool kD1Avx2CheckSupplied =
     kernels::supply_check(kernels::Family::kD1SweepsAvx2, &detail::la_d1_avx2_kernels_agree);
 
-using ConstMatrixMap = Eigen::Map<const Matrix>;
 using MatrixMap = Eigen::Map<Matrix>;
 
-// S = A + Aᵀ for the d x d block of θ at `offset`.
-void symmetric_from(ConstParams theta, Index offset, Index d, Matrix& s) {
-  const ConstMatrixMap a(theta.data() + offset, d, d);
-  s = a + a.transpose();
-}
+using detail::symmetric_from;
 
 using RowMap = Eigen::Map<RowVector>;
 using ConstRowMap = Eigen::Map<const RowVector>;

@@ -37,6 +37,12 @@ namespace detail {
 bool la_d1_kernels_agree();
 bool la_d1_avx2_kernels_agree();
 bool la_d1_form_agrees(kernels::Family form);
+
+// S = A + Aᵀ for the d x d block A of θ at `offset` (la_sympnet.cpp and la_sympnet_sweeps.cpp).
+inline void symmetric_from(ConstParams theta, Index offset, Index d, Matrix& s) {
+  const Eigen::Map<const Matrix> a(theta.data() + offset, d, d);
+  s = a + a.transpose();
+}
 }  // namespace detail
 
 class LaSympNet final : public SymplecticCore {

@@ -13,15 +13,7 @@
 
 namespace csympnet {
 
-namespace {
-
-// S = A + Aᵀ for the d x d block of θ at `offset`.
-void symmetric_from(ConstParams theta, Index offset, Index d, Matrix& s) {
-  const Eigen::Map<const Matrix> a(theta.data() + offset, d, d);
-  s = a + a.transpose();
-}
-
-}  // namespace
+using detail::symmetric_from;
 
 struct LaSympNet::Unit {
   enum class Kind { kActivation, kBias, kShear };

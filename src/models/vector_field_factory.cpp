@@ -21,14 +21,14 @@ namespace {
 using nlohmann::json;
 using namespace specs;
 
-constexpr const char* kValidTypes = "ode, dhnn, dhnn2, phnn, phnn2";
+constexpr const char* kValidFieldTypes = "ode, dhnn, dhnn2, phnn, phnn2";
 const std::string kWhere = "vector-field model spec";
 
 }  // namespace
 
 std::unique_ptr<VectorFieldModel> make_vector_field_model(const nlohmann::json& spec) {
   require_object(spec, kWhere);
-  const std::string type = get_type(spec, kWhere, kValidTypes);
+  const std::string type = get_type(spec, kWhere, kValidFieldTypes);
   const std::string typed = kWhere + " (type '" + type + "')";
   if (type == "ode") {
     reject_unknown_keys(spec, typed, {"type", "d", "width"});
@@ -45,7 +45,8 @@ std::unique_ptr<VectorFieldModel> make_vector_field_model(const nlohmann::json& 
   } else if (type == "phnn2") {
     kind = Dissipation::kPortDamping;
   } else {
-    throw Error(kWhere + ": unknown model type '" + type + "'; expected one of " + kValidTypes);
+    throw Error(kWhere + ": unknown model type '" + type + "'; expected one of " +
+                kValidFieldTypes);
   }
   const bool damped = kind == Dissipation::kMomentumDamping || kind == Dissipation::kPortDamping;
   if (damped) {

@@ -23,7 +23,7 @@ using nlohmann::json;
 constexpr std::int64_t kMaxSuiteNTrain = 10000000;
 constexpr double kMaxSuiteRuns = 10000.0;
 
-std::string join(const std::vector<std::string>& items) {
+std::string join_names(const std::vector<std::string>& items) {
   std::string out;
   for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
   return out;
@@ -35,7 +35,8 @@ void reject_unknown_keys(const json& doc, const std::string& where,
     bool known = false;
     for (const auto& a : allowed) known = known || a == item.key();
     require(known, [&] {
-      return where + ": unknown key '" + item.key() + "'; expected only the keys " + join(allowed);
+      return where + ": unknown key '" + item.key() + "'; expected only the keys " +
+             join_names(allowed);
     });
   }
 }
@@ -55,7 +56,7 @@ void reject_repeats(const std::vector<T>& items, const std::string& where, const
 std::vector<std::string> string_list(const json& doc, const char* key, const std::string& where,
                                      const std::vector<std::string>& valid) {
   require(doc.contains(key), [&] {
-    return where + ": missing key '" + key + "' (expected a list of: " + join(valid) + ")";
+    return where + ": missing key '" + key + "' (expected a list of: " + join_names(valid) + ")";
   });
   const json& v = doc.at(key);
   require(v.is_array() && !v.empty(), [&] {
@@ -65,13 +66,13 @@ std::vector<std::string> string_list(const json& doc, const char* key, const std
   for (const auto& item : v) {
     require(item.is_string(), [&] {
       return where + ": key '" + key + "' holds " + item.dump() +
-             ", expected strings (one of: " + join(valid) + ")";
+             ", expected strings (one of: " + join_names(valid) + ")";
     });
     const auto s = item.get<std::string>();
     bool ok = false;
     for (const auto& name : valid) ok = ok || name == s;
     require(ok, [&] {
-      return where + ": key '" + key + "' holds '" + s + "', expected one of: " + join(valid);
+      return where + ": key '" + key + "' holds '" + s + "', expected one of: " + join_names(valid);
     });
     out.push_back(s);
   }

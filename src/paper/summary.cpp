@@ -69,7 +69,7 @@ json stats_of(const std::vector<double>& v) {
   return j;
 }
 
-std::string fmt(const json& v, const char* pattern = "%.3e") {
+std::string cell_text(const json& v, const char* pattern = "%.3e") {
   if (v.is_null()) return "-";
   if (v.is_string()) return v.get<std::string>();
   if (v.is_number_integer()) return std::to_string(v.get<long long>());
@@ -371,12 +371,12 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
           if (ours.is_number() && paper.is_number() && paper.get<double>() != 0.0)
             ratio = ours.get<double>() / paper.get<double>();
           const char* pat = c == "gamma_hat" ? "%.8f" : "%.3e";
-          const std::string o = e.at("status") == "ok" ? fmt(ours, pat) : "failed";
-          md += " " + o + " | " + fmt(paper, pat) + " | " + fmt(ratio, "%.3g") + " |";
-          csv += preset + "," + model + "," + c + "," + o + "," + fmt(paper, pat) + "," +
-                 fmt(ratio, "%.3g") + "\n";
-          tex += " & " + latex_cell(o) + " & " + latex_cell(fmt(paper, pat)) + " & " +
-                 latex_cell(fmt(ratio, "%.3g"));
+          const std::string o = e.at("status") == "ok" ? cell_text(ours, pat) : "failed";
+          md += " " + o + " | " + cell_text(paper, pat) + " | " + cell_text(ratio, "%.3g") + " |";
+          csv += preset + "," + model + "," + c + "," + o + "," + cell_text(paper, pat) + "," +
+                 cell_text(ratio, "%.3g") + "\n";
+          tex += " & " + latex_cell(o) + " & " + latex_cell(cell_text(paper, pat)) + " & " +
+                 latex_cell(cell_text(ratio, "%.3g"));
         }
         md += "\n";
         tex += " \\\\\n";
@@ -413,13 +413,13 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
   tex = "% " + s.title + "\n% Needs \\usepackage{booktabs}.\n";
   auto iqr = [](const json& st, const char* pat) {
     if (st.is_null()) return std::string("-");
-    return fmt(st.at("median"), pat) + " [" + fmt(st.at("q1"), pat) + ", " + fmt(st.at("q3"), pat) +
-           "]";
+    return cell_text(st.at("median"), pat) + " [" + cell_text(st.at("q1"), pat) + ", " +
+           cell_text(st.at("q3"), pat) + "]";
   };
   auto three = [](const json& st) {
     if (st.is_null()) return std::string("-,-,-");
-    return fmt(st.at("median"), "%.6e") + "," + fmt(st.at("q1"), "%.6e") + "," +
-           fmt(st.at("q3"), "%.6e");
+    return cell_text(st.at("median"), "%.6e") + "," + cell_text(st.at("q1"), "%.6e") + "," +
+           cell_text(st.at("q3"), "%.6e");
   };
   for (const auto& preset : s.presets) {
     tex += "\n" +
@@ -433,22 +433,22 @@ TableFiles render_tables(const SuiteSpec& s, const json& summary) {
       if (&model != &s.models.front()) tex += "\\addlinespace\n";
       bool first = true;
       for (const json& c : js.at(preset).at(model)) {
-        const std::string sig = fmt(c.at("sigma"), "%g"), n = fmt(c.at("n_train")),
-                          h = fmt(c.at("h_test"), "%g");
+        const std::string sig = cell_text(c.at("sigma"), "%g"), n = cell_text(c.at("n_train")),
+                          h = cell_text(c.at("h_test"), "%g");
         md += "| " + preset + " | " + model_label(model) + " | " + sig + " | " + n + " | " + h +
               " | " + iqr(c.at("l2_error"), "%.3e") + " | " + iqr(c.at("gamma_abs_err"), "%.2e") +
-              " | " + iqr(c.at("lambda_hat"), "%.6f") + " (" + fmt(c.at("lambda_star"), "%.6f") +
-              ") | " + fmt(c.at("failed")) + " |\n";
+              " | " + iqr(c.at("lambda_hat"), "%.6f") + " (" +
+              cell_text(c.at("lambda_star"), "%.6f") + ") | " + cell_text(c.at("failed")) + " |\n";
         csv += preset + "," + model + "," + sig + "," + n + "," + h + "," +
                three(c.at("l2_error")) + "," + three(c.at("gamma_abs_err")) + "," +
-               three(c.at("lambda_hat")) + "," + fmt(c.at("lambda_star"), "%.12g") + "," +
-               fmt(c.at("failed")) + "\n";
+               three(c.at("lambda_hat")) + "," + cell_text(c.at("lambda_star"), "%.12g") + "," +
+               cell_text(c.at("failed")) + "\n";
         tex +=
             (first ? latex_escape(model_label(model)) : std::string()) + " & " + sig + " & " + n +
             " & " + h + " & " + latex_cell(iqr(c.at("l2_error"), "%.2e")) + " & " +
             latex_cell(iqr(c.at("gamma_abs_err"), "%.1e")) + " & " +
-            latex_cell(fmt(c.at("lambda_hat").is_null() ? json() : c.at("lambda_hat").at("median"),
-                           "%.5f")) +
+            latex_cell(cell_text(
+                c.at("lambda_hat").is_null() ? json() : c.at("lambda_hat").at("median"), "%.5f")) +
             " \\\\\n";
         first = false;
       }

@@ -2,7 +2,6 @@
 
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <utility>
 
 #include "csympnet/core/error.hpp"
@@ -13,15 +12,9 @@ namespace {
 
 constexpr const char* kValidKinds = "oscillator, chain, cubic";
 
-std::string num(double x) {
-  std::ostringstream os;
-  os << x;
-  return os.str();
-}
-
 void require_finite(double x, const char* field) {
   require(std::isfinite(x), [&] {
-    return std::string("system.") + field + " must be a finite number, got " + num(x);
+    return std::string("system.") + field + " must be a finite number, got " + number_text(x);
   });
 }
 
@@ -65,15 +58,15 @@ void SystemSpec::validate() const {
   });
   require(d >= 1, [&] { return "system.d must be an integer >= 1, got " + std::to_string(d); });
   require(std::isfinite(gamma) && gamma >= 0.0,
-          [&] { return "system.gamma must be a finite number >= 0, got " + num(gamma); });
+          [&] { return "system.gamma must be a finite number >= 0, got " + number_text(gamma); });
   require_finite(omega, "omega");
   require_finite(k, "k");
   require_finite(alpha, "alpha");
   if (kind != "chain")
     require(omega > 0.0, [&] {
-      return "system.omega must be > 0 for kind \"" + kind + "\", got " + num(omega);
+      return "system.omega must be > 0 for kind \"" + kind + "\", got " + number_text(omega);
     });
-  require(k >= 0.0, [&] { return "system.k must be >= 0, got " + num(k); });
+  require(k >= 0.0, [&] { return "system.k must be >= 0, got " + number_text(k); });
 }
 
 void to_json(nlohmann::json& j, const SystemSpec& s) {

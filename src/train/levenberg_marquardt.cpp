@@ -42,7 +42,7 @@ bool zeros_polled(Matrix& m, Index n, const std::function<bool()>& should_stop) 
 // in the same order and agree to the bit on every CPU. (A single dsyrk and a sum of row blocks
 // differ by rounding, and how much depends on the BLAS kernel the CPU gets: 4e-9 relative after
 // 20 iterations of a 9000 × 400 problem on AVX2, none seen on AVX-512.)
-struct NormalEquations {
+struct GramSystem {
   Matrix a;
   Vector g;
   bool form(const RowMajorMatrix& jac, const Vector& r, const std::function<bool()>& should_stop) {
@@ -129,7 +129,7 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
   double cost = 0.5 * r.squaredNorm();
   report.initial_cost = report.final_cost = cost;
   RowMajorMatrix jac;
-  NormalEquations ne;
+  GramSystem ne;
   // J (or JᵀJ and Jᵀr directly) at theta; false when not finite.
   auto linearise = [&]() {
     if (problem.normal_equations) {

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "support/sanitizers.hpp"
+#include "support/shell_and_files.hpp"
 
 namespace {
 
@@ -25,12 +26,7 @@ struct Result {
   std::string out, err;
 };
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using csympnet::testing::slurp;
 
 class Cli : public ::testing::Test {
  protected:

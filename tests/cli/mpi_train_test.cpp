@@ -18,17 +18,13 @@
 #include <nlohmann/json.hpp>
 
 #include "csympnet/core/communicator.hpp"
+#include "support/shell_and_files.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using csympnet::testing::slurp;
 
 class MpiTrain : public ::testing::Test {
  protected:

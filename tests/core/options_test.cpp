@@ -27,7 +27,7 @@ const OptionSpelling kKeyword{
     [](const std::string& k) { return k; },
     [](const std::string& k, const std::string& v) { return k + "=\"" + v + "\""; }};
 
-std::string refusal(const std::function<void()>& f) {
+std::string options_refusal(const std::function<void()>& f) {
   try {
     f();
   } catch (const OptionError& e) {
@@ -68,10 +68,10 @@ TEST(OptionRange, RefusesOutsideItsEndsNonFiniteAndFractionalWholeNumbers) {
   const OptionRange f{.key = "val_fraction", .lo = 0.01, .hi = 0.99};
   EXPECT_NO_THROW(f.check(0.01));
   EXPECT_NO_THROW(f.check(0.99));
-  EXPECT_EQ(refusal([&] { f.check(1.0); }),
+  EXPECT_EQ(options_refusal([&] { f.check(1.0); }),
             "--val-fraction: '1' is out of range; expected a number from 0.01 to 0.99");
   // The value as its user wrote it, when given (the command-line word).
-  EXPECT_EQ(refusal([&] { f.check(1.0, "1.000"); }),
+  EXPECT_EQ(options_refusal([&] { f.check(1.0, "1.000"); }),
             "--val-fraction: '1.000' is out of range; expected a number from 0.01 to 0.99");
   EXPECT_THROW(f.check(std::nan("")), OptionError);
   const OptionRange w{
@@ -84,7 +84,7 @@ TEST(OptionRange, RefusesOutsideItsEndsNonFiniteAndFractionalWholeNumbers) {
   EXPECT_NO_THROW(open.check(0.5));
   const OptionRange n{.key = "epochs", .lo = 1, .hi = 1e8, .whole = true};
   EXPECT_NO_THROW(n.check(100000000L));
-  EXPECT_EQ(refusal([&] { n.check(0L); }),
+  EXPECT_EQ(options_refusal([&] { n.check(0L); }),
             "--epochs: '0' is out of range; expected a number from 1 to 100000000");
   EXPECT_THROW(n.check(100000001L), OptionError);
   EXPECT_THROW(n.check(2.5), OptionError);
@@ -102,7 +102,7 @@ TEST(OptionRange, ZeroCanStandForOffAndTheReasonFollowsARefusal) {
                       .why = "a percentile interval needs at least 10 replicates"};
   EXPECT_NO_THROW(b.check(0L));
   EXPECT_NO_THROW(b.check(10L));
-  EXPECT_EQ(refusal([&] { b.check(5L); }),
+  EXPECT_EQ(options_refusal([&] { b.check(5L); }),
             "--bootstrap: '5' is out of range; expected 0 (off) or a number from 10 to 1000000: "
             "a percentile interval needs at least 10 replicates");
   EXPECT_THROW(b.check(-1L), OptionError);
@@ -110,14 +110,14 @@ TEST(OptionRange, ZeroCanStandForOffAndTheReasonFollowsARefusal) {
 
 TEST(OptionChecks, NonzeroAndChoices) {
   EXPECT_NO_THROW(check_nonzero("beta_init", -0.1));
-  EXPECT_EQ(refusal([] { check_nonzero("beta_init", 0.0); }),
+  EXPECT_EQ(options_refusal([] { check_nonzero("beta_init", 0.0); }),
             "--beta-init: '0' is zero; expected a nonzero number");
-  EXPECT_EQ(refusal([] { check_nonzero("beta_init", -0.0, "-0.0"); }),
+  EXPECT_EQ(options_refusal([] { check_nonzero("beta_init", -0.0, "-0.0"); }),
             "--beta-init: '-0.0' is zero; expected a nonzero number");
   EXPECT_THROW(check_nonzero("beta_init", std::numeric_limits<double>::infinity()), OptionError);
   const std::vector<std::string> names = {"a", "b"};
   EXPECT_EQ(choice_index("k", names, "b"), 1u);
-  EXPECT_EQ(refusal([&] { choice_index("some_key", names, "c"); }),
+  EXPECT_EQ(options_refusal([&] { choice_index("some_key", names, "c"); }),
             "--some-key: 'c' is not a choice; expected one of a, b");
 }
 

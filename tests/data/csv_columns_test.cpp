@@ -5,36 +5,30 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
+#include "support/refusal.hpp"
 
 namespace csympnet {
 namespace {
-
-// The message of the Error `f` throws ("" when it throws none).
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 TEST(ColumnMap, ParsesEntriesAndRefusesWhatItCannotMean) {
   const ColumnMap m = parse_column_map("t=time_s, q1 = angle,p1=velocity");
   ASSERT_EQ(m.columns.size(), 3u);
   EXPECT_EQ(m.columns[1], (std::pair<std::string, std::string>{"q1", "angle"}));
   EXPECT_TRUE(parse_column_map("").empty());
-  EXPECT_NE(error_of([] { parse_column_map("t=time,q1"); }).find("'q1' is not NAME=COLUMN"),
+  EXPECT_NE(testing::refusal([] { parse_column_map("t=time,q1"); }).find("'q1' is not NAME=COLUMN"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_column_map("x=time"); }).find("'x' is not a column csympnet reads"),
+  EXPECT_NE(testing::refusal([] {
+              parse_column_map("x=time");
+            }).find("'x' is not a column csympnet reads"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_column_map("q0=a"); }).find("is not a column"), std::string::npos);
-  EXPECT_NE(error_of([] { parse_column_map("q1=a,q1=b"); }).find("q1 is mapped twice"),
+  EXPECT_NE(testing::refusal([] { parse_column_map("q0=a"); }).find("is not a column"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_column_map("q1=a,p1=a"); }).find("'a' is mapped twice"),
+  EXPECT_NE(testing::refusal([] { parse_column_map("q1=a,q1=b"); }).find("q1 is mapped twice"),
             std::string::npos);
-  EXPECT_NE(error_of([] { parse_column_map("t=", "--cols"); }).find("--cols: "), std::string::npos);
+  EXPECT_NE(testing::refusal([] { parse_column_map("q1=a,p1=a"); }).find("'a' is mapped twice"),
+            std::string::npos);
+  EXPECT_NE(testing::refusal([] { parse_column_map("t=", "--cols"); }).find("--cols: "),
+            std::string::npos);
 }
 
 TEST(ColumnMap, RenamesReordersAndDropsColumnsKeepingLineNumbers) {
@@ -53,12 +47,13 @@ TEST(ColumnMap, RenamesReordersAndDropsColumnsKeepingLineNumbers) {
   EXPECT_EQ(mapped[0].t, canonical[0].t);
   // A bad value further down is still reported at its line of the user's file.
   const std::string bad = apply_column_map(file + "abc,1,0.2,0.8\n", "lab.csv", m);
-  EXPECT_NE(error_of([&] { parse_trajectories_csv(bad, "lab.csv"); }).find("lab.csv:4:"),
+  EXPECT_NE(testing::refusal([&] { parse_trajectories_csv(bad, "lab.csv"); }).find("lab.csv:4:"),
             std::string::npos);
   // So is a blank line in the middle, which the readers refuse where it is.
   const std::string gap = apply_column_map("time,theta,omega\n0,1,2\n\n0.1,1,2\n", "g.csv", m);
-  EXPECT_NE(error_of([&] { parse_trajectories_csv(gap, "g.csv"); }).find("g.csv:3: blank line"),
-            std::string::npos);
+  EXPECT_NE(
+      testing::refusal([&] { parse_trajectories_csv(gap, "g.csv"); }).find("g.csv:3: blank line"),
+      std::string::npos);
 }
 
 TEST(ColumnMap, KeepsCanonicalColumnsItDoesNotMapAndReadsPairs) {
@@ -82,16 +77,16 @@ TEST(ColumnMap, KeepsCanonicalColumnsItDoesNotMapAndReadsPairs) {
 TEST(ColumnMap, RefusesAMissingOrRepeatedColumnAndARaggedRowNamingFileAndLine) {
   const ColumnMap m = parse_column_map("t=time,q1=theta,p1=omega");
   const std::string missing =
-      error_of([&] { apply_column_map("time,angle,omega\n0,1,2\n", "lab.csv", m); });
+      testing::refusal([&] { apply_column_map("time,angle,omega\n0,1,2\n", "lab.csv", m); });
   EXPECT_NE(missing.find("lab.csv:1: --columns maps q1 to 'theta', which is not a column of the "
                          "header; expected one of 'time', 'angle', 'omega'"),
             std::string::npos)
       << missing;
-  EXPECT_NE(error_of([&] {
+  EXPECT_NE(testing::refusal([&] {
               apply_column_map("time,theta,omega,theta\n0,1,2,3\n", "lab.csv", m);
             }).find("lab.csv:1: column 'theta' appears twice"),
             std::string::npos);
-  EXPECT_NE(error_of([&] {
+  EXPECT_NE(testing::refusal([&] {
               apply_column_map("time,theta,omega\n0,1,2\n0.1,1\n", "lab.csv", m);
             }).find("lab.csv:3: 2 fields; expected 3 as in the header"),
             std::string::npos);

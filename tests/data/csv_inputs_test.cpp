@@ -12,22 +12,14 @@
 #include "csympnet/core/error.hpp"
 #include "csympnet/data/csv.hpp"
 #include "csympnet/data/dataset.hpp"
+#include "support/refusal.hpp"
 
 namespace csympnet {
 namespace {
 
-template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
-
-#define EXPECT_REFUSED(call, words) \
-  EXPECT_NE(error_of([&] { call; }).find(words), std::string::npos) << error_of([&] { call; })
+#define EXPECT_REFUSED(call, words)                                         \
+  EXPECT_NE(testing::refusal([&] { call; }).find(words), std::string::npos) \
+      << testing::refusal([&] { call; })
 
 TEST(CsvInputs, PositionsAndTrajectoriesCarryTheirInputs) {
   const auto pos = parse_positions_csv("t,q1,u1,u2\n0,1,0.5,-1\n0.1,0.9,0.25,2\n", "pos.csv",

@@ -19,7 +19,7 @@ namespace {
 using testing::TempDir;
 
 // Bit-level equality, so -0.0 vs 0.0 and last-digit differences are caught.
-bool same_bits(const Matrix& a, const Matrix& b) {
+bool same_matrix_bits(const Matrix& a, const Matrix& b) {
   return a.rows() == b.rows() && a.cols() == b.cols() &&
          std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
 }
@@ -75,15 +75,15 @@ TEST_P(CsvRoundTrip, PairsAreBitIdentical) {
   write_pairs_csv(dir.file("pairs.csv"), p);
   EXPECT_EQ(detect_csv_kind(dir.file("pairs.csv")), CsvKind::kPairs);
   const PairSet r = read_pairs_csv(dir.file("pairs.csv"));
-  EXPECT_TRUE(same_bits(p.z0, r.z0));
-  EXPECT_TRUE(same_bits(p.z1, r.z1));
-  EXPECT_TRUE(same_bits(p.h, r.h));
+  EXPECT_TRUE(same_matrix_bits(p.z0, r.z0));
+  EXPECT_TRUE(same_matrix_bits(p.z1, r.z1));
+  EXPECT_TRUE(same_matrix_bits(p.h, r.h));
   // read_any_as_pairs reads for training: the same bits when every value is within 1e150 in
   // magnitude, else (tricky_pairs includes +-DBL_MAX) a refusal at the value's line.
   const bool trainable = p.z0.cwiseAbs().maxCoeff() <= 1e150 &&
                          p.z1.cwiseAbs().maxCoeff() <= 1e150 && p.h.maxCoeff() <= 1e150;
   if (trainable) {
-    EXPECT_TRUE(same_bits(p.z0, read_any_as_pairs(dir.file("pairs.csv")).z0));
+    EXPECT_TRUE(same_matrix_bits(p.z0, read_any_as_pairs(dir.file("pairs.csv")).z0));
   } else {
     try {
       read_any_as_pairs(dir.file("pairs.csv"));
@@ -96,8 +96,8 @@ TEST_P(CsvRoundTrip, PairsAreBitIdentical) {
   small.z0 = small.z0.cwiseMax(-1e150).cwiseMin(1e150);
   small.z1 = small.z1.cwiseMax(-1e150).cwiseMin(1e150);
   write_pairs_csv(dir.file("small.csv"), small);
-  EXPECT_TRUE(same_bits(small.z0, read_any_as_pairs(dir.file("small.csv")).z0));
-  EXPECT_TRUE(same_bits(small.z1, read_any_as_pairs(dir.file("small.csv")).z1));
+  EXPECT_TRUE(same_matrix_bits(small.z0, read_any_as_pairs(dir.file("small.csv")).z0));
+  EXPECT_TRUE(same_matrix_bits(small.z1, read_any_as_pairs(dir.file("small.csv")).z1));
 }
 
 TEST_P(CsvRoundTrip, TrajectoriesAreBitIdenticalWithAndWithoutTrajColumn) {
@@ -108,8 +108,8 @@ TEST_P(CsvRoundTrip, TrajectoriesAreBitIdenticalWithAndWithoutTrajColumn) {
   const std::vector<Trajectory> r = read_trajectories_csv(dir.file("traj.csv"));
   ASSERT_EQ(r.size(), trajs.size());
   for (std::size_t k = 0; k < r.size(); ++k) {
-    EXPECT_TRUE(same_bits(trajs[k].t, r[k].t)) << k;
-    EXPECT_TRUE(same_bits(trajs[k].z, r[k].z)) << k;
+    EXPECT_TRUE(same_matrix_bits(trajs[k].t, r[k].t)) << k;
+    EXPECT_TRUE(same_matrix_bits(trajs[k].z, r[k].z)) << k;
   }
 
   // Dropping the traj column of the first trajectory's rows gives a one-trajectory file.
@@ -126,8 +126,8 @@ TEST_P(CsvRoundTrip, TrajectoriesAreBitIdenticalWithAndWithoutTrajColumn) {
   ASSERT_EQ(stripped.substr(0, 2), "t,");
   const std::vector<Trajectory> one = read_trajectories_csv(dir.write("no_traj.csv", stripped));
   ASSERT_EQ(one.size(), 1u);
-  EXPECT_TRUE(same_bits(first.t, one[0].t));
-  EXPECT_TRUE(same_bits(first.z, one[0].z));
+  EXPECT_TRUE(same_matrix_bits(first.t, one[0].t));
+  EXPECT_TRUE(same_matrix_bits(first.z, one[0].z));
 }
 
 INSTANTIATE_TEST_SUITE_P(Dims, CsvRoundTrip, ::testing::Values(Index{1}, Index{3}));

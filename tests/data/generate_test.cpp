@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "csympnet/core/error.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet {
 namespace {
@@ -21,19 +22,15 @@ System make(const std::string& kind, int d, double alpha = 0.005) {
   return System(s);
 }
 
-bool bit_equal(const Matrix& a, const Matrix& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
-}
-
 TEST(Generate, PairsAreDeterministicAndFollowTheDrawOrder) {
   const System sys = make("cubic", 3);
   const StepSpec steps{0.05, 0.15};
   Rng a(42, "train"), b(42, "train");
   const PairSet p = generate_pairs(sys, 20, steps, a);
   const PairSet q = generate_pairs(sys, 20, steps, b);
-  EXPECT_TRUE(bit_equal(p.z0, q.z0));
-  EXPECT_TRUE(bit_equal(p.z1, q.z1));
-  EXPECT_TRUE(bit_equal(p.h, q.h));
+  EXPECT_TRUE(testing::same_bits(p.z0, q.z0));
+  EXPECT_TRUE(testing::same_bits(p.z1, q.z1));
+  EXPECT_TRUE(testing::same_bits(p.h, q.h));
   // Replay the documented order: per pair, 2d components of z0 (q then p), then h.
   Rng replay(42, "train");
   for (Index j = 0; j < 20; ++j) {
@@ -42,7 +39,7 @@ TEST(Generate, PairsAreDeterministicAndFollowTheDrawOrder) {
   }
   EXPECT_EQ(a.next_u64(), replay.next_u64());  // nothing else was drawn
   Rng other(43, "train");
-  EXPECT_FALSE(bit_equal(generate_pairs(sys, 20, steps, other).z0, p.z0));
+  EXPECT_FALSE(testing::same_bits(generate_pairs(sys, 20, steps, other).z0, p.z0));
 }
 
 TEST(Generate, PerPairStepsLikeS1) {
@@ -58,7 +55,7 @@ TEST(Generate, PerPairStepsLikeS1) {
     distinct.insert(p.h(j));
     // z1 is that pair's own reference flow.
     const Matrix one = reference_flow(sys, p.z0.col(j), p.h.segment(j, 1));
-    EXPECT_TRUE(bit_equal(p.z1.col(j), one)) << j;
+    EXPECT_TRUE(testing::same_bits(p.z1.col(j), one)) << j;
   }
   EXPECT_EQ(distinct.size(), 80u);
   EXPECT_LE(p.z0.cwiseAbs().maxCoeff(), 1.0);
@@ -70,10 +67,10 @@ TEST(Generate, FixedStepIsExactAndStartsDoNotDependOnTheStepSpec) {
   const PairSet fixed = generate_pairs(sys, 30, StepSpec{0.1, 0.1}, a);
   const PairSet varied = generate_pairs(sys, 30, StepSpec{0.05, 0.15}, b);
   EXPECT_TRUE((fixed.h.array() == 0.1).all());
-  EXPECT_TRUE(bit_equal(fixed.z0, varied.z0));
+  EXPECT_TRUE(testing::same_bits(fixed.z0, varied.z0));
   // The whole batch shares h = 0.1: each column still equals its own single-column flow.
-  EXPECT_TRUE(
-      bit_equal(fixed.z1.col(7), reference_flow(sys, fixed.z0.col(7), fixed.h.segment(7, 1))));
+  EXPECT_TRUE(testing::same_bits(fixed.z1.col(7),
+                                 reference_flow(sys, fixed.z0.col(7), fixed.h.segment(7, 1))));
 }
 
 TEST(Generate, NoiseScales) {
@@ -106,12 +103,12 @@ TEST(Generate, ZeroNoiseIsANoOpAndKeepsTheStreamAligned) {
   PairSet a_before = a;
   Rng ra(9, "noise"), rb(9, "noise");
   add_noise(a, 0.0, s, ra);
-  EXPECT_TRUE(bit_equal(a.z0, a_before.z0));
-  EXPECT_TRUE(bit_equal(a.z1, a_before.z1));
+  EXPECT_TRUE(testing::same_bits(a.z0, a_before.z0));
+  EXPECT_TRUE(testing::same_bits(a.z1, a_before.z1));
   EXPECT_TRUE(std::signbit(a.z0(0, 0)));
   add_noise(b, 1e-3, s, rb);
   EXPECT_EQ(ra.next_u64(), rb.next_u64());  // the same draws were consumed
-  EXPECT_FALSE(bit_equal(b.z0, clean.z0));
+  EXPECT_FALSE(testing::same_bits(b.z0, clean.z0));
 }
 
 TEST(Generate, NoiseHasTheRequestedScale) {
@@ -155,13 +152,14 @@ TEST(Generate, TestSetShapeAndNoRedrawsForLinearSystems) {
       EXPECT_LE(tr.z.col(0).cwiseAbs().maxCoeff(), 1.0);
       // Grid point to grid point with the reference flow, bit for bit.
       const Matrix step = reference_flow(sys, tr.z.col(24), Vector::Constant(1, 0.2));
-      EXPECT_TRUE(bit_equal(tr.z.col(25), step));
+      EXPECT_TRUE(testing::same_bits(tr.z.col(25), step));
     }
     // Starts are the stream's first draws, in order.
     Rng replay(0, "test");
     const Matrix starts = replay.uniform_matrix(sys.dim(), 10, -1.0, 1.0);
     for (Index m = 0; m < 10; ++m)
-      EXPECT_TRUE(bit_equal(ts.trajectories[static_cast<std::size_t>(m)].z.col(0), starts.col(m)));
+      EXPECT_TRUE(
+          testing::same_bits(ts.trajectories[static_cast<std::size_t>(m)].z.col(0), starts.col(m)));
   }
 }
 
@@ -182,7 +180,7 @@ TEST(Generate, CubicRedrawFractionMatchesProtocol) {
   Rng small(0, "test");
   const TestSet first = generate_test_set(sys, 40, 0.2, 10.0, small);
   for (std::size_t m = 0; m < 40; ++m)
-    EXPECT_TRUE(bit_equal(first.trajectories[m].z, ts.trajectories[m].z)) << m;
+    EXPECT_TRUE(testing::same_bits(first.trajectories[m].z, ts.trajectories[m].z)) << m;
 }
 
 TEST(Generate, GivesUpAfterMaxRedraws) {

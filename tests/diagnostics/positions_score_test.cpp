@@ -25,7 +25,7 @@ struct Oscillator {
   Vector theta;
 };
 
-Oscillator oscillator(double gamma) {
+Oscillator positions_oscillator(double gamma) {
   Oscillator o{make_model({{"type", "csympnet"},
                            {"d", 1},
                            {"core", {{"type", "library"}, {"terms", {"q1^2"}}, {"order", 4}}}}),
@@ -61,7 +61,7 @@ Vector regular_times(Index n, double h) {
 using testing::refusal;
 
 TEST(ScorePositions, TheTrueModelScoresAtTheStateFitsPrecision) {
-  const Oscillator o = oscillator(0.1);
+  const Oscillator o = positions_oscillator(0.1);
   const Trajectory tr = positions_of(o, regular_times(200, 0.1));
   const PositionsScores s = score_positions(o.model, o.theta, {tr});
   EXPECT_LT(s.rmse, 1e-6);
@@ -84,7 +84,7 @@ TEST(ScorePositions, TheTrueModelScoresAtTheStateFitsPrecision) {
 }
 
 TEST(ScorePositions, IrregularStepsAreOneMapStepEach) {
-  const Oscillator o = oscillator(0.1);
+  const Oscillator o = positions_oscillator(0.1);
   Vector t(120);
   t(0) = 0.0;
   for (Index k = 1; k < t.size(); ++k) t(k) = t(k - 1) + (k % 3 == 0 ? 0.15 : 0.07);
@@ -93,7 +93,7 @@ TEST(ScorePositions, IrregularStepsAreOneMapStepEach) {
 }
 
 TEST(ScorePositions, NoiseAndAWrongDampingRateRaiseTheScore) {
-  const Oscillator truth = oscillator(0.1);
+  const Oscillator truth = positions_oscillator(0.1);
   const Vector t = regular_times(300, 0.1);
   const double clean = score_positions(truth.model, truth.theta, {positions_of(truth, t)}).rmse;
   const double noisy =
@@ -106,7 +106,7 @@ TEST(ScorePositions, NoiseAndAWrongDampingRateRaiseTheScore) {
   EXPECT_GT(noisier, noisy);
   EXPECT_GT(noisy, 100 * clean);
   // A damping rate twice the true one still explains a short warm-up, and its forecast drifts.
-  const Oscillator wrong = oscillator(0.2);
+  const Oscillator wrong = positions_oscillator(0.2);
   const double off =
       score_positions(wrong.model, wrong.theta, {positions_of(truth, t)}, {10L, "p"}).rmse;
   EXPECT_GT(off, 100 * clean);
@@ -117,14 +117,14 @@ TEST(ScorePositions, NoiseAndAWrongDampingRateRaiseTheScore) {
 // span; one with twice the damping rate leaves it before the end, and the time it reports is
 // the last sample time at which the running rms was still within.
 TEST(ScorePositions, ValidTimeIsTheSpanForTheTruthAndShorterForAWrongRate) {
-  const Oscillator truth = oscillator(0.1);
+  const Oscillator truth = positions_oscillator(0.1);
   const Vector t = regular_times(400, 0.1);
   const Trajectory tr = positions_of(truth, t);
   const PositionsScores good = score_positions(truth.model, truth.theta, {tr}, {10L, "p"});
   EXPECT_DOUBLE_EQ(good.per_trajectory[0].span, t(399) - t(9));
   EXPECT_DOUBLE_EQ(good.per_trajectory[0].valid_time, good.per_trajectory[0].span);
   EXPECT_DOUBLE_EQ(good.valid_time_mean, good.per_trajectory[0].valid_time);
-  const Oscillator wrong = oscillator(0.3);
+  const Oscillator wrong = positions_oscillator(0.3);
   const PositionsScores bad = score_positions(wrong.model, wrong.theta, {tr}, {10L, "p"});
   const double v = bad.per_trajectory[0].valid_time;
   EXPECT_LT(v, bad.per_trajectory[0].span);
@@ -143,7 +143,7 @@ TEST(ScorePositions, ValidTimeIsTheSpanForTheTruthAndShorterForAWrongRate) {
 }
 
 TEST(ScorePositions, TheWarmUpIsLeftOutOfTheScore) {
-  const Oscillator o = oscillator(0.1);
+  const Oscillator o = positions_oscillator(0.1);
   Trajectory a = positions_of(o, regular_times(100, 0.1));
   const Trajectory b = positions_of(o, regular_times(60, 0.2));
   PositionsScoreOptions opt;
@@ -167,7 +167,7 @@ TEST(ScorePositions, TheWarmUpIsLeftOutOfTheScore) {
 }
 
 TEST(ScorePositions, ShortTrajectoriesAndBadWarmUpsAreRefusedNamingTheWarmUp) {
-  const Oscillator o = oscillator(0.1);
+  const Oscillator o = positions_oscillator(0.1);
   const Trajectory tr = positions_of(o, regular_times(8, 0.1));
   try {
     score_positions(o.model, o.theta, {tr}, {std::nullopt, "pos.csv"});
@@ -195,7 +195,7 @@ TEST(ScorePositions, ShortTrajectoriesAndBadWarmUpsAreRefusedNamingTheWarmUp) {
 }
 
 TEST(ScorePositions, HostileDataAreRefused) {
-  const Oscillator o = oscillator(0.1);
+  const Oscillator o = positions_oscillator(0.1);
   const Trajectory good = positions_of(o, regular_times(40, 0.1));
   Trajectory bad = good;
   bad.z(0, 25) = std::numeric_limits<double>::quiet_NaN();

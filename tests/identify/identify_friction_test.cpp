@@ -30,7 +30,7 @@ const nlohmann::json* term_of(const nlohmann::json& report, const std::string& k
   return nullptr;
 }
 
-bool covers(const nlohmann::json& t, double truth) {
+bool friction_covers(const nlohmann::json& t, double truth) {
   return !t["low"].is_null() && t["low"].get<double>() <= truth && truth <= t["high"].get<double>();
 }
 
@@ -57,7 +57,7 @@ TEST(FrictionFit, ViscousAndCoulombAreBothIdentified) {
   EXPECT_LT(std::abs((*mu)["value"].get<double>() - o.mu) / o.mu, 0.1) << mu->dump();
   EXPECT_TRUE(r.interval->low <= o.gamma && o.gamma <= r.interval->high)
       << r.interval->low << " " << r.interval->high;
-  EXPECT_TRUE(covers(*mu, o.mu)) << mu->dump();
+  EXPECT_TRUE(friction_covers(*mu, o.mu)) << mu->dump();
   EXPECT_NE(dissipation_sentence(r).find("plus dry friction mu = "), std::string::npos);
   // The viscous term comes first, with γ̂'s own interval.
   const auto& first = rep["dissipation"]["terms"][0];
@@ -92,7 +92,7 @@ TEST(FrictionFit, DragIsIdentifiedAsDrag) {
   ASSERT_NE(c, nullptr) << rep["choices"]["library"]["dissipation"].dump();
   EXPECT_EQ(term_of(rep, "coulomb"), nullptr);
   EXPECT_LT(std::abs((*c)["value"].get<double>() - o.drag) / o.drag, 0.1) << c->dump();
-  EXPECT_TRUE(covers(*c, o.drag)) << c->dump();
+  EXPECT_TRUE(friction_covers(*c, o.drag)) << c->dump();
   EXPECT_LT(std::abs(r.gamma - o.gamma) / o.gamma, 0.1) << r.gamma;
 }
 

@@ -41,7 +41,7 @@ std::vector<Trajectory> oscillator(int trajs, std::uint64_t seed) {
   return out;
 }
 
-class IdentifyInit : public ::testing::Test {
+class IdentifyInitFile : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() / ("csympnet_init_" + std::to_string(::getpid()));
@@ -71,7 +71,7 @@ class IdentifyInit : public ::testing::Test {
 
 const nlohmann::json kCore = {{"type", "g"}, {"layers", 2}, {"width", 4}};
 
-TEST_F(IdentifyInit, RefusesWhatItCannotHonourByKeyAndFile) {
+TEST_F(IdentifyInitFile, RefusesWhatItCannotHonourByKeyAndFile) {
   const std::string sympnet = save("s.json", {{"type", "sympnet"}, {"d", 1}, {"core", kCore}});
   auto [key, what] = refusal({{"init", sympnet}});
   EXPECT_EQ(key, "init");
@@ -106,7 +106,7 @@ TEST_F(IdentifyInit, RefusesWhatItCannotHonourByKeyAndFile) {
   }
 }
 
-TEST_F(IdentifyInit, KeepsTheFilesCoreThetaAndUnits) {
+TEST_F(IdentifyInitFile, KeepsTheFilesCoreThetaAndUnits) {
   // A first fit, saved as `fit` saves it: with its normalisation.
   IdentifyConfig first_config;
   first_config.core = {{"type", "la"}, {"layers", 3}, {"sublayers", 4}};
@@ -142,7 +142,7 @@ TEST_F(IdentifyInit, KeepsTheFilesCoreThetaAndUnits) {
 // A model file whose map, at its parameters, overflows on the data (library coefficients of
 // 1e300) is named as the cause, by --init's key and file, for states and positions alike; it
 // once surfaced as "windows: non-finite value", blamed on the data.
-TEST_F(IdentifyInit, AStartThatIsNotFiniteOnTheDataNamesTheFile) {
+TEST_F(IdentifyInitFile, AStartThatIsNotFiniteOnTheDataNamesTheFile) {
   const Model m = make_model(
       {{"type", "csympnet"},
        {"d", 1},

@@ -18,7 +18,7 @@
 namespace csympnet::detail {
 namespace {
 
-Candidate library(Index d, const std::vector<std::string>& terms) {
+Candidate chain_library(Index d, const std::vector<std::string>& terms) {
   Candidate c;
   c.core = {{"type", "library"}, {"terms", terms}, {"substeps", 2}};
   c.inner = make_model({{"type", "csympnet"}, {"d", d}, {"core", c.core}, {"beta_init", 0.1}});
@@ -34,7 +34,7 @@ const HamiltonianLibraryMap& lib_map(const Candidate& c) {
 TEST(IdentifyPrune, DroppingATermAtZeroLeavesTheMapAsItWas) {
   Rng rng(31, "prune-terms");
   for (int draw = 0; draw < 6; ++draw) {
-    Candidate c = library(2, {"q1^2", "q2^2", "(q1-q2)^2", "(q1-q2)^3", "q1^4", "sin(q1)"});
+    Candidate c = chain_library(2, {"q1^2", "q2^2", "(q1-q2)^2", "(q1-q2)^3", "q1^4", "sin(q1)"});
     c.inner.map->init_params(rng, c.theta);
     c.theta += 0.2 * rng.normal_matrix(c.theta.size(), 1, 1.0);
     const Index k = draw % 2 == 0 ? 3 : 4;  // (q1-q2)^3 or q1^4
@@ -61,7 +61,7 @@ TEST(IdentifyPrune, DroppingATermAtZeroLeavesTheMapAsItWas) {
 TEST(IdentifyPrune, APeriodicAlternativeStartsFromThePowersPotential) {
   Rng rng(32, "periodic-swap");
   for (int draw = 0; draw < 6; ++draw) {
-    Candidate c = library(2, {"q1^2", "q2^2", "(q1-q2)^2", "q1^3", "q1^4", "q2^4"});
+    Candidate c = chain_library(2, {"q1^2", "q2^2", "(q1-q2)^2", "q1^3", "q1^4", "q2^4"});
     c.inner.map->init_params(rng, c.theta);
     c.theta += 0.2 * rng.normal_matrix(c.theta.size(), 1, 1.0);
     const Matrix q = rng.normal_matrix(2, 300, 0.5);
@@ -88,7 +88,7 @@ TEST(IdentifyPrune, APeriodicAlternativeStartsFromThePowersPotential) {
     EXPECT_LE(spread(diff), 0.02 * spread(removed)) << "draw " << draw;
   }
   // A coordinate that already has a sinusoid, or no power above 2, is offered nothing.
-  const Candidate plain = library(1, {"q1^2", "sin(q1)", "cos(q1)", "q1^4"});
+  const Candidate plain = chain_library(1, {"q1^2", "sin(q1)", "cos(q1)", "q1^4"});
   EXPECT_TRUE(periodic_alternatives(plain, 1, Matrix::Ones(1, 20)).empty());
 }
 
@@ -127,7 +127,7 @@ struct DuffingChain {
 
 DuffingChain duffing_chain(double c4, Rng& rng) {
   DuffingChain out;
-  out.truth = library(1, {"q1^2", "q1^3", "q1^4"});
+  out.truth = chain_library(1, {"q1^2", "q1^3", "q1^4"});
   const auto& m = lib_map(out.truth);
   out.truth.theta(0) = 1.0;  // W
   out.truth.theta(m.coefficient_index(0)) = 0.5 * 4.0 * M_PI * M_PI;
@@ -157,7 +157,7 @@ TEST(IdentifyPrune, DropsThePowersThePositionsDoNotNeedAndKeepsTheOnesTheyDo) {
     LinkedFit& linked = dc.linked;
     const ShootingSegments& val = dc.val;
     Matrix& val_z0 = dc.val_z0;
-    Candidate fitted = library(1, {"q1^2", "q1^3", "q1^4"});
+    Candidate fitted = chain_library(1, {"q1^2", "q1^3", "q1^4"});
     fitted.theta = truth.theta;
     fitted.theta(m.coefficient_index(1)) = 1e-3;  // the reference fit starts off the truth
     ShootingOptions opt;
@@ -220,7 +220,7 @@ TEST(IdentifyPrune, TheWaldTestPredictsTheRefittedLossOfADrop) {
     LinkedFit& linked = dc.linked;
     const ShootingSegments& val = dc.val;
     Matrix& val_z0 = dc.val_z0;
-    Candidate fitted = library(1, {"q1^2", "q1^3", "q1^4"});
+    Candidate fitted = chain_library(1, {"q1^2", "q1^3", "q1^4"});
     fitted.theta = truth.theta;
     ShootingOptions opt;
     opt.iterations = 200;
@@ -286,7 +286,7 @@ TEST(IdentifyPrune, TheWaldTestPredictsTheRefittedLossOfADrop) {
 TEST(IdentifyPrune, TheChainKeepsACosineItNeedsAndSwapsOneItDoesNot) {
   for (const bool pendulum : {true, false}) {
     Rng rng(11, "family-fit");
-    Candidate truth = library(1, {"q1", "q1^2", "sin(q1)", "cos(q1)"});
+    Candidate truth = chain_library(1, {"q1", "q1^2", "sin(q1)", "cos(q1)"});
     const auto& m = lib_map(truth);
     truth.theta(0) = 1.0;  // W
     const double k = 4.0 * M_PI * M_PI;
@@ -307,7 +307,7 @@ TEST(IdentifyPrune, TheChainKeepsACosineItNeedsAndSwapsOneItDoesNot) {
     z1 << -1.0, 1.0;
     const ShootingSegments val = positions_of(truth, z1, 120, 0.02, 1e-3, rng);
     Matrix val_z0 = z1;
-    Candidate fitted = library(1, {"q1", "q1^2", "sin(q1)", "cos(q1)"});
+    Candidate fitted = chain_library(1, {"q1", "q1^2", "sin(q1)", "cos(q1)"});
     fitted.theta = truth.theta;
     ShootingOptions opt;
     linked.report = fit_shooting(*fitted.inner.map, fitted.theta, linked.chain.z0,

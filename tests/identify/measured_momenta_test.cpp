@@ -19,14 +19,15 @@
 namespace csympnet {
 namespace {
 
-struct Chain {
+struct ChainCase {
   Index d = 1;
   double gamma = 0.1;
   bool linear = false;  // a harmonic chain instead of pendulums
 };
 
 // dq/dt = p, dp_i/dt = −ω_i² sin q_i − κ (2 q_i − q_{i−1} − q_{i+1}) − γ p_i.
-Trajectory simulate(const Chain& c, Index points, bool uneven, Rng& rng, double per_period = 20) {
+Trajectory simulate(const ChainCase& c, Index points, bool uneven, Rng& rng,
+                    double per_period = 20) {
   const Index d = c.d;
   Vector w2(d);
   for (Index i = 0; i < d; ++i) w2(i) = std::pow(1.0 + 0.3 * static_cast<double>(i), 2);
@@ -106,7 +107,7 @@ TEST(MeasuredMomenta, ComputedMomentaAreRecognisedAndMeasuredOnesAreNot) {
   int measured_flagged = 0, computed_missed = 0, computed_cases = 0;
   for (int r = 0; r < records; ++r) {
     Rng rng(static_cast<std::uint64_t>(r), "measured-momenta");
-    const Chain c{1 + r % 3, std::exp(rng.uniform(std::log(0.01), std::log(0.5))), false};
+    const ChainCase c{1 + r % 3, std::exp(rng.uniform(std::log(0.01), std::log(0.5))), false};
     const bool uneven = r % 4 == 3;
     const double sigma = std::vector<double>{1e-3, 1e-2, 5e-2}[static_cast<std::size_t>(r % 3)];
     const Trajectory clean = simulate(c, 400, uneven, rng);

@@ -73,10 +73,10 @@ class LinearFlowMap final : public OneStepMap {
 };
 
 // A damping force: the rate of change of p from dissipation and forcing, given (t, q, p).
-using Dissipation = std::function<Vector(double, const Vector&, const Vector&)>;
+using DissipationField = std::function<Vector(double, const Vector&, const Vector&)>;
 
 // RK4 of dq/dt = p, dp/dt = −K q + f(t, q, p), 50 substeps per sample step.
-Trajectory integrate(const Matrix& k, const Dissipation& f, const Vector& z0, double h,
+Trajectory integrate(const Matrix& k, const DissipationField& f, const Vector& z0, double h,
                      Index points) {
   const Index d = k.rows();
   Trajectory t;
@@ -297,7 +297,7 @@ TEST(ModelChecks, FalseAlarmsOnValidDataAreRare) {
     const double sigma =
         std::vector<double>{0.0, 1e-3, 1e-2, 5e-2}[static_cast<std::size_t>(n % 4)];
     const Vector z0 = rng.uniform_vector(2 * d, -1.0, 1.0);
-    const Dissipation f = [gamma](double, const Vector&, const Vector& p) -> Vector {
+    const DissipationField f = [gamma](double, const Vector&, const Vector& p) -> Vector {
       return -gamma * p;
     };
     const Trajectory t = integrate(k, f, z0, 0.25, 400);
@@ -335,7 +335,7 @@ TEST(ModelChecks, PassedChecksSayTheirFindingInPlainWords) {
   Rng rng(7, "checks-words");
   const Matrix k = Matrix::Identity(1, 1);
   const double gamma = 0.1;
-  const Dissipation f = [gamma](double, const Vector&, const Vector& p) -> Vector {
+  const DissipationField f = [gamma](double, const Vector&, const Vector& p) -> Vector {
     return -gamma * p;
   };
   Vector z0(2);
@@ -362,7 +362,7 @@ TEST(ModelChecks, EnergyGainIsNamedWithItsRate) {
     Rng rng(n, "checks-growth");
     const Matrix k = Matrix::Identity(1, 1);
     const double gamma = -0.05;
-    const Dissipation f = [gamma](double, const Vector&, const Vector& p) -> Vector {
+    const DissipationField f = [gamma](double, const Vector&, const Vector& p) -> Vector {
       return -gamma * p;
     };
     const Trajectory t = integrate(k, f, rng.uniform_vector(2, -1.0, 1.0), 0.25, 300);
@@ -387,7 +387,7 @@ TEST(ModelChecks, DryFrictionIsDetected) {
     const Matrix k = Matrix::Identity(1, 1);
     const double gv = 0.05, a0 = 1.0;
     const double mu = gv * M_PI * a0 / 4.0;  // γ_c = 4μ/(π ω A0) = γ_v: half at the start
-    const Dissipation f = [gv, mu](double, const Vector&, const Vector& p) -> Vector {
+    const DissipationField f = [gv, mu](double, const Vector&, const Vector& p) -> Vector {
       return -gv * p - mu * (p / 1e-3).array().tanh().matrix();
     };
     Vector z0(2);
@@ -410,7 +410,7 @@ TEST(ModelChecks, DryFrictionIsDetectedInPairs) {
     Rng rng(n, "checks-coulomb-pairs");
     const Matrix k = Matrix::Identity(1, 1);
     const double gv = 0.05, mu = gv * M_PI / 4.0;
-    const Dissipation f = [gv, mu](double, const Vector&, const Vector& p) -> Vector {
+    const DissipationField f = [gv, mu](double, const Vector&, const Vector& p) -> Vector {
       return -gv * p - mu * (p / 1e-3).array().tanh().matrix();
     };
     std::vector<Trajectory> pairs;
@@ -444,7 +444,9 @@ TEST(ModelChecks, ModeDependentDampingIsDetectedWithTheRates) {
     Vector rates(2);
     rates << 0.05, 0.15;
     const Matrix c = v * rates.asDiagonal() * v.transpose();
-    const Dissipation f = [c](double, const Vector&, const Vector& p) -> Vector { return -c * p; };
+    const DissipationField f = [c](double, const Vector&, const Vector& p) -> Vector {
+      return -c * p;
+    };
     const Trajectory t = integrate(k, f, rng.uniform_vector(4, -1.0, 1.0), 0.25, 600);
     const std::vector<ModelCheck> checks = run(k, 0.1, blocks_of(t, 20, 1e-2, rng));
     const ModelCheck& o = by_name(checks, "one_rate");
@@ -474,7 +476,9 @@ TEST(ModelChecks, ModeDependentDampingIsDetectedPerModeWhenAFullMatrixIsTooMuch)
       std::swap(rates(i), rates(std::min<Index>(
                               i, static_cast<Index>(rng.uniform() * static_cast<double>(i + 1)))));
     const Matrix c = v * rates.asDiagonal() * v.transpose();
-    const Dissipation f = [c](double, const Vector&, const Vector& p) -> Vector { return -c * p; };
+    const DissipationField f = [c](double, const Vector&, const Vector& p) -> Vector {
+      return -c * p;
+    };
     const Trajectory t = integrate(k, f, rng.uniform_vector(8, -1.0, 1.0), 0.25, 600);
     const std::vector<ModelCheck> checks = run(k, rates.mean(), blocks_of(t, 12, 1e-2, rng));
     const ModelCheck& o = by_name(checks, "one_rate");
@@ -534,7 +538,9 @@ TEST(DampingProfile, LinearModesAreTheCoresNormalModesAtRandomStiffness) {
 TEST(ModelChecks, OneDegreeOfFreedomHasOneModeAndShortDataAreUntestable) {
   Rng rng(3, "checks-short");
   const Matrix k = Matrix::Identity(1, 1);
-  const Dissipation f = [](double, const Vector&, const Vector& p) -> Vector { return -0.1 * p; };
+  const DissipationField f = [](double, const Vector&, const Vector& p) -> Vector {
+    return -0.1 * p;
+  };
   const Trajectory t = integrate(k, f, rng.uniform_vector(2, -1.0, 1.0), 0.25, 12);
   const std::vector<ModelCheck> c = run(k, 0.1, blocks_of(t, 3, 0.0, rng));
   EXPECT_FALSE(by_name(c, "one_rate").applicable);

@@ -16,6 +16,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet {
 namespace {
@@ -82,12 +83,8 @@ double rel_err(const Matrix& got, const Matrix& want) {
   return (got - want).lpNorm<Eigen::Infinity>() / want.lpNorm<Eigen::Infinity>();
 }
 
-void report(const std::string& what, double value) {
+void report_measured(const std::string& what, double value) {
   std::printf("[measured] %-58s %.3e\n", what.c_str(), value);
-}
-
-bool bit_equal(const Matrix& a, const Matrix& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
 }
 
 OdeOptions tight(double rtol, double atol) {
@@ -129,8 +126,8 @@ TEST(Dopri5, LinearFieldMatchesMatrixExponential) {
             dopri5_flow_jacobian(linear_field(a), constant_jacobian(a), z0, h, tol.opt);
         const double e_jac = rel_err(m, exact);
         const double e_zj = rel_err(zj, exact * z0);
-        report("linear flow  " + tag, e_flow);
-        report("linear M     " + tag, e_jac);
+        report_measured("linear flow  " + tag, e_flow);
+        report_measured("linear M     " + tag, e_jac);
         EXPECT_LT(e_flow, tol.bound) << tag;
         EXPECT_LT(e_jac, tol.bound) << tag;
         EXPECT_LT(e_zj, tol.bound) << tag;
@@ -170,7 +167,7 @@ void check_against_fd(const VectorField& f, const VectorFieldJacobian& df, const
     fd.col(j) = (dopri5_flow(f, zp, h, opt) - dopri5_flow(f, zm, h, opt)) / (2 * eps);
   }
   const double e = rel_err(dopri5_flow_jacobian(f, df, z0, h, opt).second, fd);
-  report("nonlinear M vs central FD " + tag, e);
+  report_measured("nonlinear M vs central FD " + tag, e);
   EXPECT_LT(e, 1e-6) << tag;
 }
 
@@ -194,7 +191,7 @@ TEST(Dopri5, AugmentedStateAgreesWithPlainFlow) {
     const Vector z = dopri5_flow(cubic, z0, h);
     const Vector zj = dopri5_flow_jacobian(cubic, cubic_jacobian, z0, h).first;
     const double e = rel_err(zj, z);
-    report("cubic z(jacobian run) vs z(flow) h=" + std::to_string(h), e);
+    report_measured("cubic z(jacobian run) vs z(flow) h=" + std::to_string(h), e);
     EXPECT_LT(e, 1e-6);
   }
 }
@@ -202,11 +199,11 @@ TEST(Dopri5, AugmentedStateAgreesWithPlainFlow) {
 TEST(Dopri5, Deterministic) {
   Vector z0(4);
   z0 << 0.5, -0.2, 0.3, 0.6;
-  EXPECT_TRUE(bit_equal(dopri5_flow(cubic, z0, 0.7), dopri5_flow(cubic, z0, 0.7)));
+  EXPECT_TRUE(testing::same_bits(dopri5_flow(cubic, z0, 0.7), dopri5_flow(cubic, z0, 0.7)));
   const auto r1 = dopri5_flow_jacobian(cubic, cubic_jacobian, z0, 0.7);
   const auto r2 = dopri5_flow_jacobian(cubic, cubic_jacobian, z0, 0.7);
-  EXPECT_TRUE(bit_equal(r1.first, r2.first));
-  EXPECT_TRUE(bit_equal(r1.second, r2.second));
+  EXPECT_TRUE(testing::same_bits(r1.first, r2.first));
+  EXPECT_TRUE(testing::same_bits(r1.second, r2.second));
 }
 
 TEST(Dopri5, ZeroStateOfLinearFieldStaysZero) {

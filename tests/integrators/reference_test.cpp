@@ -11,6 +11,7 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/rng.hpp"
+#include "support/same_bits.hpp"
 
 namespace csympnet {
 namespace {
@@ -29,10 +30,6 @@ System make(const std::string& kind, int d, double gamma = 0.05, double alpha = 
 std::vector<System> all_kinds() {
   return {make("oscillator", 1), make("oscillator", 3), make("chain", 10), make("cubic", 1),
           make("cubic", 10)};
-}
-
-bool bit_equal(const Matrix& a, const Matrix& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() && (a.array() == b.array()).all();
 }
 
 TEST(Reference, SubstepCountUsesToleratedCeiling) {
@@ -171,7 +168,7 @@ TEST(Reference, PerColumnStepsEqualColumnByColumnBitForBit) {
       const Matrix batch = reference_flow(sys, Z, h, opt);
       for (Index j = 0; j < Z.cols(); ++j) {
         const Matrix one = reference_flow(sys, Z.col(j), h.segment(j, 1), opt);
-        EXPECT_TRUE(bit_equal(batch.col(j), one)) << to_string(method) << " column " << j;
+        EXPECT_TRUE(testing::same_bits(batch.col(j), one)) << to_string(method) << " column " << j;
       }
     }
   }
@@ -183,11 +180,11 @@ TEST(Reference, EqualStepBatchEqualsSingleStateFlowBitForBit) {
   const Matrix Z = rng.uniform_matrix(sys.dim(), 9, -1.0, 1.0);
   const Matrix batch = reference_flow(sys, Z, Vector::Constant(9, 0.1));
   for (Index j = 0; j < Z.cols(); ++j)
-    EXPECT_TRUE(bit_equal(batch.col(j), conformal_sv_flow(sys, Z.col(j), 0.1))) << j;
+    EXPECT_TRUE(testing::same_bits(batch.col(j), conformal_sv_flow(sys, Z.col(j), 0.1))) << j;
   // One substep is the splitting over δ with h_ref = δ.
   Matrix one = Z;
   conformal_sv_substep(sys, one, 0.01);
-  EXPECT_TRUE(bit_equal(one.col(0), conformal_sv_flow(sys, Z.col(0), 0.01, 0.01)));
+  EXPECT_TRUE(testing::same_bits(one.col(0), conformal_sv_flow(sys, Z.col(0), 0.01, 0.01)));
 }
 
 TEST(Reference, SplittingPreservesUndampedEnergyClosely) {

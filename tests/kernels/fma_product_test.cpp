@@ -34,7 +34,7 @@ void expect_same_bits(const Matrix& mine, const Matrix& ref, const std::string& 
       << what << ": largest difference " << (mine - ref).cwiseAbs().maxCoeff();
 }
 
-Matrix random_matrix(std::mt19937_64& gen, Index rows, Index cols) {
+Matrix random_fma_matrix(std::mt19937_64& gen, Index rows, Index cols) {
   std::normal_distribution<double> normal;
   Matrix m(rows, cols);
   for (Index i = 0; i < m.size(); ++i) m.data()[i] = normal(gen);
@@ -70,10 +70,10 @@ Operands random_operands(std::mt19937_64& gen, Index m, Index n, Index k, bool b
              k,
              m + pad,
              bt,
-             random_matrix(gen, m, k),
-             bt ? random_matrix(gen, n, k) : random_matrix(gen, k, n),
-             random_matrix(gen, m + pad, n),
-             random_matrix(gen, n, 1).col(0)};
+             random_fma_matrix(gen, m, k),
+             bt ? random_fma_matrix(gen, n, k) : random_fma_matrix(gen, k, n),
+             random_fma_matrix(gen, m + pad, n),
+             random_fma_matrix(gen, n, 1).col(0)};
   return o;
 }
 
@@ -187,8 +187,8 @@ TEST(FmaProduct, ReferenceIsTheFusedChain) {
   const Matrix exact = a * b;
   expect_same_bits(c, exact, "integers: exact");
 
-  a = random_matrix(gen, m, k);
-  b = random_matrix(gen, k, n);
+  a = random_fma_matrix(gen, m, k);
+  b = random_fma_matrix(gen, k, n);
   kernels::fma_order_reference(m, n, k, a.data(), m, b.data(), 1, k, c.data(), m, Epilogue::kStore);
   const Matrix eigen = a * b;
   const Matrix bound_terms = a.cwiseAbs() * b.cwiseAbs();
@@ -207,8 +207,8 @@ TEST(FmaProduct, ReferenceIsTheFusedChain) {
   EXPECT_GT(differ, 0) << "no entry differs from mul-then-add: not a fused chain";
 
   // The scaled epilogue is one more fused step: C = fma(s, h_j, C).
-  Matrix d = random_matrix(gen, m, n);
-  const Vector h = random_matrix(gen, n, 1).col(0);
+  Matrix d = random_fma_matrix(gen, m, n);
+  const Vector h = random_fma_matrix(gen, n, 1).col(0);
   Matrix scaled = d;
   kernels::fma_order_reference(m, n, k, a.data(), m, b.data(), 1, k, scaled.data(), m,
                                Epilogue::kAddScaled, h.data());
@@ -221,8 +221,8 @@ TEST(FmaProduct, ReferenceIsTheFusedChain) {
 // Eigen's (the guard restores the previous arithmetic).
 TEST(FmaProduct, CoreProductsFollowTheArithmetic) {
   std::mt19937_64 gen(19);
-  const Matrix s = random_matrix(gen, 10, 10);
-  const Matrix x = random_matrix(gen, 10, 64);
+  const Matrix s = random_fma_matrix(gen, 10, 10);
+  const Matrix x = random_fma_matrix(gen, 10, 64);
   Matrix fma_out, sse2_out, scratch;
   const kernels::Arithmetic before = kernels::arithmetic();
   {

@@ -13,7 +13,7 @@
 namespace csympnet::testing {
 namespace {
 
-Matrix random_matrix(Index rows, Index cols, std::mt19937_64& gen) {
+Matrix random_rows_matrix(Index rows, Index cols, std::mt19937_64& gen) {
   std::normal_distribution<double> normal;
   Matrix m(rows, cols);
   for (Index i = 0; i < m.size(); ++i)
@@ -25,8 +25,8 @@ TEST(ConformalRows, KernelsMatchTheScalarFormulas) {
   std::mt19937_64 gen(17);
   for (Index n = 1; n <= 100; ++n) {
     SCOPED_TRACE("N = " + std::to_string(n));
-    const Matrix z = random_matrix(2, n, gen);
-    const Matrix a = random_matrix(1, n, gen);
+    const Matrix z = random_rows_matrix(2, n, gen);
+    const Matrix a = random_rows_matrix(1, n, gen);
     // Outputs start as a sentinel one past the batch, which the kernels must leave alone.
     const Matrix sentinel = Matrix::Constant(1, n + 1, -7.0);
     Matrix q = sentinel, p = sentinel, raw = sentinel;
@@ -58,8 +58,8 @@ TEST(ConformalRows, KernelsMatchTheScalarFormulas) {
     }
     EXPECT_TRUE(same_bits(out, out_ref));
 
-    const Matrix p_core = random_matrix(1, n, gen), gp = random_matrix(1, n, gen);
-    const Matrix p_in = random_matrix(1, n, gen), h = random_matrix(1, n, gen);
+    const Matrix p_core = random_rows_matrix(1, n, gen), gp = random_rows_matrix(1, n, gen);
+    const Matrix p_in = random_rows_matrix(1, n, gen), h = random_rows_matrix(1, n, gen);
     Matrix terms = sentinel, terms_ref = sentinel;
     ASSERT_TRUE(kernels::damping_terms_simd(z.data(), p_core.data(), gp.data(), p_in.data(),
                                             h.data(), a.data(), n, terms.data()));

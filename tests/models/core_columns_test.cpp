@@ -36,7 +36,7 @@ LaLayout layout_of(const LaSympNet& core) {
   return {core.d(), core.layers(), core.sublayers(), core.step_terms() == 2};
 }
 
-Vector step_of(const LaLayout& l, ConstParams theta, Index coef, const Vector& h) {
+Vector core_step_of(const LaLayout& l, ConstParams theta, Index coef, const Vector& h) {
   if (!l.poly) return h;
   return (h.array() * (1.0 + theta(coef) * h.array())).matrix();
 }
@@ -61,7 +61,7 @@ void reference_la_flow(const LaSympNet& core, ConstParams theta, Matrix& q, Matr
       Matrix& dst = kick ? p : q;
       cache.push_back(src);
       symmetric(theta, off, dd, s);
-      const Vector tau = step_of(l, theta, l.shear_coef(k, i), h);
+      const Vector tau = core_step_of(l, theta, l.shear_coef(k, i), h);
       detail::core_product_add_scaled(s, src, tau.data(), dst, inc);
     }
     p.noalias() += theta.segment(off, dd) * h.transpose();
@@ -73,7 +73,7 @@ void reference_la_flow(const LaSympNet& core, ConstParams theta, Matrix& q, Matr
       sigmoid_into(src, sig);
       cache.push_back(sig);
       const auto a = theta.segment(off + 2 * dd, dd).array();
-      const Vector tau = step_of(l, theta, l.act_coef(k), h);
+      const Vector tau = core_step_of(l, theta, l.act_coef(k), h);
       dst.array() += (sig.array().colwise() * a).rowwise() * tau.transpose().array();
     }
   }
@@ -100,7 +100,7 @@ void reference_la_backward(const LaSympNet& core, ConstParams theta,
       if (l.poly)
         grad(l.act_coef(k)) +=
             ((gdst.array() * sig.array()).colwise() * a).colwise().sum().matrix().dot(h2);
-      gh = (gdst.array().rowwise() * step_of(l, theta, l.act_coef(k), h).transpose().array())
+      gh = (gdst.array().rowwise() * core_step_of(l, theta, l.act_coef(k), h).transpose().array())
                .matrix();
       grad.segment(bias + 2 * dd, dd).array() += (gh.array() * sig.array()).rowwise().sum();
       gsrc.array() += (gh.array() * sig.array() * (1.0 - sig.array())).colwise() * a;
@@ -117,7 +117,8 @@ void reference_la_backward(const LaSympNet& core, ConstParams theta,
       if (l.poly)
         grad(l.shear_coef(k, i)) +=
             (gdst.array() * (s * src).array()).colwise().sum().matrix().dot(h2);
-      gh = (gdst.array().rowwise() * step_of(l, theta, l.shear_coef(k, i), h).transpose().array())
+      gh = (gdst.array().rowwise() *
+            core_step_of(l, theta, l.shear_coef(k, i), h).transpose().array())
                .matrix();
       detail::core_product(gh, src.transpose(), outer);
       Eigen::Map<Matrix> ga(grad.data() + off, dd, dd);
@@ -179,11 +180,11 @@ void reference_g_backward(const GSympNet& core, ConstParams theta, const std::ve
 }
 
 // θ large enough that the sweeps do real work (the documented init is 0.01).
-Vector random_theta(std::mt19937_64& gen, Index n) {
+Vector random_core_theta(std::mt19937_64& gen, Index n) {
   return random_matrix(gen, n, 1, 0.3).col(0);
 }
 
-Vector random_steps(std::mt19937_64& gen, Index n) {
+Vector random_core_steps(std::mt19937_64& gen, Index n) {
   std::uniform_real_distribution<double> u(0.05, 0.15);
   Vector h(n);
   for (Index j = 0; j < n; ++j) h(j) = u(gen);
@@ -213,17 +214,17 @@ std::vector<CoreCase> core_cases() {
   return cases;
 }
 
-const Index kBatches[] = {1, 2, 7, 16, 33, 81, 400};
+const Index kCoreBatches[] = {1, 2, 7, 16, 33, 81, 400};
 
 TEST(CoreColumns, SerialSweepsEqualThePreviousSweeps) {
   std::mt19937_64 gen(31);
   for (const CoreCase& c : core_cases()) {
     const auto core = c.make();
-    for (Index n : kBatches) {
+    for (Index n : kCoreBatches) {
       SCOPED_TRACE(c.name + " N=" + std::to_string(n));
       const Index d = core->d();
-      const Vector theta = random_theta(gen, core->n_params());
-      const Vector h = random_steps(gen, n);
+      const Vector theta = random_core_theta(gen, core->n_params());
+      const Vector h = random_core_steps(gen, n);
       const Matrix q0 = random_matrix(gen, d, n, 1.0), p0 = random_matrix(gen, d, n, 1.0);
       Matrix q_ref = q0, p_ref = p0, q = q0, p = p0;
       std::vector<Matrix> ref_cache;
@@ -258,8 +259,8 @@ TEST(CoreColumns, SerialSweepsEqualThePreviousSweeps) {
 void expect_split_equals_serial(const CSympNetId& model, const std::vector<Columns>& ranges,
                                 int shares, std::mt19937_64& gen) {
   const Index n = ranges.back().end;
-  const Vector theta = random_theta(gen, model.n_params());
-  const Vector h = random_steps(gen, n);
+  const Vector theta = random_core_theta(gen, model.n_params());
+  const Vector h = random_core_steps(gen, n);
   const Matrix z = random_matrix(gen, model.dim(), n, 1.0);
   const Matrix dz = random_matrix(gen, model.dim(), n, 1.0);
   ForwardCache serial;
@@ -295,7 +296,7 @@ TEST(CoreColumns, SplitPassesEqualTheSerialPasses) {
   int compared = 0;
   for (const CoreCase& c : core_cases()) {
     const CSympNetId model(c.make(), 0.3);
-    for (Index n : kBatches) {
+    for (Index n : kCoreBatches) {
       for (int parts : {2, 3, 5}) {
         const auto ranges = column_ranges(n, parts);
         if (!model.splits(n, ranges)) continue;

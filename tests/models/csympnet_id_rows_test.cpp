@@ -60,7 +60,7 @@ Matrix reference_forward(const CSympNetId& m, ConstParams theta, const Matrix& Z
   return out;
 }
 
-double abs_derivative(double beta) {
+double abs_slope(double beta) {
   if (beta > 0.0) return 1.0;
   if (beta < 0.0) return -1.0;
   return 0.0;
@@ -81,7 +81,7 @@ void reference_backward(const CSympNetId& m, ConstParams theta, const Recorded& 
   gp.array().rowwise() *= arow;
   core.flow_backward(theta.head(nc), cache.core, h, gq, gp, grad.head(nc));
   grad_a.array() += (gp.array() * cache.p_in.array()).colwise().sum().transpose();
-  grad(nc) += -0.5 * abs_derivative(theta(nc)) * (grad_a.array() * h.array() * a.array()).sum();
+  grad(nc) += -0.5 * abs_slope(theta(nc)) * (grad_a.array() * h.array() * a.array()).sum();
   if (dZin != nullptr) {
     gp.array().rowwise() *= arow;
     dZin->resize(2 * d, dZout.cols());
@@ -92,17 +92,17 @@ void reference_backward(const CSympNetId& m, ConstParams theta, const Recorded& 
 
 enum class Beta { kPositive, kNegative, kZero, kLarge };
 
-struct Problem {
+struct RowsProblem {
   Vector theta, h, grad0;
   Matrix z, g;
 };
 
-Problem random_problem(const CSympNetId& m, Index n, Beta beta, std::mt19937_64& gen) {
+RowsProblem random_rows_problem(const CSympNetId& m, Index n, Beta beta, std::mt19937_64& gen) {
   std::normal_distribution<double> normal;
   auto fill = [&](auto& x, double scale) {
     for (Index i = 0; i < x.size(); ++i) x.data()[i] = scale * normal(gen);
   };
-  Problem pr;
+  RowsProblem pr;
   pr.theta.resize(m.n_params());
   fill(pr.theta, 0.5);
   double& b = pr.theta(m.n_params() - 1);
@@ -137,7 +137,7 @@ Problem random_problem(const CSympNetId& m, Index n, Beta beta, std::mt19937_64&
 void expect_same_as_reference(const CSympNetId& m, Index n, Beta beta, std::mt19937_64& gen) {
   SCOPED_TRACE(m.hyperparams().dump() + ", N = " + std::to_string(n) +
                ", beta case = " + std::to_string(static_cast<int>(beta)));
-  const Problem pr = random_problem(m, n, beta, gen);
+  const RowsProblem pr = random_rows_problem(m, n, beta, gen);
 
   Recorded ref_cache;
   const Matrix ref_out = reference_forward(m, pr.theta, pr.z, pr.h, &ref_cache);
@@ -153,7 +153,7 @@ void expect_same_as_reference(const CSympNetId& m, Index n, Beta beta, std::mt19
   // A cache that already holds a pass of another size and other parameters: its storage is
   // reused, which must not leak into the results.
   ForwardCache cache;
-  const Problem other = random_problem(m, n + 3, Beta::kPositive, gen);
+  const RowsProblem other = random_rows_problem(m, n + 3, Beta::kPositive, gen);
   m.forward(other.theta, other.z, other.h, &cache);
   for (int pass = 0; pass < 2; ++pass) {
     SCOPED_TRACE("pass " + std::to_string(pass));

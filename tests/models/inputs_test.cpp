@@ -44,7 +44,7 @@ std::vector<LibraryTerm> some_terms(Index d) {
   return terms;
 }
 
-HamiltonianLibraryMap driven_map(const DrivenCase& c) {
+HamiltonianLibraryMap driven_library_map(const DrivenCase& c) {
   return HamiltonianLibraryMap(c.d, some_terms(c.d), c.order, c.substeps, c.full_mass, 0.1, {}, {},
                                InputSpec{c.m, c.hold});
 }
@@ -71,7 +71,7 @@ class DrivenMapTest : public ::testing::TestWithParam<DrivenCase> {};
 TEST_P(DrivenMapTest, DerivativesMatchCentralDifferences) {
   const DrivenCase c = GetParam();
   Rng rng(61 + c.d * 7 + c.order + c.m, "driven-fd");
-  const HamiltonianLibraryMap map = driven_map(c);
+  const HamiltonianLibraryMap map = driven_library_map(c);
   for (int rep = 0; rep < 3; ++rep) {
     const Vector theta = driven_theta(map, rng, rep % 2 == 0 ? 0.4 : -0.3);
     const Index n = 3;
@@ -91,7 +91,7 @@ TEST_P(DrivenMapTest, DerivativesMatchCentralDifferences) {
 TEST_P(DrivenMapTest, ConformallySymplecticAtRandomParametersAndInputs) {
   const DrivenCase c = GetParam();
   Rng rng(71 + c.d + c.m, "driven-structure");
-  const HamiltonianLibraryMap map = driven_map(c);
+  const HamiltonianLibraryMap map = driven_library_map(c);
   double worst = 0.0;
   for (int rep = 0; rep < 50; ++rep) {
     const double beta = (rep % 2 == 0 ? 1.0 : -1.0) * rng.uniform(0.05, 3.0);
@@ -112,7 +112,7 @@ TEST_P(DrivenMapTest, ConformallySymplecticAtRandomParametersAndInputs) {
 TEST_P(DrivenMapTest, ZeroInputGivesTheFreeMapToTheBit) {
   const DrivenCase c = GetParam();
   Rng rng(81 + c.d, "driven-zero");
-  const HamiltonianLibraryMap with = driven_map(c);
+  const HamiltonianLibraryMap with = driven_library_map(c);
   const HamiltonianLibraryMap without(c.d, some_terms(c.d), c.order, c.substeps, c.full_mass, 0.1);
   ASSERT_EQ(with.n_params(), without.n_params() + c.d * c.m);
   const Vector theta = driven_theta(with, rng, 0.3);

@@ -27,20 +27,20 @@ struct Case {
 };
 
 // A random problem: θ (step coefficients included), states, steps and upstream gradients.
-struct Problem {
+struct SweepProblem {
   Vector theta, h;
   Matrix q, p, gq, gp;
   Vector grad0;
 };
 
 // specials: some samples of q and p are ±0, denormal, ±∞ or huge (σ's Eigen fallback lanes).
-Problem random_problem(const LaSympNet& net, Index n, std::mt19937_64& gen, double wide = 0.0,
-                       bool specials = false) {
+SweepProblem random_sweep_problem(const LaSympNet& net, Index n, std::mt19937_64& gen,
+                                  double wide = 0.0, bool specials = false) {
   std::normal_distribution<double> normal;
   auto fill = [&](auto& x, double scale) {
     for (Index i = 0; i < x.size(); ++i) x.data()[i] = scale * normal(gen);
   };
-  Problem pr;
+  SweepProblem pr;
   pr.theta.resize(net.n_params());
   fill(pr.theta, 0.6);
   pr.h.resize(n);
@@ -84,7 +84,7 @@ void expect_same_as_portable(const Case& c, std::mt19937_64& gen, double wide = 
   SCOPED_TRACE("L = " + std::to_string(c.layers) + ", m = " + std::to_string(c.sublayers) +
                ", step_terms = " + std::to_string(c.step_terms) + ", N = " + std::to_string(c.n));
   const LaSympNet net(1, c.layers, c.sublayers, c.step_terms);
-  const Problem pr = random_problem(net, c.n, gen, wide, specials);
+  const SweepProblem pr = random_sweep_problem(net, c.n, gen, wide, specials);
 
   Matrix q_ref = pr.q, p_ref = pr.p;
   ForwardCache cache_ref;

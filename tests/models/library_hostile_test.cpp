@@ -23,7 +23,7 @@
 namespace csympnet {
 namespace {
 
-std::string refusal(const std::string& name, Index d) {
+std::string term_refusal(const std::string& name, Index d) {
   try {
     parse_term(name, d, "spec.terms");
   } catch (const Error& e) {
@@ -37,28 +37,28 @@ TEST(LibraryHostile, LongNamesAndHugeIndicesAreRefusedByName) {
   for (const std::string& name :
        {"q" + digits, "q1^" + digits, "sin(q" + digits + ")", "(q1-q" + digits + ")^2",
         "exp(-q" + digits + ")", "cos(q1-q2" + digits + ")", "q1" + std::string(50000, ' ')}) {
-    const std::string m = refusal(name, 3);
+    const std::string m = term_refusal(name, 3);
     EXPECT_NE(m.find("spec.terms: term '" + name.substr(0, 40) + "\u2026'"), std::string::npos)
         << m.substr(0, 200);
     EXPECT_LT(m.size(), 600u) << "the message quotes the whole name";
   }
-  EXPECT_NE(refusal("q" + digits, 3).find("out of range"), std::string::npos);
-  EXPECT_NE(refusal("q1^" + digits, 3).find("not a library term"), std::string::npos);
+  EXPECT_NE(term_refusal("q" + digits, 3).find("out of range"), std::string::npos);
+  EXPECT_NE(term_refusal("q1^" + digits, 3).find("not a library term"), std::string::npos);
   for (const char* name : {"q99999999999999999999", "q18446744073709551617",
                            "sin(q1-q99999999999999999999)", "(q99999999999999999999-q1)^2"}) {
-    const std::string m = refusal(name, 2);
+    const std::string m = term_refusal(name, 2);
     EXPECT_NE(m.find("out of range"), std::string::npos) << name << ": " << m;
     EXPECT_NE(m.find("I, J in 1..2"), std::string::npos) << m;
   }
-  EXPECT_NE(refusal("q0", 2).find("coordinate 0 out of range"), std::string::npos);
-  EXPECT_NE(refusal("q3", 2).find("coordinate 3 out of range"), std::string::npos);
+  EXPECT_NE(term_refusal("q0", 2).find("coordinate 0 out of range"), std::string::npos);
+  EXPECT_NE(term_refusal("q3", 2).find("coordinate 3 out of range"), std::string::npos);
   // The grammar is the one the regular expressions had: near misses stay refused, leading
   // zeros are written back in the canonical form, and every canonical name still parses.
   for (const char* name : {"", "q", "q1^", "q1^22", "(q1-q2)", "(q1-q2)^", "sin(q1", "sin(q1-)",
                            "exp(--q1)", "sinq1", "q1 ", " q1", "q-1", "(q1+q2)^2", "sin(q1)x"})
-    EXPECT_NE(refusal(name, 2).find("not a library term"), std::string::npos) << name;
-  EXPECT_NE(refusal("q01", 2).find("write it as 'q1'"), std::string::npos);
-  EXPECT_NE(refusal("exp(-q1-q2)", 2).find("minus sign"), std::string::npos);
+    EXPECT_NE(term_refusal(name, 2).find("not a library term"), std::string::npos) << name;
+  EXPECT_NE(term_refusal("q01", 2).find("write it as 'q1'"), std::string::npos);
+  EXPECT_NE(term_refusal("exp(-q1-q2)", 2).find("minus sign"), std::string::npos);
   for (const LibraryTerm& t : full_library(12)) EXPECT_EQ(parse_term(term_name(t), 12, "t"), t);
 }
 

@@ -65,7 +65,7 @@ HamiltonianLibraryMap tangent_map(const TangentCase& c, Rng& rng) {
 
 // Small random coefficients (every term's slope enters), wavenumbers of either size, a mass
 // near I, β of either sign, B ~ N(0, 1).
-Vector random_theta(const HamiltonianLibraryMap& map, Rng& rng, double beta) {
+Vector random_tangent_theta(const HamiltonianLibraryMap& map, Rng& rng, double beta) {
   Vector theta(map.n_params());
   Rng unused(1, "unused");
   map.init_params(unused, theta);
@@ -91,7 +91,7 @@ struct Draw {
 };
 Draw draw(const HamiltonianLibraryMap& map, Rng& rng, int rep) {
   Draw x;
-  x.theta = random_theta(map, rng, (rep % 2 == 0 ? 1.0 : -1.0) * rng.uniform(0.05, 1.0));
+  x.theta = random_tangent_theta(map, rng, (rep % 2 == 0 ? 1.0 : -1.0) * rng.uniform(0.05, 1.0));
   x.z = rng.normal_matrix(map.dim(), 1, 0.5);
   // With dissipation terms, momenta of 0.5 to 1 in size: over a step the kicks and the friction
   // move them by less than that, so no flow reaches the stick set or its kink.

@@ -48,7 +48,7 @@ nlohmann::json free_spec(const NeuralDrivenCase& c) {
 }
 
 // θ ~ N(0, 0.5²) with β as given; B's entries N(0, 1).
-Vector driven_theta(const OneStepMap& map, Rng& rng, double beta) {
+Vector neural_driven_theta(const OneStepMap& map, Rng& rng, double beta) {
   return random_theta(map, rng, 0.5, beta);
 }
 
@@ -62,7 +62,7 @@ TEST_P(NeuralDrivenTest, DerivativesMatchCentralDifferences) {
   const auto free = make_one_step_map(free_spec(c));
   ASSERT_EQ(map->n_params(), free->n_params() + c.d * c.m);
   for (int rep = 0; rep < 3; ++rep) {
-    const Vector theta = driven_theta(*map, rng, rep % 2 == 0 ? 0.4 : -0.3);
+    const Vector theta = neural_driven_theta(*map, rng, rep % 2 == 0 ? 0.4 : -0.3);
     const Index n = 4;
     const Matrix z = rng.normal_matrix(map->dim(), n, 0.6);
     const Matrix u = rng.normal_matrix(2 * c.m, n, 1.0);
@@ -82,7 +82,7 @@ TEST_P(NeuralDrivenTest, ConformallySymplecticAtRandomParametersAndInputs) {
   double worst = 0.0;
   for (int rep = 0; rep < 50; ++rep) {
     const double beta = (rep % 2 == 0 ? 1.0 : -1.0) * rng.uniform(0.05, 3.0);
-    const Vector theta = driven_theta(*map, rng, beta);
+    const Vector theta = neural_driven_theta(*map, rng, beta);
     const Vector z = rng.normal_matrix(map->dim(), 1, 0.6);
     const Vector u = rng.normal_matrix(2 * c.m, 1, 3.0);
     const double h = rng.uniform(0.05, 0.4);
@@ -101,7 +101,7 @@ TEST_P(NeuralDrivenTest, ZeroInputGivesTheFreeMapToTheBit) {
   Rng rng(111 + c.d + c.m, std::string("neural-driven-zero-") + c.core);
   const auto map = make_one_step_map(driven_spec(c));
   const auto free = make_one_step_map(free_spec(c));
-  const Vector theta = driven_theta(*map, rng, 0.3);
+  const Vector theta = neural_driven_theta(*map, rng, 0.3);
   const Index nc = free->n_params() - 1;
   Vector free_theta(free->n_params());
   free_theta << theta.head(nc), theta(map->n_params() - 1);

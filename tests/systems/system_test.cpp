@@ -20,7 +20,7 @@ constexpr double kFdStep = 1e-5;
 constexpr double kFdTol = 1e-8;
 
 template <class F>
-Vector fd_gradient(F f, const Vector& x) {
+Vector system_fd_gradient(F f, const Vector& x) {
   Vector g(x.size());
   for (Index i = 0; i < x.size(); ++i) {
     Vector xp = x, xm = x;
@@ -32,7 +32,7 @@ Vector fd_gradient(F f, const Vector& x) {
 }
 
 template <class F>
-Matrix fd_jacobian(F f, const Vector& x) {
+Matrix system_fd_jacobian(F f, const Vector& x) {
   const Index m = f(x).size();
   Matrix jac(m, x.size());
   for (Index i = 0; i < x.size(); ++i) {
@@ -72,9 +72,9 @@ TEST(System, GradientsMatchFiniteDifferences) {
     for (int rep = 0; rep < 3; ++rep) {
       const Vector z = rng.uniform_vector(sys.dim(), -1.5, 1.5);
       const Vector q = z.head(sys.d());
-      const Vector gv = fd_gradient([&](const Vector& x) { return sys.potential(x); }, q);
+      const Vector gv = system_fd_gradient([&](const Vector& x) { return sys.potential(x); }, q);
       EXPECT_LT((sys.grad_potential(q) - gv).lpNorm<Eigen::Infinity>(), kFdTol) << label(sys);
-      const Vector gh = fd_gradient([&](const Vector& x) { return sys.energy(x); }, z);
+      const Vector gh = system_fd_gradient([&](const Vector& x) { return sys.energy(x); }, z);
       EXPECT_LT((sys.grad_energy(z) - gh).lpNorm<Eigen::Infinity>(), kFdTol) << label(sys);
     }
   }
@@ -85,9 +85,9 @@ TEST(System, HessiansMatchFiniteDifferencesOfGradients) {
   for (const System& sys : random_systems(rng)) {
     const Vector z = rng.uniform_vector(sys.dim(), -1.5, 1.5);
     const Vector q = z.head(sys.d());
-    const Matrix hv = fd_jacobian([&](const Vector& x) { return sys.grad_potential(x); }, q);
+    const Matrix hv = system_fd_jacobian([&](const Vector& x) { return sys.grad_potential(x); }, q);
     EXPECT_LT((sys.hess_potential(q) - hv).lpNorm<Eigen::Infinity>(), kFdTol) << label(sys);
-    const Matrix hh = fd_jacobian([&](const Vector& x) { return sys.grad_energy(x); }, z);
+    const Matrix hh = system_fd_jacobian([&](const Vector& x) { return sys.grad_energy(x); }, z);
     EXPECT_LT((sys.hess_energy(z) - hh).lpNorm<Eigen::Infinity>(), kFdTol) << label(sys);
     // The matrix-free product agrees with the assembled Hessian.
     const Matrix X = rng.uniform_matrix(sys.d(), 4, -1.0, 1.0);
@@ -105,7 +105,7 @@ TEST(System, VectorFieldAndJacobian) {
     Vector expected = canonical_j(d) * sys.grad_energy(z);
     expected.tail(d) -= sys.gamma() * z.tail(d);
     EXPECT_LT((sys.vector_field(z) - expected).norm(), 1e-14) << label(sys);
-    const Matrix jf = fd_jacobian([&](const Vector& x) { return sys.vector_field(x); }, z);
+    const Matrix jf = system_fd_jacobian([&](const Vector& x) { return sys.vector_field(x); }, z);
     EXPECT_LT((sys.vector_field_jacobian(z) - jf).lpNorm<Eigen::Infinity>(), kFdTol) << label(sys);
   }
 }
@@ -119,7 +119,7 @@ TEST(System, FiniteDifferenceHarnessCatchesAWrongGradient) {
   const Vector q = Vector::LinSpaced(3, -0.5, 0.7);
   Vector wrong = sys.grad_potential(q);
   wrong(1) += 1e-6;
-  const Vector gv = fd_gradient([&](const Vector& x) { return sys.potential(x); }, q);
+  const Vector gv = system_fd_gradient([&](const Vector& x) { return sys.potential(x); }, q);
   EXPECT_GT((wrong - gv).lpNorm<Eigen::Infinity>(), kFdTol);
 }
 

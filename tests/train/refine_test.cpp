@@ -18,7 +18,7 @@ using testing::check_jacobian;
 using testing::random_steps;
 using testing::random_theta;
 
-PairSet random_pairs(Index dim, Index n, Rng& rng) {
+PairSet random_refine_pairs(Index dim, Index n, Rng& rng) {
   PairSet p;
   p.z0 = rng.normal_matrix(dim, n, 1.0);
   p.z1 = rng.normal_matrix(dim, n, 1.0);
@@ -33,7 +33,7 @@ TEST_P(ResidualJacobianTest, MatchesFiniteDifferences) {
   Rng rng(11, GetParam());
   for (int rep = 0; rep < 2; ++rep) {
     const Vector theta = random_theta(*map, rng, 0.3, 0.4);
-    const PairSet pairs = random_pairs(map->dim(), 4, rng);
+    const PairSet pairs = random_refine_pairs(map->dim(), 4, rng);
     const auto r = [&](const Vector& th) { return one_step_residuals(*map, th, pairs); };
     const auto jac = [&](const Vector& th) -> Matrix { return residual_jacobian(*map, th, pairs); };
     const auto check = check_jacobian(r, jac, theta);
@@ -46,7 +46,7 @@ TEST_P(ResidualJacobianTest, GivesTheLossGradient) {
   const auto map = make_one_step_map(nlohmann::json::parse(GetParam()));
   Rng rng(12, GetParam());
   const Vector theta = random_theta(*map, rng, 0.3, 0.4);
-  const PairSet pairs = random_pairs(map->dim(), 6, rng);
+  const PairSet pairs = random_refine_pairs(map->dim(), 6, rng);
   Vector grad;
   one_step_loss(*map, theta, pairs, &grad);
   const Vector from_jac = (2.0 / 6.0) * residual_jacobian(*map, theta, pairs).transpose() *
@@ -66,7 +66,7 @@ TEST(ResidualJacobian, CheckCatchesAPlantedWrongEntry) {
       R"({"type":"csympnet","d":1,"core":{"type":"la","layers":2,"sublayers":2}})"));
   Rng rng(13, "planted");
   const Vector theta = random_theta(*map, rng, 0.3, 0.4);
-  const PairSet pairs = random_pairs(2, 3, rng);
+  const PairSet pairs = random_refine_pairs(2, 3, rng);
   const auto r = [&](const Vector& th) { return one_step_residuals(*map, th, pairs); };
   const auto wrong = [&](const Vector& th) -> Matrix {
     Matrix j = residual_jacobian(*map, th, pairs);

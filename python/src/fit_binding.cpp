@@ -1,7 +1,7 @@
 // Training from Python: fit_pairs (paper/fit.hpp, what `csympnet fit` runs) and run
 // (paper/run.hpp, what `csympnet run` runs). Training releases the GIL; the progress
-// callback takes it back only after each validation, to call the user's callback and to let
-// Ctrl-C stop the run.
+// callback takes it back after each validation to call the user's callback, or, without one,
+// at most every 50 ms (signal_poll.hpp) to let Ctrl-C stop the run.
 #include <limits>
 #include <optional>
 #include <string>
@@ -15,6 +15,7 @@
 #include "csympnet/paper/fit.hpp"
 #include "csympnet/paper/run.hpp"
 #include "model_binding.hpp"
+#include "signal_poll.hpp"
 
 namespace csympnet::py_binding {
 
@@ -30,6 +31,9 @@ class PythonProgress {
 
   ProgressCallback callback() {
     return [this](const TrainProgress& p) {
+      // Without a callback the GIL is taken only to look for signals, as often as
+      // should_stop() does: a validation can come every few microseconds.
+      if (callback_.is_none() && !signal_clock_.due()) return true;
       py::gil_scoped_acquire gil;
       try {
         if (PyErr_CheckSignals() != 0) throw py::error_already_set();
@@ -55,9 +59,11 @@ class PythonProgress {
 
   // For the stages after AdamW (LM, L-BFGS, the bootstrap): true once a signal is pending
   // (KeyboardInterrupt, re-raised by rethrow_if_stopped) or the callback has stopped the fit.
+  // Python's signals are looked at every kSignalPollInterval at most.
   std::function<bool()> should_stop() {
     return [this] {
       if (error_) return true;
+      if (!signal_clock_.due()) return false;
       py::gil_scoped_acquire gil;
       if (PyErr_CheckSignals() != 0) {
         error_.emplace();  // fetches the pending KeyboardInterrupt
@@ -79,6 +85,7 @@ class PythonProgress {
  private:
   py::object callback_;
   std::optional<py::error_already_set> error_;
+  SignalPollClock signal_clock_;
 };
 
 PairSet pairs_from(const DArray& z0, const DArray& z1, const DArray& h, const std::string& name) {

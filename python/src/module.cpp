@@ -14,6 +14,7 @@
 #include "csympnet/core/options.hpp"
 #include "csympnet/core/stop.hpp"
 #include "model_binding.hpp"
+#include "signal_poll.hpp"
 
 namespace {
 // How Python spells the library's option keys (core/options.hpp): as its keyword arguments,
@@ -33,7 +34,7 @@ const csympnet::OptionSpelling& python_spelling() {
 }
 // The library's long stages without a callback (integrators, generation, file reads) poll
 // csympnet::stop_requested(): here, on Python's main thread (where Python runs its signal
-// handlers), at most every 2 ms, Python's pending signals. A handler's exception
+// handlers), at most every 50 ms (signal_poll.hpp), Python's pending signals. A handler's exception
 // (KeyboardInterrupt) is kept and raised when the stopped call returns to Python. Other
 // threads never take the GIL here (the main thread may hold it while it waits for them).
 std::thread::id g_main_thread;
@@ -45,10 +46,8 @@ PyObject* g_stop_traceback = nullptr;
 bool python_stop_poll() {
   if (g_stop_pending.load(std::memory_order_relaxed)) return true;
   if (std::this_thread::get_id() != g_main_thread) return false;
-  static std::chrono::steady_clock::time_point last{};
-  const auto now = std::chrono::steady_clock::now();
-  if (now - last < std::chrono::milliseconds(2)) return false;
-  last = now;
+  static csympnet::py_binding::SignalPollClock clock;
+  if (!clock.due()) return false;
   pybind11::gil_scoped_acquire gil;
   if (PyErr_CheckSignals() == 0) return false;
   PyErr_Fetch(&g_stop_type, &g_stop_value, &g_stop_traceback);

@@ -138,24 +138,32 @@ Matrix step_jacobian(const OneStepMap& map, ConstParams theta, const Matrix& z, 
   return map.jacobian_driven(theta, z.col(k), h(k), u.col(k));
 }
 
-// ∂Φ̂/∂θ at each of the first L − 1 states z of a driven segment into g ((L − 1)·2d × P, row
-// k·2d + i the i-th component of step k): one reverse pass per component.
-void driven_step_rows(const OneStepMap& map, ConstParams theta, const Matrix& z, const Vector& h,
-                      const Matrix& u, RowMajorMatrix& g) {
-  const Index dim = z.rows(), steps = h.size(), p = map.n_params();
+// A driven segment's rollout from z0 over the steps h with inputs u into z (2d × L, L − 1 =
+// h.size(), as shooting_states), with ∂Φ̂/∂θ at each of its first L − 1 states into g
+// ((L − 1)·2d × P, row k·2d + i the i-th component of step k): one reverse pass per component.
+// The same passes give each step's DΦ̂ (row i of step k's is the pass's ∂Φ̂_i/∂z) into jacs
+// (2d × (L − 1)·2d, step k's in columns k·2d … k·2d + 2d − 1).
+void driven_segment_rows(const OneStepMap& map, ConstParams theta, const Vector& z0,
+                         const Vector& h, const Matrix& u, Matrix& z, RowMajorMatrix& g,
+                         Matrix& jacs) {
+  const Index dim = z0.size(), steps = h.size(), p = map.n_params();
+  z.resize(dim, steps + 1);
+  z.col(0) = z0;
   g.setZero(steps * dim, p);
+  jacs.resize(dim, steps * dim);
   ForwardCache cache;
   Vector step(1), grad(p);
-  Matrix bar(dim, 1);
+  Matrix bar(dim, 1), dz;
   for (Index k = 0; k < steps; ++k) {
     step(0) = h(k);
-    map.forward_driven(theta, z.col(k), step, u.col(k), &cache);
+    z.col(k + 1) = map.forward_driven(theta, z.col(k), step, u.col(k), &cache);
     for (Index i = 0; i < dim; ++i) {
       bar.setZero();
       bar(i, 0) = 1.0;
       grad.setZero();
-      map.backward(theta, cache, bar, grad, nullptr);
+      map.backward(theta, cache, bar, grad, &dz);
       g.row(k * dim + i) = grad.transpose();
+      jacs.block(i, k * dim, 1, dim) = dz.col(0).transpose();
     }
   }
 }
@@ -284,15 +292,19 @@ void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const V
     tangent_segment_rows(map, theta, z0, q, h, n_free, a, b, r, w, u, rw);
     return;
   }
-  const Matrix z = shooting_states(map, theta, z0, h, u);
+  // ∂Φ̂/∂θ at each state of the segment but the last: one-step windows (their residuals unused);
+  // driven, with the rollout and each step's DΦ̂ from the same passes.
+  RowMajorMatrix g;
+  Matrix z, driven_jacs;
+  const bool driven = len > 1 && u.rows() > 0;
+  if (driven)
+    driven_segment_rows(map, theta, z0, h, u, z, g, driven_jacs);
+  else
+    z = shooting_states(map, theta, z0, h, u);
   r = position_residuals(z, q, w, rw);
   a.setZero(len * o, n_free);
   b.resize(len * o, dim);
-  // ∂Φ̂/∂θ at each state of the segment but the last: one-step windows (their residuals unused).
-  RowMajorMatrix g;
-  if (len > 1 && u.rows() > 0) {
-    driven_step_rows(map, theta, z.leftCols(len - 1), h, u, g);
-  } else if (len > 1) {
+  if (!driven && len > 1) {
     WindowSet steps;
     steps.m = 1;
     steps.z0 = z.leftCols(len - 1);
@@ -302,8 +314,11 @@ void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const V
     Vector unused((len - 1) * dim);
     window_jacobian_rows(map, theta, steps, false, 0, len - 1, g, unused);
   }
-  Matrix sens = Matrix::Zero(dim, n_free);
-  Matrix t = Matrix::Identity(dim, dim);
+  // The recursions sens ← DΦ̂·sens + ∂Φ̂/∂θ and T ← DΦ̂·T, into second buffers swapped in (no
+  // allocation per step).
+  Matrix sens = Matrix::Zero(dim, n_free), sens_next(dim, n_free);
+  Matrix t = Matrix::Identity(dim, dim), t_next(dim, dim);
+  Matrix jac;
   for (Index k = 0; k < len; ++k) {
     const double wk = w.size() > 0 ? w(k) : 1.0;
     a.middleRows(k * o, o) = wk * sens.topRows(o);
@@ -313,10 +328,15 @@ void shooting_segment_jacobian(const OneStepMap& map, ConstParams theta, const V
       b.middleRows(k * o, o) = rw.asDiagonal() * b.middleRows(k * o, o);
     }
     if (k + 1 == len) break;
-    const Matrix jac = step_jacobian(map, theta, z, h, u, k);
-    sens = jac * sens;
-    sens += g.block(k * dim, 0, dim, n_free);
-    t = jac * t;
+    if (driven)
+      jac = driven_jacs.middleCols(k * dim, dim);
+    else
+      jac = step_jacobian(map, theta, z, h, u, k);
+    sens_next.noalias() = jac * sens;
+    sens_next += g.block(k * dim, 0, dim, n_free);
+    sens.swap(sens_next);
+    t_next.noalias() = jac * t;
+    t.swap(t_next);
   }
 }
 
@@ -442,6 +462,17 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
   a = ne.a;
   g = ne.g;
   a.diagonal() += lambda * marquardt_diagonal(ne.a);
+  // The segments' V are gathered side by side and subtracted kReduceBatch columns at a time:
+  // one rank-2d update per segment spent most of this function's time in the update's own
+  // overhead (a 146-parameter neural core, segments of 2 start-state columns).
+  constexpr Index kReduceBatch = 256;
+  Matrix batch(a.rows(), 0);
+  Index used = 0;
+  const auto flush = [&] {
+    if (used == 0) return;
+    a.selfadjointView<Eigen::Lower>().rankUpdate(batch.leftCols(used), -1.0);
+    used = 0;
+  };
   for (std::size_t i = 0; i < terms.size(); ++i) {
     const SegmentTerms& x = terms[i];
     Matrix u = x.u;
@@ -449,7 +480,10 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
     const dense::Llt f = small_factor(u);
     // W U⁻¹ Wᵀ = V Vᵀ with V = W L⁻ᵀ.
     const Matrix v = f.lower_solve_transposed(x.w);
-    a.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
+    if (batch.cols() == 0) batch.resize(a.rows(), std::max(kReduceBatch, v.cols()));
+    if (used + v.cols() > batch.cols()) flush();
+    batch.middleCols(used, v.cols()) = v;
+    used += v.cols();
     const Vector ug = f.solve(x.gb);
     g.noalias() -= x.w * ug;
     if (ne.scores.size() == 0) continue;
@@ -461,6 +495,7 @@ void reduce(NormalEquations& ne, const std::vector<SegmentTerms>& terms,
         ne.scores.col(blk).noalias() -= x.w * f.solve(gbb);
     }
   }
+  flush();
 }
 
 // The Moore–Penrose inverse of a small symmetric positive semi-definite U: eigenvalues below

@@ -91,6 +91,54 @@ TEST_P(ShootingTest, SegmentJacobiansMatchFiniteDifferences) {
   }
 }
 
+// A driven map's segments (known inputs per step): the rows in θ and in the start state, which
+// come from one reverse pass per state component and step (the step's DΦ̂ from the same passes),
+// against central differences, for the two neural cores (G, LA).
+TEST(ShootingDriven, SegmentJacobiansMatchFiniteDifferences) {
+  const char* specs[] = {
+      R"({"type":"csympnet","d":1,"inputs":{"m":1,"hold":"foh"},"core":{"type":"g","layers":3,"width":5}})",
+      R"({"type":"csympnet","d":2,"inputs":{"m":2,"hold":"zoh"},"core":{"type":"la","layers":2,"sublayers":3}})"};
+  for (const char* spec : specs) {
+    SCOPED_TRACE(spec);
+    const auto map = make_one_step_map(nlohmann::json::parse(spec));
+    const Index d = map->dim() / 2, m = map->n_inputs();
+    ASSERT_GT(m, 0);
+    Rng rng(37, spec);
+    const Vector theta = random_theta(*map, rng, 0.3, 0.5);
+    Matrix z0;
+    ShootingSegments segs = random_segments(d, 3, rng, z0);
+    for (Index s = 0; s < segs.size(); ++s) {
+      const auto i = static_cast<std::size_t>(s);
+      const Matrix u = rng.normal_matrix(2 * m, segs.h[i].size(), 0.8);
+      ShootingSegments one = one_segment(segs, i);
+      one.u = {u};
+      const Vector start = z0.col(s);
+      const auto a_of = [&](const Vector& th) -> Matrix {
+        RowMajorMatrix a;
+        Matrix b;
+        Vector r;
+        shooting_segment_jacobian(*map, th, start, segs.q[i], segs.h[i], map->n_params(), a, b, r,
+                                  Vector(), u);
+        return a;
+      };
+      const auto c1 = check_jacobian(
+          [&](const Vector& th) { return shooting_residuals(*map, th, start, one); }, a_of, theta);
+      EXPECT_TRUE(c1.ok()) << c1.report("driven shooting: dr/dtheta");
+      const auto b_of = [&](const Vector& z) -> Matrix {
+        RowMajorMatrix a;
+        Matrix b;
+        Vector r;
+        shooting_segment_jacobian(*map, theta, z, segs.q[i], segs.h[i], 0, a, b, r, Vector(), u);
+        EXPECT_EQ(r, shooting_residuals(*map, theta, z, one));  // the same rollout, to the bit
+        return b;
+      };
+      const auto c2 = check_jacobian(
+          [&](const Vector& z) { return shooting_residuals(*map, theta, z, one); }, b_of, start);
+      EXPECT_TRUE(c2.ok()) << c2.report("driven shooting: dr/dz0");
+    }
+  }
+}
+
 // The eliminated system is the Schur complement of the explicit joint JᵀJ over (θ, every z0),
 // and its scores are the efficient scores of the blocks.
 TEST_P(ShootingTest, EliminatedNormalEquationsAreTheSchurComplement) {

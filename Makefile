@@ -11,7 +11,7 @@ CLI   := $(BUILD)/bin/csympnet
 CCACHE_RUN := env;CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime;ccache
 LAUNCHER := $(if $(shell command -v ccache 2>/dev/null),"-DCMAKE_CXX_COMPILER_LAUNCHER=$(CCACHE_RUN)" "-DCMAKE_C_COMPILER_LAUNCHER=$(CCACHE_RUN)")
 
-.PHONY: all deps configure build build-demo test test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo reproduce bench docs format clean
+.PHONY: all deps configure build build-demo build-tests test test-long test-asan fuzz fuzz-build fuzz-merge fuzz-hours demo reproduce bench docs format clean
 
 all: build
 
@@ -30,8 +30,18 @@ build: configure
 build-demo: configure
 	@cmake --build $(BUILD) -j $(JOBS) --target csympnet_programs
 
-test: build
-	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+# The suite but its long tests (label `long`, tests/long_tests.txt: coverage studies, whole
+# fits on large records, the benchmark's smoke runs, pip and the documentation site); `make
+# test-long` runs those, and CI runs both.
+test: build-tests
+	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -LE long
+
+test-long: build-tests
+	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -L long
+
+# What the tests run (CMake target csympnet_test_programs): everything but the benchmarks.
+build-tests: configure
+	@cmake --build $(BUILD) -j $(JOBS) --target csympnet_test_programs
 
 # The documentation site: the guide (docs/*.md) and the Python API reference, in
 # $(BUILD)/docs/html (open index.html).
@@ -44,8 +54,9 @@ docs: build-demo
 # runtimes): its build took 660 s where gcc 12's took 906 s, the same suite passing under both
 # (docs/testing.md, "The sanitizer build"). At -O1 with line tables only (-g1): 35-51% less
 # compile CPU than -O2 -g on the heaviest files, and stack traces still name file and line.
-# ASAN_EXCLUDE (a ctest -E regex, empty by default: the whole suite runs) leaves out tests if
-# CI time ever needs it; docs/hardening.md says which are pure numerics covered by `make test`.
+# The long tests (label `long`) are left out: their stages run in the other tests, under the
+# sanitizers too. ASAN_EXCLUDE (a ctest -E regex, empty by default) leaves out more if CI time
+# needs it; docs/hardening.md says which are pure numerics covered by `make test`.
 ASAN_BUILD   ?= build-asan
 ASAN_EXCLUDE ?=
 ASAN_CC      ?= clang-14
@@ -57,7 +68,7 @@ test-asan: deps
 	  -DCSYMPNET_BUILD_PYTHON=OFF -DCSYMPNET_BUILD_BENCH=OFF $(LAUNCHER) >/dev/null
 	@cmake --build $(ASAN_BUILD) -j $(JOBS)
 	@cd $(ASAN_BUILD) && ASAN_OPTIONS=$(ASAN_OPTIONS_CI) UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-	  ctest --output-on-failure -j $(JOBS) $(if $(ASAN_EXCLUDE),-E '$(ASAN_EXCLUDE)')
+	  ctest --output-on-failure -j $(JOBS) -LE long $(if $(ASAN_EXCLUDE),-E '$(ASAN_EXCLUDE)')
 
 # libFuzzer targets (clang-14 from Debian), FUZZ_SECONDS per target; the time spent is
 # appended to fuzz/hours.md. Crashes are kept in fuzz/regressions/, which `make test` replays.

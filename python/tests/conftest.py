@@ -15,6 +15,13 @@ SOURCE_DIR = Path(__file__).resolve().parents[2]
 EPOCHS = 300  # tiny budgets keep the suite at a few seconds
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "long: a test of several seconds whose stages quicker tests run; ctest runs "
+        "the marked ones as python.pytest_long (label long: `make test-long`, CI), the rest as "
+        "python.pytest (`make test`)")
+
+
 def pytest_report_header(config):
     return f"csympnet {csympnet.__version__} from {Path(csympnet.__file__).parent}"
 

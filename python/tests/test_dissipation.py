@@ -84,6 +84,7 @@ def test_identify_and_the_estimator_report_friction_as_the_cli_does(tmp_path, cl
     assert cli["dissipation"]["terms"] == r.dissipation
 
 
+@pytest.mark.long
 def test_viscous_only_on_request_and_bad_choices_are_named():
     t, trajs = coulomb_oscillator(n=151)
     # Viscous alone cannot explain dry friction: the amplitude check rejects the model.

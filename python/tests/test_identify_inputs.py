@@ -124,6 +124,7 @@ def test_the_frequency_response_refuses_what_it_cannot_do(driven_model, s1_model
         model.state_from_positions(np.zeros(5), np.arange(5) * h)
 
 
+@pytest.mark.long
 def test_a_named_neural_core_takes_the_inputs_and_simulates():
     """core="g:6:8": CSympNet-ID with a G core and the input's half-kicks, started from the
     library fit and fitted on the positions; the model reads the input, its free run follows a

@@ -5,6 +5,8 @@ config says which. A solver named on the command line is kept, and refused if it
 
 import json
 
+import pytest
+
 
 def refine_config(run_cli, tmp_path, *args):
     out = tmp_path / "run"
@@ -14,6 +16,7 @@ def refine_config(run_cli, tmp_path, *args):
     return report["config"]["refine"], report["refine"]
 
 
+@pytest.mark.long
 def test_s2_refine_lm_runs_with_the_solver_that_fits(run_cli, tmp_path):
     config, summary = refine_config(run_cli, tmp_path, "--preset", "s2")
     assert config["linear_solver"] == "blas_normal_cholesky"

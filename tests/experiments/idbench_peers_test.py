@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Tests of the identification benchmark's peers (experiments/idbench/): the textbook fits and
 the whole-record oracles recover gamma on clean simulated records, the closed-form chain
-positions match the matrix exponential, the observed plan's records are reproducible, and the
-CPU seconds of a child are measured. Runs under pytest, or as a plain script (ctest runs it so,
+positions match the matrix exponential, the observed plan's records are reproducible, the
+one-coordinate RK4 gives the array RK4's bits, and the CPU seconds of a child are measured. Runs under pytest, or as a plain script (ctest runs it so,
 needing only /usr/bin/python3 with NumPy and SciPy)."""
 import math
 import os
@@ -17,7 +17,7 @@ from idbench import linear  # noqa: E402
 from idbench.observed import generate_observed, plan_observed  # noqa: E402
 from idbench.peers import positions_oracle, textbook  # noqa: E402
 from idbench.peers.csympnet import run_child_cpu  # noqa: E402
-from idbench.simulation import integrate  # noqa: E402
+from idbench.simulation import integrate, rk4, rk4_arrays  # noqa: E402
 from idbench.systems import make_system  # noqa: E402
 
 
@@ -104,6 +104,23 @@ def test_observed_plan_records_are_reproducible_and_sized():
     assert a[4]["p"] is not None
     long = generate_observed(cases[2], quick=False)
     assert long["q"].shape == (100000, 1)
+
+
+def test_one_coordinate_rk4_gives_the_array_rk4s_bits():
+    # rk4 on one trajectory of one coordinate runs on Python floats: the same bits as on arrays,
+    # for the pendulum and the Duffing oscillator, a step as a scalar and as a one-column array.
+    rng = np.random.default_rng(11)
+    for name in ("pendulum", "duffing"):
+        s = make_system(name, rng, True)
+        for dt in (0.013, np.array([0.021])):
+            q = np.array([[rng.uniform(-1.5, 1.5)]])
+            p = np.array([[rng.uniform(-1.0, 1.0)]])
+            gamma = float(rng.uniform(0.0, 0.3))
+            a = rk4(s["grad"], s["theta"], None, gamma, q, p, dt, 500)
+            b = rk4_arrays(s["grad"], s["theta"], None, gamma, q, p, dt, 500)
+            assert a[0].shape == b[0].shape == (1, 1)
+            assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]), (name, a, b)
+            assert a[0][0, 0] != q[0, 0]  # it moved
 
 
 def test_child_cpu_seconds_are_measured():

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
+#include <mutex>
+#include <utility>
 
 #include "csympnet/core/error.hpp"
 #include "lapack.hpp"
@@ -110,7 +113,22 @@ double student_t_quantile(double p, double dof) {
   require(dof >= 1.0, "student_t_quantile: need at least one degree of freedom");
   if (p < 0.5) return -student_t_quantile(1.0 - p, dof);
   if (dof > 1e6) return normal_quantile(p);
-  return bisect_quantile(p, [dof](double x) { return t_cdf_positive(x, dof); });
+  // Each quantile takes about 10⁶ evaluations of the density (bisection on a Simpson rule), and
+  // a fit asks for the same few (p, dof) once per interval: a Hamiltonian's terms, the modes,
+  // the checks (a 10-dof chain spent 2.5 s in them). The values are kept per process, the
+  // same bits as computed afresh.
+  static std::mutex lock;
+  static std::map<std::pair<double, double>, double> known;
+  const std::pair<double, double> key{p, dof};
+  {
+    const std::lock_guard<std::mutex> hold(lock);
+    if (const auto it = known.find(key); it != known.end()) return it->second;
+  }
+  const double q = bisect_quantile(p, [dof](double x) { return t_cdf_positive(x, dof); });
+  const std::lock_guard<std::mutex> hold(lock);
+  if (known.size() >= 4096) known.clear();
+  known.emplace(key, q);
+  return q;
 }
 
 SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,

@@ -30,6 +30,28 @@ TEST(Quantiles, MatchTables) {
   EXPECT_NEAR(student_t_quantile(0.025, 15), -2.131449545559323, 1e-7);
 }
 
+// The t quantiles are kept per process once computed: each (p, dof) keeps its own value, asked
+// again in any order and interleaved with its neighbours (one-sided 95% and two-sided 95% and
+// 99% at 5, 6 and 30 degrees of freedom, values from scipy.stats.t.ppf), and the same bits each
+// time.
+TEST(Quantiles, KeptValuesStayTheirOwn) {
+  struct Case {
+    double p, dof, value;
+  };
+  const Case cases[] = {{0.95, 5, 2.015048372669157},   {0.975, 5, 2.5705818366147395},
+                        {0.995, 5, 4.032142983557536},  {0.975, 6, 2.4469118487916806},
+                        {0.95, 30, 1.6972608943617378}, {0.975, 30, 2.0422724563012373}};
+  std::vector<double> first;
+  for (const Case& c : cases) first.push_back(student_t_quantile(c.p, c.dof));
+  for (int round = 0; round < 2; ++round)
+    for (int i = 5; i >= 0; --i) {
+      const Case& c = cases[i];
+      EXPECT_EQ(student_t_quantile(c.p, c.dof), first[static_cast<std::size_t>(i)]);
+      EXPECT_NEAR(student_t_quantile(c.p, c.dof), c.value, 1e-7) << c.p << " " << c.dof;
+      EXPECT_NEAR(student_t_quantile(1.0 - c.p, c.dof), -c.value, 1e-7);
+    }
+}
+
 // y_i = θ₀ + θ₁ x_i + e_i, e_i = u_b + v_i with a block effect u_b (correlated within blocks);
 // "γ" is θ₁. The cluster-robust interval must cover about 95% of the time over many draws,
 // where the model-based one (blind to the blocks) covers far less.

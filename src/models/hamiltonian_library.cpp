@@ -106,9 +106,13 @@ HamiltonianLibraryMap::HamiltonianLibraryMap(Index d, std::vector<LibraryTerm> t
     return "hamiltonian library: coordinate_scales must be " + std::to_string(d) +
            " positive finite numbers";
   });
+  std::map<std::pair<Index, Index>, Index> group_at;  // (i, j) of an argument: its group
   for (const LibraryTerm& t : terms_) {
     wi_.push_back(t.j < 0 ? 1.0 : scales_(t.i));
     wj_.push_back(t.j < 0 ? 0.0 : scales_(t.j));
+    const auto [at, added] = group_at.try_emplace({t.i, t.j}, static_cast<Index>(groups_.size()));
+    if (added) groups_.push_back({t.i, t.j, wi_.back(), wj_.back()});
+    group_of_.push_back(at->second);
   }
   require(inputs_.m >= 0, "hamiltonian library: the number of inputs must be >= 0");
   double within = 0.0;

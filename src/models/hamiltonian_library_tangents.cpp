@@ -12,13 +12,18 @@
 //
 // with g = ∇V(q) − B u(t₀ + σh), H = ∇²V, a = e^{−γτ/2}, γ = |β|. ∂g/∂θ is nonzero in the
 // columns of the coefficients (φ_k'), the wavenumbers (c_k ∂φ_k'/∂κ) and B (−u(σ)). The terms'
-// values at q are computed once per position, not once per column.
+// values at q are computed once per position, not once per column. H(q) t_q takes one pass
+// along the columns per argument (a coordinate or a difference), its terms' curvatures c_k φ_k''
+// summed first: a chain's library has up to seven terms per argument.
 //
 // The block is carried row-major through the stages (copied in and out once per step): every
-// update is a row of one state component against all columns, contiguous, in the same
-// expressions and the same order of sums per entry as a column at a time, so the tangents keep
-// their bits. On a chain of 8 masses with momenta, a library fit took 0.72 of its CPU time
-// column-major (docs/benchmarks.md, "A fit's cost against d").
+// update is a row of one state component against all columns, contiguous, so that the compiler
+// runs it in SIMD packets (this file is compiled with gcc's "cheap" vectorisation cost model,
+// CMakeLists.txt), each entry the same expression as a column at a time. Per step, not per
+// stage: the stage lengths and scalings, the coefficients, wavenumbers and Coulomb rates. On a
+// chain of 8 masses with momenta, a library fit took 0.72 of its CPU time column-major
+// (docs/benchmarks.md, "A fit's cost against d"); the step itself is timed in "The library
+// map's tangent step".
 //
 // Dissipation terms enter as in forward_driven(): a momentum with Coulomb friction inside the
 // kicks takes its kick's exact flow (coulomb_kick: the tangent is ∂p/∂p times p's, plus ∂p/∂f
@@ -41,16 +46,16 @@ namespace {
 // The work space of one step, kept per thread so that a step allocates nothing once its sizes
 // have been seen.
 struct TangentScratch {
-  std::vector<double> q, p, g, wp, work, d1, d2, d1k, hv, gth, mass;
+  std::vector<double> q, p, g, wp, work, d1, d2, d1k, hv, gth, mass, coef, kappa, mu, curvature;
   // The tangent block row-major (2d rows of c): a row is one state component's sensitivity
   // to every column, so each stage's updates run along contiguous rows.
-  std::vector<double> rows, acc;
+  std::vector<double> rows;
   std::vector<KickStep> kick;
   std::vector<char> fused;
-  // The momentum scalings a = e^{−γτ/2} of the stage weights, for the (γ, h, order, substeps)
-  // they were computed at: a record's steps are mostly equal, and each stage would otherwise
-  // take an exp().
-  std::vector<double> scaling;
+  // The stage lengths τ = b_s h / n and momentum scalings a = e^{−γτ/2} of the stage weights,
+  // for the (γ, h, order, substeps) they were computed at: a record's steps are mostly equal,
+  // and each stage would otherwise take a division and an exp().
+  std::vector<double> tau, scaling;
   double scaling_gamma = -1.0, scaling_h = -1.0;
   int scaling_order = 0;
   Index scaling_substeps = 0;
@@ -58,6 +63,11 @@ struct TangentScratch {
 
 using library_detail::abs_derivative;
 using library_detail::kStagesPerPoll;
+
+// A block of columns of the tangents as one value (Eigen runs it in SIMD packets, each entry the
+// same expression as alone).
+constexpr Index kColumnBlock = 8;
+using ColumnBlock = Eigen::Array<double, kColumnBlock, 1>;
 
 void fit_to(std::vector<double>& v, Index n) {
   if (static_cast<Index>(v.size()) < n) v.resize(static_cast<std::size_t>(n));
@@ -77,22 +87,23 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
   const bool driven = u != nullptr;
   const Index m = inputs_.m;
   thread_local TangentScratch w;
-  for (auto* v : {&w.q, &w.p, &w.g, &w.wp}) fit_to(*v, d);
+  for (auto* v : {&w.q, &w.p, &w.g, &w.wp, &w.mu}) fit_to(*v, d);
   if (static_cast<Index>(w.kick.size()) < d) {
     w.kick.resize(static_cast<std::size_t>(d));
     w.fused.resize(static_cast<std::size_t>(d));
   }
-  for (auto* v : {&w.d1, &w.d2, &w.d1k}) fit_to(*v, nt);
+  for (auto* v : {&w.d1, &w.d2, &w.d1k, &w.coef, &w.kappa}) fit_to(*v, nt);
   fit_to(w.work, std::max<Index>(m, 1));
   fit_to(w.hv, d * c);
+  fit_to(w.curvature, static_cast<Index>(groups_.size()));
   fit_to(w.gth, d * n_theta);
   fit_to(w.mass, d * d);
   fit_to(w.rows, 2 * d * c);
-  fit_to(w.acc, c);
   // T(r, col) = t(r, col), row-major; copied back at the end.
   double* tr = w.rows.data();
-  for (Index col = 0; col < c; ++col)
-    for (Index r = 0; r < 2 * d; ++r) tr[r * c + col] = t(r, col);
+  using RowBlock =
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+  RowBlock(tr, 2 * d, c) = t;
   const auto row = [tr, c](Index r) { return tr + r * c; };
   double* q = w.q.data();
   double* p = w.p.data();
@@ -106,15 +117,30 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
   const Index stages = stages_per_step(), nw = static_cast<Index>(weights_.size());
   if (w.scaling_gamma != gamma || w.scaling_h != h || w.scaling_order != order_ ||
       w.scaling_substeps != substeps_) {
+    w.tau.resize(static_cast<std::size_t>(nw));
     w.scaling.resize(static_cast<std::size_t>(nw));
-    for (Index s = 0; s < nw; ++s)
-      w.scaling[static_cast<std::size_t>(s)] =
-          std::exp(-0.5 * gamma *
-                   (weights_[static_cast<std::size_t>(s)] * h / static_cast<double>(substeps_)));
+    for (Index s = 0; s < nw; ++s) {
+      const auto ss = static_cast<std::size_t>(s);
+      w.tau[ss] = weights_[ss] * h / static_cast<double>(substeps_);
+      w.scaling[ss] = std::exp(-0.5 * gamma * w.tau[ss]);
+    }
     w.scaling_gamma = gamma;
     w.scaling_h = h;
     w.scaling_order = order_;
     w.scaling_substeps = substeps_;
+  }
+  // Per step: each term's coefficient and wavenumber, and each momentum's Coulomb rate (θ
+  // alone decides them).
+  for (Index k = 0; k < nt; ++k) {
+    w.coef[k] = theta(coefficient_index(k));
+    w.kappa[k] =
+        terms_[static_cast<std::size_t>(k)].has_wavenumber() ? theta(wavenumber_index(k)) : 0.0;
+  }
+  bool any_fused = false;
+  for (Index r = 0; r < d; ++r) {
+    w.mu[r] = coulomb_rate(theta, r);
+    w.fused[r] = w.mu[r] > 0.0;
+    any_fused = any_fused || w.fused[r];
   }
   // W dense (row-major), and x ↦ W x with each row summed in column order from 0: the bits of
   // mass_times().
@@ -138,18 +164,18 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
   };
 
   // The terms at q: φ', φ'' and ∂φ'/∂κ per term, g = ∇V(q) − B u(σ) as gradient() and
-  // add_force() compute it, and ∂g/∂θ (d × n_theta, column-major) into w.gth.
+  // add_force() compute it, and ∂g/∂θ (d × n_theta, row-major) into w.gth.
   const auto at_position = [&](double sigma) {
     for (Index r = 0; r < d; ++r) g[r] = 0.0;
     for (Index k = 0; k < nt; ++k) {
       const LibraryTerm& term = terms_[static_cast<std::size_t>(k)];
-      const double kappa = term.has_wavenumber() ? theta(wavenumber_index(k)) : 0.0;
-      const TermValues tv = term_values(term, argument(k, q), kappa);
+      const auto kk = static_cast<std::size_t>(k);
+      const double arg = term.j < 0 ? q[term.i] : wi_[kk] * q[term.i] - wj_[kk] * q[term.j];
+      const TermValues tv = term_values(term, arg, w.kappa[k]);
       w.d1[k] = tv.d1;
       w.d2[k] = tv.d2;
       w.d1k[k] = tv.d1_kappa;
-      const double f = theta(coefficient_index(k)) * tv.d1;
-      const auto kk = static_cast<std::size_t>(k);
+      const double f = w.coef[k] * tv.d1;
       g[term.i] += wi_[kk] * f;
       if (term.j >= 0) g[term.j] -= wj_[kk] * f;
     }
@@ -166,7 +192,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
         if (term.j >= 0) gth[term.j * n_theta + col] -= wj_[kk] * f;
       };
       add(coefficient_index(k), w.d1[k]);
-      if (term.has_wavenumber()) add(wavenumber_index(k), theta(coefficient_index(k)) * w.d1k[k]);
+      if (term.has_wavenumber()) add(wavenumber_index(k), w.coef[k] * w.d1k[k]);
     }
     if (driven) {
       input_at(inputs_.hold, m, u, sigma, w.work.data());
@@ -177,26 +203,31 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
         }
     }
   };
-  // hv = H(q) t_q (d × c, row-major): per term, along the columns (each entry sums the terms
-  // in their order).
+  // hv = H(q) t_q (d × c, row-major): per argument group g, its curvature s_g = Σ c_k φ_k'' over
+  // the group's terms in their order, then one pass along the columns (each entry sums the
+  // groups in their order).
+  const Index ng = static_cast<Index>(groups_.size());
   const auto hessian_tangent = [&] {
     if (c == 0) return;
     double* hv = w.hv.data();
     std::fill(hv, hv + d * c, 0.0);
-    for (Index k = 0; k < nt; ++k) {
-      const LibraryTerm& term = terms_[static_cast<std::size_t>(k)];
-      const auto kk = static_cast<std::size_t>(k);
-      const double s2 = theta(coefficient_index(k)) * w.d2[k];
+    double* curvature = w.curvature.data();
+    std::fill(curvature, curvature + ng, 0.0);
+    for (Index k = 0; k < nt; ++k)
+      curvature[group_of_[static_cast<std::size_t>(k)]] += w.coef[k] * w.d2[k];
+    for (Index gi = 0; gi < ng; ++gi) {
+      const ArgumentGroup& group = groups_[static_cast<std::size_t>(gi)];
+      const double s2 = curvature[gi];
       if (s2 == 0.0) continue;
-      const double wi = wi_[kk], wj = wj_[kk];
-      const double* ti = row(term.i);
-      double* hi = hv + term.i * c;
-      if (term.j < 0) {
+      const double wi = group.wi, wj = group.wj;
+      const double* ti = row(group.i);
+      double* hi = hv + group.i * c;
+      if (group.j < 0) {
         for (Index col = 0; col < c; ++col) hi[col] += wi * (s2 * ti[col]);
         continue;
       }
-      const double* tj = row(term.j);
-      double* hj = hv + term.j * c;
+      const double* tj = row(group.j);
+      double* hj = hv + group.j * c;
       for (Index col = 0; col < c; ++col) {
         const double f = s2 * (wi * ti[col] - wj * tj[col]);
         hi[col] += wi * f;
@@ -210,18 +241,15 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
   // A friction kick's tangent is ∂p/∂p · (its p's tangent) + ∂p/∂f · (−(H t_q + ∂g/∂θ)) plus
   // ∂p/∂μ in its rate's column.
   const auto kick = [&](bool first, double a, double da, double half_tau) {
-    for (Index r = 0; r < d; ++r) {
-      const double mu = coulomb_rate(theta, r);
-      w.fused[r] = mu > 0.0;
-      if (w.fused[r]) w.kick[r] = coulomb_kick(first ? a * p[r] : p[r], -g[r], mu, half_tau);
-    }
+    if (any_fused)
+      for (Index r = 0; r < d; ++r)
+        if (w.fused[r]) w.kick[r] = coulomb_kick(first ? a * p[r] : p[r], -g[r], w.mu[r], half_tau);
     hessian_tangent();
-    for (Index r = 0; r < d; ++r) {
+    for (Index r = 0; r < d && c > 0; ++r) {
       double* tp = row(d + r);
       const double* hv = w.hv.data() + r * c;
       const double* gth = w.gth.data() + r * n_theta;
-      const bool fused = w.fused[r];
-      if (!fused) {
+      if (!w.fused[r]) {
         // Without friction on this momentum: the same expressions as below, the columns of θ
         // (with ∂g/∂θ) and the rest in loops of their own, β's column after them from its
         // value before.
@@ -270,6 +298,47 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
         p[r] = w.fused[r] ? a * w.kick[r].p : a * (p[r] - half_tau * g[r]);
     }
   };
+  // q ← q + τ W p: row r of t_q gains τ (W t_p)_r, each (W t_p)_r summed over W's row in
+  // column order from 0 as mass_times() does; W's own columns gain τ ∂W/∂W_rc p.
+  const auto drift = [&](double tau) {
+    for (Index r = 0; r < d && c > 0; ++r) {
+      double* tq = row(r);
+      if (!full_mass_) {
+        const double wr = mass[r * d + r];
+        const double* tp = row(d + r);
+        for (Index col = 0; col < c; ++col) tq[col] += tau * (wr * tp[col]);
+        continue;
+      }
+      // Eight columns at a time in registers, the sum over W's row for each in column order
+      // from 0 (the d² c products are most of a stage's work on a chain).
+      const double* wr = mass + r * d;
+      const double* tp0 = row(d);
+      Index col = 0;
+      for (; col + kColumnBlock <= c; col += kColumnBlock) {
+        ColumnBlock acc = ColumnBlock::Zero();
+        for (Index cc = 0; cc < d; ++cc)
+          acc += wr[cc] * Eigen::Map<const ColumnBlock>(tp0 + cc * c + col);
+        Eigen::Map<ColumnBlock>(tq + col) += tau * acc;
+      }
+      for (; col < c; ++col) {
+        double acc = 0.0;
+        for (Index cc = 0; cc < d; ++cc) acc += wr[cc] * tp0[cc * c + col];
+        tq[col] += tau * acc;
+      }
+    }
+    if (full_mass_)
+      for (Index r = 0; r < d; ++r)
+        for (Index cc = 0; cc <= r; ++cc) {
+          const Index col = r * (r + 1) / 2 + cc;
+          if (col >= n_theta) continue;
+          row(r)[col] += tau * p[cc];
+          if (cc != r) row(cc)[col] += tau * p[r];
+        }
+    else
+      for (Index r = 0; r < std::min(d, n_theta); ++r) row(r)[r] += tau * p[r];
+    mass_apply(p, w.wp.data());
+    for (Index r = 0; r < d; ++r) q[r] += tau * w.wp[r];
+  };
   // The dissipation flows beside the kicks over τ/2 (opening: in term order; closing: the
   // reverse), as dissipate(): each scales its momentum's tangent row by ∂p/∂p and adds ∂p/∂r in
   // its rate's column.
@@ -289,45 +358,20 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
   };
 
   at_position(driven ? sigma(0) : 0.0);
+  // Stage s takes the weight s mod nw; the stop request is polled every kStagesPerPoll stages.
+  Index weight = 0, since_poll = 0;
   for (Index s = 0; s < stages; ++s) {
-    if (s % kStagesPerPoll == kStagesPerPoll - 1)
+    if (++since_poll == kStagesPerPoll) {
+      since_poll = 0;
       throw_if_stop_requested("hamiltonian library: a step of many substeps");
-    const double tau =
-        weights_[static_cast<std::size_t>(s % nw)] * h / static_cast<double>(substeps_);
-    const double a = w.scaling[static_cast<std::size_t>(s % nw)];
+    }
+    const double tau = w.tau[static_cast<std::size_t>(weight)];
+    const double a = w.scaling[static_cast<std::size_t>(weight)];
+    if (++weight == nw) weight = 0;
     const double da = -0.5 * tau * a * abs_derivative(beta);  // ∂a/∂β
     if (nk > 0) flows(0.5 * tau, false);
     kick(true, a, da, 0.5 * tau);
-    // q ← q + τ W p: row r of t_q gains τ (W t_p)_r, each (W t_p)_r summed over W's row in
-    // column order from 0 as mass_times() does.
-    for (Index r = 0; r < d; ++r) {
-      double* tq = row(r);
-      if (!full_mass_) {
-        const double wr = mass[r * d + r];
-        const double* tp = row(d + r);
-        for (Index col = 0; col < c; ++col) tq[col] += tau * (wr * tp[col]);
-        continue;
-      }
-      double* acc = w.acc.data();
-      std::fill(acc, acc + c, 0.0);
-      for (Index cc = 0; cc < d; ++cc) {
-        const double wrc = mass[r * d + cc];
-        const double* tp = row(d + cc);
-        for (Index col = 0; col < c; ++col) acc[col] += wrc * tp[col];
-      }
-      for (Index col = 0; col < c; ++col) tq[col] += tau * acc[col];
-    }
-    for (Index r = 0; r < d; ++r)
-      for (Index cc = 0; cc <= (full_mass_ ? r : -1); ++cc) {
-        const Index col = r * (r + 1) / 2 + cc;
-        if (col >= n_theta) continue;
-        row(r)[col] += tau * p[cc];
-        if (cc != r) row(cc)[col] += tau * p[r];
-      }
-    if (!full_mass_)
-      for (Index r = 0; r < std::min(d, n_theta); ++r) row(r)[r] += tau * p[r];
-    mass_apply(p, w.wp.data());
-    for (Index r = 0; r < d; ++r) q[r] += tau * w.wp[r];
+    drift(tau);
     at_position(driven ? sigma(s + 1) : 0.0);
     kick(false, a, da, 0.5 * tau);
     if (nk > 0) flows(0.5 * tau, true);
@@ -336,8 +380,7 @@ void HamiltonianLibraryMap::step_tangents(ConstParams theta, double h, const dou
     z[r] = q[r];
     z[d + r] = p[r];
   }
-  for (Index col = 0; col < c; ++col)
-    for (Index r = 0; r < 2 * d; ++r) t(r, col) = tr[r * c + col];
+  t = RowBlock(tr, 2 * d, c);
 }
 
 }  // namespace csympnet

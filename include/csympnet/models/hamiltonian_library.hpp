@@ -222,6 +222,15 @@ class HamiltonianLibraryMap final : public OneStepMap {
   Vector scales_;
   // Per term: ∂u/∂q_i and ∂u/∂q_j (0 for a single coordinate).
   std::vector<double> wi_, wj_;
+  // The terms grouped by their argument (one coordinate, or one difference q_i − q_j): ∇²V is
+  // Σ over the groups of (Σ of the group's c_k φ_k'') e eᵀ, e = ∂u/∂q, so the tangent step
+  // takes one pass along its columns per group, not per term (hamiltonian_library_tangents.cpp).
+  struct ArgumentGroup {
+    Index i = 0, j = -1;
+    double wi = 1.0, wj = 0.0;
+  };
+  std::vector<ArgumentGroup> groups_;
+  std::vector<Index> group_of_;  // per term, its group in groups_
   std::vector<DissipationTerm> dissipation_;
   bool coulomb_in_kicks_ = true;
   // Per coordinate: the index k of its Coulomb term in dissipation_, or −1.

@@ -6,14 +6,9 @@
 
 #include "csympnet/core/error.hpp"
 #include "csympnet/core/stop.hpp"
+#include "csympnet/io/json_text.hpp"
 
 namespace csympnet {
-
-namespace {
-nlohmann::json optional_number(double x) {
-  return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
-}
-}  // namespace
 
 void to_json(nlohmann::json& j, const ObservedScores& s) {
   j = {{"trajectories", s.trajectories},
@@ -21,23 +16,23 @@ void to_json(nlohmann::json& j, const ObservedScores& s) {
        {"one_step_rmse", s.one_step_rmse},
        {"one_step_relative", s.one_step_relative},
        {"one_step_r2", s.one_step_r2},
-       {"rollout_rmse", optional_number(s.rollout_rmse)},
-       {"rollout_nrmse", optional_number(s.rollout_nrmse)},
-       {"l2_error", optional_number(s.l2_error)},
+       {"rollout_rmse", finite_or_null(s.rollout_rmse)},
+       {"rollout_nrmse", finite_or_null(s.rollout_nrmse)},
+       {"l2_error", finite_or_null(s.l2_error)},
        {"valid_time_mean", s.valid_time_mean},
        {"valid_fraction_mean", s.valid_fraction_mean},
        {"valid_time_tolerance", kValidTimeTolerance},
        {"rollout_finite", s.rollout_finite},
-       {"structure_residual_mean", optional_number(s.structure_residual_mean)},
-       {"structure_residual_max", optional_number(s.structure_residual_max)}};
+       {"structure_residual_mean", finite_or_null(s.structure_residual_mean)},
+       {"structure_residual_max", finite_or_null(s.structure_residual_max)}};
   j["gamma_hat"] = s.gamma_hat ? nlohmann::json(*s.gamma_hat) : nlohmann::json(nullptr);
   nlohmann::json per = nlohmann::json::array();
   for (const TrajectoryScore& t : s.per_trajectory)
     per.push_back({{"pairs", t.pairs},
                    {"one_step_rmse", t.one_step_rmse},
-                   {"one_step_relative", optional_number(t.one_step_relative)},
-                   {"rollout_rmse", optional_number(t.rollout_rmse)},
-                   {"rollout_nrmse", optional_number(t.rollout_nrmse)},
+                   {"one_step_relative", finite_or_null(t.one_step_relative)},
+                   {"rollout_rmse", finite_or_null(t.rollout_rmse)},
+                   {"rollout_nrmse", finite_or_null(t.rollout_nrmse)},
                    {"valid_time", t.valid_time},
                    {"span", t.span},
                    {"rollout_finite", t.finite}});

@@ -9,19 +9,16 @@
 #include "csympnet/diagnostics/diagnostics.hpp"
 #include "csympnet/diagnostics/learned_map.hpp"
 #include "csympnet/diagnostics/observed.hpp"
+#include "csympnet/io/json_text.hpp"
 #include "csympnet/train/positions_state.hpp"
 
 namespace csympnet {
 
 namespace {
 
-nlohmann::json number_or_null(double x) {
-  return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
-}
-
 nlohmann::json numbers(const Vector& v) {
   nlohmann::json out = nlohmann::json::array();
-  for (Index i = 0; i < v.size(); ++i) out.push_back(number_or_null(v(i)));
+  for (Index i = 0; i < v.size(); ++i) out.push_back(finite_or_null(v(i)));
   return out;
 }
 
@@ -121,11 +118,11 @@ void to_json(nlohmann::json& j, const PositionsScores& s) {
   j = {{"trajectories", s.trajectories},
        {"warmup", s.warmup ? nlohmann::json(*s.warmup) : nlohmann::json(nullptr)},
        {"samples_scored", s.samples_scored},
-       {"rmse", number_or_null(s.rmse)},
+       {"rmse", finite_or_null(s.rmse)},
        {"rmse_per_coordinate", numbers(s.rmse_per_coordinate)},
        {"spread", s.spread},
        {"spread_per_coordinate", numbers(s.spread_per_coordinate)},
-       {"nrmse", number_or_null(s.nrmse)},
+       {"nrmse", finite_or_null(s.nrmse)},
        {"valid_time_mean", s.valid_time_mean},
        {"valid_time_tolerance", kValidTimeTolerance},
        {"rollout_finite", s.rollout_finite}};
@@ -136,7 +133,7 @@ void to_json(nlohmann::json& j, const PositionsScores& s) {
                    {"scored", t.scored},
                    {"t_start", t.t_start},
                    {"state_fit_rms", t.state_fit_rms},
-                   {"rmse", number_or_null(t.rmse)},
+                   {"rmse", finite_or_null(t.rmse)},
                    {"rmse_per_coordinate", numbers(t.rmse_per_coordinate)},
                    {"spread", t.spread},
                    {"valid_time", t.valid_time},

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "csympnet/identify/identify.hpp"
+#include "csympnet/io/json_text.hpp"
 #include "identify_stages.hpp"
 
 namespace csympnet {
@@ -51,16 +52,13 @@ nlohmann::json row(const std::string& decision, const std::string& criterion,
                    const std::string& chosen, double chosen_value, const std::string& runner_up,
                    double runner_up_value, double margin, const std::string& margin_unit,
                    const std::string& margin_means) {
-  const auto value = [](double v) {
-    return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
-  };
   return {{"decision", decision},
           {"criterion", criterion},
           {"chosen", chosen},
-          {"chosen_value", value(chosen_value)},
+          {"chosen_value", finite_or_null(chosen_value)},
           {"runner_up", runner_up},
-          {"runner_up_value", value(runner_up_value)},
-          {"margin", value(margin)},
+          {"runner_up_value", finite_or_null(runner_up_value)},
+          {"margin", finite_or_null(margin)},
           {"margin_unit", margin_unit},
           {"margin_means", margin_means}};
 }

@@ -13,6 +13,7 @@
 #include <boost/math/distributions/students_t.hpp>
 
 #include "csympnet/core/error.hpp"
+#include "csympnet/io/json_text.hpp"
 #include "csympnet/train/gamma_sandwich.hpp"
 #include "damping_profile.hpp"
 
@@ -54,10 +55,6 @@ std::string percent(double share) {
 // "95%" for a level of 0.95.
 std::string level_words(double level) {
   return fmt(100.0 * level, 4) + "%";
-}
-
-nlohmann::json nullable(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
 
 double upper_t_p(double t, double dof) {  // P(T > t)
@@ -611,13 +608,13 @@ void to_json(nlohmann::json& j, const ModelCheck& c) {
        {"passed", c.passed},
        {"warning", c.warning},
        {"statistic_name", c.statistic_name},
-       {"statistic", nullable(c.statistic)},
-       {"p_value", nullable(c.p_value)},
-       {"alpha", nullable(c.alpha)},
+       {"statistic", finite_or_null(c.statistic)},
+       {"p_value", finite_or_null(c.p_value)},
+       {"alpha", finite_or_null(c.alpha)},
        {"effect_name", c.effect_name},
-       {"effect", nullable(c.effect)},
-       {"effect_threshold", nullable(c.effect_threshold)},
-       {"detectable_effect", nullable(c.detectable_effect)},
+       {"effect", finite_or_null(c.effect)},
+       {"effect_threshold", finite_or_null(c.effect_threshold)},
+       {"detectable_effect", finite_or_null(c.detectable_effect)},
        {"sentence", c.sentence},
        {"details", c.details.is_null() ? nlohmann::json::object() : c.details}};
 }

@@ -1,6 +1,7 @@
 // Reading JSON documents a user can edit (suite files, model files) strictly.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <limits>
 #include <string>
@@ -28,5 +29,11 @@ struct JsonLimits {
 
 nlohmann::json parse_json_text(const std::string& text, const std::string& where,
                                const std::string& expected, const JsonLimits& limits = {});
+
+// x as a JSON number, or null where it is not finite (JSON has no NaN or infinity): how the
+// reports write a value that could not be computed.
+inline nlohmann::json finite_or_null(double x) {
+  return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr);
+}
 
 }  // namespace csympnet

@@ -10,9 +10,11 @@
 //   - on a long record the terms are chosen on 20,000 training windows evenly spread, and the
 //     final fit is made on all of them.
 // The data come from a classical RK4 with 200 substeps per sample, independent of the map.
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <string>
@@ -188,7 +190,8 @@ TEST(LibraryCore, GivenTermsAreFittedAsGiven) {
 // library core is a default candidate with the neighbours' differences: it explains the record
 // to the noise, so the neural cores are not trained; γ's interval covers; the springs are in
 // its potential. And its backward elimination never refits a drop it refused while the held-out
-// loss has stayed within the keep threshold since.
+// loss has stayed within the keep threshold since, and tries its terms below t = 2 together
+// first.
 TEST(LibraryCore, AChainOfSixMassesGetsTheLibraryCoreByDefault) {
   const Index d = 6;
   const double gamma = 0.05, h = 0.4;
@@ -250,6 +253,21 @@ TEST(LibraryCore, AChainOfSixMassesGetsTheLibraryCoreByDefault) {
     }
     if (!t["dropped"].get<bool>()) refused[terms] = before;
   }
+  // The terms below t = 2 are first tried together; a joint drop refused halves how many the
+  // next may take.
+  std::size_t joint_tried = 0, cap = std::numeric_limits<std::size_t>::max();
+  for (const auto& t : lib["pruned"]) {
+    if (!t["joint"].get<bool>()) continue;
+    const std::string terms = t["terms"];
+    const std::size_t n = static_cast<std::size_t>(std::count(terms.begin(), terms.end(), ',')) + 1;
+    EXPECT_GE(n, 2u) << terms;
+    EXPECT_LE(n, cap) << terms;
+    EXPECT_LT(t["t_ratio"].get<double>(), 2.0) << terms;
+    if (!t["dropped"].get<bool>()) cap = n / 2;
+    ++joint_tried;
+  }
+  EXPECT_GE(joint_tried, 1u) << lib["pruned"].dump();
+  std::cout << "  " << joint_tried << " joint drops tried\n";
   std::cout << "  " << lib["pruned"].size() << " drops refitted, " << refused.size() << " refused, "
             << lib["pruned_not_retried"] << " not retried\n";
 }

@@ -65,6 +65,10 @@
 
 namespace csympnet {
 
+namespace library_detail {
+class TangentStep;  // hamiltonian_library_tangents.cpp
+}  // namespace library_detail
+
 class HamiltonianLibraryMap final : public OneStepMap {
  public:
   // Throws Error on d < 1, no terms, a term out of range or repeated, an order other than
@@ -161,6 +165,9 @@ class HamiltonianLibraryMap final : public OneStepMap {
   };
 
  private:
+  // One step_tangents call's stages (hamiltonian_library_tangents.cpp).
+  friend class library_detail::TangentStep;
+
   // out += H(q) v, H = ∇²V.
   void hessian_times(ConstParams theta, const double* q, const double* v, double* out) const;
   // grad(θ_V) += s · ∂(∇V(q)·v)/∂θ_V.

@@ -196,6 +196,8 @@ void CandidateFit::lm(Candidate& x, long budget, const std::string& label) {
   LmSettings ls;
   ls.max_iterations = budget;
   ls.chi2_tolerance = kLmChi2Tolerance;
+  ls.watch_index = map.damping_param_index().value_or(-1);
+  ls.converged_se = kDampingConvergedSe;
   Vector th = x.theta;
   LmReport rep = levenberg_marquardt(prob, th, ls, lm_hooks(monitor));
   x.theta = monitor.best();

@@ -38,10 +38,6 @@ class HamiltonianLibraryMap;
 
 namespace csympnet::detail {
 
-// Every positions fit of the identification ends once the damping rate has stopped moving
-// (ShootingOptions::watch_index): three near-Gauss–Newton steps in a row each move it by less
-// than this share of its standard error.
-inline constexpr double kDampingConvergedSe = 0.01;
 // `options` watching this map's damping parameter (unchanged for a map without one).
 inline ShootingOptions watching_damping(const OneStepMap& map, ShootingOptions options) {
   if (const std::optional<Index> b = map.damping_param_index()) options.watch_index = *b;

@@ -161,6 +161,10 @@ inline constexpr long kLmPatience = 100;
 // (LmSettings::chi2_tolerance): θ is then within about 0.032 standard errors of where the LM
 // would go on to, and further iterations cost seconds for nothing the interval can see.
 inline constexpr double kLmChi2Tolerance = 1e-3;
+// Every LM of the identification, on windows or on positions, ends once the damping rate has
+// stopped moving (LmSettings::watch_index, ShootingOptions::watch_index): three
+// near-Gauss–Newton steps in a row each move it by less than this share of its standard error.
+inline constexpr double kDampingConvergedSe = 0.01;
 
 // Every candidate trained; the lowest validation loss wins and continues LM.
 struct CoreChoice {

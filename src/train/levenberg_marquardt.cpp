@@ -102,6 +102,15 @@ double gauss_newton_chi2_fall(const Matrix& a, const Vector& g, double cost, Ind
   return static_cast<double>(m) * 0.5 * g.dot(x) / cost;
 }
 
+// The standard error of θ_b from the factored damped system L Lᵀ = A + μD: σ̂² [(A + μD)⁻¹]_bb,
+// σ̂² = 2 cost / m (the residuals' variance), so the damped system's, at most the undamped's.
+double damped_standard_error(const Matrix& factored, Index b, double cost, Index m) {
+  Vector e = Vector::Zero(factored.rows());
+  e(b) = 1.0;
+  lapack::cholesky_solve(factored.data(), factored.rows(), e.data());
+  return std::sqrt(std::max(0.0, 2.0 * cost * e(b) / static_cast<double>(m)));
+}
+
 }  // namespace
 
 LmHooks lm_hooks(IterationMonitor& monitor) {
@@ -156,6 +165,11 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
   }
   Vector diag(n), step(n), a_step(n), trial(n);
   double mu = kInitialMu, nu = 2.0;
+  const Index watch =
+      settings.converged_se > 0.0 && settings.watch_index >= 0 && settings.watch_index < n
+          ? settings.watch_index
+          : -1;
+  int watch_steps = 0;  // accepted steps in a row that hardly moved θ[watch]
   report.message = "maximum number of iterations reached";
   while (report.iterations < settings.max_iterations) {
     if ((problem.should_stop && problem.should_stop()) ||
@@ -200,6 +214,13 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
           const bool small_step =
               settings.chi2_tolerance > 0.0 && cost > 0.0 &&
               static_cast<double>(m) * predicted < settings.chi2_tolerance * cost;
+          if (watch >= 0) {
+            const bool small_in_watch =
+                mu <= 1e-2 && static_cast<double>(m) * predicted <= cost &&
+                std::abs(step(watch)) <=
+                    settings.converged_se * damped_standard_error(lhs, watch, cost, m);
+            watch_steps = small_in_watch ? watch_steps + 1 : 0;
+          }
           theta = trial;
           r.swap(r_trial);
           cost = new_cost;
@@ -208,6 +229,14 @@ LmReport levenberg_marquardt(const LeastSquaresProblem& problem, Vector& theta,
           if (hooks.on_accepted) hooks.on_accepted(report.iterations, theta, cost);
           if (relative <= settings.function_tolerance) {
             report.message = "function tolerance reached";
+            break;
+          }
+          if (watch_steps >= 3) {
+            std::ostringstream msg;
+            msg << "converged: three steps in a row each moved the damping parameter by less "
+                   "than "
+                << settings.converged_se << " of its standard error";
+            report.message = msg.str();
             break;
           }
           if (!linearise()) {

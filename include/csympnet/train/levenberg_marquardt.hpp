@@ -54,6 +54,14 @@ struct LmSettings {
   // within √(1e-3) ≈ 0.032 standard errors of the local model's minimum (docs/derivations.md,
   // "When a Levenberg–Marquardt fit has converged").
   double chi2_tolerance = 0.0;
+  // Converged in the watched parameter's own measure (watch_index < 0 or converged_se 0: off):
+  // stop after three accepted steps in a row that were near Gauss–Newton's (μ ≤ 1e-2), each
+  // predicted to lower χ² by at most 1, and each moving θ[watch_index] by at most converged_se
+  // of its standard error (σ̂² [(A + μD)⁻¹]_bb, from the step's own factorisation): the damping
+  // parameter, whose estimate is what the fit is for, has stopped moving while the others may
+  // still crawl along a flat valley (the shooting fit's rule, train/shooting.hpp).
+  Index watch_index = -1;
+  double converged_se = 0.0;
 };
 
 struct LmReport {

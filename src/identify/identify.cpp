@@ -543,7 +543,8 @@ void windows_on_every_window(CoreFit& f, const IdentifyConfig& config, const Ide
   CandidateFit fit(config, f.config, user_hooks, comm, f.split, 1.0);
   Candidate& best = f.cand[f.best];
   const long budget = fit.lm_budget(best, 15.0);
-  fit.lm(best, budget, "LM on longer windows (every window)");
+  fit.lm(best, budget, "LM on longer windows (every window)",
+         CandidateFit::LmEnd::kChi2OrGammaSettled);
   f.choices["then_every_window"] = {
       {"why",
        "the chosen core was fitted on thinned windows as a start, and the fit of the record that "

@@ -160,7 +160,7 @@ long CandidateFit::lm_budget(const Candidate& x, double target, long floor) cons
   return std::clamp<long>(std::lround(target / seconds), floor, 3000);
 }
 
-void CandidateFit::lm(Candidate& x, long budget, const std::string& label) {
+void CandidateFit::lm(Candidate& x, long budget, const std::string& label, LmEnd end) {
   if (stopped_ || stop_requested() || x.training.stop_reason == StopReason::kDiverged ||
       budget <= 0)
     return;
@@ -196,8 +196,10 @@ void CandidateFit::lm(Candidate& x, long budget, const std::string& label) {
   LmSettings ls;
   ls.max_iterations = budget;
   ls.chi2_tolerance = kLmChi2Tolerance;
-  ls.watch_index = map.damping_param_index().value_or(-1);
-  ls.converged_se = kDampingConvergedSe;
+  if (end == LmEnd::kChi2OrGammaSettled) {
+    ls.watch_index = map.damping_param_index().value_or(-1);
+    ls.converged_se = kDampingConvergedSe;
+  }
   Vector th = x.theta;
   LmReport rep = levenberg_marquardt(prob, th, ls, lm_hooks(monitor));
   x.theta = monitor.best();
@@ -233,7 +235,8 @@ long continue_winner(Candidate& best, CandidateFit& fit, std::size_t n_cand,
   if (more > 0) {
     const LmReport first = best.lm;
     const long first_best = best.lm_best_iteration;
-    fit.lm(best, more, "LM (continued, " + core_name(best.core) + ")");
+    fit.lm(best, more, "LM (continued, " + core_name(best.core) + ")",
+           CandidateFit::LmEnd::kChi2OrGammaSettled);
     best.lm_best_iteration =
         best.lm_best_iteration > 0 ? first.iterations + best.lm_best_iteration : first_best;
     best.lm.iterations += first.iterations;
@@ -360,7 +363,8 @@ WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split
           {"why",
            "a later fit of the record refits theta: the windows' fit is its start, on windows "
            "evenly spread over the record"}};
-    on.lm(best, stage_b, "LM on longer windows (noise dominates)");
+    on.lm(best, stage_b, "LM on longer windows (noise dominates)",
+          CandidateFit::LmEnd::kChi2OrGammaSettled);
     fit.note_stop();
   } else {
     choices["window_reason"] =

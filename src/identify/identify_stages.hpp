@@ -124,7 +124,13 @@ class CandidateFit {
   // than 6,000 parameters).
   long lm_budget(const Candidate& x, double target, long floor = 5) const;
   void adamw(Candidate& x, const std::string& label) const;
-  void lm(Candidate& x, long budget, const std::string& label);
+  // What ends an LM besides its budget and held-out patience: the χ² rule
+  // (kLmChi2Tolerance) always; once the core is chosen, also the damping rate's
+  // (kDampingConvergedSe). The fits that choose (the candidates', the library's selection and
+  // final fit) run without it: ended earlier, their held-out losses changed the core chosen on
+  // records with differenced momenta, and the coverage there fell (docs/benchmarks.md).
+  enum class LmEnd { kChi2, kChi2OrGammaSettled };
+  void lm(Candidate& x, long budget, const std::string& label, LmEnd end = LmEnd::kChi2);
   // One Gauss–Newton step on the training windows from x.theta, −(A + μD)⁻¹g with μ a ridge at
   // 1e-9 of the diagonal (grown only if A + μD cannot be factored); empty when stopped. It
   // measures how far a small change of the model moves the fit, where an LM run kept to the

@@ -492,16 +492,17 @@ class LibrarySelection {
   }
 
   // Backward elimination: the two groups whose terms are least significant (by their largest
-  // sandwich t-ratio), then every term below t = 2 at once, then the least significant of them
-  // alone, each dropped when the held-out loss stays within the threshold (or the rounding
-  // floor). A drop refused is not tried again until the held-out loss has moved by the
-  // threshold since: the drops made in between (terms at t below 2) leave the model as it was,
-  // and on a 20-mass chain the same two refused groups were refitted in each of 40 rounds (200
-  // of a fit's 580 CPU s). The joint drop spares a refit per term: a 10-mass chain from
-  // positions dropped 21 terms below t = 2 one at a time, 21 refits of about 0.4 CPU s each.
-  // A joint drop refused halves the number of terms the next one may take (the least
-  // significant first), so at most log2 of them are refused in one elimination; the single drop
-  // after it keeps the one-at-a-time path for terms only significant together.
+  // sandwich t-ratio), then the terms below t = 2 that are negligible together (their joint
+  // Wald test, jointly_negligible) at once, then the least significant of them alone, each dropped
+  // when the held-out loss stays within the threshold (or the rounding floor). A drop refused is
+  // not tried again until the held-out loss has moved by the threshold since: the drops made in
+  // between (terms at t below 2) leave the model as it was, and on a 20-mass chain the same two
+  // refused groups were refitted in each of 40 rounds (200 of a fit's 580 CPU s). The joint drop
+  // spares a refit per term: a 10-mass chain from positions dropped 20 terms below t = 2 one at a
+  // time, 20 refits of about 0.4 CPU s each. A joint drop refused halves the number of terms the
+  // next one may take (the least significant first), so at most log2 of them are refused in one
+  // elimination; the single drop after it keeps the one-at-a-time path for terms only significant
+  // together.
   void backward(Candidate& x) {
     nlohmann::json pruned = nlohmann::json::array();
     std::map<std::vector<Index>, double> refused_at;  // the held-out loss when it was refused
@@ -513,7 +514,7 @@ class LibrarySelection {
       NormalEquations ne;
       const std::vector<double> t_of = t_ratios(x, ne);
       if (t_of.empty()) break;
-      for (const auto& [t, terms, joint] : drops(t_of, joint_cap)) {
+      for (const auto& [t, terms, joint, wald] : drops(x, ne, t_of, joint_cap)) {
         if (fit_->stop_requested()) break;
         if (const auto was = refused_at.find(terms);
             was != refused_at.end() &&
@@ -532,6 +533,7 @@ class LibrarySelection {
         pruned.push_back({{"terms", name},
                           {"t_ratio", t},
                           {"joint", joint},
+                          {"joint_wald", joint ? nlohmann::json(wald) : nlohmann::json(nullptr)},
                           {"start", projected ? "projected" : "the fit without the terms"},
                           {"val_loss_before", x.val_loss},
                           {"val_loss_after", y.val_loss},
@@ -921,17 +923,63 @@ class LibrarySelection {
   }
 
   // A drop to try: its terms (pool indices), their largest t-ratio, whether it is the joint
-  // drop of terms below t = 2.
+  // drop of terms below t = 2 (and then their joint Wald statistic).
   struct Drop {
     double t = 0.0;
     std::vector<Index> terms;
     bool joint = false;
+    double wald = 0.0;
   };
 
+  // How many of `weak` (active pool terms, the least significant first) are negligible
+  // together, and their Wald statistic: the largest k ≥ 2 whose first k coefficients θ_S have
+  // θ_Sᵀ C_SS⁻¹ θ_S within χ²_k's 95% point (Wilson–Hilferty), C the sandwich covariance
+  // A⁻¹ (B/(B−1) Σ_b s̃_b s̃_bᵀ) A⁻¹ of x's fit (s̃ the block scores less their mean, A with a
+  // 1e-10 ridge); 0 when none is. Terms each below t = 2 can be needed together: on a
+  // pendulum's differenced momenta q, sin q, cos q and exp(−q) each had t ≈ 0, dropped together
+  // the held-out loss rose 5%, inside a short record's keep threshold, and the cosine was lost.
+  std::pair<std::size_t, double> jointly_negligible(const Candidate& x, const NormalEquations& ne,
+                                                    const std::vector<Index>& weak) const {
+    const HamiltonianLibraryMap& map = library_of(x);
+    const Index np = map.n_params(), b = ne.scores.cols();
+    if (weak.size() < 2 || ne.a.rows() != np || ne.scores.rows() != np || b < 2) return {0, 0.0};
+    std::vector<Index> at;  // θ's index of each weak term's coefficient
+    for (Index q : weak)
+      for (Index k = 0; k < static_cast<Index>(map.terms().size()); ++k)
+        if (map.terms()[static_cast<std::size_t>(k)] == pool_[static_cast<std::size_t>(q)])
+          at.push_back(map.coefficient_index(k));
+    if (at.size() != weak.size()) return {0, 0.0};
+    Matrix a = ne.a.selfadjointView<Eigen::Lower>();
+    a.diagonal() += 1e-10 * a.diagonal().cwiseAbs().cwiseMax(1e-300);
+    const dense::Ldlt f(a);
+    if (!f.ok()) return {0, 0.0};
+    const Index k = static_cast<Index>(at.size());
+    Matrix unit = Matrix::Zero(np, k);
+    Vector coef(k);
+    for (Index j = 0; j < k; ++j) {
+      unit(at[static_cast<std::size_t>(j)], j) = 1.0;
+      coef(j) = x.theta(at[static_cast<std::size_t>(j)]);
+    }
+    const Matrix centred = ne.scores.colwise() - ne.scores.rowwise().mean();
+    const Matrix m = centred.transpose() * f.solve(unit);  // B × k: each block's share of θ_S
+    const Matrix cov = (m.transpose() * m) * (static_cast<double>(b) / static_cast<double>(b - 1));
+    for (Index n = k; n >= 2; --n) {
+      const dense::Ldlt c(cov.topLeftCorner(n, n));
+      if (!c.ok()) continue;
+      const double wald = coef.head(n).dot(c.solve(Vector(coef.head(n))));
+      const double z = normal_quantile(0.95), v = 2.0 / (9.0 * static_cast<double>(n));
+      const double limit = static_cast<double>(n) * std::pow(1.0 - v + z * std::sqrt(v), 3);
+      if (std::isfinite(wald) && wald >= 0.0 && wald <= limit)
+        return {static_cast<std::size_t>(n), wald};
+    }
+    return {0, 0.0};
+  }
+
   // The drops to try: the two least significant groups, then the terms below t = 2 together
-  // (the least significant `joint_cap` of them, when more than one), then the least
-  // significant term below t = 2 alone.
-  std::vector<Drop> drops(const std::vector<double>& t_of, std::size_t joint_cap) const {
+  // (the least significant of them that are negligible together, at most `joint_cap`, when
+  // more than one), then the least significant term below t = 2 alone.
+  std::vector<Drop> drops(const Candidate& x, const NormalEquations& ne,
+                          const std::vector<double>& t_of, std::size_t joint_cap) const {
     std::vector<Drop> out;
     const std::size_t n_active = active_terms().size();
     for (const std::vector<Index>& g : term_groups(pool_)) {
@@ -942,7 +990,7 @@ class LibrarySelection {
           on.push_back(k);
           t = std::max(t, t_of[static_cast<std::size_t>(k)]);
         }
-      if (!on.empty() && on.size() < n_active) out.push_back({t, on, false});
+      if (!on.empty() && on.size() < n_active) out.push_back({t, on, false, 0.0});
     }
     std::stable_sort(out.begin(), out.end(),
                      [](const Drop& u, const Drop& v) { return u.t < v.t; });
@@ -954,14 +1002,17 @@ class LibrarySelection {
       return t_of[static_cast<std::size_t>(u)] < t_of[static_cast<std::size_t>(v)];
     });
     if (weak.empty()) return out;
-    const std::size_t together = std::min({weak.size(), joint_cap, n_active - 1});
+    std::vector<Index> candidates(
+        weak.begin(), weak.begin() + static_cast<std::ptrdiff_t>(
+                                         std::min({weak.size(), joint_cap, n_active - 1})));
+    const auto [together, wald] = jointly_negligible(x, ne, candidates);
     if (together >= 2) {
       std::vector<Index> terms(weak.begin(), weak.begin() + static_cast<std::ptrdiff_t>(together));
       const double t = t_of[static_cast<std::size_t>(terms.back())];
       std::sort(terms.begin(), terms.end());
-      out.push_back({t, std::move(terms), true});
+      out.push_back({t, std::move(terms), true, wald});
     }
-    out.push_back({t_of[static_cast<std::size_t>(weak.front())], {weak.front()}, false});
+    out.push_back({t_of[static_cast<std::size_t>(weak.front())], {weak.front()}, false, 0.0});
     return out;
   }
 

@@ -245,6 +245,23 @@ struct DampedCosine {
   }
 };
 
+// n samples over [0, 20] of a damped cosine at random parameters (returned in `truth`: a in
+// [1, 2], b in [0.05, 0.25], ω in [1, 3], φ in [−0.5, 0.5]) with Gaussian noise of 0.1–0.32.
+DampedCosine random_damped_cosine(Index n, Rng& rng, Vector& truth) {
+  DampedCosine data;
+  truth = (Vector(4) << 1.0 + rng.uniform(), 0.05 + 0.2 * rng.uniform(), 1.0 + 2.0 * rng.uniform(),
+           rng.uniform() - 0.5)
+              .finished();
+  const double noise = std::pow(10.0, -1.0 + 0.5 * rng.uniform());
+  data.t = Vector::LinSpaced(n, 0.0, 20.0);
+  data.y.resize(n);
+  for (Index i = 0; i < n; ++i)
+    data.y(i) =
+        truth(0) * std::exp(-truth(1) * data.t(i)) * std::cos(truth(2) * data.t(i) + truth(3)) +
+        noise * rng.normal();
+  return data;
+}
+
 // LmSettings::chi2_tolerance ends the solve once the Gauss–Newton steps left are worth less
 // than 1e-3 of χ²; the parameters are then within 0.05 of their standard errors of the fully
 // converged fit (0.032 is the local model's bound), at 20 random problems, in no more
@@ -255,18 +272,9 @@ TEST(LevenbergMarquardt, TheChiSquareRuleStopsWithinAFewHundredthsOfAStandardErr
   Rng rng(43, "chi2");
   long saved = 0;
   for (int draw = 0; draw < 20; ++draw) {
-    DampedCosine data;
     const Index n = 200;
-    const Vector truth = (Vector(4) << 1.0 + rng.uniform(), 0.05 + 0.2 * rng.uniform(),
-                          1.0 + 2.0 * rng.uniform(), rng.uniform() - 0.5)
-                             .finished();
-    const double noise = std::pow(10.0, -1.0 + 0.5 * rng.uniform());
-    data.t = Vector::LinSpaced(n, 0.0, 20.0);
-    data.y.resize(n);
-    for (Index i = 0; i < n; ++i)
-      data.y(i) =
-          truth(0) * std::exp(-truth(1) * data.t(i)) * std::cos(truth(2) * data.t(i) + truth(3)) +
-          noise * rng.normal();
+    Vector truth;
+    const DampedCosine data = random_damped_cosine(n, rng, truth);
     const LeastSquaresProblem p = data.problem();
     Vector start = truth;
     start(0) *= 1.3;
@@ -325,18 +333,9 @@ TEST(LevenbergMarquardt, TheWatchedParameterRuleStopsOnceItStopsMoving) {
   long saved = 0;
   int ended_on_rule = 0;
   for (int draw = 0; draw < 20; ++draw) {
-    DampedCosine data;
     const Index n = 200;
-    const Vector truth = (Vector(4) << 1.0 + rng.uniform(), 0.05 + 0.2 * rng.uniform(),
-                          1.0 + 2.0 * rng.uniform(), rng.uniform() - 0.5)
-                             .finished();
-    const double noise = std::pow(10.0, -1.0 + 0.5 * rng.uniform());
-    data.t = Vector::LinSpaced(n, 0.0, 20.0);
-    data.y.resize(n);
-    for (Index i = 0; i < n; ++i)
-      data.y(i) =
-          truth(0) * std::exp(-truth(1) * data.t(i)) * std::cos(truth(2) * data.t(i) + truth(3)) +
-          noise * rng.normal();
+    Vector truth;
+    const DampedCosine data = random_damped_cosine(n, rng, truth);
     const LeastSquaresProblem cosine = data.problem();
     LeastSquaresProblem p;
     p.n_residuals = n + 2;

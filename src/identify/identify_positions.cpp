@@ -299,8 +299,11 @@ PositionsFit refine_on_positions(const std::vector<Trajectory>& positions, CoreF
     // (replaces `best`, so `map` is not used below: the fitted map is read from `best` again).
     if (f.config.init == nullptr && !terms_given && !linked.report.stopped) {
       best.theta = theta;
+      const StageNamer stage = [&hooks](const char* part) {
+        if (hooks.stage) hooks.stage(std::string("hidden momenta: ") + part);
+      };
       if (judge_terms_on_chain(best, d, training_positions(split, d), nt, layout, linked, val, opt,
-                               states, given.dissipation == "auto", rec)) {
+                               states, given.dissipation == "auto", rec, stage)) {
         theta = best.theta;
         out.core = best.core;
       }

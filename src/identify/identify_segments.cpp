@@ -386,8 +386,13 @@ Matrix training_positions(const detail::BlockSplit& split, Index d) {
 bool judge_terms_on_chain(detail::Candidate& best, Index d, const Matrix& q_train,
                           const std::vector<Trajectory>& nt, const detail::RecordLayout& layout,
                           detail::LinkedFit& linked, Cut& val, const ShootingOptions& opt,
-                          std::vector<Matrix>& states, bool auto_dissipation, nlohmann::json& rec) {
+                          std::vector<Matrix>& states, bool auto_dissipation, nlohmann::json& rec,
+                          const StageNamer& stage) {
+  const auto begin = [&stage](const char* what) {
+    if (stage) stage(what);
+  };
   bool changed = false;
+  begin("a richer force law on the chain");
   for (int round = 0; round < kForceLawRounds && !linked.linked_fully; ++round) {
     nlohmann::json tried_here;
     const bool added = detail::richer_force_law_on_chain(best, d, q_train, nt, layout, linked,
@@ -398,12 +403,15 @@ bool judge_terms_on_chain(detail::Candidate& best, Index d, const Matrix& q_trai
     changed = true;
     rec["linking"] = linked.record;
   }
+  begin("polynomials against sin/cos and exp on the chain");
   changed |= detail::prefer_polynomials_on_chain(best, d, q_train, linked, val.segs, val.z0, opt,
                                                  states, rec);
+  begin("powers 3 and 4 pruned on the chain");
   changed |= detail::prune_library_terms(best, d, linked, val.segs, val.z0, opt, states, rec);
   // Friction and drag the velocity start missed, offered on the positions; those it chose,
   // confirmed there.
   if (auto_dissipation) {
+    begin("friction and drag on the chain");
     changed |=
         detail::add_dissipation_on_chain(best, d, linked, val.segs, val.z0, opt, states, rec);
     changed |=

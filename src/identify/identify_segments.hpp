@@ -4,6 +4,7 @@
 // library (src/identify).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -101,10 +102,13 @@ Matrix training_positions(const BlockSplit& split, Index d);
 // the linking stops (a few rounds, each linking further), the sin/cos or exp groups against
 // the powers of their arguments, the powers of degree 3 and 4, and (`auto_dissipation`) the
 // friction and drag. `best` (its θ the linked fit's), `linked`, `val.z0` and `states` follow.
+// `stage` (may be empty) is told as each of those four parts begins, by its name.
 // Returns whether the core changed.
+using StageNamer = std::function<void(const char* part)>;
 bool judge_terms_on_chain(Candidate& best, Index d, const Matrix& q_train,
                           const std::vector<Trajectory>& nt, const RecordLayout& layout,
                           LinkedFit& linked, Cut& val, const ShootingOptions& opt,
-                          std::vector<Matrix>& states, bool auto_dissipation, nlohmann::json& rec);
+                          std::vector<Matrix>& states, bool auto_dissipation, nlohmann::json& rec,
+                          const StageNamer& stage);
 
 }  // namespace csympnet::detail

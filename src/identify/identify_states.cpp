@@ -108,7 +108,7 @@ WholeRecordFit fit_whole_record(CoreFit& f, const IdentifyConfig& given,
   rec["segment_length"] = len;
   rec["segment_lengths_tried"] = tried;
   rec["samples_per_period"] = spp;
-  if (hooks.stage) hooks.stage("whole record: states observed, segments linked");
+  if (hooks.stage) hooks.stage("whole record: states observed, segments fitted");
   estimate_row_weights(*best.inner.map, best.theta, d, train, val, rec);
 
   ShootingOptions opt;
@@ -139,6 +139,7 @@ WholeRecordFit fit_whole_record(CoreFit& f, const IdentifyConfig& given,
   // Every sample's state: observed; the linking carries its own rollouts into it.
   std::vector<Matrix> states;
   for (const Trajectory& t : nt) states.push_back(t.z);
+  if (hooks.stage) hooks.stage("whole record: states observed, segments linked");
   LinkedFit linked = link_segments(*best.inner.map, theta, nt, layout, len, states, val.segs,
                                    val.z0, opt, seg.rep);
   rec["linking"] = linked.record;
@@ -146,8 +147,11 @@ WholeRecordFit fit_whole_record(CoreFit& f, const IdentifyConfig& given,
   if (f.config.init == nullptr && !terms_given && !linked.report.stopped) {
     best.theta = theta;
     Matrix q = training_positions(f.split, d);
+    const StageNamer stage = [&hooks](const char* part) {
+      if (hooks.stage) hooks.stage(std::string("whole record: ") + part);
+    };
     if (judge_terms_on_chain(best, d, q, nt, layout, linked, val, opt, states,
-                             given.dissipation == "auto", rec)) {
+                             given.dissipation == "auto", rec, stage)) {
       theta = best.theta;
       out.core = best.core;
     }

@@ -32,6 +32,7 @@
 // column.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "csympnet/core/error.hpp"
@@ -45,6 +46,8 @@ namespace csympnet::library_detail {
 // have been seen.
 struct TangentScratch {
   std::vector<double> q, p, g, wp, work, d1, d2, d1k, hv, gth, mass, coef, kappa, mu, curvature;
+  // Per wavenumber: the κu its sinusoid was last evaluated at (NaN: never), sin and cos there.
+  std::vector<double> sinusoid_at, sinusoid_sin, sinusoid_cos;
   // The tangent block row-major (2d rows of c): a row is one state component's sensitivity
   // to every column, so each stage's updates run along contiguous rows.
   std::vector<double> rows;
@@ -152,6 +155,12 @@ class TangentStep {
     fit_to(w_.gth, d_ * n_theta_);
     fit_to(w_.mass, d_ * d_);
     fit_to(w_.rows, 2 * d_ * c_);
+    const auto np = static_cast<std::size_t>(m_.n_params());
+    if (w_.sinusoid_at.size() < np) {
+      w_.sinusoid_at.resize(np, std::numeric_limits<double>::quiet_NaN());
+      w_.sinusoid_sin.resize(np);
+      w_.sinusoid_cos.resize(np);
+    }
   }
 
   // τ and a per stage weight, kept while (γ, h, order, substeps) stay.
@@ -222,7 +231,7 @@ class TangentStep {
       const LibraryTerm& term = m_.terms_[static_cast<std::size_t>(k)];
       const auto kk = static_cast<std::size_t>(k);
       const double arg = term.j < 0 ? q[term.i] : m_.wi_[kk] * q[term.i] - m_.wj_[kk] * q[term.j];
-      const TermValues tv = term_values(term, arg, w_.kappa[k]);
+      const TermValues tv = values_of(k, term, arg);
       w_.d1[k] = tv.d1;
       w_.d2[k] = tv.d2;
       w_.d1k[k] = tv.d1_kappa;
@@ -233,6 +242,23 @@ class TangentStep {
     if (driven_) m_.add_force(theta_, u_, sigma, g, w_.work.data());
     if (n_theta_ == 0) return;
     force_parameters(sigma);
+  }
+
+  // Term k's values at its argument; a sin and a cos of one argument share their wavenumber, so
+  // the pair's sin(κu) and cos(κu) are computed once (kept by wavenumber, with the κu they were
+  // computed at: a value kept from any earlier κu is recomputed).
+  TermValues values_of(Index k, const LibraryTerm& term, double arg) {
+    const double kappa = w_.kappa[k];
+    if (term.shape != TermShape::kSin && term.shape != TermShape::kCos)
+      return term_values(term, arg, kappa);
+    const auto at = static_cast<std::size_t>(m_.wavenumber_index(k));
+    const double x = kappa * arg;
+    if (!(w_.sinusoid_at[at] == x)) {
+      w_.sinusoid_at[at] = x;
+      w_.sinusoid_sin[at] = std::sin(x);
+      w_.sinusoid_cos[at] = std::cos(x);
+    }
+    return sinusoid_values(term.shape, arg, kappa, w_.sinusoid_sin[at], w_.sinusoid_cos[at]);
   }
 
   // ∂g/∂θ at the terms' current values: the coefficients' columns (φ_k'), the wavenumbers'
@@ -264,10 +290,13 @@ class TangentStep {
 
   // hv = H(q) t_q (d × c, row-major): per argument group, its curvature s = Σ c_k φ_k'' over the
   // group's terms in their order, then one pass along the columns (each entry sums the groups
-  // in their order).
+  // in their order). A stage's second kick and the next stage's first see the same q and t_q
+  // (kicks and flows move p and t_p only), so hv is computed once for both: kept until the
+  // drift moves q and t_q.
   void hessian_tangent() {
     const Index c = c_;
-    if (c == 0) return;
+    if (c == 0 || hv_current_) return;
+    hv_current_ = true;
     double* hv = w_.hv.data();
     std::fill(hv, hv + d_ * c, 0.0);
     const Index ng = static_cast<Index>(m_.groups_.size());
@@ -374,6 +403,7 @@ class TangentStep {
   // q ← q + τ W p: row r of t_q gains τ (W t_p)_r, each (W t_p)_r summed over W's row in
   // column order from 0 as mass_times() does; W's own columns gain τ ∂W/∂W_rc p.
   void drift(double tau) {
+    hv_current_ = false;
     const Index d = d_, c = c_;
     const double* mass = w_.mass.data();
     const double* p = w_.p.data();
@@ -449,6 +479,7 @@ class TangentStep {
   double beta_ = 0.0;
   bool beta_col_ = false;
   bool any_fused_ = false;
+  bool hv_current_ = false;  // w_.hv is H(q) t_q at the current q and t_q
 };
 
 }  // namespace csympnet::library_detail

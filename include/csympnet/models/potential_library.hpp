@@ -16,6 +16,7 @@
 // derivatives in term_values(); the map and the selection take any term through these.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -56,7 +57,54 @@ struct TermValues {
   double d1_kappa = 0.0;
   double phi_kappa = 0.0;  // ∂φ/∂κ
 };
-TermValues term_values(const LibraryTerm& t, double u, double kappa);
+
+// A sin (`shape` kSin) or cos term's values from s = sin(κu) and c = cos(κu): a sin and a cos
+// of one argument share their wavenumber, so a caller that evaluates both needs one sin and one
+// cos (the values are term_values()'s to the bit).
+inline TermValues sinusoid_values(TermShape shape, double u, double kappa, double s, double c) {
+  TermValues v;
+  if (shape == TermShape::kSin) {
+    v.phi = s;
+    v.d1 = kappa * c;
+    v.d2 = -kappa * kappa * s;
+    v.d1_kappa = c - kappa * u * s;
+    v.phi_kappa = u * c;
+  } else {
+    v.phi = c;
+    v.d1 = -kappa * s;
+    v.d2 = -kappa * kappa * c;
+    v.d1_kappa = -s - kappa * u * c;
+    v.phi_kappa = -u * s;
+  }
+  return v;
+}
+
+// Inline: a library map evaluates it once per term at every stage of every step.
+inline TermValues term_values(const LibraryTerm& t, double u, double kappa) {
+  switch (t.shape) {
+    case TermShape::kPower: {
+      const double u2 = u * u;
+      switch (t.power) {
+        case 1:
+          return {u, 1.0, 0.0, 0.0, 0.0};
+        case 2:
+          return {u2, 2.0 * u, 2.0, 0.0, 0.0};
+        case 3:
+          return {u2 * u, 3.0 * u2, 6.0 * u, 0.0, 0.0};
+        default:
+          return {u2 * u2, 4.0 * u2 * u, 12.0 * u2, 0.0, 0.0};
+      }
+    }
+    case TermShape::kSin:
+    case TermShape::kCos:
+      return sinusoid_values(t.shape, u, kappa, std::sin(kappa * u), std::cos(kappa * u));
+    case TermShape::kExp: {
+      const double e = std::exp(kappa * u);
+      return {e, kappa * e, kappa * kappa * e, e * (1.0 + kappa * u), u * e};
+    }
+  }
+  return {};
+}
 
 // The argument u of term t at positions q (d values).
 inline double term_argument(const LibraryTerm& t, const double* q) {

@@ -514,7 +514,7 @@ class LibrarySelection {
       NormalEquations ne;
       const std::vector<double> t_of = t_ratios(x, ne);
       if (t_of.empty()) break;
-      for (const auto& [t, terms, joint, wald] : drops(x, ne, t_of, joint_cap)) {
+      for (const auto& [t, terms, joint, wald, blocks] : drops(x, ne, t_of, joint_cap)) {
         if (fit_->stop_requested()) break;
         if (const auto was = refused_at.find(terms);
             was != refused_at.end() &&
@@ -534,6 +534,7 @@ class LibrarySelection {
                           {"t_ratio", t},
                           {"joint", joint},
                           {"joint_wald", joint ? nlohmann::json(wald) : nlohmann::json(nullptr)},
+                          {"joint_blocks", joint ? nlohmann::json(blocks) : nlohmann::json(nullptr)},
                           {"start", projected ? "projected" : "the fit without the terms"},
                           {"val_loss_before", x.val_loss},
                           {"val_loss_after", y.val_loss},
@@ -923,56 +924,34 @@ class LibrarySelection {
   }
 
   // A drop to try: its terms (pool indices), their largest t-ratio, whether it is the joint
-  // drop of terms below t = 2 (and then their joint Wald statistic).
+  // drop of terms below t = 2 (and then their joint Wald statistic, and the blocks its
+  // covariance was estimated from).
   struct Drop {
     double t = 0.0;
     std::vector<Index> terms;
     bool joint = false;
     double wald = 0.0;
+    Index blocks = 0;
   };
 
   // How many of `weak` (active pool terms, the least significant first) are negligible
-  // together, and their Wald statistic: the largest k ≥ 2 whose first k coefficients θ_S have
-  // θ_Sᵀ C_SS⁻¹ θ_S within χ²_k's 95% point (Wilson–Hilferty), C the sandwich covariance
-  // A⁻¹ (B/(B−1) Σ_b s̃_b s̃_bᵀ) A⁻¹ of x's fit (s̃ the block scores less their mean, A with a
-  // 1e-10 ridge); 0 when none is. Terms each below t = 2 can be needed together: on a
-  // pendulum's differenced momenta q, sin q, cos q and exp(−q) each had t ≈ 0, dropped together
-  // the held-out loss rose 5%, inside a short record's keep threshold, and the cosine was lost.
-  std::pair<std::size_t, double> jointly_negligible(const Candidate& x, const NormalEquations& ne,
-                                                    const std::vector<Index>& weak) const {
+  // together, and their joint Wald statistic (negligible_together at x's fit: the sandwich
+  // covariance, Hotelling's 95% point for the blocks of ne.scores); 0 when none is. Terms each below t = 2 can be needed together:
+  // on a pendulum's differenced momenta q, sin q, cos q and exp(−q) each had t ≈ 0, dropped
+  // together the held-out loss rose 5%, inside a short record's keep threshold, and the cosine
+  // was lost.
+  JointWald jointly_negligible(const Candidate& x, const NormalEquations& ne,
+                               const std::vector<Index>& weak) const {
     const HamiltonianLibraryMap& map = library_of(x);
-    const Index np = map.n_params(), b = ne.scores.cols();
-    if (weak.size() < 2 || ne.a.rows() != np || ne.scores.rows() != np || b < 2) return {0, 0.0};
+    const Index np = map.n_params();
+    if (weak.size() < 2 || ne.a.rows() != np || ne.scores.rows() != np) return {};
     std::vector<Index> at;  // θ's index of each weak term's coefficient
     for (Index q : weak)
       for (Index k = 0; k < static_cast<Index>(map.terms().size()); ++k)
         if (map.terms()[static_cast<std::size_t>(k)] == pool_[static_cast<std::size_t>(q)])
           at.push_back(map.coefficient_index(k));
-    if (at.size() != weak.size()) return {0, 0.0};
-    Matrix a = ne.a.selfadjointView<Eigen::Lower>();
-    a.diagonal() += 1e-10 * a.diagonal().cwiseAbs().cwiseMax(1e-300);
-    const dense::Ldlt f(a);
-    if (!f.ok()) return {0, 0.0};
-    const Index k = static_cast<Index>(at.size());
-    Matrix unit = Matrix::Zero(np, k);
-    Vector coef(k);
-    for (Index j = 0; j < k; ++j) {
-      unit(at[static_cast<std::size_t>(j)], j) = 1.0;
-      coef(j) = x.theta(at[static_cast<std::size_t>(j)]);
-    }
-    const Matrix centred = ne.scores.colwise() - ne.scores.rowwise().mean();
-    const Matrix m = centred.transpose() * f.solve(unit);  // B × k: each block's share of θ_S
-    const Matrix cov = (m.transpose() * m) * (static_cast<double>(b) / static_cast<double>(b - 1));
-    for (Index n = k; n >= 2; --n) {
-      const dense::Ldlt c(cov.topLeftCorner(n, n));
-      if (!c.ok()) continue;
-      const double wald = coef.head(n).dot(c.solve(Vector(coef.head(n))));
-      const double z = normal_quantile(0.95), v = 2.0 / (9.0 * static_cast<double>(n));
-      const double limit = static_cast<double>(n) * std::pow(1.0 - v + z * std::sqrt(v), 3);
-      if (std::isfinite(wald) && wald >= 0.0 && wald <= limit)
-        return {static_cast<std::size_t>(n), wald};
-    }
-    return {0, 0.0};
+    if (at.size() != weak.size()) return {};
+    return negligible_together(ne.a, ne.scores, x.theta, at);
   }
 
   // The drops to try: the two least significant groups, then the terms below t = 2 together
@@ -1005,14 +984,14 @@ class LibrarySelection {
     std::vector<Index> candidates(
         weak.begin(), weak.begin() + static_cast<std::ptrdiff_t>(
                                          std::min({weak.size(), joint_cap, n_active - 1})));
-    const auto [together, wald] = jointly_negligible(x, ne, candidates);
-    if (together >= 2) {
-      std::vector<Index> terms(weak.begin(), weak.begin() + static_cast<std::ptrdiff_t>(together));
+    const JointWald together = jointly_negligible(x, ne, candidates);
+    if (together.count >= 2) {
+      std::vector<Index> terms(weak.begin(), weak.begin() + together.count);
       const double t = t_of[static_cast<std::size_t>(terms.back())];
       std::sort(terms.begin(), terms.end());
-      out.push_back({t, std::move(terms), true, wald});
+      out.push_back({t, std::move(terms), true, together.statistic, ne.scores.cols()});
     }
-    out.push_back({t_of[static_cast<std::size_t>(weak.front())], {weak.front()}, false, 0.0});
+    out.push_back({t_of[static_cast<std::size_t>(weak.front())], {weak.front()}, false, 0.0, 0});
     return out;
   }
 

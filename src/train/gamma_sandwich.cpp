@@ -7,6 +7,7 @@
 #include <mutex>
 #include <utility>
 
+#include "csympnet/core/dense.hpp"
 #include "csympnet/core/error.hpp"
 #include "lapack.hpp"
 
@@ -69,6 +70,39 @@ double t_cdf_positive(double x, double dof) {
   return 0.5 + s * step / 3.0;
 }
 
+// The regularised incomplete beta function I_x(a, b) (a, b > 0) by its continued fraction
+// (modified Lentz), evaluated on the side of the symmetry I_x(a, b) = 1 − I_{1−x}(b, a) where
+// the fraction converges fast.
+double incomplete_beta(double x, double a, double b) {
+  if (!(x > 0.0)) return 0.0;
+  if (!(x < 1.0)) return 1.0;
+  if (x > (a + 1.0) / (a + b + 2.0)) return 1.0 - incomplete_beta(1.0 - x, b, a);
+  constexpr double tiny = 1e-300;
+  const auto guard = [](double v) { return std::abs(v) < tiny ? tiny : v; };
+  double c = 1.0, e = 1.0 / guard(1.0 - (a + b) * x / (a + 1.0)), h = e;
+  for (int m = 1; m <= 500; ++m) {
+    const double m2 = 2.0 * m;
+    const double even = m * (b - m) * x / ((a + m2 - 1.0) * (a + m2));
+    e = 1.0 / guard(1.0 + even * e);
+    c = guard(1.0 + even / c);
+    h *= e * c;
+    const double odd = -(a + m) * (a + b + m) * x / ((a + m2) * (a + m2 + 1.0));
+    e = 1.0 / guard(1.0 + odd * e);
+    c = guard(1.0 + odd / c);
+    const double change = e * c;
+    h *= change;
+    if (std::abs(change - 1.0) < 1e-15) break;
+  }
+  const double log_front =
+      a * std::log(x) + b * std::log1p(-x) + std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b);
+  return std::exp(log_front) * h / a;
+}
+
+// Fisher's F CDF with (d1, d2) degrees of freedom at f ≥ 0.
+double f_cdf(double f, double d1, double d2) {
+  return incomplete_beta(d1 * f / (d1 * f + d2), 0.5 * d1, 0.5 * d2);
+}
+
 template <class Cdf>
 double bisect_quantile(double p, Cdf cdf) {
   double lo = 0.0, hi = 1.0;
@@ -129,6 +163,56 @@ double student_t_quantile(double p, double dof) {
   if (known.size() >= 4096) known.clear();
   known.emplace(key, q);
   return q;
+}
+
+double f_quantile(double p, double d1, double d2) {
+  require(p > 0.0 && p < 1.0, "f_quantile: p must be in (0, 1)");
+  require(d1 > 0.0 && d2 > 0.0, "f_quantile: need positive degrees of freedom");
+  double hi = 1.0;
+  while (f_cdf(hi, d1, d2) < p && hi < 1e300) hi *= 2.0;
+  double lo = hi > 1.0 ? 0.5 * hi : 0.0;
+  for (int i = 0; i < 200 && hi - lo > 1e-13 * hi; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (f_cdf(mid, d1, d2) < p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+double hotelling_limit(double p, Index k, Index blocks) {
+  require(k >= 1 && blocks > k, "hotelling_limit: need 1 <= k < blocks");
+  const double kd = static_cast<double>(k), b = static_cast<double>(blocks);
+  return kd * (b - 1.0) / (b - kd) * f_quantile(p, kd, b - kd);
+}
+
+JointWald negligible_together(const Matrix& a, const Matrix& scores, const Vector& theta,
+                              const std::vector<Index>& at, double level) {
+  const Index np = theta.size(), b = scores.cols(), k = static_cast<Index>(at.size());
+  require(a.rows() == np && a.cols() == np && scores.rows() == np,
+          "negligible_together: A must be P x P and the scores P x B, P = theta's size");
+  require(std::all_of(at.begin(), at.end(), [np](Index j) { return j >= 0 && j < np; }),
+          "negligible_together: a parameter index is out of range");
+  if (k < 2 || b < 3) return {};
+  Matrix lower = a.selfadjointView<Eigen::Lower>();
+  lower.diagonal() += 1e-10 * lower.diagonal().cwiseAbs().cwiseMax(1e-300);
+  const dense::Ldlt f(lower);
+  if (!f.ok()) return {};
+  Matrix unit = Matrix::Zero(np, k);
+  Vector coef(k);
+  for (Index j = 0; j < k; ++j) {
+    unit(at[static_cast<std::size_t>(j)], j) = 1.0;
+    coef(j) = theta(at[static_cast<std::size_t>(j)]);
+  }
+  const Matrix centred = scores.colwise() - scores.rowwise().mean();
+  const Matrix m = centred.transpose() * f.solve(unit);  // B × k: each block's share of θ_S
+  const Matrix cov = (m.transpose() * m) * (static_cast<double>(b) / static_cast<double>(b - 1));
+  for (Index n = std::min(k, b - 1); n >= 2; --n) {
+    const dense::Ldlt c(cov.topLeftCorner(n, n));
+    if (!c.ok()) continue;
+    const double wald = coef.head(n).dot(c.solve(Vector(coef.head(n))));
+    if (std::isfinite(wald) && wald >= 0.0 && wald <= hotelling_limit(level, n, b))
+      return {n, wald};
+  }
+  return {};
 }
 
 SandwichInterval sandwich_interval_of(const Matrix& a, const Vector& g, const Matrix& scores,

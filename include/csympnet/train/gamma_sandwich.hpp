@@ -88,5 +88,28 @@ void add_integrator(SandwichInterval& s, double change);
 // Quantiles: the standard normal's and Student's t with dof degrees of freedom (dof ≥ 1).
 double normal_quantile(double p);
 double student_t_quantile(double p, double dof);
+// Fisher's F with (d1, d2) degrees of freedom (both > 0), by bisection on its CDF (the
+// regularised incomplete beta function).
+double f_quantile(double p, double d1, double d2);
+// Hotelling's T² point for k parameters whose covariance is estimated from `blocks` (> k)
+// independent blocks: k(B − 1)/(B − k) · F_p(k, B − k). For k = 1 it is the square of the
+// two-sided t_{B−1} point at the same level, the interval's quantile.
+double hotelling_limit(double p, Index k, Index blocks);
+
+// The joint Wald test that parameters are zero together, with the interval's cluster-robust
+// covariance C = A⁻¹ (B/(B−1) Σ_b s̃_b s̃_bᵀ) A⁻¹ (s̃_b the block scores less their mean; A with a
+// 1e-10 ridge on its diagonal, as a core's A may be singular). `at`: parameters, the most
+// negligible first. `count`: the largest n ≥ 2 (and below B) whose first n values θ_S have
+// θ_Sᵀ C_SS⁻¹ θ_S within Hotelling's T² `level` point for B blocks (hotelling_limit: C is
+// estimated from B blocks, and χ²_n's point would refuse truly negligible terms too often),
+// and `statistic` its value; 0 when no such n (or A does not factor, or fewer than three
+// blocks). Parameters each with a small t-ratio can be needed together, as two nearly
+// collinear regressors whose sum the data fix.
+struct JointWald {
+  Index count = 0;
+  double statistic = 0.0;
+};
+JointWald negligible_together(const Matrix& a, const Matrix& scores, const Vector& theta,
+                              const std::vector<Index>& at, double level = 0.95);
 
 }  // namespace csympnet

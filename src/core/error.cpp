@@ -28,6 +28,12 @@ std::string round_trip_text(double v) {
   return std::string(buf, r.ptr);
 }
 
+std::string comma_separated(const std::vector<std::string>& items) {
+  std::string out;
+  for (std::size_t i = 0; i < items.size(); ++i) out += (i == 0 ? "" : ", ") + items[i];
+  return out;
+}
+
 std::string number_text(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);

@@ -9,12 +9,6 @@
 namespace csympnet {
 
 namespace {
-std::string join(const std::vector<std::string>& v) {
-  std::string s;
-  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
-  return s;
-}
-
 // Epoch budgets and rates of the default recipe, measured in docs/training.md.
 constexpr long kS1Epochs = 50000;
 constexpr long kS2Epochs = 50000;
@@ -82,7 +76,8 @@ Preset preset_by_name(const std::string& name) {
     p.baseline_train = improved_recipe(big ? kLargeBaselineEpochs : kBaselineEpochs);
     if (!big) p.train.adamw.lr = kS3LearningRate;
   } else {
-    throw Error("unknown preset '" + name + "'; expected one of: " + join(preset_names()));
+    throw Error("unknown preset '" + name +
+                "'; expected one of: " + comma_separated(preset_names()));
   }
   return p;
 }
@@ -123,8 +118,9 @@ int baseline_width(int d) {
 
 nlohmann::json model_spec_for(const Preset& p, const std::string& model) {
   const auto types = model_types();
-  require(std::find(types.begin(), types.end(), model) != types.end(),
-          [&] { return "unknown model '" + model + "'; expected one of: " + join(types); });
+  require(std::find(types.begin(), types.end(), model) != types.end(), [&] {
+    return "unknown model '" + model + "'; expected one of: " + comma_separated(types);
+  });
   if (model == "csympnet" || model == "sympnet")
     return {{"type", model}, {"d", p.system.d}, {"core", p.core}};
   return {{"type", model}, {"d", p.system.d}, {"width", baseline_width(p.system.d)}};

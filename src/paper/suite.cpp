@@ -23,12 +23,6 @@ using nlohmann::json;
 constexpr std::int64_t kMaxSuiteNTrain = 10000000;
 constexpr double kMaxSuiteRuns = 10000.0;
 
-std::string join_names(const std::vector<std::string>& items) {
-  std::string out;
-  for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
-  return out;
-}
-
 void reject_unknown_keys(const json& doc, const std::string& where,
                          const std::vector<std::string>& allowed) {
   for (const auto& item : doc.items()) {
@@ -36,7 +30,7 @@ void reject_unknown_keys(const json& doc, const std::string& where,
     for (const auto& a : allowed) known = known || a == item.key();
     require(known, [&] {
       return where + ": unknown key '" + item.key() + "'; expected only the keys " +
-             join_names(allowed);
+             comma_separated(allowed);
     });
   }
 }
@@ -56,7 +50,8 @@ void reject_repeats(const std::vector<T>& items, const std::string& where, const
 std::vector<std::string> string_list(const json& doc, const char* key, const std::string& where,
                                      const std::vector<std::string>& valid) {
   require(doc.contains(key), [&] {
-    return where + ": missing key '" + key + "' (expected a list of: " + join_names(valid) + ")";
+    return where + ": missing key '" + key + "' (expected a list of: " + comma_separated(valid) +
+           ")";
   });
   const json& v = doc.at(key);
   require(v.is_array() && !v.empty(), [&] {
@@ -66,13 +61,14 @@ std::vector<std::string> string_list(const json& doc, const char* key, const std
   for (const auto& item : v) {
     require(item.is_string(), [&] {
       return where + ": key '" + key + "' holds " + item.dump() +
-             ", expected strings (one of: " + join_names(valid) + ")";
+             ", expected strings (one of: " + comma_separated(valid) + ")";
     });
     const auto s = item.get<std::string>();
     bool ok = false;
     for (const auto& name : valid) ok = ok || name == s;
     require(ok, [&] {
-      return where + ": key '" + key + "' holds '" + s + "', expected one of: " + join_names(valid);
+      return where + ": key '" + key + "' holds '" + s +
+             "', expected one of: " + comma_separated(valid);
     });
     out.push_back(s);
   }

@@ -62,5 +62,13 @@ TEST(Require, PairChecksStillNameTheBadPair) {
   }
 }
 
+// A message's list: ", " between items, nothing around them.
+TEST(Messages, CommaSeparatedLists) {
+  EXPECT_EQ(comma_separated({}), "");
+  EXPECT_EQ(comma_separated({"s1"}), "s1");
+  EXPECT_EQ(comma_separated({"s1", "s2", "large"}), "s1, s2, large");
+  EXPECT_EQ(comma_separated({"", "a"}), ", a");
+}
+
 }  // namespace
 }  // namespace csympnet

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 namespace csympnet {
 
@@ -39,6 +40,9 @@ inline void require(bool ok, MakeMessage&& make_message) {
 // `text` with every byte outside printable ASCII shown as \xNN, for quoting input (a parser's
 // "last read" of a binary file) in a message that must stay plain text.
 std::string printable(const std::string& text);
+
+// The items of a message's list ("expected one of: a, b, c"), separated by ", ".
+std::string comma_separated(const std::vector<std::string>& items);
 
 // A number for a message: six significant digits ("1e+300", "0.1", "2.5e-07").
 std::string number_text(double v);

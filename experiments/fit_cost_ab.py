@@ -99,8 +99,8 @@ def main():
             print(f"[round {r + 1}] {i}: before {times['before'][i][-1]:.2f} s, "
                   f"after {times['after'][i][-1]:.2f} s", flush=True)
     best = {b: {i: min(times[b][i]) for i in ids} for b in builds}
-    print(f"\n{len(ids)} records (d <= {args.max_d}, every {args.every}th of {len(chosen)} by "
-          f"CPU s), {args.rounds} rounds, the fastest of each:")
+    print(f"\n{len(ids)} records (of the {len(chosen)} with d <= {args.max_d} sorted by CPU s, "
+          f"one in {args.every} from the fastest), {args.rounds} rounds, the fastest of each:")
     for b in builds:
         v = list(best[b].values())
         print(f"  {b}: {builds[b]}: CPU s summed {sum(v):.2f}, median {statistics.median(v):.3f}")

@@ -530,15 +530,16 @@ class LibrarySelection {
         const std::string name = names(terms);
         train_lm(y, kRoundIterations, "library: without " + name);
         const bool drop = no_worse(x.val_loss, y.val_loss);
-        pruned.push_back({{"terms", name},
-                          {"t_ratio", t},
-                          {"joint", joint},
-                          {"joint_wald", joint ? nlohmann::json(wald) : nlohmann::json(nullptr)},
-                          {"joint_blocks", joint ? nlohmann::json(blocks) : nlohmann::json(nullptr)},
-                          {"start", projected ? "projected" : "the fit without the terms"},
-                          {"val_loss_before", x.val_loss},
-                          {"val_loss_after", y.val_loss},
-                          {"dropped", drop}});
+        pruned.push_back(
+            {{"terms", name},
+             {"t_ratio", t},
+             {"joint", joint},
+             {"joint_wald", joint ? nlohmann::json(wald) : nlohmann::json(nullptr)},
+             {"joint_blocks", joint ? nlohmann::json(blocks) : nlohmann::json(nullptr)},
+             {"start", projected ? "projected" : "the fit without the terms"},
+             {"val_loss_before", x.val_loss},
+             {"val_loss_after", y.val_loss},
+             {"dropped", drop}});
         if (!drop) {
           std::swap(active_, trial);
           refused_at[terms] = x.val_loss;
@@ -936,10 +937,10 @@ class LibrarySelection {
 
   // How many of `weak` (active pool terms, the least significant first) are negligible
   // together, and their joint Wald statistic (negligible_together at x's fit: the sandwich
-  // covariance, Hotelling's 95% point for the blocks of ne.scores); 0 when none is. Terms each below t = 2 can be needed together:
-  // on a pendulum's differenced momenta q, sin q, cos q and exp(−q) each had t ≈ 0, dropped
-  // together the held-out loss rose 5%, inside a short record's keep threshold, and the cosine
-  // was lost.
+  // covariance, Hotelling's 95% point for the blocks of ne.scores); 0 when none is. Terms each
+  // below t = 2 can be needed together: on a pendulum's differenced momenta q, sin q, cos q and
+  // exp(−q) each had t ≈ 0, dropped together the held-out loss rose 5%, inside a short record's
+  // keep threshold, and the cosine was lost.
   JointWald jointly_negligible(const Candidate& x, const NormalEquations& ne,
                                const std::vector<Index>& weak) const {
     const HamiltonianLibraryMap& map = library_of(x);

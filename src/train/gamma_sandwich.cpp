@@ -178,6 +178,13 @@ double f_quantile(double p, double d1, double d2) {
   return 0.5 * (lo + hi);
 }
 
+double chi_square_quantile(double p, double n) {
+  require(p > 0.0 && p < 1.0, "chi_square_quantile: p must be in (0, 1)");
+  require(n > 0.0, "chi_square_quantile: need a positive number of degrees of freedom");
+  const double z = normal_quantile(p), v = 2.0 / (9.0 * n);
+  return n * std::pow(1.0 - v + z * std::sqrt(v), 3);
+}
+
 double hotelling_limit(double p, Index k, Index blocks) {
   require(k >= 1 && blocks > k, "hotelling_limit: need 1 <= k < blocks");
   const double kd = static_cast<double>(k), b = static_cast<double>(blocks);
@@ -185,7 +192,7 @@ double hotelling_limit(double p, Index k, Index blocks) {
 }
 
 JointWald negligible_together(const Matrix& a, const Matrix& scores, const Vector& theta,
-                              const std::vector<Index>& at, double level) {
+                              const std::vector<Index>& at, double level, WaldReference reference) {
   const Index np = theta.size(), b = scores.cols(), k = static_cast<Index>(at.size());
   require(a.rows() == np && a.cols() == np && scores.rows() == np,
           "negligible_together: A must be P x P and the scores P x B, P = theta's size");
@@ -209,8 +216,10 @@ JointWald negligible_together(const Matrix& a, const Matrix& scores, const Vecto
     const dense::Ldlt c(cov.topLeftCorner(n, n));
     if (!c.ok()) continue;
     const double wald = coef.head(n).dot(c.solve(Vector(coef.head(n))));
-    if (std::isfinite(wald) && wald >= 0.0 && wald <= hotelling_limit(level, n, b))
-      return {n, wald};
+    const double limit = reference == WaldReference::kHotelling
+                             ? hotelling_limit(level, n, b)
+                             : chi_square_quantile(level, static_cast<double>(n));
+    if (std::isfinite(wald) && wald >= 0.0 && wald <= limit) return {n, wald};
   }
   return {};
 }

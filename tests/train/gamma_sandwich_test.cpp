@@ -252,6 +252,14 @@ namespace {
 
 // F quantiles against the tables' 95% points; with one numerator degree of freedom, the square
 // of t's two-sided point; Hotelling's limit from them.
+// Wilson–Hilferty's χ² quantile against the tables' 95% points.
+TEST(Quantiles, ChiSquareMatchesTables) {
+  const double table[][2] = {{2, 5.991465}, {3, 7.814728}, {5, 11.070498}, {10, 18.307038}};
+  for (const auto& row : table)
+    EXPECT_NEAR(chi_square_quantile(0.95, row[0]) / row[1], 1.0, 1e-2) << row[0];
+  EXPECT_THROW(chi_square_quantile(0.95, 0.0), Error);
+}
+
 TEST(Quantiles, FMatchesTables) {
   struct Row {
     double d1, d2, q95;
@@ -357,7 +365,7 @@ TEST(JointWald, NegligibleTermsGoTogetherAtTheLevel) {
   Rng rng(11, "joint-wald-null");
   const Index blocks = 40, per = 10;
   const int trials = 400;
-  int together = 0, pair = 0;
+  int together = 0, pair = 0, together_chi2 = 0;
   for (int trial = 0; trial < trials; ++trial) {
     const Matrix x = block_regressors(rng, blocks, per, 4, 0.3);
     const Vector y = (0.5 + x.col(1).array()).matrix() + block_noise(rng, blocks, per);
@@ -367,14 +375,22 @@ TEST(JointWald, NegligibleTermsGoTogetherAtTheLevel) {
     if (all.count == 3) {
       EXPECT_LE(all.statistic, hotelling_limit(0.95, 3, blocks));
     }
+    const JointWald strict =
+        negligible_together(r.a, r.scores, r.theta, {2, 3, 4}, 0.95, WaldReference::kChiSquare);
+    together_chi2 += strict.count == 3;
+    if (strict.count == 3) {
+      EXPECT_EQ(all.count, 3) << "draw " << trial;  // χ² is stricter
+    }
     const JointWald with_real = negligible_together(r.a, r.scores, r.theta, {3, 4, 1});
     EXPECT_LE(with_real.count, 2) << "draw " << trial << ": the real regressor was dropped";
     pair += with_real.count == 2;
   }
   const double rate = static_cast<double>(together) / trials;
   const double pair_rate = static_cast<double>(pair) / trials;
-  std::cout << "  three null terms negligible together in " << rate << ", two in " << pair_rate
-            << " of " << trials << " draws\n";
+  const double rate_chi2 = static_cast<double>(together_chi2) / trials;
+  std::cout << "  three null terms negligible together in " << rate << " (against chi2's point "
+            << rate_chi2 << "), two in " << pair_rate << " of " << trials << " draws\n";
+  EXPECT_LT(rate_chi2, rate);
   // 400 draws at 0.95: one sd 0.011; accept [0.91, 0.985], as for the interval's coverage.
   EXPECT_GE(rate, 0.91);
   EXPECT_LE(rate, 0.985);

@@ -96,20 +96,29 @@ double f_quantile(double p, double d1, double d2);
 // two-sided t_{B−1} point at the same level, the interval's quantile.
 double hotelling_limit(double p, Index k, Index blocks);
 
+// χ² with n degrees of freedom (n > 0), by Wilson–Hilferty's cube-root normal approximation:
+// at the 95% point within 1% of the tables for n ≥ 2.
+double chi_square_quantile(double p, double n);
+
+// The reference a joint Wald statistic is compared with: Hotelling's point for a covariance
+// estimated from B blocks (the test at its level), or χ²_k's, as if it were known (stricter:
+// with 40 blocks it refused truly negligible sets about three times as often as its level).
+enum class WaldReference { kHotelling, kChiSquare };
+
 // The joint Wald test that parameters are zero together, with the interval's cluster-robust
 // covariance C = A⁻¹ (B/(B−1) Σ_b s̃_b s̃_bᵀ) A⁻¹ (s̃_b the block scores less their mean; A with a
 // 1e-10 ridge on its diagonal, as a core's A may be singular). `at`: parameters, the most
 // negligible first. `count`: the largest n ≥ 2 (and below B) whose first n values θ_S have
-// θ_Sᵀ C_SS⁻¹ θ_S within Hotelling's T² `level` point for B blocks (hotelling_limit: C is
-// estimated from B blocks, and χ²_n's point would refuse truly negligible terms too often),
-// and `statistic` its value; 0 when no such n (or A does not factor, or fewer than three
-// blocks). Parameters each with a small t-ratio can be needed together, as two nearly
-// collinear regressors whose sum the data fix.
+// θ_Sᵀ C_SS⁻¹ θ_S within the `reference` distribution's `level` point (Hotelling's T² for B
+// blocks, hotelling_limit, or χ²_n's), and `statistic` its value; 0 when no such n (or A does not
+// factor, or fewer than three blocks). Parameters each with a small t-ratio can be needed together,
+// as two nearly collinear regressors whose sum the data fix.
 struct JointWald {
   Index count = 0;
   double statistic = 0.0;
 };
 JointWald negligible_together(const Matrix& a, const Matrix& scores, const Vector& theta,
-                              const std::vector<Index>& at, double level = 0.95);
+                              const std::vector<Index>& at, double level = 0.95,
+                              WaldReference reference = WaldReference::kHotelling);
 
 }  // namespace csympnet

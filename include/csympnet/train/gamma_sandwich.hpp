@@ -102,7 +102,8 @@ double chi_square_quantile(double p, double n);
 
 // The reference a joint Wald statistic is compared with: Hotelling's point for a covariance
 // estimated from B blocks (the test at its level), or χ²_k's, as if it were known (stricter:
-// with 40 blocks it refused truly negligible sets about three times as often as its level).
+// over 40 simulated blocks it refused truly negligible sets two to three times as often as its
+// level, tests/train/gamma_sandwich_test.cpp).
 enum class WaldReference { kHotelling, kChiSquare };
 
 // The joint Wald test that parameters are zero together, with the interval's cluster-robust

@@ -336,9 +336,15 @@ WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split
   }
   const OneStepMap& map = *best.inner.map;
   const WindowSet& train = split.train;
-  const double rho = lag_one_correlation(window_residuals(map, best.theta, train, balanced), train);
+  const Vector res = window_residuals(map, best.theta, train, balanced);
+  const double rho = lag_one_correlation(res, train);
   choices["one_step_residual_lag1_correlation"] = rho;
-  if (rho < 0.0) {
+  const double rel = res.norm() / std::max((train.zm - train.z0).norm(), 1e-300);
+  if (rel <= kCleanRelativeResidual) {
+    choices["window_reason"] = "one-step residuals at " + significant(rel, 3) +
+                               " of the steps (clean data explained): longer windows would "
+                               "change nothing the data can show; one-step windows";
+  } else if (rho < 0.0) {
     split.set_window(split.m_long);
     choices["window_reason"] =
         "one-step residuals correlate negatively along trajectories "

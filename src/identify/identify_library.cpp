@@ -773,13 +773,20 @@ class LibrarySelection {
   }
 
   // Twice the substeps until the integrator's error is below what the data can see, then LM
-  // (which lowers the residuals, so the check is made again).
+  // (which lowers the residuals, so the check is made again). Once the residuals are at the
+  // rounding floor the data can see nothing finer: the doubling ends there (a finer
+  // integrator's move of γ̂ still enters the interval, finish()).
   void refine_integrator(Candidate& c, const std::string& when) {
     for (int pass = 0; pass < 4 && !fit_->stop_requested(); ++pass) {
       bool changed = false;
-      while (library_of(c).substeps() < kMaxSubsteps &&
-             !integrator_fine_enough(c, split_->train, fit_->loss(c, split_->train), d_, beta_init_,
-                                     scales_)) {
+      while (library_of(c).substeps() < kMaxSubsteps) {
+        if (fit_->loss(c, split_->val) <= floor_) {  // the floor is the held-out loss's
+          rec_["integrator_at_floor"] = {{"when", when}, {"substeps", library_of(c).substeps()}};
+          break;
+        }
+        if (integrator_fine_enough(c, split_->train, fit_->loss(c, split_->train), d_, beta_init_,
+                                   scales_))
+          break;
         c = make(library_of(c).terms(), 2 * library_of(c).substeps(), &c);
         changed = true;
       }
@@ -1097,7 +1104,7 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
   const Vector res = window_residuals(*x.inner.map, x.theta, val, balanced);
   const double rel = res.norm() / std::max((val.zm - val.z0).norm(), 1e-300);
   const double rho = lag_one_correlation(res, val);
-  if (rel <= 1e-7) {
+  if (rel <= kCleanRelativeResidual) {
     why = "the library core predicts the held-out windows to a relative residual of " +
           significant(rel, 3) + " (clean data explained): the neural cores were not trained";
     return true;

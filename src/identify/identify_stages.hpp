@@ -222,6 +222,10 @@ void dissipation_start(Candidate& y, std::size_t first, const WindowSet& train);
 ModelCheck amplitude_of(const Candidate& x, const BlockSplit& split,
                         const std::function<bool()>& should_stop);
 
+// A held-out relative one-step residual (‖residuals‖ / ‖steps‖) at or below this is clean data
+// explained: noise of that size biases nothing the data can see (its bias in θ is of its square).
+inline constexpr double kCleanRelativeResidual = 1e-7;
+
 // Whether the candidate explains the held-out windows to the noise floor (white one-step
 // residuals, or a clean fit), with the sentence saying which.
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why);

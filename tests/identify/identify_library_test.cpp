@@ -110,6 +110,38 @@ TEST(LibraryCore, CleanDuffingGivesGammaAndItsTermsToTheDataPrecision) {
     EXPECT_TRUE(covers(t, 0.0) || std::abs(c0) < 1e-6) << "spurious term " << t.dump();
   }
   EXPECT_NEAR(h["inverse_mass"][0][0].get<double>(), 1.0, 1e-6);
+  // The integrator's substeps doubled until the held-out loss reached the rounding floor and no
+  // further: every refit before the last was above it, the last at it.
+  const nlohmann::json& lib = r.choices["library"];
+  const double floor = lib["rounding_floor"].get<double>();
+  ASSERT_TRUE(lib.contains("integrator_at_floor")) << lib.dump();
+  ASSERT_TRUE(lib.contains("integrator_steps")) << lib.dump();
+  const nlohmann::json& steps = lib["integrator_steps"];
+  ASSERT_GE(steps.size(), 1u);
+  for (std::size_t k = 0; k + 1 < steps.size(); ++k)
+    EXPECT_GT(steps[k]["val_loss"].get<double>(), floor) << steps.dump();
+  EXPECT_LE(lib["val_loss"].get<double>(), floor) << lib.dump();
+  EXPECT_EQ(lib["substeps"], lib["integrator_at_floor"]["substeps"]);
+  // Clean data explained: the one-step windows are kept.
+  EXPECT_EQ(r.config.window, 1);
+  EXPECT_EQ(r.choices["window_reason"].get<std::string>().rfind("one-step residuals at ", 0), 0u)
+      << r.choices["window_reason"];
+}
+
+// The clean-data rule of the windows is that of a residual at 1e-7 of the steps: the same
+// Duffing record with 1e-4 noise still has its one-step residuals correlate negatively, and
+// its windows grow.
+TEST(LibraryCore, NoisyRecordsStillGetLongerWindows) {
+  std::vector<Vector> starts;
+  for (double q0 : {1.2, 1.5, 0.9, 1.7}) starts.push_back((Vector(2) << q0, 0.1).finished());
+  const auto data =
+      rk4_records([](double q) { return q - q * q * q; }, 0.05, starts, 120, 0.15, 1e-4, 1);
+  const IdentifyResult r = identify(data, false, IdentifyConfig{});
+  EXPECT_EQ(r.config.core["type"], "library");
+  EXPECT_GT(r.config.window, 1) << r.choices["window_reason"];
+  EXPECT_NE(r.choices["window_reason"].get<std::string>().find("noise dominates"),
+            std::string::npos)
+      << r.choices["window_reason"];
 }
 
 // A pendulum θ'' = −ω² sin θ − γθ' recorded in degrees about an offset of 30°, time in

@@ -318,6 +318,10 @@ double lag_one_correlation(const Vector& res, const WindowSet& w) {
   return den > 0.0 ? num / den : 0.0;
 }
 
+double relative_residual(const Vector& res, const WindowSet& w) {
+  return res.norm() / std::max((w.zm - w.z0).norm(), 1e-300);
+}
+
 // Along a trajectory, one-step residuals of pure measurement noise, D e_k − e_{k+1}, correlate
 // at about −1/2 with their successors; a misfit is smooth in the state and correlates
 // positively. So a negative lag-one correlation says noise dominates, and windows of m_long
@@ -339,7 +343,7 @@ WindowChoice adapt_windows(Candidate& best, CandidateFit& fit, BlockSplit& split
   const Vector res = window_residuals(map, best.theta, train, balanced);
   const double rho = lag_one_correlation(res, train);
   choices["one_step_residual_lag1_correlation"] = rho;
-  const double rel = res.norm() / std::max((train.zm - train.z0).norm(), 1e-300);
+  const double rel = relative_residual(res, train);
   if (rel <= kCleanRelativeResidual) {
     choices["window_reason"] = "one-step residuals at " + significant(rel, 3) +
                                " of the steps (clean data explained): longer windows would "

@@ -1102,7 +1102,7 @@ LibraryFit fit_library(CandidateFit& fit, const nlohmann::json& given_core, Inde
 bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, std::string& why) {
   const WindowSet& val = split.val;
   const Vector res = window_residuals(*x.inner.map, x.theta, val, balanced);
-  const double rel = res.norm() / std::max((val.zm - val.z0).norm(), 1e-300);
+  const double rel = relative_residual(res, val);
   const double rho = lag_one_correlation(res, val);
   if (rel <= kCleanRelativeResidual) {
     why = "the library core predicts the held-out windows to a relative residual of " +

@@ -222,8 +222,8 @@ void dissipation_start(Candidate& y, std::size_t first, const WindowSet& train);
 ModelCheck amplitude_of(const Candidate& x, const BlockSplit& split,
                         const std::function<bool()>& should_stop);
 
-// A held-out relative one-step residual (‖residuals‖ / ‖steps‖) at or below this is clean data
-// explained: noise of that size biases nothing the data can see (its bias in θ is of its square).
+// A relative one-step residual (relative_residual) at or below this is clean data explained:
+// noise of that size biases nothing the data can see (its bias in θ is of its square).
 inline constexpr double kCleanRelativeResidual = 1e-7;
 
 // Whether the candidate explains the held-out windows to the noise floor (white one-step
@@ -233,6 +233,9 @@ bool at_noise_floor(const Candidate& x, const BlockSplit& split, bool balanced, 
 // The correlation of consecutive windows' residuals (res: window_residuals of w) within a
 // block: about −1/2 for one-step residuals of pure measurement noise, positive for a misfit.
 double lag_one_correlation(const Vector& res, const WindowSet& w);
+// ‖res‖ / ‖steps‖ (res: window_residuals of w): the residuals' size against the windows' own
+// moves, in any units.
+double relative_residual(const Vector& res, const WindowSet& w);
 
 // The library's selection (start, additions, drops, dissipation) sees at most this many
 // training and this many held-out windows, evenly spread over the record; the final fit sees
